@@ -1,0 +1,33 @@
+VENV ?= .venv
+PY := $(VENV)/bin/python
+PIP := $(VENV)/bin/pip
+PMDCID := $(VENV)/bin/pmdcid
+STAMP := $(VENV)/.installed
+
+.PHONY: install test lint bench demo fixtures clean
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PIP) install --quiet --upgrade pip
+	$(PIP) install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+test: $(STAMP)
+	$(PY) -m pytest -n 2
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check pmdcid tests bench
+
+bench: $(STAMP)
+	$(PY) bench/run.py
+
+demo: $(STAMP)
+	$(PMDCID) demo -o demo-output
+
+fixtures: $(STAMP)
+	$(PY) -m pmdcid.synth fixtures
+
+clean:
+	rm -rf $(VENV) demo-output .pytest_cache

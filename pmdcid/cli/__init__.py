@@ -1,0 +1,68 @@
+"""Command-line edge: parse, call one library function, write. Errors -> one line, exit 1.
+
+Each command lives in its own module of this package and registers itself on :data:`main`.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+
+import click
+
+from pmdcid import __version__
+
+
+class _Group(click.Group):
+    """Turns the library's exception family into one line on stderr and exit status 1."""
+
+    def invoke(self, ctx):
+        from pmdcid.errors import PmdcidError, PmdcidWarning
+
+        def _show(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, PmdcidWarning):
+                click.echo(f"warning: {message}", err=True)
+            elif os.environ.get("PMDCID_DEBUG"):
+                click.echo(f"warning: {category.__name__}: {message}", err=True)
+
+        warnings.showwarning = _show
+        warnings.simplefilter("always", PmdcidWarning)
+        try:
+            return super().invoke(ctx)
+        except PmdcidError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(1)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except KeyboardInterrupt:
+            click.echo("error: interrupted", err=True)
+            sys.exit(130)
+        except MemoryError:
+            click.echo("error: out of memory: the log is too large for this machine", err=True)
+            sys.exit(1)
+        except Exception as exc:  # never a traceback at the edge; PMDCID_DEBUG=1 shows it
+            if os.environ.get("PMDCID_DEBUG"):
+                raise
+            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            click.echo(f"error: internal error {type(exc).__name__}: {msg} "
+                       "(please report it; PMDCID_DEBUG=1 shows the traceback)", err=True)
+            sys.exit(1)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="pmdcid")
+def main():
+    """Identify a non-linear PMDC motor model (dead zone, stick-slip friction) from logs."""
+
+
+def _register() -> None:
+    import importlib
+
+    for mod in COMMAND_MODULES:
+        importlib.import_module(f"pmdcid.cli.{mod}")
+
+
+#: command modules, each registering its command(s) on ``main`` at import
+COMMAND_MODULES = ["cmd_simulate"]
+_register()

@@ -1,0 +1,32 @@
+"""``pmdcid simulate INPUT -m MODEL -o OUT.csv``."""
+
+from __future__ import annotations
+
+import click
+
+from pmdcid.cli import main
+from pmdcid.cli.options import log_options, model_option
+
+
+@main.command("simulate")
+@click.argument("input_log", metavar="INPUT", type=click.Path(dir_okay=False))
+@model_option()
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), metavar="OUT.csv")
+@click.option("--noise-i", type=float, default=0.0, show_default=True, help="Current noise std [A].")
+@click.option("--noise-omega", type=float, default=0.0, show_default=True,
+              help="Speed noise std [rad/s].")
+@click.option("--encoder", type=int, default=0, show_default=True,
+              help="Quantise the angle to this many counts per revolution (0: off).")
+@click.option("--seed", type=int, default=None, help="Seed of the noise generator.")
+@click.option("--blocked", is_flag=True, help="Rotor blocked (blocked-rotor test): omega = 0.")
+@click.option("--force", is_flag=True, help="Overwrite OUT.csv if it exists.")
+@log_options
+def simulate_cmd(input_log, model_path, output, noise_i, noise_omega, encoder, seed, blocked,
+                 force, mapping):
+    """Predict what the sensors read for INPUT's t and v (or tau), starting from rest."""
+    from pmdcid.synth import NoiseSpec, simulate_file
+
+    path = simulate_file(input_log, model_path, output, mapping=mapping,
+                         noise=NoiseSpec(noise_i, noise_omega, encoder), seed=seed,
+                         blocked=blocked, force=force)
+    click.echo(f"wrote {path}")

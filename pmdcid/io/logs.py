@@ -1,0 +1,314 @@
+"""CSV logs: reading (with comments, metadata and column mappings), validating and writing.
+
+A log is comma-separated text with one header row. ``#`` lines before the header are comments;
+``# key: value`` comments are metadata. Canonical columns are SI: ``t`` [s], ``v`` [V],
+``tau`` [N m or N], ``i`` [A], ``omega`` [rad/s or m/s], ``theta`` [rad or m].
+"""
+
+from __future__ import annotations
+
+import io as _io
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pmdcid.errors import LogError, warn
+from pmdcid.io.mapping import ColumnMap
+
+CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
+UNITS = {"t": "s", "v": "V", "tau": "N m", "i": "A", "omega": "rad/s", "theta": "rad"}
+
+#: largest relative deviation of one sample period from the median still taken as uniform
+JITTER_TOL = 0.02
+#: NaN cells are interpolated (with a warning) up to this fraction of a column ...
+NAN_MAX_FRACTION = 0.01
+#: ... and this many consecutive samples
+NAN_MAX_RUN = 10
+
+
+@dataclass
+class Log:
+    """A validated, uniformly sampled log in canonical SI columns.
+
+    Attributes: ``path`` (for messages), ``t`` [s] starting where the file starts, ``dt`` [s] the
+    sample period, ``data`` canonical column name -> float array, ``meta`` the ``# key: value``
+    comments, ``extra`` the non-canonical numeric columns (unmapped), kept for reference.
+    """
+
+    path: str
+    t: np.ndarray
+    data: dict[str, np.ndarray]
+    meta: dict[str, str] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def dt(self) -> float:
+        """Sample period [s]."""
+        return float((self.t[-1] - self.t[0]) / (len(self.t) - 1))
+
+    @property
+    def n(self) -> int:
+        return len(self.t)
+
+    @property
+    def duration(self) -> float:
+        """Length of the log [s]."""
+        return float(self.t[-1] - self.t[0])
+
+    def has(self, col: str) -> bool:
+        return col in self.data
+
+    def __getitem__(self, col: str) -> np.ndarray:
+        return self.data[col]
+
+    @property
+    def drive(self) -> str:
+        """The input column: ``'v'`` (voltage-driven) or ``'tau'`` (torque-driven)."""
+        if "v" in self.data:
+            return "v"
+        if "tau" in self.data:
+            return "tau"
+        raise LogError("has no input column: it needs 'v' [V] or 'tau' [N m]", self.path)
+
+    @property
+    def u(self) -> np.ndarray:
+        """The input signal (voltage [V] or torque [N m]), zero-order held between samples."""
+        return self.data[self.drive]
+
+    def require(self, *cols: str, purpose: str = "") -> None:
+        """Raise a one-line :class:`LogError` naming what is missing and how to map it."""
+        missing = [c for c in cols if c not in self.data]
+        if missing:
+            have = ", ".join(list(self.data) + list(self.extra)) or "none"
+            why = f" for {purpose}" if purpose else ""
+            raise LogError(
+                f"needs column(s) {', '.join(missing)}{why}; it has {have} "
+                f"(map one with e.g. -c {missing[0]}=SOURCE*SCALE)",
+                self.path,
+            )
+
+    @property
+    def kind(self) -> str | None:
+        return self.meta.get("kind")
+
+
+def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
+    """Metadata from leading ``#`` lines and the number of such lines."""
+    meta: dict[str, str] = {}
+    n = 0
+    for line in text.splitlines():
+        s = line.strip()
+        if s.startswith("#"):
+            body = s.lstrip("#").strip()
+            if ":" in body:
+                k, v = body.split(":", 1)
+                if k.strip():
+                    meta[k.strip()] = v.strip()
+            n += 1
+        elif s == "" and n >= 0:
+            n += 1
+        else:
+            break
+    return meta, n
+
+
+def _fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
+    bad = ~np.isfinite(x)
+    if not bad.any():
+        return x
+    if np.isinf(x).any():
+        row = int(np.flatnonzero(np.isinf(x))[0])
+        raise LogError(f"column '{name}' holds an infinite value (data row {row + 1})", path)
+    nbad = int(bad.sum())
+    frac = nbad / len(x)
+    # longest run of NaN
+    edges = np.diff(np.concatenate(([0], bad.view(np.int8), [0])))
+    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+    first = int(np.flatnonzero(bad)[0])
+    if frac > NAN_MAX_FRACTION or runs.max() > NAN_MAX_RUN or bad.all():
+        raise LogError(
+            f"column '{name}' has {nbad} missing/NaN values (first at data row {first + 1}, "
+            f"longest gap {int(runs.max())} samples): too many to fill; clean or cut the log",
+            path,
+        )
+    good = np.flatnonzero(~bad)
+    x = x.copy()
+    x[bad] = np.interp(np.flatnonzero(bad), good, x[good])
+    warn(f"column '{name}': filled {nbad} NaN value(s) by linear interpolation", path)
+    return x
+
+
+def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
+    """Read and validate one CSV log. Raises :class:`LogError` with one clear line."""
+    import pandas as pd
+
+    p = str(path)
+    if not os.path.exists(p):
+        raise LogError("no such log file", p)
+    if os.path.isdir(p):
+        raise LogError("is a folder, not a log file", p)
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError as exc:
+        raise LogError(f"cannot read log ({exc.strerror})", p) from None
+    if b"\x00" in head:
+        raise LogError("is not a text CSV file (binary content)", p)
+    try:
+        head_text = head.decode("utf-8", errors="replace")
+    except Exception:  # pragma: no cover - decode with replace does not fail
+        head_text = ""
+    meta, nskip = _split_comments(head_text, p)
+    try:
+        df = pd.read_csv(p, skiprows=nskip, skipinitialspace=True, low_memory=False,
+                         encoding_errors="replace")
+    except pd.errors.EmptyDataError:
+        raise LogError("is empty: expected a header row and data", p) from None
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise LogError(f"is not a readable CSV ({msg})", p) from None
+    cols = [str(c).strip() for c in df.columns]
+    # pandas renames duplicates to 'x.1'; check the raw header instead
+    raw_header = next((ln for ln in head_text.splitlines()[nskip:] if ln.strip()), "")
+    raw_names = [c.strip().strip('"') for c in raw_header.split(",")]
+    dups = sorted({c for c in raw_names if raw_names.count(c) > 1 and c})
+    if dups:
+        raise LogError(f"header names column(s) {', '.join(dups)} more than once", p)
+    df.columns = cols
+    if len(df) == 0:
+        raise LogError("has a header but no data rows", p)
+    mapping = mapping or ColumnMap()
+    # which source column feeds each canonical column
+    sources: dict[str, tuple[str, float, float]] = {}
+    for c in CANONICAL:
+        if c in cols:
+            sources[c] = (c, 1.0, 0.0)
+    for canon, spec in mapping.specs.items():
+        if spec.source not in cols:
+            raise LogError(
+                f"column mapping {canon}={spec.source}: no column '{spec.source}' "
+                f"(columns are {', '.join(cols)})",
+                p,
+            )
+        sources[canon] = (spec.source, spec.scale, spec.offset)
+    if "t" not in sources:
+        raise LogError(
+            f"has no time column 't' (columns are {', '.join(cols)}; map one with -c t=SOURCE)", p
+        )
+    used_sources = {s for s, _, _ in sources.values()}
+    data: dict[str, np.ndarray] = {}
+    for canon, (src, scale, offset) in sources.items():
+        col = pd.to_numeric(df[src], errors="coerce").to_numpy(dtype=float)
+        raw = df[src]
+        if raw.dtype == object:
+            notnum = np.isnan(col) & raw.notna().to_numpy() & (
+                raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
+            ).to_numpy()
+            if notnum.any():
+                row = int(np.flatnonzero(notnum)[0])
+                raise LogError(
+                    f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
+                    f"(data row {row + 1})",
+                    p,
+                )
+        data[canon] = col * scale + offset
+    extra = {}
+    for c in cols:
+        if c not in used_sources:
+            x = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
+            if np.isfinite(x).any():
+                extra[c] = x
+    t = data.pop("t")
+    if not np.isfinite(t).all():
+        row = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise LogError(f"time column has a missing or non-finite value (data row {row + 1})", p)
+    if len(t) < 3:
+        raise LogError(f"has only {len(t)} data row(s): too short to use", p)
+    dtv = np.diff(t)
+    if (dtv <= 0).any():
+        row = int(np.flatnonzero(dtv <= 0)[0])
+        what = "stands still" if dtv[row] == 0 else "goes back"
+        raise LogError(
+            f"time {what} at data row {row + 2} (t={t[row + 1]:g} s): time must increase", p
+        )
+    med = float(np.median(dtv))
+    dev = float(np.max(np.abs(dtv - med)) / med)
+    if dev > JITTER_TOL:
+        raise LogError(
+            f"irregular sampling: the sample period varies from {dtv.min():.3g} to "
+            f"{dtv.max():.3g} s ({100 * dev:.0f} % jitter); resample to a uniform grid first",
+            p,
+        )
+    t = t[0] + med * np.arange(len(t))
+    for canon in list(data):
+        data[canon] = _fill_nans(canon, data[canon], p)
+    for c in list(extra):
+        if not np.isfinite(extra[c]).all():
+            extra.pop(c)
+    return Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra)
+
+
+def read_logs(paths, mapping: ColumnMap | None = None) -> list[Log]:
+    """Read several logs with the same mapping."""
+    if not paths:
+        raise LogError("no log files given")
+    return [read_log(p, mapping) for p in paths]
+
+
+def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None,
+               precision: int = 9) -> str:
+    """CSV text with ``# key: value`` comments, header ``t,...`` and ``%.{precision}g`` values."""
+    buf = _io.StringIO()
+    for k, v in (meta or {}).items():
+        buf.write(f"# {k}: {v}\n")
+    names = ["t", *columns]
+    buf.write(",".join(names) + "\n")
+    arr = np.column_stack([t, *columns.values()])
+    np.savetxt(buf, arr, delimiter=",", fmt=f"%.{precision}g")
+    return buf.getvalue()
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` atomically: a temporary file in the same folder, then rename."""
+    p = Path(path)
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.exists():
+        raise LogError("output folder does not exist", str(folder))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if p.exists():
+            os.chmod(tmp, p.stat().st_mode & 0o777)
+        else:
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, p)
+    except OSError as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise LogError(f"cannot write ({exc.strerror})", str(p)) from None
+
+
+def write_log(path, t, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None) -> None:
+    """Write a canonical log atomically."""
+    atomic_write_text(path, format_csv(np.asarray(t), columns, meta))
+
+
+def is_finite_number(x) -> bool:
+    try:
+        return math.isfinite(float(x))
+    except (TypeError, ValueError):
+        return False

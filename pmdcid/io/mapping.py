@@ -1,0 +1,154 @@
+"""Column mappings: rename, scale and offset any column of a log into canonical SI columns.
+
+Syntax of one mapping (command line ``-c/--column``, or one line of a mapping file)::
+
+    CANON=SOURCE[*FACTOR...][/DIVISOR...][+OFFSET|-OFFSET]
+
+``value_SI = raw * factors / divisors + offset``. Factors may be numbers, ``pi`` or unit names
+(``rpm``, ``deg``, ``rev``, ``ms``, ``us``, ``mA``, ``mV``, ``mNm``, ``mm``, ``krpm``) that
+stand for the factor converting that unit to SI. Examples::
+
+    omega=speed_rpm*rpm            # rpm -> rad/s
+    theta=encoder*2*pi/4096        # encoder counts (4096 per revolution) -> rad
+    v=pwm_counts*12/1023           # 10-bit PWM on a 12 V supply -> V
+    omega=tacho_V*150*rpm          # tachometer at 1 V per 150 rpm -> rad/s
+    t=time_ms*ms                   # milliseconds -> s
+    i=current_mA*mA-0.002          # mA -> A, minus a 2 mA sensor offset
+    theta=angle                    # plain rename
+
+A mapping file holds one mapping per line (``#`` starts a comment), or a JSON object
+``{"omega": "speed_rpm*rpm", ...}``. Command-line mappings override the file's.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pmdcid.errors import LogError
+
+UNITS: dict[str, float] = {
+    "pi": math.pi,
+    "rpm": 2 * math.pi / 60.0,
+    "krpm": 2000 * math.pi / 60.0,
+    "rps": 2 * math.pi,
+    "rev": 2 * math.pi,
+    "deg": math.pi / 180.0,
+    "ms": 1e-3,
+    "us": 1e-6,
+    "mA": 1e-3,
+    "mV": 1e-3,
+    "mNm": 1e-3,
+    "mm": 1e-3,
+}
+
+_MAP_RE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(.+?)\s*$")
+
+
+@dataclass(frozen=True)
+class ColumnSpec:
+    """One canonical column taken from a source column: ``canon = source * scale + offset``."""
+
+    canon: str
+    source: str
+    scale: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass
+class ColumnMap:
+    """A set of column specs keyed by canonical name."""
+
+    specs: dict[str, ColumnSpec] = field(default_factory=dict)
+
+    def merged(self, other: ColumnMap) -> ColumnMap:
+        """Return a map where ``other``'s specs override this one's."""
+        return ColumnMap({**self.specs, **other.specs})
+
+    def __bool__(self) -> bool:
+        return bool(self.specs)
+
+
+def _number(token: str, text: str) -> float:
+    token = token.strip()
+    if token in UNITS:
+        return UNITS[token]
+    try:
+        value = float(token)
+    except ValueError:
+        known = ", ".join(sorted(UNITS))
+        raise LogError(
+            f"column mapping '{text}': '{token}' is neither a number nor a unit ({known})"
+        ) from None
+    if not math.isfinite(value):
+        raise LogError(f"column mapping '{text}': '{token}' is not a finite number")
+    return value
+
+
+def parse_spec(text: str) -> ColumnSpec:
+    """Parse one mapping ``CANON=SOURCE*FACTOR/DIVISOR+OFFSET`` (see module docstring)."""
+    from pmdcid.io.logs import CANONICAL
+
+    m = _MAP_RE.match(text)
+    if not m:
+        raise LogError(f"column mapping '{text}' is not of the form CANON=SOURCE[*SCALE][+OFFSET]")
+    canon, expr = m.group(1), m.group(2)
+    if canon not in CANONICAL:
+        raise LogError(
+            f"column mapping '{text}': '{canon}' is not a canonical column "
+            f"({', '.join(CANONICAL)})"
+        )
+    # offset: a trailing +number or -number (not part of an exponent)
+    offset = 0.0
+    om = re.search(r"(?<![eE*/])([+-])\s*([0-9.][0-9.eE+-]*|pi)\s*$", expr)
+    if om and om.start() > 0:
+        offset = _number(om.group(2), text) * (1.0 if om.group(1) == "+" else -1.0)
+        expr = expr[: om.start()].strip()
+    tokens = re.split(r"([*/])", expr)
+    source = tokens[0].strip().strip('"')
+    if not source:
+        raise LogError(f"column mapping '{text}' names no source column")
+    scale = 1.0
+    for op, tok in zip(tokens[1::2], tokens[2::2]):
+        val = _number(tok, text)
+        if op == "*":
+            scale *= val
+        else:
+            if val == 0:
+                raise LogError(f"column mapping '{text}' divides by zero")
+            scale /= val
+    return ColumnSpec(canon, source, scale, offset)
+
+
+def parse_mapping(items: list[str] | tuple[str, ...] = (), path: str | Path | None = None) -> ColumnMap:
+    """Build a :class:`ColumnMap` from a mapping file (optional) and command-line items."""
+    specs: dict[str, ColumnSpec] = {}
+    if path is not None:
+        p = Path(path)
+        try:
+            text = p.read_text()
+        except OSError as exc:
+            raise LogError(f"cannot read column-mapping file ({exc.strerror})", p) from None
+        lines: list[str]
+        if text.lstrip().startswith("{"):
+            try:
+                obj = json.loads(text)
+            except json.JSONDecodeError as exc:
+                raise LogError(f"mapping file is not valid JSON ({exc.msg})", p) from None
+            lines = [f"{k}={v}" for k, v in obj.items()]
+        else:
+            lines = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
+        for ln in lines:
+            if ln:
+                try:
+                    spec = parse_spec(ln)
+                except LogError as exc:
+                    raise LogError(str(exc), p) from None
+                specs[spec.canon] = spec
+    for item in items:
+        spec = parse_spec(item)
+        specs[spec.canon] = spec
+    return ColumnMap(specs)

@@ -1,0 +1,144 @@
+"""The effect catalogue: named, composable physical effects the paper's model lacks.
+
+Each :class:`Effect` declares its parameters (name, unit, neutral value, bounds), where it acts
+(``electrical``, ``mechanical`` or ``sensor``), the base parameters it interacts with (refitted
+together when diagnose adds it), and a docstring with its physics and its residual signature.
+The simulation kernel evaluates every effect's term from the flat parameter vector; an effect that
+is not listed in a model's ``effects`` has its parameters held at their neutral values, so it is
+exactly off.
+
+Adding an effect: add its :class:`Effect` entry below and its term in
+:mod:`pmdcid.simulate.terms` (electrical or mechanical), or in
+:func:`pmdcid.simulate.sensors.apply_sensors` for a sensor effect. See docs/effects.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+from pmdcid.errors import ModelError
+from pmdcid.model.params import ParamSpec
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One catalogue effect."""
+
+    name: str
+    doc: str
+    params: tuple[ParamSpec, ...]
+    acts_on: str  # "electrical" | "mechanical" | "sensor" | "input"
+    interacts: tuple[str, ...] = ()
+    #: optional hooks filled in by the diagnose stage: residual signature and starting guess
+    hooks: dict[str, Callable] = field(default_factory=dict, compare=False, hash=False)
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+
+EFFECTS: dict[str, Effect] = {}
+
+
+def register(effect: Effect) -> Effect:
+    """Add an effect to the catalogue (names are unique)."""
+    if effect.name in EFFECTS:
+        raise ValueError(f"effect {effect.name!r} registered twice")
+    EFFECTS[effect.name] = effect
+    return effect
+
+
+def get_effect(name: str) -> Effect:
+    try:
+        return EFFECTS[name]
+    except KeyError:
+        raise ModelError(f"unknown effect '{name}' (known: {', '.join(EFFECTS)})") from None
+
+
+def effect_param_specs() -> dict[str, ParamSpec]:
+    """Every effect parameter by name."""
+    return {p.name: p for e in EFFECTS.values() for p in e.params}
+
+
+register(Effect(
+    "back_emf",
+    "Counter-EMF: the armature equation gains -ke*omega, L di/dt = v - R i - ke omega. "
+    "In SI units ke = km. Signature: under load the current falls as the speed rises; "
+    "steady-state speed saturates below v*km/(R*bv); current residual correlates with -omega.",
+    (ParamSpec("ke", "V s/rad", "back-EMF constant", 0.0, 0.0, 1e3),),
+    "electrical",
+    ("bv", "J"),
+))
+register(Effect(
+    "stribeck",
+    "Static friction above the Coulomb level that falls off with speed: friction gains "
+    "fs*exp(-(omega/ws)^2)*sign(omega); breakaway torque bc + fs. Signature: late breakaway and "
+    "a speed deficit concentrated at low |omega|, vanishing at high speed.",
+    (ParamSpec("fs", "N m", "static friction above Coulomb", 0.0, 0.0, 1e6),
+     ParamSpec("ws", "rad/s", "Stribeck speed", 1.0, 1e-6, 1e6)),
+    "mechanical",
+    ("bc", "dz"),
+))
+register(Effect(
+    "quadratic_drag",
+    "Friction growing with speed squared: friction gains bq*omega*|omega| (windage, lubricant). "
+    "Signature: speed residual proportional to -omega*|omega|; high speeds over-predicted.",
+    (ParamSpec("bq", "N m s^2/rad^2", "quadratic drag coefficient", 0.0, 0.0, 1e6),),
+    "mechanical",
+    ("bv",),
+))
+register(Effect(
+    "torque_offset",
+    "Constant load torque tau0 opposing positive motion (gravity, spring preload) - equivalent to "
+    "direction-asymmetric Coulomb friction bc+tau0 forward, bc-tau0 backward. Signature: "
+    "speed residual of one sign in both directions; drift at rest if |tau0| > bc.",
+    (ParamSpec("tau0", "N m", "constant load torque", 0.0, -1e6, 1e6),),
+    "mechanical",
+    ("bc",),
+))
+register(Effect(
+    "cogging",
+    "Cogging torque periodic in rotor angle: -ca*sin(cn*theta + cphi), cn periods per revolution "
+    "(an integer, slots x poles). Signature: residual periodic in theta, line at cn in the angle "
+    "spectrum; speed ripple at cn*omega/(2 pi) Hz.",
+    (ParamSpec("ca", "N m", "cogging torque amplitude", 0.0, 0.0, 1e6),
+     ParamSpec("cn", "1/rev", "cogging periods per revolution", 0.0, 0.0, 1000.0),
+     ParamSpec("cphi", "rad", "cogging phase", 0.0, -2 * math.pi, 2 * math.pi)),
+    "mechanical",
+    (),
+))
+register(Effect(
+    "sensor_delay",
+    "Speed and angle measured late by delay seconds (filtering, communication). Signature: "
+    "residual is the derivative of the signal times -delay; cross-correlation peak at a lag > 0.",
+    (ParamSpec("delay", "s", "measurement delay of speed and angle", 0.0, 0.0, 10.0),),
+    "sensor",
+    (),
+))
+register(Effect(
+    "speed_offset",
+    "Constant bias on the speed sensor: omega_meas = omega + omega0. Signature: constant speed "
+    "residual, visible at rest; angle unaffected.",
+    (ParamSpec("omega0", "rad/s", "speed sensor bias", 0.0, -1e6, 1e6),),
+    "sensor",
+    (),
+))
+register(Effect(
+    "voltage_saturation",
+    "The drive clips the applied voltage to +-vmax. Signature: speed residual only where |v| is "
+    "large, flat-topped speed peaks.",
+    (ParamSpec("vmax", "V", "drive voltage limit", math.inf, 1e-6, math.inf),),
+    "input",
+    (),
+))
+register(Effect(
+    "brush_drop",
+    "Constant voltage drop vb across the brushes, opposing the driving voltage: no current "
+    "flows until |v - ke omega| exceeds vb. Signature: steady current vs voltage is affine with "
+    "a dead band; later breakaway at small voltages.",
+    (ParamSpec("vb", "V", "brush voltage drop", 0.0, 0.0, 1e3),),
+    "electrical",
+    ("R",),
+))

@@ -1,0 +1,219 @@
+"""Model parameters and the model file (JSON, written atomically).
+
+Base parameters (CONTRACT.md): ``R`` [ohm], ``L`` [H], ``km`` [N m/A], ``J`` [kg m^2],
+``b`` [N m s/rad] (linear viscous from fit-mechanical), ``bv`` [N m s/rad], ``bc`` [N m],
+``dz`` [N m] (torque break point of the hard dead zone). Effect parameters are declared by the
+effects in :mod:`pmdcid.model.effects`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pmdcid.errors import ModelError
+
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Declaration of one parameter: name, unit, meaning, the value that switches it off, bounds."""
+
+    name: str
+    unit: str
+    doc: str
+    neutral: float = 0.0
+    lower: float = -math.inf
+    upper: float = math.inf
+
+
+BASE_PARAMS: dict[str, ParamSpec] = {
+    p.name: p
+    for p in [
+        ParamSpec("R", "ohm", "armature resistance", math.nan, 1e-6, 1e6),
+        ParamSpec("L", "H", "armature inductance", math.nan, 1e-9, 10.0),
+        ParamSpec("km", "N m/A", "torque constant", math.nan, 1e-9, 1e3),
+        ParamSpec("J", "kg m^2", "rotor inertia (kg for a linear axis)", math.nan, 1e-12, 1e6),
+        ParamSpec("b", "N m s/rad", "linear viscous friction, Coulomb lumped in (paper)", 0.0,
+                  0.0, 1e6),
+        ParamSpec("bv", "N m s/rad", "viscous friction coefficient", 0.0, 0.0, 1e6),
+        ParamSpec("bc", "N m", "Coulomb friction level", 0.0, 0.0, 1e6),
+        ParamSpec("dz", "N m", "torque break point of the hard dead zone", 0.0, 0.0, 1e6),
+        ParamSpec("dz_slope", "1", "slope k-bar of the hard dead zone (paper eq. 7)", 1.0, 0.0,
+                  10.0),
+        ParamSpec("dz_offset", "N m", "jump k-hat of the hard dead zone (paper eq. 7)", 0.0,
+                  -1e6, 1e6),
+    ]
+}
+
+
+@dataclass
+class Parameter:
+    """One identified parameter: value, standard error (NaN if unknown), unit, producing stage."""
+
+    value: float
+    stderr: float = math.nan
+    unit: str = ""
+    stage: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"value": self.value, "unit": self.unit, "stage": self.stage}
+        d["stderr"] = self.stderr if math.isfinite(self.stderr) else None
+        return {k: d[k] for k in ("value", "stderr", "unit", "stage")}
+
+
+@dataclass
+class Model:
+    """A motor model: parameters, extra effects (catalogue names), and free-form extra keys."""
+
+    parameters: dict[str, Parameter] = field(default_factory=dict)
+    effects: list[str] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
+    path: str | None = None
+
+    def value(self, name: str, default: float | None = None) -> float:
+        if name in self.parameters:
+            return self.parameters[name].value
+        if default is not None:
+            return default
+        raise ModelError(f"model has no parameter '{name}'", self.path)
+
+    def has(self, name: str) -> bool:
+        return name in self.parameters
+
+    def set(self, name: str, value: float, stderr: float = math.nan, unit: str | None = None,
+            stage: str = "") -> None:
+        if unit is None:
+            unit = _unit_of(name)
+        self.parameters[name] = Parameter(float(value), float(stderr), unit, stage)
+
+    def require(self, *names: str, stage: str = "") -> None:
+        missing = [n for n in names if n not in self.parameters]
+        if missing:
+            hint = {
+                "R": "run fit-electrical first", "L": "run fit-electrical first",
+                "km": "give --km (datasheet torque constant) or add it to the model",
+                "J": "run fit-mechanical first", "b": "run fit-mechanical first",
+            }.get(missing[0], "run the stage that identifies it first")
+            what = f" for {stage}" if stage else ""
+            raise ModelError(f"model lacks {', '.join(missing)}{what}: {hint}", self.path)
+
+    def add_effect(self, name: str) -> None:
+        if name not in self.effects:
+            self.effects.append(name)
+
+    def copy(self) -> Model:
+        return Model({k: Parameter(**vars(v)) for k, v in self.parameters.items()},
+                     list(self.effects), json.loads(json.dumps(self.extra)), self.path)
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "parameters": {k: v.to_json() for k, v in self.parameters.items()},
+            "effects": list(self.effects),
+        }
+        out.update(self.extra)
+        out.setdefault("format", FORMAT_VERSION)
+        return out
+
+
+def _unit_of(name: str) -> str:
+    if name in BASE_PARAMS:
+        return BASE_PARAMS[name].unit
+    from pmdcid.model.effects import effect_param_specs
+
+    spec = effect_param_specs().get(name)
+    return spec.unit if spec else ""
+
+
+def _check_value(name: str, value: Any, path: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ModelError(f"parameter '{name}' has non-numeric value {value!r}", path)
+    v = float(value)
+    if not math.isfinite(v):
+        raise ModelError(f"parameter '{name}' is not finite ({value!r})", path)
+    spec = BASE_PARAMS.get(name)
+    if spec is None:
+        from pmdcid.model.effects import effect_param_specs
+
+        spec = effect_param_specs().get(name)
+    if spec is not None and not (spec.lower <= v <= spec.upper):
+        raise ModelError(
+            f"parameter '{name}' = {v:g} {spec.unit} is impossible "
+            f"(must lie in [{spec.lower:g}, {spec.upper:g}])",
+            path,
+        )
+    return v
+
+
+def model_from_json(obj: Any, path: str = "<model>") -> Model:
+    """Validate a parsed model file and build a :class:`Model`."""
+    from pmdcid.model.effects import EFFECTS
+
+    if not isinstance(obj, dict):
+        raise ModelError("model file must hold a JSON object", path)
+    params = obj.get("parameters", {})
+    if not isinstance(params, dict):
+        raise ModelError("'parameters' must be an object of name -> {value, stderr, unit}", path)
+    model = Model(path=path)
+    for name, entry in params.items():
+        if isinstance(entry, (int, float)) and not isinstance(entry, bool):
+            entry = {"value": entry}
+        if not isinstance(entry, dict) or "value" not in entry:
+            raise ModelError(f"parameter '{name}' must be an object with a 'value'", path)
+        v = _check_value(name, entry["value"], path)
+        se = entry.get("stderr")
+        se = float(se) if isinstance(se, (int, float)) and not isinstance(se, bool) else math.nan
+        model.parameters[name] = Parameter(v, se, str(entry.get("unit") or _unit_of(name)),
+                                           str(entry.get("stage") or ""))
+    effects = obj.get("effects", [])
+    if not isinstance(effects, list) or not all(isinstance(e, str) for e in effects):
+        raise ModelError("'effects' must be a list of effect names", path)
+    unknown = [e for e in effects if e not in EFFECTS]
+    if unknown:
+        raise ModelError(
+            f"unknown effect(s) {', '.join(unknown)} (known: {', '.join(EFFECTS)})", path
+        )
+    model.effects = list(effects)
+    model.extra = {k: v for k, v in obj.items() if k not in ("parameters", "effects")}
+    return model
+
+
+def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
+    """Read a model file. A missing file gives an empty model when ``must_exist`` is false."""
+    p = str(path)
+    if not os.path.exists(p):
+        if must_exist:
+            raise ModelError("no such model file (run a fit stage first to create it)", p)
+        return Model(path=p)
+    if os.path.isdir(p):
+        raise ModelError("is a folder, not a model file", p)
+    try:
+        text = Path(p).read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"cannot read model file ({getattr(exc, 'strerror', exc)})", p) from None
+    if not text.strip():
+        raise ModelError("model file is empty (delete it to start afresh)", p)
+    try:
+        obj = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ModelError(f"model file is not valid JSON (line {exc.lineno}: {exc.msg})", p) from None
+    return model_from_json(obj, p)
+
+
+def save_model(model: Model, path: str | os.PathLike) -> None:
+    """Write the model file atomically (temporary file in the same folder, then rename)."""
+    from pmdcid.io.logs import atomic_write_text
+
+    try:
+        atomic_write_text(path, json.dumps(model.to_json(), indent=2) + "\n")
+    except Exception as exc:
+        from pmdcid.errors import PmdcidError
+
+        if isinstance(exc, PmdcidError):
+            raise ModelError(str(exc)) from None
+        raise

@@ -1,0 +1,190 @@
+"""Synthetic logs: input profiles, sensor noise, and the bundled fixtures.
+
+Used by ``pmdcid simulate`` (with noise options), ``make fixtures`` and the round-trip tests.
+Noise comes from a ``numpy.random.Generator`` passed in (``default_rng(seed)``), never a global seed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pmdcid.errors import LogError
+from pmdcid.io import ColumnMap, read_log, write_log
+from pmdcid.model import Model, load_model
+from pmdcid.simulate import SimResult, param_values, simulate_values
+
+#: the paper's Table II parameters, km from its Table I (SI units)
+PAPER = {"R": 2.3724, "L": 17.7933e-3, "km": 50.2e-3, "J": 3.10442e-3, "bv": 0.0314,
+         "bc": 0.005, "dz": 6.35e-3}
+GENERATOR = "pmdcid"
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """Sensor noise: current std [A], speed std [rad/s], encoder counts per revolution (0 off)."""
+
+    i: float = 0.0
+    omega: float = 0.0
+    encoder: int = 0
+
+
+PAPER_NOISE = NoiseSpec(i=4e-3, omega=4e-3, encoder=4096)
+
+
+def step(t: np.ndarray, amplitude: float, t0: float) -> np.ndarray:
+    """Voltage step [V] of ``amplitude`` at ``t0`` [s]."""
+    return np.where(t >= t0, amplitude, 0.0)
+
+
+def triangle(t: np.ndarray, amplitude: float, period: float) -> np.ndarray:
+    """Triangle [V] between -amplitude and +amplitude, starting at 0 and rising."""
+    phase = (t / period + 0.25) % 1.0
+    return amplitude * (4.0 * np.abs(phase - 0.5) - 1.0) * -1.0
+
+
+def staircase(t: np.ndarray, amplitude: float, hold: float, rng: np.random.Generator) -> np.ndarray:
+    """Random levels in [-amplitude, amplitude] held ``hold`` seconds each (held-out profile)."""
+    n = int(np.ceil((t[-1] - t[0]) / hold)) + 1
+    levels = rng.uniform(-amplitude, amplitude, n)
+    levels[0] = 0.0
+    return levels[np.minimum(((t - t[0]) / hold).astype(int), n - 1)]
+
+
+def add_noise(sim: SimResult, noise: NoiseSpec, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Measured i, omega, theta from a simulation: Gaussian noise and encoder quantisation."""
+    n = len(sim.t)
+    out = {"i": sim.i + (rng.normal(0.0, noise.i, n) if noise.i > 0 else 0.0),
+           "omega": sim.omega + (rng.normal(0.0, noise.omega, n) if noise.omega > 0 else 0.0),
+           "theta": sim.theta.copy()}
+    if noise.encoder > 0:
+        q = 2 * np.pi / noise.encoder
+        out["theta"] = np.round(out["theta"] / q) * q
+    return out
+
+
+def synth_log(t, u, vals: dict[str, float], noise: NoiseSpec, rng: np.random.Generator | None,
+              torque_driven: bool = False, blocked: bool = False, nsub: int | None = None):
+    """Simulate and add noise; returns (columns dict, SimResult). ``blocked`` holds the rotor."""
+    vals = dict(vals)
+    if blocked:
+        vals["bc"] = 1e300  # infinite static friction: the rotor never moves
+    sim = simulate_values(t, u, vals, torque_driven, nsub)
+    meas = add_noise(sim, noise, rng) if rng is not None else {
+        "i": sim.i, "omega": sim.omega, "theta": sim.theta}
+    cols = {("tau" if torque_driven else "v"): np.asarray(u, float)}
+    if not torque_driven:
+        cols["i"] = meas["i"]
+    if not blocked:
+        cols["omega"] = meas["omega"]
+        cols["theta"] = meas["theta"]
+    return cols, sim
+
+
+def _is_ours(path: str) -> bool:
+    try:
+        with open(path) as fh:
+            head = fh.read(400)
+    except OSError:
+        return False
+    return f"# generator: {GENERATOR}" in head
+
+
+def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = None,
+                  noise: NoiseSpec = NoiseSpec(), seed: int | None = None, blocked: bool = False,
+                  force: bool = False) -> str:
+    """``pmdcid simulate``: read INPUT's t and v/tau, simulate MODEL, write OUT (atomically)."""
+    if os.path.exists(output) and os.path.exists(input_path) and os.path.samefile(input_path, output):
+        raise LogError("output would overwrite the input log; choose another -o", output)
+    if os.path.exists(output) and not force and not _is_ours(output):
+        raise LogError("exists and was not written by pmdcid; use --force to overwrite it", output)
+    log = read_log(input_path, mapping)
+    log.drive  # noqa: B018 - raises a clear error when neither v nor tau is present
+    model = load_model(model_path)
+    torque = log.drive == "tau"
+    vals = param_values(model, torque)
+    rng = np.random.default_rng(seed)
+    has_noise = noise.i > 0 or noise.omega > 0 or noise.encoder > 0
+    cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque, blocked)
+    meta = {"generator": GENERATOR, "source": os.path.basename(str(input_path)),
+            "model": os.path.basename(str(model_path))}
+    if has_noise:
+        meta["noise"] = f"i={noise.i} A, omega={noise.omega} rad/s, encoder={noise.encoder}"
+        meta["seed"] = str(seed)
+    write_log(output, log.t, cols, meta)
+    return str(output)
+
+
+def paper_protocols(vals: dict[str, float], noise: NoiseSpec, rng: np.random.Generator,
+                    amplitudes=(0.5, 1.0, 1.5, 2.0, 2.5)):
+    """The paper's three protocols as (name, t, columns, meta) tuples.
+
+    Blocked-rotor current steps (5 kHz, 0.3 s, onset 0.05 s), free-speed speed steps (1 kHz, 3 s,
+    onset 0.5 s), and a +-2 V triangle (period 40 s, 120 s, 1 kHz).
+    """
+    out = []
+    tb = np.arange(1500) / 5000.0
+    for a in amplitudes:
+        u = step(tb, a, 0.05)
+        cols, _ = synth_log(tb, u, vals, noise, rng, blocked=True)
+        out.append((f"blocked_{a:.1f}V", tb, cols, {"kind": "blocked-rotor", "amplitude_V": a}))
+    ts = np.arange(3000) / 1000.0
+    for a in amplitudes:
+        u = step(ts, a, 0.5)
+        cols, _ = synth_log(ts, u, vals, noise, rng)
+        out.append((f"step_{a:.1f}V", ts, cols, {"kind": "free-speed-step", "amplitude_V": a}))
+    tt = np.arange(120000) / 1000.0
+    u = triangle(tt, 2.0, 40.0)
+    cols, _ = synth_log(tt, u, vals, noise, rng)
+    out.append(("triangle", tt, cols, {"kind": "triangle", "amplitude_V": 2.0, "period_s": 40.0}))
+    return out
+
+
+#: the fixture sets: folder -> (extra effects, their true parameters)
+FIXTURE_SETS = {
+    "paper": ([], {}),
+    "hidden": (["stribeck"], {"fs": 3e-3, "ws": 0.15}),
+}
+
+
+def make_fixtures(folder: str | os.PathLike, seed: int = 20201) -> list[str]:
+    """Write the bundled fixture logs (two sets) with their true parameters beside them."""
+    from pmdcid.simulate import neutral_values
+
+    root = Path(folder)
+    written = []
+    for k, (name, (effects, extra)) in enumerate(FIXTURE_SETS.items()):
+        d = root / name
+        d.mkdir(parents=True, exist_ok=True)
+        vals = {**neutral_values(), **PAPER, **extra}
+        rng = np.random.default_rng(seed + k)
+        for fname, t, cols, meta in paper_protocols(vals, PAPER_NOISE, rng):
+            meta = {"generator": GENERATOR, **meta, "seed": seed + k,
+                    "noise": "i 4 mA, omega 4 mrad/s (std), theta 4096-count encoder"}
+            write_log(d / f"{fname}.csv", t, cols, meta)
+            written.append(str(d / f"{fname}.csv"))
+        truth = {"parameters": {**PAPER, **extra}, "effects": effects,
+                 "note": "true parameters the logs were simulated with (SI units); "
+                         "km is the datasheet value (paper Table I)"}
+        (d / "truth.json").write_text(json.dumps(truth, indent=2) + "\n")
+    return written
+
+
+def truth_model(values: dict[str, float], effects=()) -> Model:
+    """A :class:`Model` holding true values (for tests and the demo)."""
+    m = Model()
+    for k, v in values.items():
+        m.set(k, v, stage="truth")
+    m.effects = list(effects)
+    return m
+
+
+if __name__ == "__main__":  # make fixtures
+    import sys
+
+    files = make_fixtures(sys.argv[1] if len(sys.argv) > 1 else "fixtures")
+    print(f"wrote {len(files)} logs")

@@ -1,0 +1,99 @@
+"""The shared kernel: exact against the linear transfer function, convergent, true stiction."""
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from pmdcid.simulate import simulate_values
+from pmdcid.synth import staircase, triangle
+
+
+def linear_reference(t, v, vals):
+    """Paper eq. (5) with back-EMF, computed independently with scipy.signal (ZOH input)."""
+    R, L, km, J, bv, ke = (vals[k] for k in ("R", "L", "km", "J", "bv", "ke"))
+    # omega/V = km / ((L s + R)(J s + bv) + km ke)
+    num = [km]
+    den = np.polyadd(np.polymul([L, R], [J, bv]), [km * ke])
+    sys = signal.TransferFunction(num, den).to_ss()
+    dt = t[1] - t[0]
+    dsys = signal.cont2discrete((sys.A, sys.B, sys.C, sys.D), dt, method="zoh")
+    _, y, _ = signal.dlsim(dsys[:4] + (dt,), v, t=t)
+    return y[:, 0]
+
+
+@pytest.mark.parametrize("ke", [0.0, 50.2e-3])
+@pytest.mark.parametrize("nsub", [1, 3])
+def test_linear_case_matches_transfer_function(paper_values, ke, nsub, rng):
+    vals = {**paper_values, "bc": 0.0, "dz": 0.0, "ke": ke}
+    t = np.arange(20000) * 1e-3
+    v = staircase(t, 2.0, 0.37, rng)
+    sim = simulate_values(t, v, vals, nsub=nsub)
+    ref = linear_reference(t, v, vals)
+    err = np.max(np.abs(sim.omega - ref)) / np.max(np.abs(ref))
+    assert err < 1e-6
+
+
+def test_converges_as_step_shrinks(paper_values):
+    vals = {**paper_values, "fs": 2e-3, "ws": 0.1, "ca": 1e-3, "cn": 7.0}
+    t = np.arange(8000) * 1e-3
+    v = triangle(t, 2.0, 4.0)
+    ref = simulate_values(t, v, vals, nsub=256).omega
+    errs = [np.sqrt(np.mean((simulate_values(t, v, vals, nsub=n).omega - ref) ** 2))
+            for n in (2, 8, 32)]
+    assert errs[0] > errs[1] > errs[2]
+    assert errs[2] < 0.25 * errs[0]
+    assert errs[2] / np.std(ref) < 1e-3
+
+
+def test_rotor_below_static_friction_stays_exactly_at_rest(paper_values):
+    # torque km*v/R below bc and dz: the rotor must not creep at all
+    vals = {**paper_values, "dz": 0.0}
+    v_stuck = 0.9 * vals["bc"] * vals["R"] / vals["km"]
+    t = np.arange(3000) * 1e-3
+    sim = simulate_values(t, np.full_like(t, v_stuck), vals)
+    assert np.all(sim.omega == 0.0) and np.all(sim.theta == 0.0)
+    assert sim.i[-1] == pytest.approx(v_stuck / vals["R"], rel=1e-9)
+    # just above it moves, at the Coulomb-limited speed
+    v_move = 1.5 * vals["bc"] * vals["R"] / vals["km"]
+    sim = simulate_values(t, np.full_like(t, v_move), vals)
+    expect = (vals["km"] * v_move / vals["R"] - vals["bc"]) / vals["bv"]
+    assert sim.omega[-1] == pytest.approx(expect, rel=1e-6)
+
+
+def test_dead_zone_blocks_torque_below_break_point(paper_values):
+    vals = {**paper_values, "bc": 1e-4}
+    v_in = 0.95 * vals["dz"] * vals["R"] / vals["km"]
+    t = np.arange(2000) * 1e-3
+    sim = simulate_values(t, np.full_like(t, v_in), vals)
+    assert np.all(sim.omega == 0.0)
+
+
+def test_stick_slip_stops_and_holds_on_triangle(paper_values):
+    t = np.arange(40000) * 1e-3
+    sim = simulate_values(t, triangle(t, 2.0, 40.0), paper_values)
+    rest = sim.omega == 0.0
+    assert 0.05 < rest.mean() < 0.4  # dwell at zero speed around each reversal
+    held = rest[1:] & rest[:-1]
+    assert np.all(np.diff(sim.theta)[held] == 0.0)
+    # symmetric input, symmetric response
+    assert sim.omega.max() == pytest.approx(-sim.omega.min(), rel=1e-3)
+
+
+def test_torque_driven_matches_first_order(paper_values):
+    vals = {**paper_values, "bc": 0.0, "dz": 0.0}
+    t = np.arange(2000) * 1e-3
+    tau = np.full_like(t, 0.02)
+    sim = simulate_values(t, tau, vals, torque_driven=True)
+    tm = vals["J"] / vals["bv"]
+    ref = 0.02 / vals["bv"] * (1 - np.exp(-t / tm))
+    assert np.max(np.abs(sim.omega - ref)) < 1e-9 * 0.02 / vals["bv"] + 1e-12
+    assert np.all(np.isnan(sim.i))
+
+
+def test_sensor_effects(paper_values):
+    t = np.arange(3000) * 1e-3
+    v = np.where(t > 0.5, 1.0, 0.0)
+    base = simulate_values(t, v, paper_values)
+    late = simulate_values(t, v, {**paper_values, "delay": 0.01, "omega0": 0.05})
+    assert np.allclose(late.omega[20:] - 0.05, base.omega[10:-10], atol=1e-12)
+    assert np.allclose(late.theta[20:], base.theta[10:-10], atol=1e-12)
