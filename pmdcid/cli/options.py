@@ -8,18 +8,23 @@ import click
 
 
 def log_options(f):
-    """``-c/--column CANON=SOURCE*SCALE+OFFSET`` (repeatable) and ``--map FILE``."""
+    """``-c/--column CANON=SOURCE*SCALE+OFFSET`` (repeatable), ``--map FILE``, ``--cutoff HZ``."""
 
     @click.option("-c", "--column", "columns", multiple=True, metavar="CANON=SRC[*K][+OFF]",
                   help="Map a log column to a canonical one, e.g. -c omega=speed_rpm*rpm "
                        "(repeatable; see docs/cli.md).")
     @click.option("--map", "map_file", type=click.Path(dir_okay=False), default=None,
                   help="File of column mappings, one CANON=SRC*K+OFF per line (or JSON).")
+    @click.option("--cutoff", "cutoff_hz", type=float, default=None, metavar="HZ",
+                  help="Cut-off of the zero-phase low-pass used to derive speed from angle "
+                       "(and acceleration) [Hz]; default min(rate/10, 100 Hz).")
     @functools.wraps(f)
-    def wrapper(*args, columns=(), map_file=None, **kwargs):
+    def wrapper(*args, columns=(), map_file=None, cutoff_hz=None, **kwargs):
         from pmdcid.io import parse_mapping
 
-        kwargs["mapping"] = parse_mapping(columns, map_file)
+        mapping = parse_mapping(columns, map_file)
+        mapping.cutoff_hz = cutoff_hz
+        kwargs["mapping"] = mapping
         return f(*args, **kwargs)
 
     return wrapper

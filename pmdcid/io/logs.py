@@ -36,7 +36,9 @@ class Log:
 
     Attributes: ``path`` (for messages), ``t`` [s] starting where the file starts, ``dt`` [s] the
     sample period, ``data`` canonical column name -> float array, ``meta`` the ``# key: value``
-    comments, ``extra`` the non-canonical numeric columns (unmapped), kept for reference.
+    comments, ``extra`` the non-canonical numeric columns (unmapped), kept for reference,
+    ``derived`` the canonical columns computed from others (speed from angle or the reverse, see
+    :mod:`pmdcid.io.derive`), ``cutoff_hz`` the filter cut-off given by the user [Hz] or None.
     """
 
     path: str
@@ -44,6 +46,8 @@ class Log:
     data: dict[str, np.ndarray]
     meta: dict[str, str] = field(default_factory=dict)
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+    derived: set[str] = field(default_factory=set)
+    cutoff_hz: float | None = None
 
     @property
     def dt(self) -> float:
@@ -249,7 +253,12 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     for c in list(extra):
         if not np.isfinite(extra[c]).all():
             extra.pop(c)
-    return Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra)
+    log = Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra, cutoff_hz=mapping.cutoff_hz)
+    if ("omega" in data) != ("theta" in data):
+        from pmdcid.io.derive import derive_missing
+
+        derive_missing(log, mapping.cutoff_hz)
+    return log
 
 
 def read_logs(paths, mapping: ColumnMap | None = None) -> list[Log]:

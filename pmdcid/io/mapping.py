@@ -63,13 +63,16 @@ class ColumnMap:
     """A set of column specs keyed by canonical name."""
 
     specs: dict[str, ColumnSpec] = field(default_factory=dict)
+    #: cut-off [Hz] of the zero-phase filter deriving speed from angle (None: default)
+    cutoff_hz: float | None = None
 
     def merged(self, other: ColumnMap) -> ColumnMap:
-        """Return a map where ``other``'s specs override this one's."""
-        return ColumnMap({**self.specs, **other.specs})
+        """Return a map where ``other``'s specs (and cut-off, if set) override this one's."""
+        fc = other.cutoff_hz if other.cutoff_hz is not None else self.cutoff_hz
+        return ColumnMap({**self.specs, **other.specs}, fc)
 
     def __bool__(self) -> bool:
-        return bool(self.specs)
+        return bool(self.specs) or self.cutoff_hz is not None
 
 
 def _number(token: str, text: str) -> float:
