@@ -1,0 +1,182 @@
+"""Inverse-dynamics least squares (IDIM-LS, the robotics standard; Janot et al., EMPS 2019).
+
+The rigid mechanical model, torque-driven (SI: tau [N m or N], speed [rad/s or m/s])::
+
+    tau = J*alpha + bv*omega + bc*sign(omega) + tau0
+
+is linear in (J, bv, bc, tau0). Speed ``omega`` and acceleration ``alpha`` come from the measured
+angle (or speed) by the zero-phase Butterworth filter of :mod:`pmdcid.io.derive` and central
+differences. Both sides of the regression are then filtered by the same zero-phase low-pass and
+decimated ("parallel filtering and decimation", Gautier 1997): the equation error stays linear in
+the parameters while the rows become close to independent, so that the standard errors from
+(X'X)^-1 mean something. The fit is linear and instant; it is the start of the simulation-error
+fit on any log that has an angle or a speed.
+
+Voltage-driven logs use tau = km*i (needs the current ``i`` and ``km`` in the model); the paper's
+dead zone is then ignored, which biases bc: the simulation-error fit corrects that.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pmdcid.errors import FitError
+from pmdcid.identify.results import Estimate
+from pmdcid.io.derive import check_cutoff, log_cutoff, log_kinematics, lowpass
+from pmdcid.model import Model
+from pmdcid.model.params import BASE_PARAMS
+
+PARAMS = ("J", "bv", "bc", "tau0")
+STAGE = "inverse-dynamics"
+#: samples skipped at each end of a log, in periods of the cut-off (filter transients)
+EDGE_PERIODS = 5.0
+#: speeds below this fraction of the log's speed range count as "at rest" for warnings
+REST_FRACTION = 0.01
+
+
+def _units() -> dict[str, str]:
+    from pmdcid.model.effects import effect_param_specs
+
+    u = {n: BASE_PARAMS[n].unit for n in ("J", "bv", "bc")}
+    u["tau0"] = effect_param_specs()["tau0"].unit
+    return u
+
+
+@dataclass
+class InverseDynamicsResult:
+    """Estimates J [kg m^2], bv [N m s/rad], bc [N m], tau0 [N m] (kg, N s/m, N, N for a linear
+    axis), with standard errors; the relative torque error [%] of the regression; warnings."""
+
+    estimates: dict[str, Estimate]
+    rel_torque_error: float  # 100*||tau - X theta|| / ||tau|| on the regression rows [%]
+    ndata: int
+    cutoff_hz: float
+    decimation: int
+    condition: float  # condition number of the (column-scaled) regressor matrix
+    warnings: list[str] = field(default_factory=list)
+
+    def values(self) -> dict[str, float]:
+        return {k: e.value for k, e in self.estimates.items()}
+
+    def apply(self, model: Model, stage: str = STAGE) -> None:
+        """Write J, bv, bc (and tau0 with the ``torque_offset`` effect) into ``model``."""
+        for name, e in self.estimates.items():
+            if name == "tau0":
+                if not e.vary:
+                    continue
+                model.add_effect("torque_offset")
+            model.set(name, e.value, e.stderr, e.unit, stage=stage)
+
+    def table(self) -> str:
+        lines = [f"{'parameter':<10} {'value':>14} {'stderr':>11}  unit"]
+        for e in self.estimates.values():
+            se = f"{e.stderr:11.3g}" if math.isfinite(e.stderr) else f"{'fixed':>11}"
+            lines.append(f"{e.name:<10} {e.value:14.6g} {se}  {e.unit}")
+        lines.append(f"relative torque error {self.rel_torque_error:.2f} % "
+                     f"({self.ndata} rows, cut-off {self.cutoff_hz:g} Hz, "
+                     f"decimation {self.decimation}, condition {self.condition:.1f})")
+        return "\n".join(lines)
+
+
+def applied_torque(log, model: Model | None) -> np.ndarray:
+    """The torque [N m] driving the log: ``tau``, or km*i for a voltage-driven log."""
+    if log.drive == "tau":
+        return np.asarray(log["tau"], float)
+    if not log.has("i"):
+        raise FitError(
+            f"{log.path}: voltage-driven log without current 'i': inverse dynamics needs the "
+            "applied torque (map a 'tau' column or a current column 'i' and give km)"
+        )
+    if model is None or not model.has("km"):
+        raise FitError(
+            f"{log.path}: voltage-driven log: inverse dynamics needs km to turn the current into "
+            "torque (give --km or put km in the model)"
+        )
+    return model.value("km") * np.asarray(log["i"], float)
+
+
+def decimation_factor(dt: float, cutoff_hz: float) -> int:
+    """Keep one row in k after the parallel low-pass: k = floor(0.4*rate/cut-off), at least 1."""
+    return max(1, int(0.4 / (dt * cutoff_hz)))
+
+
+def regression_rows(log, model: Model | None = None, cutoff_hz: float | None = None):
+    """Observation matrix rows [alpha, omega, sign(omega), 1] and torque of one log, filtered in
+    parallel, edge-trimmed and decimated. Returns (X, y, cutoff_hz, k)."""
+    fc = cutoff_hz if cutoff_hz is not None else log_cutoff(log)
+    check_cutoff(fc, log.dt, log.path)
+    tau = applied_torque(log, model)
+    kin = log_kinematics(log, fc)
+    X = np.column_stack([kin.alpha, kin.omega, np.sign(kin.omega), np.ones(log.n)])
+    Xf = np.column_stack([lowpass(c, log.dt, fc) for c in X.T])
+    yf = lowpass(tau, log.dt, fc)
+    k = decimation_factor(log.dt, fc)
+    edge = min(int(math.ceil(EDGE_PERIODS / (fc * log.dt))), log.n // 10)
+    sl = slice(edge, log.n - edge, k)
+    return Xf[sl], yf[sl], fc, k
+
+
+def fit_inverse_dynamics(logs, model: Model | None = None,
+                         cutoff_hz: float | None = None) -> InverseDynamicsResult:
+    """Least squares of the applied torque on filtered acceleration, speed, sign(speed), 1.
+
+    ``logs``: one or more :class:`~pmdcid.io.Log` with an angle or a speed, and ``tau`` (or
+    ``v`` with ``i`` and ``km`` in ``model``). ``cutoff_hz``: filter cut-off [Hz] (default: the
+    logs' ``--cutoff`` or min(rate/10, 100 Hz)). Raises :class:`FitError` when the data cannot
+    determine the parameters (no motion, J not positive).
+    """
+    if not logs:
+        raise FitError("no logs given to the inverse-dynamics fit")
+    rows, ys, warns = [], [], []
+    fc_used, k_used = math.nan, 1
+    for log in logs:
+        X, y, fc_used, k_used = regression_rows(log, model, cutoff_hz)
+        speed = np.abs(X[:, 1])
+        if speed.max() <= 0:
+            warns.append(f"{log.path}: never moves: left out of the inverse-dynamics fit")
+            continue
+        rows.append(X)
+        ys.append(y)
+    if not rows:
+        raise FitError("no log moves: inverse dynamics needs motion (speed and acceleration)")
+    X = np.vstack(rows)
+    y = np.concatenate(ys)
+    names = list(PARAMS)
+    # sign(omega) and the constant are indistinguishable if the speed never reverses
+    sgn = X[:, 2]
+    if min((sgn > 0).mean(), (sgn < 0).mean()) < 0.01:
+        warns.append("the speed (almost) never reverses: torque offset tau0 cannot be told from "
+                     "Coulomb friction; tau0 fixed at 0")
+        X = X[:, :3]
+        names = names[:3]
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    theta_s, _, rank, sv = np.linalg.lstsq(Xs, y, rcond=None)
+    if rank < Xs.shape[1]:
+        raise FitError("the logs do not excite the model (regressor matrix rank-deficient): "
+                       "use a log with acceleration, varying speed and both directions")
+    theta = theta_s / scale
+    resid = y - X @ theta
+    n, p = X.shape
+    s2 = float(resid @ resid) / max(n - p, 1)
+    cov = np.linalg.inv(Xs.T @ Xs) * s2 / np.outer(scale, scale)
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    units = _units()
+    est = {nm: Estimate(nm, float(v), float(e), units[nm]) for nm, v, e in
+           zip(names, theta, se, strict=True)}
+    if "tau0" not in est:
+        est["tau0"] = Estimate("tau0", 0.0, math.nan, units["tau0"], vary=False)
+    if est["J"].value <= 0:
+        raise FitError(f"inverse dynamics gives a non-positive inertia J = {est['J'].value:.3g}: "
+                       "the logs do not excite the acceleration (or the cut-off is too low)")
+    for nm in ("bv", "bc"):
+        if est[nm].value < 0:
+            warns.append(f"inverse dynamics gives a negative {nm} = {est[nm].value:.3g} "
+                         f"{units[nm]}: friction poorly excited")
+    rel = 100.0 * float(np.linalg.norm(resid) / np.linalg.norm(y)) if np.any(y) else math.nan
+    return InverseDynamicsResult(est, rel, n, float(fc_used), k_used,
+                                 float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf, warns)
