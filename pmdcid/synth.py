@@ -1,7 +1,8 @@
 """Synthetic logs: input profiles, sensor noise, and the bundled fixtures.
 
 Used by ``pmdcid simulate`` (with noise options), ``make fixtures`` and the round-trip tests.
-Noise comes from a ``numpy.random.Generator`` passed in (``default_rng(seed)``), never a global seed.
+Noise comes from a ``numpy.random.Generator`` passed in (``default_rng(seed)``), never a
+global seed.
 """
 
 from __future__ import annotations
@@ -98,8 +99,9 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
                   noise: NoiseSpec = NoiseSpec(), seed: int | None = None, blocked: bool = False,
                   force: bool = False) -> str:
     """``pmdcid simulate``: read INPUT's t and v/tau, simulate MODEL, write OUT (atomically)."""
-    if os.path.exists(output) and os.path.exists(input_path) and os.path.samefile(input_path, output):
-        raise LogError("output would overwrite the input log; choose another -o", output)
+    for src, what in ((input_path, "input log"), (model_path, "model file")):
+        if os.path.exists(output) and os.path.exists(src) and os.path.samefile(src, output):
+            raise LogError(f"output would overwrite the {what}; choose another -o", output)
     if os.path.exists(output) and not force and not _is_ours(output):
         raise LogError("exists and was not written by pmdcid; use --force to overwrite it", output)
     log = read_log(input_path, mapping)

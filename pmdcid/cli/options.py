@@ -20,9 +20,15 @@ def log_options(f):
                        "(and acceleration) [Hz]; default min(rate/10, 100 Hz).")
     @functools.wraps(f)
     def wrapper(*args, columns=(), map_file=None, cutoff_hz=None, **kwargs):
+        from pmdcid.errors import LogError
         from pmdcid.io import parse_mapping
 
-        mapping = parse_mapping(columns, map_file)
+        try:
+            mapping = parse_mapping(columns, map_file)
+        except LogError as exc:
+            if exc.path is not None:  # a problem in the --map file: exit 1, names the file
+                raise
+            raise click.BadParameter(str(exc), param_hint="'-c' / '--column'") from None
         mapping.cutoff_hz = cutoff_hz
         kwargs["mapping"] = mapping
         return f(*args, **kwargs)

@@ -200,6 +200,11 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
             )
         sources[canon] = (spec.source, spec.scale, spec.offset)
     if "t" not in sources:
+        seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar")]
+        sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
+        if sep:
+            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}); pmdcid reads "
+                           "comma-separated CSV with '.' decimals: convert the file first", p)
         raise LogError(
             f"has no time column 't' (columns are {', '.join(cols)}; map one with -c t=SOURCE)", p
         )
@@ -208,7 +213,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     for canon, (src, scale, offset) in sources.items():
         col = pd.to_numeric(df[src], errors="coerce").to_numpy(dtype=float)
         raw = df[src]
-        if raw.dtype == object:
+        if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
             notnum = np.isnan(col) & raw.notna().to_numpy() & (
                 raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
             ).to_numpy()
@@ -254,6 +259,9 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
         if not np.isfinite(extra[c]).all():
             extra.pop(c)
     log = Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra, cutoff_hz=mapping.cutoff_hz)
+    from pmdcid.io.checks import check_log
+
+    check_log(log)
     if ("omega" in data) != ("theta" in data):
         from pmdcid.io.derive import derive_missing
 
@@ -286,7 +294,12 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     p = Path(path)
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.exists():
+        up = next((a for a in folder.parents if a.exists()), None)
+        if up is not None and not up.is_dir():
+            raise LogError("is a file, not a folder: cannot write outputs under it", str(up))
         raise LogError("output folder does not exist", str(folder))
+    if not folder.is_dir():
+        raise LogError("is a file, not a folder: cannot write outputs under it", str(folder))
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:

@@ -115,7 +115,7 @@ def parse_spec(text: str) -> ColumnSpec:
     if not source:
         raise LogError(f"column mapping '{text}' names no source column")
     scale = 1.0
-    for op, tok in zip(tokens[1::2], tokens[2::2]):
+    for op, tok in zip(tokens[1::2], tokens[2::2], strict=True):
         val = _number(tok, text)
         if op == "*":
             scale *= val
@@ -126,7 +126,8 @@ def parse_spec(text: str) -> ColumnSpec:
     return ColumnSpec(canon, source, scale, offset)
 
 
-def parse_mapping(items: list[str] | tuple[str, ...] = (), path: str | Path | None = None) -> ColumnMap:
+def parse_mapping(items: list[str] | tuple[str, ...] = (),
+                  path: str | Path | None = None) -> ColumnMap:
     """Build a :class:`ColumnMap` from a mapping file (optional) and command-line items."""
     specs: dict[str, ColumnSpec] = {}
     if path is not None:

@@ -179,6 +179,13 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
             f"unknown effect(s) {', '.join(unknown)} (known: {', '.join(EFFECTS)})", path
         )
     model.effects = list(effects)
+    for e in effects:
+        lacking = [n for n in EFFECTS[e].param_names if n not in model.parameters]
+        if lacking:
+            from pmdcid.errors import warn
+
+            warn(f"model lists effect '{e}' but lacks its parameter(s) {', '.join(lacking)}: "
+                 "they are taken as neutral (effect off); run diagnose to identify them", path)
     model.extra = {k: v for k, v in obj.items() if k not in ("parameters", "effects")}
     return model
 
@@ -201,7 +208,8 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
     try:
         obj = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ModelError(f"model file is not valid JSON (line {exc.lineno}: {exc.msg})", p) from None
+        raise ModelError(f"model file is not valid JSON (line {exc.lineno}: {exc.msg})",
+                         p) from None
     return model_from_json(obj, p)
 
 

@@ -1,0 +1,114 @@
+"""Plausibility checks on a freshly read log: suspicious but usable data gives a warning.
+
+- :func:`check_saturation`: a measured signal (current [A], speed [rad/s]) that sits flat at its
+  extreme value for many samples, entered with a finite slope, looks clipped at a sensor or ADC
+  rail. Fits on clipped data are biased.
+- :func:`check_speed_units`: when a log measures both speed and angle, the speed must equal the
+  angle's time derivative. A ratio near 60/(2 pi) says the speed is in rpm, near 180/pi that it is
+  in deg/s, and so on: the warning names the likely unit
+  and the mapping that fixes it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pmdcid.errors import warn
+
+#: columns checked for clipping (inputs and angles legitimately sit flat)
+SATURATION_COLUMNS = ("i", "omega")
+#: a rail must hold at least this fraction of the samples (and 5 samples) ...
+SATURATION_MIN_FRACTION = 0.005
+#: ... and at least this many times the count of any other single value
+SATURATION_PILEUP = 3.0
+
+#: speed/angle-derivative ratios that betray a unit, and the mapping that fixes them
+UNIT_RATIOS: tuple[tuple[float, str], ...] = (
+    (60.0 / (2 * math.pi), "omega looks like rpm: map it with -c omega=COLUMN*rpm"),
+    (180.0 / math.pi, "omega looks like deg/s: map it with -c omega=COLUMN*deg"),
+    (math.pi / 180.0, "theta looks like degrees: map it with -c theta=COLUMN*deg"),
+    (1.0 / (2 * math.pi), "omega looks like rev/s: map it with -c omega=COLUMN*rps"),
+    (2 * math.pi, "theta looks like revolutions: map it with -c theta=COLUMN*rev"),
+    (1e-3, "theta looks like milli-units (mm, mrad): map it with -c theta=COLUMN*1e-3"),
+    (1e3, "omega looks like milli-units per second (-c omega=COLUMN*1e-3), or t is in ms "
+          "(-c t=COLUMN*ms)"),
+)
+
+
+def check_log(log) -> None:
+    """Run every plausibility check on a :class:`~pmdcid.io.Log` (measured columns only)."""
+    for col in SATURATION_COLUMNS:
+        if col in log.data and col not in log.derived:
+            check_saturation(log.data[col], col, log.path)
+    if "omega" in log.data and "theta" in log.data and not log.derived & {"omega", "theta"}:
+        check_speed_units(log.data["omega"], log.data["theta"], log.dt, log.path)
+
+
+def _rail(x: np.ndarray, value: float) -> tuple[int, float]:
+    """Samples sitting at ``value`` and the largest jump onto a run of them."""
+    at = x == value
+    count = int(at.sum())
+    starts = np.flatnonzero(at[1:] & ~at[:-1]) + 1
+    jump = float(np.max(np.abs(x[starts - 1] - value))) if len(starts) else 0.0
+    return count, jump
+
+
+def check_saturation(x: np.ndarray, name: str, path: str) -> bool:
+    """Warn (and return True) when ``x`` looks clipped flat at its maximum or minimum."""
+    n = len(x)
+    if n < 20:
+        return False
+    lo, hi = float(np.min(x)), float(np.max(x))
+    span = hi - lo
+    if not span > 0:
+        return False
+    values, counts = np.unique(x, return_counts=True)
+    if len(values) < 20:  # a coarse (few-level) signal: flat stretches are normal
+        return False
+    for value, side in ((hi, "maximum"), (lo, "minimum")):
+        if value == 0.0:  # at rest is not a rail
+            continue
+        count, jump = _rail(x, value)
+        others = counts[values != value]
+        if (count >= max(5, SATURATION_MIN_FRACTION * n)
+                and count >= SATURATION_PILEUP * float(others.max())
+                and jump > 1e-6 * span):
+            warn(f"column '{name}' sits flat at its {side} {value:.6g} for {count} samples "
+                 f"({100.0 * count / n:.1f} %): the sensor looks saturated (clipped); fits will "
+                 "be biased: cut those parts or re-record with more sensor range", path)
+            return True
+    return False
+
+
+def check_speed_units(omega: np.ndarray, theta: np.ndarray, dt: float, path: str) -> float | None:
+    """Compare speed [rad/s] with the angle's [rad] derivative; warn on a unit-like factor.
+
+    Angle increments over windows of ``s`` samples are regressed on the speed integrated over
+    the same windows (integration averages speed noise, the window averages encoder steps).
+    Returns the ratio speed / (d angle/dt), or None when the log moves too little to tell.
+    """
+    n = len(omega)
+    if n < 20:
+        return None
+    s = max(1, n // 200)
+    cum = np.concatenate(([0.0], np.cumsum(0.5 * (omega[1:] + omega[:-1])) * dt))
+    d_om, d_th = cum[s:] - cum[:-s], theta[s:] - theta[:-s]
+    if not (np.any(d_th) and np.any(d_om)):
+        return None
+    with np.errstate(all="ignore"):
+        r = np.corrcoef(d_om, d_th)[0, 1]
+        k = float(np.dot(d_om, d_th) / np.dot(d_th, d_th))
+    if not (np.isfinite(r) and np.isfinite(k)) or abs(r) < 0.9:
+        return None
+    if 0.8 <= k <= 1.25:
+        return k
+    if -1.25 <= k <= -0.8:
+        warn("omega and d(theta)/dt have opposite signs: one sensor counts the other way "
+             "(map it with e.g. -c omega=COLUMN*-1)", path)
+        return k
+    hint = next((h for ratio, h in UNIT_RATIOS if abs(math.log(abs(k) / ratio)) < 0.1),
+                "check the units and scales of both columns")
+    warn(f"omega is {k:.4g} x d(theta)/dt, where it should equal it: {hint}", path)
+    return k

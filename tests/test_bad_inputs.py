@@ -1,0 +1,407 @@
+"""Malformed and hostile inputs, one row each: exit status, one clear stderr line, nothing lost.
+
+Each row of :data:`CASES` is ``Case(id, build, args, status, pattern)``:
+
+- ``build(d)`` writes the files the case needs into the folder ``d`` (the test's cwd);
+- ``args`` is the command line after ``pmdcid`` (paths relative to ``d``);
+- ``status`` the expected exit status: 1 for a problem with the user's data/files/model, 2 for a
+  usage error, 0 for suspicious-but-usable data;
+- ``pattern`` a regex that the ONE stderr line must match (``re.search``). For exit 1 the line must
+  begin ``error: `` and name the file; for exit 0 a ``warning: `` line must match (or, with
+  ``pattern=None``, stderr must be empty).
+
+For every row: no traceback, no "internal error", every file that existed before is byte-identical
+afterwards (except files listed in ``changes`` when the command succeeds, e.g. the model a stage
+updates), and no temporary file is left behind.
+
+To add a case: write a ``build`` (the helpers below make logs and models in one line) and append a
+row. Rows for commands not registered yet are skipped until the command lands.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pmdcid.cli import main
+from pmdcid.synth import PAPER
+
+FIX = Path(__file__).resolve().parents[1] / "fixtures"
+PMDCID = Path(sys.executable).parent / "pmdcid"
+
+
+# ----------------------------------------------------------------------------------------------
+# builders: each returns a function of the case folder ``d``
+
+def fixture(src: str, name: str | None = None):
+    """Copy a bundled fixture log, e.g. ``fixture('paper/step_1.5V.csv', 'step.csv')``."""
+    def build(d: Path):
+        (d / (name or Path(src).name)).write_bytes((FIX / src).read_bytes())
+    return build
+
+
+def text(name: str, content: str | bytes):
+    def build(d: Path):
+        p = d / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            p.write_bytes(content)
+        else:
+            p.write_text(content, newline="")
+    return build
+
+
+def edited(src: str, name: str, fn: Callable[[list[str]], list[str]]):
+    """A fixture log with its lines passed through ``fn`` (list of lines, comments included)."""
+    def build(d: Path):
+        lines = (FIX / src).read_text().splitlines()
+        (d / name).write_text("\n".join(fn(lines)) + "\n")
+    return build
+
+
+def table(name: str, columns: dict[str, np.ndarray], header: str | None = None):
+    """A CSV log from arrays (``header`` overrides the column names line)."""
+    def build(d: Path):
+        arr = np.column_stack(list(columns.values()))
+        body = "\n".join(",".join(f"{x:.9g}" for x in row) for row in arr)
+        (d / name).write_text((header or ",".join(columns)) + "\n" + body + "\n")
+    return build
+
+
+def model(name: str = "model.json", drop: tuple[str, ...] = (), only: tuple[str, ...] | None = None,
+          effects: tuple[str, ...] = (), **override):
+    """A model file with the paper's values (minus ``drop``, or ``only`` some), then overrides."""
+    def build(d: Path):
+        vals = {k: v for k, v in PAPER.items() if k not in drop and (only is None or k in only)}
+        vals.update(override)
+        obj = {"parameters": {k: {"value": v, "stderr": None, "unit": "", "stage": "test"}
+                              for k, v in vals.items()},
+               "effects": list(effects)}
+        (d / name).write_text(json.dumps(obj, indent=2) + "\n")
+    return build
+
+
+def regular_file(name: str):
+    return text(name, "I am a regular file, not a folder\n")
+
+
+def combine(*builders):
+    def build(d: Path):
+        for b in builders:
+            b(d)
+    return build
+
+
+def _replace_data_row(k: int, col: int, value: str):
+    """Edit data row ``k`` (0-based, after the header) column ``col`` of a fixture's lines."""
+    def fn(lines):
+        h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+        cells = lines[h + 1 + k].split(",")
+        cells[col] = value
+        lines[h + 1 + k] = ",".join(cells)
+        return lines
+    return fn
+
+
+def _drop_column(col: int):
+    def fn(lines):
+        return [ln if ln.startswith("#") else ",".join(c for j, c in enumerate(ln.split(","))
+                                                       if j != col) for ln in lines]
+    return fn
+
+
+# ----------------------------------------------------------------------------------------------
+# synthetic logs for the defects no fixture shows
+
+T1K = np.arange(3000) * 1e-3
+STEP = combine(fixture("paper/step_1.5V.csv", "step.csv"))
+BLOCKED = fixture("paper/blocked_1.5V.csv", "blocked.csv")
+MODEL = model()
+SIM = ["simulate", "step.csv", "-m", "model.json", "-o", "out.csv"]
+
+
+def _step_log(name, omega_scale=1.0, theta_scale=1.0, clip=None, v=1.5, onset=0.5, n=3000,
+              seed=1):
+    """A free-speed step log of the paper motor (analytic first order, small noise)."""
+    def build(d: Path):
+        rng = np.random.default_rng(seed)
+        t = np.arange(n) * 1e-3
+        km, R, b, J = PAPER["km"], PAPER["R"], PAPER["bv"], PAPER["J"]
+        K = km / (R * b + km * km)
+        tau = J * R / (R * b + km * km)
+        s = np.clip(t - onset, 0.0, None)
+        om = np.where(t >= onset, v * K * (1 - np.exp(-s / tau)), 0.0)
+        th = np.where(t >= onset, v * K * (s - tau * (1 - np.exp(-s / tau))), 0.0)
+        i = (np.where(t >= onset, v, 0.0) - km * om) / R
+        om_meas = om + rng.normal(0, 2e-3, n)
+        if clip is not None:
+            om_meas = np.minimum(om_meas, clip)
+        cols = {"t": t, "v": np.where(t >= onset, v, 0.0), "i": i + rng.normal(0, 2e-3, n),
+                "omega": om_meas * omega_scale, "theta": th * theta_scale}
+        table(name, cols)(d)
+    return build
+
+
+# ----------------------------------------------------------------------------------------------
+
+@dataclass
+class Case:
+    id: str
+    build: Callable[[Path], None]
+    args: list[str]
+    status: int
+    pattern: str | None
+    changes: tuple[str, ...] = ()  # files allowed to change when the command succeeds
+    subprocess: bool = False  # also run as a real process (the no-traceback guarantee)
+    marks: tuple = field(default=())
+
+
+def C(id, build, args, status, pattern, **kw):  # noqa: N802 - a table row
+    return Case(id, build, args, status, pattern, **kw)
+
+
+CASES: list[Case] = [
+    # ---- the log reader (through simulate, the command that reads any log) -------------------
+    C("log-missing", MODEL, SIM, 1, r"^error: step\.csv: no such log file"),
+    C("log-empty", combine(MODEL, text("step.csv", "")), SIM, 1, r"^error: step\.csv: .*empty",
+      subprocess=True),
+    C("log-blank-lines", combine(MODEL, text("step.csv", "\n\n  \n")), SIM, 1,
+      r"^error: step\.csv: .*empty"),
+    C("log-comments-only", combine(MODEL, text("step.csv", "# kind: step\n# nothing else\n")),
+      SIM, 1, r"^error: step\.csv: .*empty"),
+    C("log-header-only", combine(MODEL, text("step.csv", "t,v,i,omega,theta\n")), SIM, 1,
+      r"^error: step\.csv: has a header but no data rows"),
+    C("log-binary", combine(MODEL, text("step.csv", bytes(range(256)) * 4)), SIM, 1,
+      r"^error: step\.csv: is not a text CSV"),
+    C("log-no-time-column", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                  _drop_column(0))), SIM, 1,
+      r"^error: step\.csv: has no time column 't'.*-c t="),
+    C("log-no-input-column", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                   _drop_column(1))), SIM, 1,
+      r"^error: step\.csv: .*'v'.*'tau'"),
+    C("log-duplicated-column", combine(MODEL, text("step.csv", "t,v,v\n0,1,1\n1,1,1\n2,1,1\n")),
+      SIM, 1, r"^error: step\.csv: header names column\(s\) v more than once"),
+    C("log-semicolon-separated", combine(MODEL, text(
+        "step.csv", "t;v;i\n0,000;1,5;0,1\n0,001;1,5;0,1\n0,002;1,5;0,1\n")), SIM, 1,
+      r"^error: step\.csv: .*(semicolon|';')"),
+    C("log-non-numeric-cell", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                    _replace_data_row(100, 1, "1.5V"))), SIM, 1,
+      r"^error: step\.csv: column 'v' holds non-numeric value '1\.5V' \(data row 101\)"),
+    C("log-nan-in-time", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                               _replace_data_row(10, 0, "nan"))), SIM, 1,
+      r"^error: step\.csv: time column .*non-finite.*row 11"),
+    C("log-inf-in-input", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                _replace_data_row(7, 1, "inf"))), SIM, 1,
+      r"^error: step\.csv: column 'v' holds an infinite value \(data row 8\)"),
+    C("log-overflow-to-inf", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                   _replace_data_row(7, 2, "1e999"))), SIM, 1,
+      r"^error: step\.csv: column 'i' holds an infinite value"),
+    C("log-many-nan", combine(MODEL, edited(
+        "paper/step_1.5V.csv", "step.csv",
+        lambda ls: [ln if (k < 600 or k > 700) else ",".join(ln.split(",")[:1] + ["nan"] * 4)
+                    for k, ln in enumerate(ls)])), SIM, 1,
+      r"^error: step\.csv: column '\w+' has \d+ missing/NaN values.*clean or cut"),
+    C("log-few-nan-filled", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                  _replace_data_row(500, 3, "NaN"))), SIM, 0,
+      r"^warning: step\.csv: column 'omega': filled 1 NaN"),
+    C("log-time-stands-still", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                     _replace_data_row(20, 0, "0.019"))), SIM, 1,
+      r"^error: step\.csv: time stands still at data row 21"),
+    C("log-time-goes-back", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                  _replace_data_row(20, 0, "0.001"))), SIM, 1,
+      r"^error: step\.csv: time goes back at data row 21"),
+    C("log-jittery-sampling", combine(MODEL, table("step.csv", {
+        "t": T1K + np.random.default_rng(3).uniform(0, 4e-4, 3000), "v": np.ones(3000)})), SIM, 1,
+      r"^error: step\.csv: irregular sampling.*resample"),
+    C("log-dropout-gap", combine(MODEL, table("step.csv", {
+        "t": np.delete(T1K, np.s_[1000:1050]), "v": np.ones(2950)})), SIM, 1,
+      r"^error: step\.csv: irregular sampling"),
+    C("log-small-jitter-ok", combine(MODEL, table("step.csv", {
+        "t": T1K + np.random.default_rng(3).uniform(0, 5e-6, 3000), "v": np.ones(3000)})), SIM, 0,
+      None),
+    C("log-too-short", combine(MODEL, text("step.csv", "t,v\n0,1\n0.001,1\n")), SIM, 1,
+      r"^error: step\.csv: has only 2 data row\(s\)"),
+    C("log-ragged-long-row", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                   _replace_data_row(30, 4, "0,7,8"))), SIM, 1,
+      r"^error: step\.csv: is not a readable CSV"),
+    C("log-unclosed-quote", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                  _replace_data_row(30, 2, '"0.1'))), SIM, 1,
+      r"^error: step\.csv: is not a readable CSV"),
+    C("log-utf8-bom", combine(MODEL, text("step.csv", "\ufefft,v\n0,0\n0.001,1\n0.002,1\n")),
+      SIM, 0, None),
+    C("log-latin1-comment", combine(MODEL, text(
+        "step.csv", "# température: 21 °C\nt,v\n0,0\n0.001,1\n0.002,1\n".encode("latin-1"))),
+      SIM, 0, None),
+    C("log-is-folder", combine(MODEL, lambda d: (d / "step.csv").mkdir()), SIM, 2,
+      r"step\.csv.*(directory|folder)"),
+    C("log-saturated-sensor", combine(MODEL, _step_log("step.csv", clip=0.9)), SIM, 0,
+      r"^warning: step\.csv: column 'omega' .*(saturat|clip)"),
+    C("log-rpm-as-rad-per-s", combine(MODEL, _step_log("step.csv", omega_scale=60 / (2 * np.pi))),
+      SIM, 0, r"^warning: step\.csv: .*omega.*rpm"),
+    C("log-deg-as-rad", combine(MODEL, _step_log("step.csv", theta_scale=180 / np.pi)),
+      SIM, 0, r"^warning: step\.csv: .*theta.*deg"),
+    C("log-large-300k-rows", combine(MODEL, table("step.csv", {
+        "t": np.arange(300_000) * 1e-4,
+        "v": np.sign(np.sin(np.arange(300_000) * 1e-4))})), SIM, 0, None, changes=("out.csv",)),
+    # ---- column mappings -------------------------------------------------------------------
+    C("map-unknown-source", combine(MODEL, STEP), SIM + ["-c", "omega=speed_rpm*rpm"], 1,
+      r"^error: step\.csv: column mapping omega=speed_rpm: no column 'speed_rpm'"),
+    C("map-bad-syntax", combine(MODEL, STEP), SIM + ["-c", "omega"], 2,
+      r"column mapping 'omega' is not of the form"),
+    C("map-unknown-unit", combine(MODEL, STEP), SIM + ["-c", "omega=omega*furlongs"], 2,
+      r"'furlongs' is neither a number nor a unit"),
+    C("map-not-canonical", combine(MODEL, STEP), SIM + ["-c", "speed=omega"], 2,
+      r"'speed' is not a canonical column"),
+    C("map-file-missing", combine(MODEL, STEP), SIM + ["--map", "cols.map"], 1,
+      r"^error: cols\.map: cannot read column-mapping file"),
+    C("map-file-bad-json", combine(MODEL, STEP, text("cols.map", '{"omega": ')),
+      SIM + ["--map", "cols.map"], 1, r"^error: cols\.map: mapping file is not valid JSON"),
+    C("map-file-bad-line", combine(MODEL, STEP, text("cols.map", "omega = speed * bananas\n")),
+      SIM + ["--map", "cols.map"], 1, r"^error: cols\.map: column mapping .*bananas"),
+    # ---- the model file --------------------------------------------------------------------
+    C("model-missing", STEP, SIM, 1, r"^error: model\.json: no such model file"),
+    C("model-empty", combine(STEP, text("model.json", "")), SIM, 1,
+      r"^error: model\.json: model file is empty", subprocess=True),
+    C("model-not-json", combine(STEP, text("model.json", "R = 2.37\nL = 0.0178\n")), SIM, 1,
+      r"^error: model\.json: model file is not valid JSON \(line 1"),
+    C("model-truncated-json", combine(STEP, text("model.json", '{"parameters": {"R": {"val')),
+      SIM, 1, r"^error: model\.json: model file is not valid JSON"),
+    C("model-json-list", combine(STEP, text("model.json", "[1, 2, 3]")), SIM, 1,
+      r"^error: model\.json: model file must hold a JSON object"),
+    C("model-missing-parameter", combine(STEP, model(drop=("J",))), SIM, 1,
+      r"^error: model\.json: model lacks J .*run fit-mechanical"),
+    C("model-no-parameters", combine(STEP, text("model.json", '{"effects": []}')), SIM, 1,
+      r"^error: model\.json: model lacks R, L, km, J"),
+    C("model-negative-R", combine(STEP, model(R=-2.37)), SIM, 1,
+      r"^error: model\.json: parameter 'R' = -2\.37 ohm is impossible"),
+    C("model-zero-J", combine(STEP, model(J=0.0)), SIM, 1,
+      r"^error: model\.json: parameter 'J' = 0 .*impossible"),
+    C("model-nan-value", combine(STEP, text("model.json",
+                                            '{"parameters": {"R": {"value": NaN}}}')), SIM, 1,
+      r"^error: model\.json: parameter 'R' is not finite"),
+    C("model-string-value", combine(STEP, model(L="17.8 mH")), SIM, 1,
+      r"^error: model\.json: parameter 'L' has non-numeric value '17\.8 mH'"),
+    C("model-bad-entry", combine(STEP, text("model.json", '{"parameters": {"R": [2.37]}}')), SIM,
+      1, r"^error: model\.json: parameter 'R' must be an object with a 'value'"),
+    C("model-unknown-effect", combine(STEP, model(effects=("flux_capacitor",))), SIM, 1,
+      r"^error: model\.json: unknown effect\(s\) flux_capacitor"),
+    C("model-effect-without-params", combine(STEP, model(effects=("stribeck",))), SIM, 0,
+      r"^warning: model\.json: .*stribeck.*lacks", changes=("out.csv",)),
+    C("model-not-utf8", combine(STEP, text("model.json", b'{"parameters": {"R\xff": 1}}')), SIM, 1,
+      r"^error: model\.json: "),
+    C("model-is-folder", combine(STEP, lambda d: (d / "model.json").mkdir()), SIM, 2,
+      r"model\.json.*(directory|folder)"),
+    # ---- outputs ---------------------------------------------------------------------------
+    C("out-under-regular-file", combine(STEP, MODEL, regular_file("notes.txt")),
+      ["simulate", "step.csv", "-m", "model.json", "-o", "notes.txt/out.csv"], 1,
+      r"^error: notes\.txt: .*not a folder"),
+    C("out-in-missing-folder", combine(STEP, MODEL),
+      ["simulate", "step.csv", "-m", "model.json", "-o", "nowhere/out.csv"], 1,
+      r"^error: nowhere: output folder does not exist"),
+    C("out-in-proc", combine(STEP, MODEL),
+      ["simulate", "step.csv", "-m", "model.json", "-o", "/proc/pmdcid-out.csv"], 1,
+      r"^error: /proc.*cannot write"),
+    C("out-is-input", combine(STEP, MODEL),
+      ["simulate", "step.csv", "-m", "model.json", "-o", "./step.csv"], 1,
+      r"^error: \./step\.csv: output would overwrite the input log"),
+    C("out-is-input-even-forced", combine(STEP, MODEL),
+      ["simulate", "step.csv", "-m", "model.json", "-o", "step.csv", "--force"], 1,
+      r"^error: step\.csv: output would overwrite the input log"),
+    C("out-is-model", combine(STEP, MODEL),
+      ["simulate", "step.csv", "-m", "model.json", "-o", "model.json", "--force"], 1,
+      r"^error: model\.json: output would overwrite the model file"),
+    C("out-exists-not-ours", combine(STEP, MODEL, text("out.csv", "t,omega\n0,1\n")), SIM, 1,
+      r"^error: out\.csv: exists and was not written by pmdcid; use --force"),
+    C("out-is-folder", combine(STEP, MODEL, lambda d: (d / "out.csv").mkdir()), SIM, 2,
+      r"out\.csv.*(directory|folder)"),
+    # ---- usage errors (click) --------------------------------------------------------------
+    C("usage-no-model", STEP, ["simulate", "step.csv", "-o", "out.csv"], 2,
+      r"Missing option '-m'"),
+    C("usage-bad-seed", combine(STEP, MODEL), SIM + ["--seed", "abc"], 2,
+      r"'abc' is not a valid integer"),
+    C("usage-unknown-option", combine(STEP, MODEL), SIM + ["--frobnicate"], 2,
+      r"No such option '--frobnicate'", subprocess=True),
+]
+
+
+# ----------------------------------------------------------------------------------------------
+
+def _snapshot(d: Path) -> dict[str, str]:
+    out = {}
+    for p in d.rglob("*"):
+        if p.is_file():
+            out[str(p.relative_to(d))] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return out
+
+
+def _check_outcome(case: Case, d: Path, status: int, stderr: str, before: dict[str, str]):
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    assert "Traceback" not in stderr, stderr
+    assert "internal error" not in stderr, stderr
+    assert status == case.status, f"exit {status}, stderr:\n{stderr}"
+    if case.status == 1:
+        assert len(lines) == 1, f"expected one stderr line, got:\n{stderr}"
+        assert lines[0].startswith("error: "), lines[0]
+        assert re.search(case.pattern, lines[0]), lines[0]
+    elif case.status == 2:
+        assert re.search(case.pattern, stderr), stderr
+    elif case.pattern is None:
+        assert lines == [], stderr
+    else:
+        assert any(re.search(case.pattern, ln) for ln in lines), stderr
+        assert all(ln.startswith("warning: ") for ln in lines), stderr
+    after = _snapshot(d)
+    for name, digest in before.items():
+        if case.status == 0 and name in case.changes:
+            continue
+        assert after.get(name) == digest, f"{name} was modified or removed"
+    leftovers = [n for n in after if n not in before and n.endswith(".tmp")]
+    assert not leftovers, leftovers
+    if case.status != 0:
+        assert set(after) <= set(before), f"failed command left files: {set(after) - set(before)}"
+
+
+def _command_available(args: list[str]) -> bool:
+    return args[0] in main.commands
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_bad_input(case: Case, tmp_path, monkeypatch):
+    if not _command_available(case.args):
+        pytest.skip(f"command {case.args[0]} not available yet")
+    monkeypatch.chdir(tmp_path)
+    case.build(tmp_path)
+    before = _snapshot(tmp_path)
+    res = CliRunner().invoke(main, case.args, catch_exceptions=False)
+    _check_outcome(case, tmp_path, res.exit_code, res.stderr, before)
+
+
+SUB = [c for c in CASES if c.subprocess]
+
+
+@pytest.mark.parametrize("case", SUB, ids=[c.id for c in SUB])
+def test_bad_input_real_process(case: Case, tmp_path):
+    """The same rows through a real process: what a user's terminal shows."""
+    if not _command_available(case.args):
+        pytest.skip(f"command {case.args[0]} not available yet")
+    case.build(tmp_path)
+    before = _snapshot(tmp_path)
+    env = {k: v for k, v in os.environ.items() if k != "PMDCID_DEBUG"}
+    proc = subprocess.run([str(PMDCID), *case.args], cwd=tmp_path, capture_output=True,
+                          text=True, env=env, timeout=120)
+    _check_outcome(case, tmp_path, proc.returncode, proc.stderr, before)
+
+
+def test_table_is_large_enough():
+    assert len(CASES) >= 40
