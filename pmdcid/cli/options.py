@@ -15,7 +15,8 @@ def log_options(f):
                        "(repeatable; see docs/cli.md).")
     @click.option("--map", "map_file", type=click.Path(dir_okay=False), default=None,
                   help="File of column mappings, one CANON=SRC*K+OFF per line (or JSON).")
-    @click.option("--cutoff", "cutoff_hz", type=float, default=None, metavar="HZ",
+    @click.option("--cutoff", "cutoff_hz", type=click.FloatRange(min=0.0, min_open=True),
+                  default=None, metavar="HZ",
                   help="Cut-off of the zero-phase low-pass used to derive speed from angle "
                        "(and acceleration) [Hz]; default min(rate/10, 100 Hz).")
     @functools.wraps(f)
