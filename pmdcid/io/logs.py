@@ -276,21 +276,39 @@ def read_logs(paths, mapping: ColumnMap | None = None) -> list[Log]:
     return [read_log(p, mapping) for p in paths]
 
 
+#: rows formatted per chunk when writing a log (bounds the memory of writing huge logs)
+WRITE_CHUNK = 200_000
+
+
+def write_csv(fh, t: np.ndarray, columns: dict[str, np.ndarray],
+              meta: dict[str, str] | None = None, precision: int = 9) -> None:
+    """Write CSV to the open text file ``fh``: ``# key: value`` comments, header, values.
+
+    Rows are formatted ``%.{precision}g`` in chunks of :data:`WRITE_CHUNK`, so a 10-million-row
+    log never exists as one string in memory.
+    """
+    for k, v in (meta or {}).items():
+        fh.write(f"# {k}: {v}\n")
+    fh.write(",".join(["t", *columns]) + "\n")
+    cols = [np.asarray(t, dtype=float), *(np.asarray(c, dtype=float) for c in columns.values())]
+    for a in range(0, len(cols[0]), WRITE_CHUNK):
+        arr = np.column_stack([c[a:a + WRITE_CHUNK] for c in cols])
+        np.savetxt(fh, arr, delimiter=",", fmt=f"%.{precision}g")
+
+
 def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None,
                precision: int = 9) -> str:
     """CSV text with ``# key: value`` comments, header ``t,...`` and ``%.{precision}g`` values."""
     buf = _io.StringIO()
-    for k, v in (meta or {}).items():
-        buf.write(f"# {k}: {v}\n")
-    names = ["t", *columns]
-    buf.write(",".join(names) + "\n")
-    arr = np.column_stack([t, *columns.values()])
-    np.savetxt(buf, arr, delimiter=",", fmt=f"%.{precision}g")
+    write_csv(buf, t, columns, meta, precision)
     return buf.getvalue()
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` atomically: a temporary file in the same folder, then rename."""
+def atomic_write(path: str | os.PathLike, fill) -> None:
+    """Write ``path`` atomically: ``fill(fh)`` writes a temporary file in the same folder, which
+    then replaces ``path`` (os.replace). On any failure the temporary file is removed and an
+    existing ``path`` is left byte-for-byte as it was.
+    """
     p = Path(path)
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.exists():
@@ -306,7 +324,7 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
         raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
     try:
         with os.fdopen(fd, "w") as fh:
-            fh.write(text)
+            fill(fh)
             fh.flush()
             os.fsync(fh.fileno())
         if p.exists():
@@ -316,17 +334,24 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
             os.umask(umask)
             os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, p)
-    except OSError as exc:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except OSError:
             pass
-        raise LogError(f"cannot write ({exc.strerror})", str(p)) from None
+        if isinstance(exc, OSError):
+            raise LogError(f"cannot write ({exc.strerror})", str(p)) from None
+        raise
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (see :func:`atomic_write`)."""
+    atomic_write(path, lambda fh: fh.write(text))
 
 
 def write_log(path, t, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None) -> None:
-    """Write a canonical log atomically."""
-    atomic_write_text(path, format_csv(np.asarray(t), columns, meta))
+    """Write a canonical log atomically, streaming it in chunks."""
+    atomic_write(path, lambda fh: write_csv(fh, np.asarray(t), columns, meta))
 
 
 def is_finite_number(x) -> bool:
