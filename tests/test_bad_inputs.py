@@ -129,6 +129,9 @@ STEP = combine(fixture("paper/step_1.5V.csv", "step.csv"))
 BLOCKED = fixture("paper/blocked_1.5V.csv", "blocked.csv")
 MODEL = model()
 SIM = ["simulate", "step.csv", "-m", "model.json", "-o", "out.csv"]
+FE = ["fit-electrical", "blocked.csv", "-m", "model.json"]
+FM = ["fit-mechanical", "step.csv", "-m", "model.json"]
+FN = ["fit-nonlinear", "tri.csv", "-m", "model.json"]
 
 
 def _step_log(name, omega_scale=1.0, theta_scale=1.0, clip=None, v=1.5, onset=0.5, n=3000,
@@ -151,6 +154,24 @@ def _step_log(name, omega_scale=1.0, theta_scale=1.0, clip=None, v=1.5, onset=0.
                 "omega": om_meas * omega_scale, "theta": th * theta_scale}
         table(name, cols)(d)
     return build
+
+
+def _triangle_log(name, clip=None, seconds=40.0):
+    """A +-2 V triangle log of the paper motor, simulated by the kernel (noise, optional clip)."""
+    def build(d: Path):
+        from pmdcid.simulate import neutral_values
+        from pmdcid.synth import NoiseSpec, synth_log, triangle
+
+        t = np.arange(int(seconds * 1000)) * 1e-3
+        cols, _ = synth_log(t, triangle(t, 2.0, 20.0), {**neutral_values(), **PAPER},
+                            NoiseSpec(4e-3, 4e-3, 4096), np.random.default_rng(2))
+        if clip is not None:
+            cols["omega"] = np.clip(cols["omega"], -np.inf, clip)
+        table(name, {"t": t, **cols})(d)
+    return build
+
+
+TRI = _triangle_log("tri.csv")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -325,6 +346,98 @@ CASES: list[Case] = [
       r"^error: out\.csv: exists and was not written by pmdcid; use --force"),
     C("out-is-folder", combine(STEP, MODEL, lambda d: (d / "out.csv").mkdir()), SIM, 2,
       r"out\.csv.*(directory|folder)"),
+    # ---- fit-electrical --------------------------------------------------------------------
+    C("fe-empty-log", text("blocked.csv", ""), FE, 1, r"^error: blocked\.csv: .*empty"),
+    C("fe-no-current", edited("paper/blocked_1.5V.csv", "blocked.csv", _drop_column(2)), FE, 1,
+      r"^error: blocked\.csv: .*\bi\b"),
+    C("fe-step-never-happens", table("blocked.csv", {
+        "t": np.arange(1500) * 2e-4, "v": np.zeros(1500),
+        "i": np.random.default_rng(5).normal(0, 4e-3, 1500)}), FE, 1, r"^error: blocked\.csv: "),
+    C("fe-too-short", text("blocked.csv", "t,v,i\n0,0,0\n0.0002,1,0.01\n0.0004,1,0.02\n"
+                           "0.0006,1,0.03\n"), FE, 1, r"^error: blocked\.csv: "),
+    C("fe-model-not-json", combine(BLOCKED, text("model.json", "{R: 2.37}")), FE, 1,
+      r"^error: model\.json: model file is not valid JSON", subprocess=True),
+    C("fe-model-negative-R", combine(BLOCKED, model(R=-1.0)), FE, 1,
+      r"^error: model\.json: parameter 'R' = -1 ohm is impossible"),
+    C("fe-model-under-regular-file", combine(BLOCKED, regular_file("notes.txt")),
+      ["fit-electrical", "blocked.csv", "-m", "notes.txt/model.json"], 1,
+      r"^error: notes\.txt: .*not a folder"),
+    C("fe-model-is-input-log", BLOCKED, ["fit-electrical", "blocked.csv", "-m", "blocked.csv"], 1,
+      r"^error: blocked\.csv: "),
+    C("fe-no-logs", MODEL, ["fit-electrical", "-m", "model.json"], 2, r"Missing argument"),
+    # ---- fit-mechanical --------------------------------------------------------------------
+    C("fm-before-fit-electrical", combine(STEP, model(only=("km",))), FM, 1,
+      r"^error: model\.json: .*\bR\b.*fit-electrical"),
+    C("fm-no-km", combine(STEP, model(drop=("km", "J", "bv", "bc", "dz"))), FM, 1,
+      r"^error: model\.json: .*km.*--km"),
+    C("fm-motor-never-moves", combine(MODEL, _step_log("step.csv", omega_scale=0.0,
+                                                       theta_scale=0.0)), FM, 1,
+      r"^error: step\.csv: "),
+    C("fm-step-never-happens", combine(MODEL, _step_log("step.csv", v=0.0)), FM, 1,
+      r"^error: step\.csv: "),
+    C("fm-too-short", combine(MODEL, _step_log("step.csv", n=30, onset=0.01)), FM, 1,
+      r"^error: step\.csv: "),
+    C("fm-no-speed-or-angle", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                    lambda ls: _drop_column(3)(
+                                                        _drop_column(4)(ls)))), FM, 1,
+      r"^error: step\.csv: .*omega"),
+    C("fm-rpm-as-rad-per-s", combine(MODEL, _step_log("step.csv", omega_scale=60 / (2 * np.pi))),
+      FM, 0, r"^warning: step\.csv: .*rpm", changes=("model.json",)),
+    C("fm-bad-km", combine(STEP, MODEL), ["fit-mechanical", "step.csv", "-m", "model.json",
+                                          "--km", "fast"], 2, r"'fast' is not a valid float"),
+    # ---- fit-nonlinear ---------------------------------------------------------------------
+    C("fn-before-fit-mechanical", combine(TRI, model(drop=("J", "bv", "bc", "dz"))), FN, 1,
+      r"^error: model\.json: .*\bJ\b.*fit-mechanical"),
+    C("fn-model-missing", TRI, FN, 1, r"^error: model\.json: "),
+    C("fn-no-speed-or-angle", combine(MODEL, table("tri.csv", {
+        "t": T1K, "v": np.sin(T1K), "i": np.sin(T1K) / 2.37})), FN, 1,
+      r"^error: tri\.csv: .*(omega|theta)"),
+    C("fn-too-short", combine(MODEL, table("tri.csv", {
+        "t": T1K[:8], "v": T1K[:8], "omega": T1K[:8], "theta": T1K[:8]})), FN, 1,
+      r"^error: tri\.csv: "),
+    C("fn-saturated-speed", combine(MODEL, _triangle_log("tri.csv", clip=0.8)), FN, 0,
+      r"^warning: tri\.csv: column 'omega' .*saturat", changes=("model.json",)),
+    # ---- report ----------------------------------------------------------------------------
+    C("report-out-is-input", combine(STEP, MODEL),
+      ["report", "step.csv", "-m", "model.json", "-o", "step.csv"], 1,
+      r"^error: step\.csv: "),
+    C("report-out-under-regular-file", combine(STEP, MODEL, regular_file("notes.txt")),
+      ["report", "step.csv", "-m", "model.json", "-o", "notes.txt/rep"], 1,
+      r"^error: notes\.txt: "),
+    C("report-out-in-proc", combine(STEP, MODEL),
+      ["report", "step.csv", "-m", "model.json", "-o", "/proc/pmdcid-report"], 1,
+      r"^error: /proc"),
+    C("report-model-missing", STEP, ["report", "step.csv", "-m", "model.json", "-o", "rep"], 1,
+      r"^error: model\.json: "),
+    C("report-model-incomplete", combine(STEP, model(only=("R", "L"))),
+      ["report", "step.csv", "-m", "model.json", "-o", "rep"], 1, r"^error: model\.json: "),
+    C("report-log-header-only", combine(MODEL, text("step.csv", "t,v,i,omega,theta\n")),
+      ["report", "step.csv", "-m", "model.json", "-o", "rep"], 1, r"^error: step\.csv: "),
+    # ---- diagnose --------------------------------------------------------------------------
+    C("diag-out-is-input", combine(STEP, MODEL),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "step.csv"], 1, r"^error: step\.csv: "),
+    C("diag-summary-is-input", combine(STEP, MODEL),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--summary", "step.csv"], 1,
+      r"^error: step\.csv: "),
+    C("diag-model-missing", STEP, ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"],
+      1, r"^error: model\.json: "),
+    C("diag-model-empty", combine(STEP, text("model.json", "")),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
+      r"^error: model\.json: .*empty"),
+    C("diag-out-under-regular-file", combine(STEP, MODEL, regular_file("notes.txt")),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "notes.txt/new.json"], 1,
+      r"^error: notes\.txt: "),
+    C("diag-log-jittery", combine(MODEL, table("step.csv", {
+        "t": T1K + np.random.default_rng(3).uniform(0, 4e-4, 3000), "v": np.ones(3000),
+        "omega": np.ones(3000)})),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
+      r"^error: step\.csv: irregular sampling"),
+    # ---- demo ------------------------------------------------------------------------------
+    C("demo-out-under-regular-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt/d"], 1,
+      r"^error: notes\.txt: "),
+    C("demo-out-is-a-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt"], 1,
+      r"^error: notes\.txt: "),
+    C("demo-out-in-proc", lambda d: None, ["demo", "-o", "/proc/pmdcid-demo"], 1, r"^error: /proc"),
     # ---- usage errors (click) --------------------------------------------------------------
     C("usage-no-model", STEP, ["simulate", "step.csv", "-o", "out.csv"], 2,
       r"Missing option '-m'"),
