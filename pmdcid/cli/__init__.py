@@ -38,6 +38,13 @@ class _Group(click.Group):
         except KeyboardInterrupt:
             click.echo("error: interrupted", err=True)
             sys.exit(130)
+        except OSError as exc:  # a file operation the library did not wrap: name the file
+            if os.environ.get("PMDCID_DEBUG"):
+                raise
+            where = f"{exc.filename}: " if exc.filename else ""
+            click.echo(f"error: {where}{exc.strerror or exc} (check the path and its permissions)",
+                       err=True)
+            sys.exit(1)
         except MemoryError:
             click.echo("error: out of memory: the log is too large for this machine", err=True)
             sys.exit(1)

@@ -32,9 +32,43 @@ def log_options(f):
             raise click.BadParameter(str(exc), param_hint="'-c' / '--column'") from None
         mapping.cutoff_hz = cutoff_hz
         kwargs["mapping"] = mapping
+        guard_outputs()
         return f(*args, **kwargs)
 
     return wrapper
+
+
+#: options naming files or folders a command writes
+OUTPUT_OPTIONS = frozenset({"-o", "--output", "--summary"})
+
+
+def guard_outputs(ctx: click.Context | None = None) -> None:
+    """Refuse (exit 1) when an output option names an input: a LOG argument or the --map file.
+
+    Runs at the edge before the command does any work, so no command can overwrite a user's log.
+    """
+    import os
+
+    from pmdcid.errors import LogError
+
+    ctx = ctx or click.get_current_context(silent=True)
+    if ctx is None:
+        return
+    inputs: list[str] = []
+    outputs: list[tuple[str, str]] = []
+    for p in ctx.command.params:
+        v = ctx.params.get(p.name)
+        vals = [x for x in (v if isinstance(v, (tuple, list)) else [v]) if isinstance(x, str)]
+        if isinstance(p, click.Argument) or p.name == "map_file":
+            inputs += vals
+        elif OUTPUT_OPTIONS & set(p.opts):
+            outputs += [(x, p.opts[-1]) for x in vals]
+    for out, opt in outputs:
+        if not os.path.exists(out):
+            continue
+        for inp in inputs:
+            if os.path.exists(inp) and os.path.samefile(out, inp):
+                raise LogError(f"output would overwrite the input {inp}; choose another {opt}", out)
 
 
 def model_option(required: bool = True):
