@@ -112,7 +112,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         out = []
         for k, log in enumerate(logs):
             vals = dict(base[k])
-            vals.update(dict(zip(free, x)))
+            vals.update(dict(zip(free, x, strict=True)))
             out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub))
         return out
 
@@ -143,7 +143,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     except np.linalg.LinAlgError:
         se = np.full(len(free), math.nan)
         corr = np.full((len(free), len(free)), math.nan)
-    est = {n: Estimate(n, float(v), float(e), _unit(n)) for n, v, e in zip(free, x, se)}
+    est = {n: Estimate(n, float(v), float(e), _unit(n))
+           for n, v, e in zip(free, x, se, strict=True)}
     correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
               for i, a in enumerate(free)}
     final = sims(x)
@@ -153,3 +154,17 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         errs[k][s] = nrmse(final[k].get(s), meas)
         sig_out[k][s] = sd
     return SimFitResult(est, stats, correl, errs, sig_out)
+
+
+def format_estimates(estimates, width: int = 10) -> list[str]:
+    """Table lines ``name  value ± stderr  unit`` (``fixed`` when the parameter did not vary)."""
+    lines = [f"{'parameter':<{width}} {'value':>13}   {'± stderr':<11} unit"]
+    for e in estimates:
+        if not e.vary:
+            se = "(fixed)"
+        elif math.isfinite(e.stderr):
+            se = f"± {e.stderr:.2g}"
+        else:
+            se = "± ?"
+        lines.append(f"{e.name:<{width}} {e.value:13.6g}   {se:<11} {e.unit}".rstrip())
+    return lines

@@ -1,0 +1,284 @@
+"""fit-mechanical: free-speed voltage steps -> Kmot, tau_mot -> b, J (paper section III-B), and
+better: bv, bc from the affine steady-state line across amplitudes.
+
+Per step (the speed omega [rad/s] after a voltage step dV [V] from rest):
+
+- the paper's first-order model ``omega = Kmot dV (1 - exp(-(t - t0 - d)/tau_mot))`` (Strejc start,
+  least-squares refinement), and its formulas b = km/(Kmot R), J = tau_mot b (eqs. 13-14);
+- a second-order model with the electrical lag tau_e = L/R held: after breakaway (dead time d)
+  ``J omega' + bv omega = km i(t) - bc`` with i rising as 1 - exp(-t/tau_e), whose solution is
+  ``omega_ss (1 + a e^(-s/tau_e) - (1 + a) e^(-s/tau_m))``, a = beta tau_e/(tau_m - tau_e); beta < 1
+  when the rotor breaks free after the current has partly risen (dead zone above Coulomb).
+
+Across amplitudes the steady speed is affine in voltage (Coulomb friction):
+``omega_ss = (km/(R bv)) V - bc/bv``. The line's slope gives bv, its intercept bc, and
+J = tau_m bv. The paper's b lumps Coulomb friction into the viscous term (b > bv, and b depends on
+the amplitude): it is reported and written as ``b``, but fit-nonlinear starts from bv, bc, J.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pmdcid.errors import FitError
+from pmdcid.identify.results import Estimate, FitStats
+from pmdcid.identify.simfit import format_estimates
+from pmdcid.identify.steps import (
+    find_step,
+    fit_first_order,
+    lsq,
+    residual_std,
+    strejc,
+    two_lag,
+)
+from pmdcid.model import Model
+
+STAGE = "fit-mechanical"
+#: a step whose steady speed is within this many noise std of zero did not move the rotor
+MOVE_SIGMAS = 8.0
+
+
+def paper_mechanical(kmot: float, tau_mot: float, km: float, r: float) -> tuple[float, float]:
+    """The paper's eqs. (13)-(14): b = km/(Kmot R) [N m s/rad], J = tau_mot b [kg m^2].
+
+    Kmot [rad/s per V], tau_mot [s], km [N m/A], R [ohm].
+    """
+    b = km / (kmot * r)
+    return b, tau_mot * b
+
+
+def steady_line(v: np.ndarray, w: np.ndarray, w_se: np.ndarray):
+    """Weighted line |omega_ss| = a |V| + c [rad/s]: returns (a, c, cov 2x2)."""
+    X = np.column_stack([np.abs(v), np.ones(len(v))])
+    y = np.abs(w)
+    wt = 1.0 / np.where(np.isfinite(w_se) & (w_se > 0), w_se, np.nanmedian(w_se) or 1.0)
+    A = X * wt[:, None]
+    coef, *_ = np.linalg.lstsq(A, y * wt, rcond=None)
+    resid = (y - X @ coef) * wt
+    dof = max(len(y) - 2, 1)
+    s2 = max(float(resid @ resid) / dof, 1.0) if len(y) > 2 else 1.0
+    cov = np.linalg.inv(A.T @ A) * s2
+    return float(coef[0]), float(coef[1]), cov
+
+
+@dataclass
+class MechStep:
+    """One step: amplitude [V], moved?, first-order (paper) and second-order fits."""
+
+    path: str
+    amplitude: float
+    moved: bool
+    kmot: float = math.nan
+    tau_mot: float = math.nan
+    b: float = math.nan
+    J_paper: float = math.nan
+    omega_ss: float = math.nan
+    omega_ss_se: float = math.nan
+    tau_m: float = math.nan
+    tau_m_se: float = math.nan
+    dead_time: float = math.nan
+    beta: float = math.nan
+    strejc_order: int = 0
+
+
+@dataclass
+class MechanicalResult:
+    """b (paper), bv, bc, J with standard errors; the paper's Kmot, tau_mot; per-step fits."""
+
+    estimates: dict[str, Estimate]
+    steps: list[MechStep]
+    stats: FitStats
+    km_from_option: bool = False
+    warnings: list[str] = field(default_factory=list)
+
+    def apply(self, model: Model) -> None:
+        """Write b, bv, bc, J (stage 'fit-mechanical'); km with stage 'datasheet' if given."""
+        if self.km_from_option:
+            e = self.estimates["km"]
+            model.set("km", e.value, math.nan, e.unit, stage="datasheet")
+        for name in ("b", "bv", "bc", "J"):
+            e = self.estimates.get(name)
+            if e is not None and e.vary:
+                model.set(name, e.value, e.stderr, e.unit, stage=STAGE)
+        fits = model.extra.setdefault("fits", {})
+        fits[STAGE] = {
+            "logs": [s.path for s in self.steps],
+            "Kmot": self.estimates["Kmot"].value, "tau_mot": self.estimates["tau_mot"].value,
+            "breakaway_torque": _finite(self.estimates["T_break"].value),
+            "skipped": [s.path for s in self.steps if not s.moved],
+        }
+
+    def table(self) -> str:
+        lines = ["fit-mechanical: free-speed steps", ""]
+        lines.append(f"{'log':<26} {'V':>5} {'Kmot':>8} {'tau_mot':>8} {'b paper':>9} "
+                     f"{'w_ss':>8} {'tau_m':>8} {'dead ms':>7}")
+        for s in self.steps:
+            name = s.path if len(s.path) <= 26 else "..." + s.path[-23:]
+            if not s.moved:
+                lines.append(f"{name:<26} {s.amplitude:5.3g}  did not move (below the dead "
+                             "zone / breakaway): skipped")
+                continue
+            lines.append(f"{name:<26} {s.amplitude:5.3g} {s.kmot:8.4g} {s.tau_mot:8.4g} "
+                         f"{s.b:9.4g} {s.omega_ss:8.4g} {s.tau_m:8.4g} "
+                         f"{1e3 * s.dead_time:7.3g}")
+        lines.append("")
+        lines.append("paper (first order, Coulomb lumped into b): b = km/(Kmot R), "
+                     "J = tau_mot b")
+        lines += format_estimates([self.estimates[k] for k in ("Kmot", "tau_mot", "b",
+                                                                "J_paper")])[1:]
+        lines.append("")
+        lines.append("affine steady-state line w_ss = (km/(R bv)) V - bc/bv, "
+                     "second-order steps (tau_e held), J = tau_m bv:")
+        lines += format_estimates([self.estimates[k] for k in ("bv", "bc", "J", "T_break")])
+        return "\n".join(lines)
+
+
+def _finite(x):
+    return x if math.isfinite(x) else None
+
+
+def _second_order(t, w, step, tau_e, st, sigma):
+    s = t - step.t0
+    dt = float(t[1] - t[0])
+    span = float(t[-1] - step.t0)
+    tau0 = max(st.tau - tau_e, 2 * tau_e) if math.isfinite(st.tau) else 0.1 * span
+    names = ("y0", "wss", "tau_m", "d", "beta")
+    x0 = [st.initial, st.final - st.initial, tau0, min(st.tu, 0.5 * tau0)
+          if math.isfinite(st.tu) else 0.0, 0.9]
+    lo = np.array([-np.inf, -np.inf, 1.01 * tau_e + 0.05 * dt, 0.0, 0.0])
+    hi = np.array([np.inf, np.inf, 10 * span, 0.5 * span, 1.0])
+
+    def resid(x):
+        y0, wss, tm, d, beta = x
+        return (y0 + wss * np.where(s > d, two_lag(s - d, tm, tau_e, beta), 0.0) - w) / sigma
+
+    return lsq(resid, x0, lo, hi, names)
+
+
+def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalResult:
+    """Fit the free-speed step logs (``t``, ``v``, ``omega``; one step from rest each).
+
+    Needs R and L in ``model`` (fit-electrical) and km from ``km`` [N m/A] or the model.
+    Raises :class:`~pmdcid.errors.ModelError` when they are missing, :class:`FitError` when no
+    step moves the rotor.
+    """
+    model.require("R", "L", stage="fit-mechanical")
+    km_given = km is not None
+    if km is None:
+        model.require("km", stage="fit-mechanical")
+        km = model.value("km")
+    elif not (math.isfinite(km) and km > 0):
+        raise FitError(f"--km must be a positive torque constant in N m/A, got {km:g}")
+    if not logs:
+        raise FitError("fit-mechanical needs at least one free-speed step log")
+    R, L = model.value("R"), model.value("L")
+    tau_e = L / R
+    warns: list[str] = []
+    steps: list[MechStep] = []
+    ndata, chisqr = 0, 0.0
+    for log in logs:
+        log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
+        step = find_step(log.t, log.u, log.path)
+        w = np.asarray(log["omega"], float)
+        sig = residual_std(log.t, w, step)
+        if not math.isfinite(sig) or sig <= 0:
+            sig = max(1e-6 * float(np.max(np.abs(w))), 1e-12)
+        st = strejc(log.t, w, step)
+        tail_speed = st.final - st.initial
+        ms = MechStep(log.path, step.amplitude, abs(tail_speed) > MOVE_SIGMAS * sig)
+        steps.append(ms)
+        if not ms.moved:
+            warns.append(f"{log.path}: a {step.amplitude:.3g} V step does not move the rotor "
+                         "(below the dead zone / breakaway torque): reported, not fitted")
+            continue
+        if abs(step.before) > 1e-9 * abs(step.amplitude) and abs(np.median(
+                w[: step.onset])) > MOVE_SIGMAS * sig:
+            warns.append(f"{log.path}: the rotor is not at rest before the step: the fits "
+                         "assume a start from rest")
+        ms.strejc_order = st.order
+        cf1 = fit_first_order(log.t, w, step, st)
+        ms.kmot = cf1["dy"] / step.amplitude
+        ms.tau_mot = cf1["tau"]
+        ms.b, ms.J_paper = paper_mechanical(ms.kmot, ms.tau_mot, km, R)
+        cf2 = _second_order(log.t, w, step, tau_e, st, sig)
+        ms.omega_ss, ms.omega_ss_se = cf2["wss"], cf2.se("wss")
+        ms.tau_m, ms.tau_m_se = cf2["tau_m"], cf2.se("tau_m")
+        ms.dead_time, ms.beta = cf2["d"], cf2["beta"]
+        ndata += cf2.ndata
+        chisqr += cf2.sigma**2 * max(cf2.ndata - 5, 1)
+    moving = [s for s in steps if s.moved]
+    if not moving:
+        raise FitError("no step log moves the rotor: fit-mechanical needs steps above the dead "
+                       "zone (larger voltages)")
+    return _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns)
+
+
+def _mean_se(x: np.ndarray, se: np.ndarray | None = None) -> tuple[float, float]:
+    """Mean and its standard error (scatter-based; inverse-variance weighted if ``se``)."""
+    x = np.asarray(x, float)
+    if se is not None and np.all(np.isfinite(se)) and np.all(se > 0):
+        w = 1.0 / np.asarray(se) ** 2
+        m = float(np.sum(w * x) / np.sum(w))
+        e = math.sqrt(1.0 / float(np.sum(w)))
+        if len(x) > 1:  # inflate by the scatter if it is larger than the stated errors
+            chi = float(np.sum(w * (x - m) ** 2)) / (len(x) - 1)
+            e *= math.sqrt(max(chi, 1.0))
+        return m, e
+    return float(np.mean(x)), (float(np.std(x, ddof=1)) / math.sqrt(len(x))
+                               if len(x) > 1 else math.nan)
+
+
+def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
+    kmot, kmot_se = _mean_se(np.array([s.kmot for s in moving]))
+    tmot, tmot_se = _mean_se(np.array([s.tau_mot for s in moving]))
+    b_arr = np.array([s.b for s in moving])
+    b, b_se = _mean_se(b_arr)
+    jp, jp_se = _mean_se(np.array([s.J_paper for s in moving]))
+    tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]), np.array([s.tau_m_se
+                                                                         for s in moving]))
+    v = np.array([s.amplitude for s in moving])
+    w = np.array([s.omega_ss for s in moving])
+    w_se = np.array([s.omega_ss_se for s in moving])
+    est = {"km": Estimate("km", km, math.nan, "N m/A", vary=False),
+           "Kmot": Estimate("Kmot", kmot, kmot_se, "rad/s/V"),
+           "tau_mot": Estimate("tau_mot", tmot, tmot_se, "s"),
+           "b": Estimate("b", b, b_se, "N m s/rad"),
+           "J_paper": Estimate("J_paper", jp, jp_se, "kg m^2")}
+    if len(np.unique(np.round(np.abs(v), 9))) >= 2:
+        a, c, cov = steady_line(v, w, w_se)
+        if a <= 0:
+            raise FitError("steady speed does not grow with voltage across the steps: check the "
+                           "sign and scale of the speed column")
+        bv = km / (R * a)
+        bv_se = bv * math.sqrt(cov[0, 0]) / a
+        bc = -c * bv
+        # d(bc) = -bv dc - c d(bv); d(bv) = -bv/a da
+        g = np.array([c * bv / a, -bv])
+        bc_se = math.sqrt(max(float(g @ cov @ g), 0.0))
+        if bc < 0:
+            warns.append(f"the steady-speed line gives a negative Coulomb friction bc = {bc:.3g} "
+                         "N m (intercept above zero): bc set to 0")
+            bc = 0.0
+        est["bv"] = Estimate("bv", bv, bv_se, "N m s/rad")
+        est["bc"] = Estimate("bc", bc, bc_se, "N m")
+        if b > 1.02 * bv:
+            warns.append(f"the paper's b = {b:.4g} exceeds the viscous bv = {bv:.4g} N m s/rad: "
+                         "Coulomb friction is lumped into b (it varies with the step amplitude)")
+    else:
+        warns.append("all steps have the same amplitude: Coulomb friction cannot be separated "
+                     "from viscous; bv = b (paper) and bc = 0 are written")
+        est["bv"] = Estimate("bv", b, b_se, "N m s/rad")
+        est["bc"] = Estimate("bc", 0.0, math.nan, "N m")
+        bv, bv_se = b, b_se
+    J = tm * bv
+    J_se = J * math.hypot(tm_se / tm, bv_se / bv if bv else 0.0)
+    est["J"] = Estimate("J", J, J_se, "kg m^2")
+    tb = [km * abs(s.amplitude) / R * -math.expm1(-s.dead_time / tau_e) for s in moving]
+    est["T_break"] = Estimate("T_break", float(np.median(tb)),
+                              float(np.std(tb, ddof=1) / math.sqrt(len(tb)))
+                              if len(tb) > 1 else math.nan, "N m")
+    stats = FitStats(ndata, 5 * len(moving), chisqr)
+    return MechanicalResult(est, steps, stats, km_given, warns)

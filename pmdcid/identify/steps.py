@@ -1,0 +1,233 @@
+"""Step responses: finding the step, Strejc's method, and least-squares step-response fits.
+
+Small pure functions shared by fit-electrical and fit-mechanical. Time in s; the response ``y``
+in its own unit (A or rad/s); the input ``u`` in V.
+
+The step is found in the input column alone (no position given by the user): the levels before
+and after are robust medians, the onset is the first sample where the input crosses half-way.
+The kernel's (and a DAC's) zero-order hold makes the new level act from that sample's instant on,
+so the response model starts there; a dead time ``d`` >= 0 absorbs sensor or drive latency.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from pmdcid.errors import FitError
+
+#: Strejc's table: Tu/Tn of the tangent at the inflection point for n equal lags, n = 1..6
+STREJC_TU_TN = (0.0, 0.104, 0.218, 0.319, 0.410, 0.493)
+
+
+@dataclass
+class StepInfo:
+    """A step found in an input: sample index and time [s] of the onset, levels before/after."""
+
+    onset: int
+    t0: float
+    before: float
+    after: float
+
+    @property
+    def amplitude(self) -> float:
+        return self.after - self.before
+
+
+def find_step(t: np.ndarray, u: np.ndarray, path: str | None = None) -> StepInfo:
+    """Locate the one step in input ``u`` (e.g. V): onset, level before and after.
+
+    Raises :class:`FitError` when the input holds no clear step (constant, or the change is not
+    much larger than its scatter).
+    """
+    u = np.asarray(u, float)
+    n = len(u)
+    if n < 10:
+        raise FitError(f"{path}: too short ({n} samples) to hold a step response")
+    tail = max(3, n // 10)
+    after = float(np.median(u[-tail:]))
+    head = u[: max(2, n // 50)]
+    before0 = float(np.median(head))
+    mid = 0.5 * (before0 + after)
+    sgn = 1.0 if after >= before0 else -1.0
+    crossed = np.nonzero(sgn * (u - mid) > 0)[0]
+    scatter = float(np.std(u[-tail:])) + float(np.std(head))
+    if len(crossed) == 0 or abs(after - before0) <= 5 * scatter or after == before0:
+        raise FitError(f"{path or 'log'}: no step found in the input (it is constant or noisy); "
+                       "the stage needs one step per log")
+    k = int(crossed[0])
+    if k < 2:
+        raise FitError(f"{path or 'log'}: the input step is at the first sample: the log needs "
+                       "some samples at rest before the step")
+    before = float(np.median(u[:k]))
+    return StepInfo(k, float(t[k]), before, after)
+
+
+@dataclass
+class StrejcResult:
+    """Strejc's graphical method on a normalised step response.
+
+    ``gain`` response change per input change; ``tau`` [s] first-order time constant (time to
+    63.2 %); ``tu``/``tn`` [s] delay and rise time of the inflection tangent; ``order`` the
+    number of equal lags whose Tu/Tn is nearest.
+    """
+
+    gain: float
+    tau: float
+    tu: float
+    tn: float
+    order: int
+    final: float
+    initial: float
+
+    @property
+    def ratio(self) -> float:
+        return self.tu / self.tn if self.tn > 0 else math.nan
+
+
+def _smooth(y: np.ndarray, w: int) -> np.ndarray:
+    if w <= 1:
+        return y
+    k = np.ones(w) / w
+    pad = np.concatenate([np.full(w, y[0]), y, np.full(w, y[-1])])
+    return np.convolve(pad, k, mode="same")[w:-w]
+
+
+def strejc(t: np.ndarray, y: np.ndarray, step: StepInfo, settle_fraction: float = 0.2
+           ) -> StrejcResult:
+    """Strejc's method on response ``y`` to the step ``step`` (the paper's identification).
+
+    Gain from the levels before the onset and over the last ``settle_fraction`` of the log;
+    tangent at the inflection (largest slope of the lightly smoothed response) gives Tu and Tn.
+    """
+    y = np.asarray(y, float)
+    k0 = step.onset
+    y0 = float(np.median(y[:k0]))
+    tail = max(3, int(len(y) * settle_fraction))
+    y1 = float(np.median(y[-tail:]))
+    dy = y1 - y0
+    du = step.amplitude
+    tt = t[k0:] - step.t0
+    yn = (y[k0:] - y0) / dy if dy != 0 else np.zeros(len(tt))
+    dt = float(t[1] - t[0])
+    # time to 63.2 %: first crossing, linearly interpolated, on a lightly smoothed response
+    ys = _smooth(yn, 3)
+    above = np.nonzero(ys >= 1 - math.exp(-1))[0]
+    if len(above) == 0:
+        tau = math.nan
+    else:
+        j = int(above[0])
+        if j == 0:
+            tau = 0.5 * dt
+        else:
+            a, b = ys[j - 1], ys[j]
+            tau = tt[j - 1] + (1 - math.exp(-1) - a) / (b - a) * dt if b != a else tt[j]
+    # inflection tangent: slope by a local quadratic (Savitzky-Golay) over ~0.3 tau
+    from scipy.signal import savgol_filter
+
+    w = max(5, int(round(0.3 * tau / dt)) | 1) if math.isfinite(tau) else 5
+    w = min(w, len(yn) - (1 - len(yn) % 2))
+    if w >= 5:
+        yw = savgol_filter(yn, w, 2, mode="interp")
+        slope = savgol_filter(yn, w, 2, deriv=1, delta=dt, mode="interp")
+    else:
+        yw, slope = yn, np.gradient(yn, dt)
+    span = np.nonzero(yw < 0.9)[0]
+    lim = int(span[-1]) + 1 if len(span) else len(yw)
+    j = int(np.argmax(slope[:max(lim, 2)]))
+    s = float(slope[j])
+    if s > 0:
+        tu = max(0.0, tt[j] - yw[j] / s)
+        tn = 1.0 / s
+    else:
+        tu, tn = math.nan, math.nan
+    ratio = tu / tn if tn and math.isfinite(tn) else math.nan
+    order = 1 + int(np.argmin([abs(ratio - r) for r in STREJC_TU_TN])) if math.isfinite(
+        ratio) else 1
+    gain = dy / du if du else math.nan
+    return StrejcResult(gain, float(tau), float(tu), float(tn), order, y1, y0)
+
+
+def first_order(s: np.ndarray, y0: float, dy: float, tau: float, d: float) -> np.ndarray:
+    """First-order step response: y0 + dy (1 - exp(-(s - d)/tau)) for s > d, y0 before (s [s])."""
+    x = np.clip(s - d, 0.0, None)
+    return y0 + dy * -np.expm1(-x / max(tau, 1e-300))
+
+
+def two_lag(s: np.ndarray, tau_m: float, tau_e: float, beta: float = 1.0) -> np.ndarray:
+    """Unit step response of 1/((tau_m p + 1)) driven by the forcing 1 - beta exp(-s/tau_e).
+
+    With beta = 1 this is the two-lag (tau_m, tau_e) response; beta < 1 is a rotor that breaks
+    free when the current has already risen partly (forcing jumps at s = 0). s [s], s >= 0.
+    """
+    s = np.clip(s, 0.0, None)
+    if abs(tau_m - tau_e) < 1e-9 * tau_m:
+        tau_e = tau_e * (1 - 1e-6)
+    a = beta * tau_e / (tau_m - tau_e)
+    return 1.0 + a * np.exp(-s / tau_e) - (1.0 + a) * np.exp(-s / tau_m)
+
+
+@dataclass
+class CurveFit:
+    """Least-squares fit of a step-response model: values, standard errors, residual std."""
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    stderr: np.ndarray
+    sigma: float
+    ndata: int
+    success: bool
+
+    def __getitem__(self, name: str) -> float:
+        return float(self.values[self.names.index(name)])
+
+    def se(self, name: str) -> float:
+        return float(self.stderr[self.names.index(name)])
+
+
+def lsq(fun, x0, lo, hi, names, ndata: int | None = None) -> CurveFit:
+    """scipy ``least_squares`` (TRF) on residual ``fun(x)``; stderr from J'J scaled by s^2."""
+    x0 = np.clip(np.asarray(x0, float), lo, hi)
+    scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
+    sol = least_squares(lambda z: fun(z * scale), x0 / scale, bounds=(lo / scale, hi / scale),
+                        method="trf", x_scale="jac")
+    x = sol.x * scale
+    r = sol.fun
+    n = len(r) if ndata is None else ndata
+    dof = max(n - len(x), 1)
+    s2 = float(r @ r) / dof
+    Jm = sol.jac / scale[None, :]
+    try:
+        cov = np.linalg.pinv(Jm.T @ Jm) * s2
+        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    except np.linalg.LinAlgError:
+        se = np.full(len(x), math.nan)
+    return CurveFit(tuple(names), x, se, math.sqrt(s2), n, bool(sol.success))
+
+
+def fit_first_order(t: np.ndarray, y: np.ndarray, step: StepInfo, st: StrejcResult,
+                    dead_time: bool = True) -> CurveFit:
+    """Refine Strejc's first-order model by least squares: y0, dy, tau [s], d [s] (dead time)."""
+    s = t - step.t0
+    dt = float(t[1] - t[0])
+    tau0 = st.tau if math.isfinite(st.tau) and st.tau > 0 else 0.1 * (t[-1] - step.t0)
+    dy0 = st.final - st.initial
+    names = ("y0", "dy", "tau", "d")
+    x0 = [st.initial, dy0, tau0, min(st.tu, tau0) if dead_time and math.isfinite(st.tu) else 0]
+    span = float(t[-1] - step.t0)
+    lo = np.array([-np.inf, -np.inf, 0.05 * dt, 0.0])
+    hi = np.array([np.inf, np.inf, 10 * span, 0.5 * span if dead_time else 1e-12 * dt])
+    if not dead_time:
+        x0[3] = 0.0
+    return lsq(lambda x: first_order(s, *x) - y, x0, lo, hi, names)
+
+
+def residual_std(t, y, step: StepInfo) -> float:
+    """Noise std of ``y`` from the samples before the step (robust), same unit as y."""
+    pre = np.asarray(y[: step.onset], float)
+    if len(pre) < 5:
+        return math.nan
+    return 1.4826 * float(np.median(np.abs(pre - np.median(pre))))
