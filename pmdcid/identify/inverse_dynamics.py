@@ -25,7 +25,7 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.identify.results import Estimate
-from pmdcid.io.derive import check_cutoff, log_cutoff, log_kinematics, lowpass
+from pmdcid.io.derive import check_cutoff, choose_cutoff, log_cutoff, log_kinematics, lowpass
 from pmdcid.model import Model
 from pmdcid.model.params import BASE_PARAMS
 
@@ -33,8 +33,8 @@ PARAMS = ("J", "bv", "bc", "tau0")
 STAGE = "inverse-dynamics"
 #: samples skipped at each end of a log, in periods of the cut-off (filter transients)
 EDGE_PERIODS = 5.0
-#: speeds below this fraction of the log's speed range count as "at rest" for warnings
-REST_FRACTION = 0.01
+#: rows at speeds below this fraction of the log's (99th percentile) speed are left out
+REST_FRACTION = 0.02
 
 
 def _units() -> dict[str, str]:
@@ -53,7 +53,7 @@ class InverseDynamicsResult:
     estimates: dict[str, Estimate]
     rel_torque_error: float  # 100*||tau - X theta|| / ||tau|| on the regression rows [%]
     ndata: int
-    cutoff_hz: float
+    cutoff_hz: float  # the (lowest) cut-off used [Hz]
     decimation: int
     condition: float  # condition number of the (column-scaled) regressor matrix
     warnings: list[str] = field(default_factory=list)
@@ -98,42 +98,82 @@ def applied_torque(log, model: Model | None) -> np.ndarray:
     return model.value("km") * np.asarray(log["i"], float)
 
 
+def zoh_centred(u: np.ndarray) -> np.ndarray:
+    """Torque seen by central differences at each sample instant: the mean of the held values
+    either side of it, (u[k-1] + u[k]) / 2 (the input is zero-order held from each sample to
+    the next; without this the torque would lead the kinematics by half a sample)."""
+    u = np.asarray(u, float)
+    return np.concatenate(([u[0]], 0.5 * (u[1:] + u[:-1])))
+
+
 def decimation_factor(dt: float, cutoff_hz: float) -> int:
     """Keep one row in k after the parallel low-pass: k = floor(0.4*rate/cut-off), at least 1."""
     return max(1, int(0.4 / (dt * cutoff_hz)))
 
 
-def regression_rows(log, model: Model | None = None, cutoff_hz: float | None = None):
+def auto_cutoff(log) -> float:
+    """The log's ``--cutoff`` if given, else the highest cut-off at which sensor noise stays a
+    small part of the acceleration (:func:`pmdcid.io.derive.choose_cutoff`)."""
+    if getattr(log, "cutoff_hz", None) is not None:
+        return float(log.cutoff_hz)
+    derived = getattr(log, "derived", set())
+    if log.has("theta") and "theta" not in derived:
+        return choose_cutoff(log["theta"], log.dt, nder=2)
+    if log.has("omega") and "omega" not in derived:
+        return choose_cutoff(log["omega"], log.dt, nder=1)
+    return log_cutoff(log)
+
+
+def regression_rows(log, model: Model | None = None, cutoff_hz: float | None = None,
+                    rest_fraction: float = REST_FRACTION, centre_zoh: bool = True):
     """Observation matrix rows [alpha, omega, sign(omega), 1] and torque of one log, filtered in
     parallel, edge-trimmed and decimated. Returns (X, y, cutoff_hz, k)."""
-    fc = cutoff_hz if cutoff_hz is not None else log_cutoff(log)
+    fc = cutoff_hz if cutoff_hz is not None else auto_cutoff(log)
     check_cutoff(fc, log.dt, log.path)
     tau = applied_torque(log, model)
+    if centre_zoh:
+        tau = zoh_centred(tau)
     kin = log_kinematics(log, fc)
     X = np.column_stack([kin.alpha, kin.omega, np.sign(kin.omega), np.ones(log.n)])
     Xf = np.column_stack([lowpass(c, log.dt, fc) for c in X.T])
     yf = lowpass(tau, log.dt, fc)
     k = decimation_factor(log.dt, fc)
     edge = min(int(math.ceil(EDGE_PERIODS / (fc * log.dt))), log.n // 10)
-    sl = slice(edge, log.n - edge, k)
-    return Xf[sl], yf[sl], fc, k
+    keep = np.zeros(log.n, bool)
+    keep[edge:log.n - edge:k] = True
+    # near rest the rotor may stick (friction then balances any torque below breakaway, not
+    # bc*sign(omega)) and the sign of a filtered speed is noise: leave those rows out
+    # (widened by one period of the cut-off: the parallel filter spreads their error)
+    slow = np.abs(kin.omega) < rest_fraction * np.percentile(np.abs(kin.omega), 99)
+    width = int(math.ceil(1.0 / (fc * log.dt)))
+    slow = np.convolve(slow.astype(float), np.ones(2 * width + 1), mode="same") > 0
+    keep &= ~slow
+    return Xf[keep], yf[keep], fc, k
 
 
 def fit_inverse_dynamics(logs, model: Model | None = None,
-                         cutoff_hz: float | None = None) -> InverseDynamicsResult:
+                         cutoff_hz: float | None = None,
+                         rest_fraction: float = REST_FRACTION,
+                         centre_zoh: bool = True) -> InverseDynamicsResult:
     """Least squares of the applied torque on filtered acceleration, speed, sign(speed), 1.
 
     ``logs``: one or more :class:`~pmdcid.io.Log` with an angle or a speed, and ``tau`` (or
     ``v`` with ``i`` and ``km`` in ``model``). ``cutoff_hz``: filter cut-off [Hz] (default: the
-    logs' ``--cutoff`` or min(rate/10, 100 Hz)). Raises :class:`FitError` when the data cannot
-    determine the parameters (no motion, J not positive).
+    logs' ``--cutoff``, else per log the highest cut-off up to min(rate/10, 100 Hz) at which the
+    sensor noise is at most 10 % of the acceleration, see :func:`auto_cutoff`). Raises
+    :class:`FitError` when the data cannot determine the parameters (no motion, J <= 0).
+    ``rest_fraction``: rows slower than this fraction of the log's speed are left out (0 keeps
+    every row); ``centre_zoh``: compare the kinematics with the held torque's mean either side
+    of each instant (:func:`zoh_centred`). ``rest_fraction=0, centre_zoh=False`` is the EMPS
+    authors' IDIM-LS as published.
     """
     if not logs:
         raise FitError("no logs given to the inverse-dynamics fit")
     rows, ys, warns = [], [], []
-    fc_used, k_used = math.nan, 1
+    fcs, k_used = [], 1
     for log in logs:
-        X, y, fc_used, k_used = regression_rows(log, model, cutoff_hz)
+        X, y, fc, k_used = regression_rows(log, model, cutoff_hz, rest_fraction, centre_zoh)
+        fcs.append(fc)
         speed = np.abs(X[:, 1])
         if speed.max() <= 0:
             warns.append(f"{log.path}: never moves: left out of the inverse-dynamics fit")
@@ -178,5 +218,5 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
             warns.append(f"inverse dynamics gives a negative {nm} = {est[nm].value:.3g} "
                          f"{units[nm]}: friction poorly excited")
     rel = 100.0 * float(np.linalg.norm(resid) / np.linalg.norm(y)) if np.any(y) else math.nan
-    return InverseDynamicsResult(est, rel, n, float(fc_used), k_used,
+    return InverseDynamicsResult(est, rel, n, float(min(fcs)), k_used,
                                  float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf, warns)
