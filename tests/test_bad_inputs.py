@@ -275,6 +275,16 @@ CASES: list[Case] = [
     C("log-large-300k-rows", combine(MODEL, table("step.csv", {
         "t": np.arange(300_000) * 1e-4,
         "v": np.sign(np.sin(np.arange(300_000) * 1e-4))})), SIM, 0, None, changes=("out.csv",)),
+    C("log-unix-timestamps", combine(MODEL, text("step.csv", "t,v\n" + "".join(
+        f"{1.7e9 + k * 1e-3:.15g},{1.0 if k > 100 else 0.0}\n" for k in range(2000)))), SIM, 0,
+      None, changes=("out.csv",)),
+    C("log-crlf-quoted-padded-header", combine(MODEL, text(
+        "step.csv", '" t ", "v" ,i\r\n0,0,0\r\n0.001,1,0.1\r\n0.002,1,0.2\r\n')), SIM, 0, None),
+    C("log-trailing-comma", combine(MODEL, text("step.csv", "t,v,\n0,0,\n0.001,1,\n0.002,1,\n")),
+      SIM, 0, None),
+    C("log-empty-measured-column", combine(MODEL, text("step.csv", "t,v,i\n" + "".join(
+        f"{k * 1e-3:.3f},1,\n" for k in range(100)))), SIM, 1,
+      r"^error: step\.csv: column 'i' has 100 missing/NaN values"),
     # ---- column mappings -------------------------------------------------------------------
     C("map-unknown-source", combine(MODEL, STEP), SIM + ["-c", "omega=speed_rpm*rpm"], 1,
       r"^error: step\.csv: column mapping omega=speed_rpm: no column 'speed_rpm'"),
@@ -342,6 +352,12 @@ CASES: list[Case] = [
     C("out-is-model", combine(STEP, MODEL),
       ["simulate", "step.csv", "-m", "model.json", "-o", "model.json", "--force"], 1,
       r"^error: model\.json: output would overwrite the model file"),
+    C("out-is-map-file", combine(STEP, MODEL, text("cols.map", "v=v\n")),
+      SIM[:-1] + ["cols.map", "--map", "cols.map", "--force"], 1,
+      r"^error: cols\.map: output would overwrite the input cols\.map"),
+    C("out-is-symlink-to-input", combine(STEP, MODEL, lambda d: (d / "ln.csv").symlink_to(
+        d / "step.csv")), SIM[:-1] + ["ln.csv", "--force"], 1,
+      r"^error: ln\.csv: output would overwrite the input"),
     C("out-exists-not-ours", combine(STEP, MODEL, text("out.csv", "t,omega\n0,1\n")), SIM, 1,
       r"^error: out\.csv: exists and was not written by pmdcid; use --force"),
     C("out-is-folder", combine(STEP, MODEL, lambda d: (d / "out.csv").mkdir()), SIM, 2,
