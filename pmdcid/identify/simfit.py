@@ -10,6 +10,8 @@ finite-difference steps large enough to step over the kernel's event quantisatio
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import math
 from collections.abc import Sequence
 
@@ -42,6 +44,45 @@ def noise_level(x: np.ndarray) -> float:
     if s <= 0 or not math.isfinite(s):
         s = max(float(np.std(x)) * 1e-3, 1e-12)
     return s
+
+
+@contextlib.contextmanager
+def blas_single_thread():
+    """Run with the bundled OpenBLAS libraries limited to one thread, restoring them after.
+
+    The fits call scipy's ``expm`` on 6x6 matrices thousands of times; OpenBLAS's thread pool
+    makes each call cost milliseconds instead of microseconds (spin-waiting threads, worse on a
+    busy machine). Libraries without the OpenBLAS entry points are left alone.
+    """
+    handles = []
+    for path, setter, getter in _openblas_entry_points():
+        try:
+            lib = ctypes.CDLL(path)
+            old = int(getattr(lib, getter)())
+            getattr(lib, setter)(1)
+            handles.append((lib, setter, old))
+        except (OSError, AttributeError):
+            continue
+    try:
+        yield
+    finally:
+        for lib, setter, old in handles:
+            getattr(lib, setter)(old)
+
+
+def _openblas_entry_points():
+    try:
+        with open("/proc/self/maps") as fh:
+            paths = {ln.split()[-1] for ln in fh if "openblas" in ln.lower() and "/" in ln}
+    except OSError:
+        return []
+    out = []
+    for path in sorted(paths):
+        for suffix in ("", "64_"):
+            for prefix in ("scipy_openblas", "openblas"):
+                out.append((path, f"{prefix}_set_num_threads{suffix}",
+                            f"{prefix}_get_num_threads{suffix}"))
+    return out
 
 
 def _unit(name: str) -> str:
@@ -126,8 +167,9 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         return np.concatenate(parts)
 
     try:
-        sol = least_squares(resid, x0 / scale, bounds=(lo / scale, hi / scale), method="trf",
-                            diff_step=diff_step, max_nfev=max_nfev, x_scale="jac")
+        with blas_single_thread():
+            sol = least_squares(resid, x0 / scale, bounds=(lo / scale, hi / scale), method="trf",
+                                diff_step=diff_step, max_nfev=max_nfev, x_scale="jac")
     except ValueError as exc:
         raise FitError(f"simulation-error fit failed: {exc}") from None
     x = sol.x * scale
@@ -147,7 +189,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
            for n, v, e in zip(free, x, se, strict=True)}
     correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
               for i, a in enumerate(free)}
-    final = sims(x)
+    with blas_single_thread():
+        final = sims(x)
     errs: list[dict[str, float]] = [dict() for _ in logs]
     sig_out: list[dict[str, float]] = [dict() for _ in logs]
     for k, s, meas, sd in plan:

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError
+from pmdcid.identify.simfit import blas_single_thread
 
 #: Strejc's table: Tu/Tn of the tangent at the inflection point for n equal lags, n = 1..6
 STREJC_TU_TN = (0.0, 0.104, 0.218, 0.319, 0.410, 0.493)
@@ -192,8 +193,9 @@ def lsq(fun, x0, lo, hi, names, ndata: int | None = None) -> CurveFit:
     """scipy ``least_squares`` (TRF) on residual ``fun(x)``; stderr from J'J scaled by s^2."""
     x0 = np.clip(np.asarray(x0, float), lo, hi)
     scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
-    sol = least_squares(lambda z: fun(z * scale), x0 / scale, bounds=(lo / scale, hi / scale),
-                        method="trf", x_scale="jac")
+    with blas_single_thread():
+        sol = least_squares(lambda z: fun(z * scale), x0 / scale,
+                            bounds=(lo / scale, hi / scale), method="trf", x_scale="jac")
     x = sol.x * scale
     r = sol.fun
     n = len(r) if ndata is None else ndata
