@@ -1,0 +1,182 @@
+"""``pmdcid report``: the model against measured logs, for a person to look at.
+
+:func:`make_report` simulates the model on each log's input, computes the metrics of
+:mod:`pmdcid.report.metrics`, draws the figures of :mod:`pmdcid.report.figures` and writes
+``DIR/report.html`` (self-contained), ``DIR/metrics.json`` (every number on the page) and the
+figures as ``DIR/*.png``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pmdcid.errors import LogError
+from pmdcid.model import Model
+
+
+@dataclass
+class ReportResult:
+    """What :func:`make_report` wrote: paths and the metrics (as in metrics.json)."""
+
+    out_dir: str
+    html_path: str
+    metrics_path: str
+    metrics: dict
+    figures: list[str] = field(default_factory=list)
+
+
+def check_out_dir(out_dir) -> Path:
+    """Refuse an output folder that is a file or lies under one (one clear line)."""
+    p = Path(out_dir)
+    if p.exists() and not p.is_dir():
+        raise LogError("is a file, not a folder: give -o a folder for the report", str(p))
+    up = next((a for a in [p, *p.parents] if a.exists()), None)
+    if up is not None and not up.is_dir():
+        raise LogError("is a file, not a folder: cannot write the report under it", str(up))
+    return p
+
+
+def make_out_dir(out_dir) -> Path:
+    p = check_out_dir(out_dir)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise LogError(f"cannot create the output folder ({exc.strerror or exc})", str(p)) from None
+    return p
+
+
+def write_bytes_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise LogError(f"cannot write here ({exc.strerror})", str(path.parent)) from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        if isinstance(exc, OSError):
+            raise LogError(f"cannot write ({exc.strerror})", str(path)) from None
+        raise
+
+
+def _clean(x):
+    """JSON-safe copy: NaN/inf -> None, tuples -> lists, numpy scalars -> Python."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, bool) or x is None or isinstance(x, str):
+        return x
+    if isinstance(x, int):
+        return x
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    return v if math.isfinite(v) else None
+
+
+def parameter_table(model: Model) -> dict:
+    out = {}
+    for name, par in model.parameters.items():
+        rel = abs(par.stderr / par.value) * 100 if par.value and math.isfinite(par.stderr) else None
+        out[name] = {"value": par.value, "stderr": par.stderr, "rel_stderr_percent": rel,
+                     "unit": par.unit, "stage": par.stage}
+    return out
+
+
+def _before_after(logs, names, model: Model, before_model: Model | None) -> dict | None:
+    from pmdcid.report.compare import mean_errors, model_errors
+
+    if before_model is None:
+        if not model.effects:
+            return None
+        before_model = model.copy()
+        before_model.effects = []
+        label = "the same parameters with effects = []"
+    else:
+        label = "the model given as 'before'"
+    before = model_errors(logs, before_model)
+    after = model_errors(logs, model)
+    change = [{s: (100.0 * (a[s] - b[s]) / b[s] if a.get(s) is not None and b.get(s)
+                   else None) for s in a} for b, a in zip(before, after)]
+    return {"effects": [e for e in model.effects if e not in before_model.effects],
+            "before_label": label, "logs": names, "before": before, "after": after,
+            "change_percent": change, "mean_before": mean_errors(before),
+            "mean_after": mean_errors(after)}
+
+
+def make_report(logs, model: Model, out_dir, summary: dict | None = None,
+                before_model: Model | None = None) -> ReportResult:
+    """Compare ``model`` with every log and write the report into ``out_dir`` (see module doc).
+
+    ``summary`` is a diagnose summary (CONTRACT.md) shown on the page; without it a
+    ``diagnose`` record in ``model.extra`` is used. When the model carries effects (or
+    ``before_model`` is given) the page shows the error before and after them.
+    """
+    from pmdcid import __version__
+    from pmdcid.report import figures, html
+    from pmdcid.report.compare import compare_log, mean_errors, unique_names
+    from pmdcid.report.metrics import LOW_SPEED_FRACTION, MAX_LAG
+
+    if not logs:
+        raise LogError("no log files given")
+    check_out_dir(out_dir)
+    names = unique_names(logs)
+    cmps = [compare_log(log, model, name) for log, name in zip(logs, names)]
+    if summary is None and isinstance(model.extra.get("diagnose"), dict):
+        summary = model.extra["diagnose"]
+    figs: dict[str, bytes] = {}
+    for c in cmps:
+        c.metrics["figures"] = [f"{c.name}_overlay.png", f"{c.name}_residual.png"]
+        figs[c.metrics["figures"][0]] = figures.overlay_figure(c)
+        figs[c.metrics["figures"][1]] = figures.residual_figure(c)
+    figs["fit.png"] = figures.fit_figure([(c.name, c.metrics["signals"]) for c in cmps])
+    ba = _before_after(logs, names, model, before_model)
+    if ba is not None:
+        figs["before_after.png"] = figures.before_after_figure(names, ba["before"], ba["after"])
+    metrics = _clean({
+        "version": __version__,
+        "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "model_path": model.path or "(in memory)",
+        "model_name": os.path.basename(model.path) if model.path else "model",
+        "effects": list(model.effects),
+        "parameters": parameter_table(model),
+        "low_speed_fraction": LOW_SPEED_FRACTION,
+        "max_lag": MAX_LAG,
+        "logs": [c.metrics for c in cmps],
+        "mean": mean_errors(model_errors_from(cmps)),
+        "before_after": ba,
+        "summary": summary,
+        "figures": sorted(figs),
+    })
+    page = html.render(metrics, figs)
+    out = make_out_dir(out_dir)
+    for name, png in figs.items():
+        write_bytes_atomic(out / name, png)
+    metrics_path = out / "metrics.json"
+    html_path = out / "report.html"
+    write_bytes_atomic(metrics_path, (json.dumps(metrics, indent=1) + "\n").encode())
+    write_bytes_atomic(html_path, page.encode("utf-8"))
+    return ReportResult(str(out), str(html_path), str(metrics_path), metrics, sorted(figs))
+
+
+def model_errors_from(cmps) -> list[dict]:
+    """Per log: signal -> NRMSE, from the comparisons already made."""
+    return [{s: sm["nrmse"] for s, sm in c.metrics["signals"].items()} for c in cmps]
+
+
+__all__ = ["ReportResult", "make_report"]

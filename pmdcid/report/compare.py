@@ -1,0 +1,125 @@
+"""Simulate a model on a log's input and compare with what the log measured."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from pmdcid.errors import LogError
+from pmdcid.model import Model
+from pmdcid.report.metrics import lag_step_for, signal_metrics, speed_threshold
+from pmdcid.simulate import SimResult, param_values, simulate_values
+
+#: signals compared, in display order, with their units
+SIGNALS = {"omega": "rad/s", "theta": "rad", "i": "A"}
+#: static friction that holds the rotor still when simulating a blocked-rotor log [N m]
+BLOCKED_BC = 1e300
+
+
+@dataclass
+class LogComparison:
+    """One log against the model: the simulation, the regime mask and every number."""
+
+    name: str
+    log: object
+    sim: SimResult
+    blocked: bool
+    signals: list[str]
+    low: np.ndarray | None  # near-zero-speed samples (None without a speed)
+    threshold: float | None  # |omega| threshold of the near-zero regime [rad/s]
+    metrics: dict
+
+
+def is_blocked(log) -> bool:
+    """A blocked-rotor log: says so in its metadata, or measures neither speed nor angle."""
+    return log.kind == "blocked-rotor" or not (log.has("omega") or log.has("theta"))
+
+
+def simulate_for(log, model: Model) -> SimResult:
+    """Simulate ``model`` from rest on the log's input; a blocked rotor is held still."""
+    torque = log.drive == "tau"
+    over = {"bc": BLOCKED_BC} if is_blocked(log) else None
+    vals = param_values(model, torque, over)
+    return simulate_values(log.t, log.u, vals, torque)
+
+
+def compared_signals(log) -> list[str]:
+    """The measured signals the model predicts: speed and angle (not for a blocked rotor), and
+    current unless the log is torque-driven."""
+    blocked = is_blocked(log)
+    out = [s for s in ("omega", "theta") if log.has(s) and not blocked]
+    if log.has("i") and log.drive == "v":
+        out.append("i")
+    if not out:
+        raise LogError("has nothing to compare the model with: it needs omega, theta or "
+                       "(voltage-driven) i", log.path)
+    return out
+
+
+def unique_names(logs) -> list[str]:
+    """Short labels for the logs (file names, made unique)."""
+    names: list[str] = []
+    for log in logs:
+        base = os.path.splitext(os.path.basename(str(log.path)))[0] or "log"
+        name, k = base, 2
+        while name in names:
+            name, k = f"{base}-{k}", k + 1
+        names.append(name)
+    return names
+
+
+def compare_log(log, model: Model, name: str) -> LogComparison:
+    """Simulate and compute the metrics of :mod:`pmdcid.report.metrics` for every signal."""
+    if log.n < 4:
+        raise LogError(f"has only {log.n} samples: too short to compare", log.path)
+    signals = compared_signals(log)
+    sim = simulate_for(log, model)
+    blocked = is_blocked(log)
+    low = threshold = None
+    if log.has("omega") and not blocked:
+        threshold = speed_threshold(log["omega"])
+        low = np.abs(log["omega"]) < threshold
+    step = lag_step_for(param_values(model, log.drive == "tau"), log.dt)
+    per = {}
+    for s in signals:
+        simv = sim.get(s)
+        if not np.all(np.isfinite(simv)):
+            raise LogError(f"the model's simulated {s} is not finite on this log "
+                           "(check the model's parameters)", log.path)
+        per[s] = signal_metrics(simv, log[s], log.u, low, step)
+        per[s]["unit"] = SIGNALS[s]
+        per[s]["derived"] = s in getattr(log, "derived", set())
+    m = {
+        "name": name, "path": str(log.path), "kind": log.kind, "drive": log.drive,
+        "n": int(log.n), "dt": float(log.dt), "duration": float(log.duration),
+        "blocked": blocked, "omega_threshold": threshold, "signals": per,
+    }
+    return LogComparison(name, log, sim, blocked, signals, low, threshold, m)
+
+
+def model_errors(logs, model: Model) -> list[dict[str, float | None]]:
+    """Per log: signal -> NRMSE of ``model`` (for the before/after comparison)."""
+    out = []
+    for log in logs:
+        sim = simulate_for(log, model)
+        row = {}
+        for s in compared_signals(log):
+            sd = float(np.std(log[s]))
+            e = float(np.sqrt(np.mean((sim.get(s) - log[s]) ** 2)))
+            v = e / sd if sd > 0 else math.nan
+            row[s] = v if math.isfinite(v) else None
+        out.append(row)
+    return out
+
+
+def mean_errors(rows: list[dict]) -> dict[str, float | None]:
+    """Mean NRMSE per signal over the logs that carry it, keyed ``<signal>_nrmse``."""
+    out = {}
+    for s in SIGNALS:
+        vals = [r[s] for r in rows if r.get(s) is not None]
+        if vals:
+            out[f"{s}_nrmse"] = float(np.mean(vals))
+    return out

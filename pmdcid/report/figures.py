@@ -1,0 +1,185 @@
+"""The report's figures (matplotlib, Agg canvas, no pyplot state): each returns PNG bytes."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+#: longest line drawn in a full-length panel (points; longer signals are strided)
+MAX_POINTS = 4000
+DPI = 100
+MEAS = dict(color="0.25", lw=0.9, label="measured")
+SIM = dict(color="tab:red", lw=0.9, ls="--", label="simulated")
+LABELS = {"omega": "speed [rad/s]", "theta": "angle [rad]", "i": "current [A]"}
+
+
+def _new(nrows: int, ncols: int, height: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, height), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return fig, axes
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    return buf.getvalue()
+
+
+def _stride(n: int, limit: int = MAX_POINTS) -> slice:
+    return slice(None, None, max(1, n // limit))
+
+
+def zoom_window(t: np.ndarray, omega: np.ndarray, threshold: float) -> tuple[int, int, str]:
+    """Sample range around the first zero-speed crossing (or the first breakaway from rest).
+
+    A crossing is where the measured speed goes from below -threshold to above +threshold (or the
+    reverse); the window shows the dwell near zero plus as much again on each side.
+    """
+    n = len(omega)
+    big = np.flatnonzero(np.abs(omega) >= threshold) if threshold > 0 else np.array([], int)
+    if len(big) >= 2:
+        sgn = np.sign(omega[big])
+        flips = np.flatnonzero(sgn[1:] != sgn[:-1])
+        if len(flips):
+            a, b = int(big[flips[0]]), int(big[flips[0] + 1])
+            w = max(b - a, 20)
+            return max(0, a - w), min(n, b + w + 1), "zero-speed crossing"
+    if len(big):
+        a = int(big[0])
+        w = max(a // 4, 20, n // 40)
+        return max(0, a - w), min(n, a + 3 * w), "breakaway from rest"
+    return 0, min(n, max(n // 10, 2)), "start"
+
+
+def overlay_figure(cmp) -> bytes:
+    """Measured vs simulated signals over the whole log, and a zoom near zero speed."""
+    log, sim = cmp.log, cmp.sim
+    t = log.t
+    full = [s for s in cmp.signals]
+    zoom = "omega" in cmp.signals and cmp.threshold is not None
+    rows = len(full) + (1 if zoom else 0)
+    fig, axes = _new(rows, 1, 2.3 * rows + 0.4)
+    st = _stride(len(t))
+    for ax, s in zip(axes[:, 0], full):
+        ax.plot(t[st], log[s][st], **MEAS)
+        ax.plot(t[st], sim.get(s)[st], **SIM)
+        ax.set_ylabel(LABELS[s] + (" (derived)" if s in getattr(log, "derived", ()) else ""))
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    if zoom:
+        a, b, what = zoom_window(t, log["omega"], cmp.threshold)
+        ax = axes[-1, 0]
+        zs = _stride(b - a)
+        ax.plot(t[a:b][zs], log["omega"][a:b][zs], **MEAS)
+        ax.plot(t[a:b][zs], sim.omega[a:b][zs], **SIM)
+        for sgn in (-1, 1):
+            ax.axhline(sgn * cmp.threshold, color="tab:blue", lw=0.6, ls=":")
+        ax.set_ylabel(LABELS["omega"])
+        ax.set_title(f"zoom: {what} (dotted: near-zero band ±{cmp.threshold:.3g} rad/s)",
+                     fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.suptitle(f"{cmp.name}: measured and simulated", fontsize=11)
+    return _png(fig)
+
+
+def residual_figure(cmp) -> bytes:
+    """Residual of the first signal vs time and vs speed; its autocorrelation and its
+    cross-correlation with the input, with the 99 % bands."""
+    log, sim = cmp.log, cmp.sim
+    s = cmp.signals[0]
+    m = cmp.metrics["signals"][s]
+    e = sim.get(s) - log[s]
+    fig, axes = _new(2, 2, 6.0)
+    st = _stride(len(e))
+    ax = axes[0, 0]
+    ax.plot(log.t[st], e[st], color="tab:purple", lw=0.7)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"residual sim-meas [{m['unit']}]")
+    ax.set_title(f"{s} residual against time", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax = axes[0, 1]
+    if log.has("omega") and not cmp.blocked:
+        ax.plot(log["omega"][st], e[st], ".", ms=1.5, color="tab:purple", alpha=0.5)
+        if cmp.threshold:
+            for sgn in (-1, 1):
+                ax.axvline(sgn * cmp.threshold, color="tab:blue", lw=0.6, ls=":")
+        ax.set_xlabel("measured speed [rad/s]")
+        ax.set_title(f"{s} residual against speed (dotted: near-zero band)", fontsize=9)
+    else:
+        ax.plot(log.u[st], e[st], ".", ms=1.5, color="tab:purple", alpha=0.5)
+        ax.set_xlabel(f"input {log.drive}")
+        ax.set_title(f"{s} residual against the input (rotor blocked)", fontsize=9)
+    ax.set_ylabel(f"residual [{m['unit']}]")
+    ax.grid(alpha=0.3)
+    r = m["resid"]
+    dt = log.dt
+    for ax, key, title in ((axes[1, 0], "auto", "autocorrelation of the residual"),
+                           (axes[1, 1], "cross", f"cross-correlation input {log.drive} -> "
+                                                  "residual")):
+        lags = np.asarray(r[key]["lags"]) * dt
+        vals = np.array([np.nan if v is None else v for v in r[key]["r"]])
+        ax.vlines(lags, 0, vals, color="tab:purple", lw=1.5)
+        ax.plot(lags, vals, "o", ms=3, color="tab:purple")
+        band = r[key]["band"]
+        if band is not None:
+            ax.axhspan(-band, band, color="tab:blue", alpha=0.15, label="99 % band")
+            ax.legend(loc="upper right", fontsize=8)
+        ax.axhline(0, color="0.4", lw=0.5)
+        ax.set_xlabel("lag [s]")
+        ax.set_title(title, fontsize=9)
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{cmp.name}: {s} residual", fontsize=11)
+    return _png(fig)
+
+
+def fit_figure(rows: list[tuple[str, dict]]) -> bytes:
+    """Fit % per log and signal (MATLAB compare's figure of merit), near-zero speed vs rest."""
+    fig, axes = _new(1, 2, 3.2 + 0.18 * len(rows))
+    labels = [f"{name} {s}" for name, sig in rows for s in sig]
+    fits = [sig[s]["fit_percent"] for _, sig in rows for s in sig]
+    y = np.arange(len(labels))
+    ax = axes[0, 0]
+    ax.barh(y, [f if f is not None else 0 for f in fits], color="tab:green")
+    ax.set_yticks(y, labels, fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("fit [%] = 100 (1 - NRMSE)")
+    ax.set_xlim(min(0, *[f for f in fits if f is not None], 0), 100)
+    ax.grid(alpha=0.3, axis="x")
+    ax = axes[0, 1]
+    lo = [sig[s].get("low_speed", {}).get("nrmse") or 0 for _, sig in rows for s in sig]
+    hi = [sig[s].get("high_speed", {}).get("nrmse") or 0 for _, sig in rows for s in sig]
+    ax.barh(y - 0.2, lo, height=0.4, color="tab:orange", label="near zero speed")
+    ax.barh(y + 0.2, hi, height=0.4, color="tab:blue", label="rest")
+    ax.set_yticks(y, labels, fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("regime RMS error / std(measurement)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="x")
+    return _png(fig)
+
+
+def before_after_figure(names: list[str], before: list[dict], after: list[dict]) -> bytes:
+    """NRMSE per log and signal of the model without and with its added effects."""
+    labels, b, a = [], [], []
+    for name, rb, ra in zip(names, before, after):
+        for s in ra:
+            labels.append(f"{name} {s}")
+            b.append(rb.get(s) or 0.0)
+            a.append(ra.get(s) or 0.0)
+    fig, axes = _new(1, 1, 2.6 + 0.22 * len(labels))
+    ax = axes[0, 0]
+    y = np.arange(len(labels))
+    ax.barh(y - 0.2, b, height=0.4, color="0.6", label="before (no added effects)")
+    ax.barh(y + 0.2, a, height=0.4, color="tab:green", label="after (with effects)")
+    ax.set_yticks(y, labels, fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("NRMSE")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="x")
+    return _png(fig)

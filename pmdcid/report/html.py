@@ -1,0 +1,207 @@
+"""The report page: one self-contained HTML file, figures embedded as base64 PNG.
+
+Every number on the page comes from ``metrics.json``: each numeric cell carries the path of its
+value there (``data-m="logs.0.signals.omega.nrmse"``) so that a check can compare the two.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+
+CSS = """
+body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;margin:0 auto;
+max-width:1150px;padding:1em 1.5em;color:#222;line-height:1.4}
+h1{font-size:1.5em;margin-bottom:.2em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;
+margin-top:1.6em}h3{margin-bottom:.3em}
+table{border-collapse:collapse;margin:.5em 0;font-size:.9em}
+th,td{border:1px solid #ddd;padding:.25em .6em;text-align:left}
+th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
+img{max-width:100%;height:auto;display:block;margin:.5em 0;border:1px solid #eee}
+.note{color:#555;font-size:.9em}.good{color:#1a7f37}.bad{color:#b42318}
+code{background:#f6f6f6;padding:0 .2em}
+"""
+
+
+def fmt(v, digits: int = 4) -> str:
+    """A number as shown on the page (``digits`` significant figures; '-' when missing)."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return str(v)
+    return f"{v:.{digits}g}"
+
+
+def get_path(metrics: dict, path: str):
+    """The value at a dotted path of ``metrics`` (list indices as numbers)."""
+    cur = metrics
+    for part in path.split("."):
+        cur = cur[int(part)] if isinstance(cur, list) else cur[part]
+    return cur
+
+
+class Page:
+    """Accumulates HTML; :meth:`num` renders a cell from a path into the metrics."""
+
+    def __init__(self, metrics: dict):
+        self.m = metrics
+        self.parts: list[str] = []
+
+    def add(self, text: str) -> None:
+        self.parts.append(text)
+
+    def num(self, path: str, digits: int = 4) -> str:
+        return (f'<td class="num" data-m="{html.escape(path)}">'
+                f"{fmt(get_path(self.m, path), digits)}</td>")
+
+    def img(self, name: str, png: bytes, alt: str) -> None:
+        b64 = base64.b64encode(png).decode("ascii")
+        self.add(f'<img src="data:image/png;base64,{b64}" alt="{html.escape(alt)}" '
+                 f'data-file="{html.escape(name)}">')
+
+    def text(self) -> str:
+        return "\n".join(self.parts)
+
+
+def _esc(x) -> str:
+    return html.escape(str(x))
+
+
+def _params(p: Page) -> None:
+    m = p.m
+    p.add('<section id="parameters"><h2>Model parameters</h2>')
+    p.add(f"<p>Model file <code>{_esc(m['model_path'])}</code>; effects beyond the paper's "
+          f"model: <b>{_esc(', '.join(m['effects']) or 'none')}</b>.</p>")
+    p.add("<table><tr><th>parameter</th><th>value</th><th>std. error</th>"
+          "<th>rel. error [%]</th><th>unit</th><th>stage</th></tr>")
+    for name, par in m["parameters"].items():
+        base = f"parameters.{name}"
+        p.add(f"<tr><td>{_esc(name)}</td>{p.num(base + '.value', 6)}{p.num(base + '.stderr', 3)}"
+              f"{p.num(base + '.rel_stderr_percent', 3)}<td>{_esc(par['unit'])}</td>"
+              f"<td>{_esc(par['stage'])}</td></tr>")
+    p.add("</table></section>")
+
+
+def _errors(p: Page, figs: dict[str, bytes]) -> None:
+    m = p.m
+    p.add('<section id="errors"><h2>Errors per log and signal</h2>')
+    p.add(f"<p class='note'>NRMSE = RMS(sim − meas) / std(meas); fit = 100 (1 − NRMSE) as "
+          f"MATLAB <code>compare</code>. Near zero speed: |ω<sub>meas</sub>| below "
+          f"{100 * m['low_speed_fraction']:g} % of the log's largest |ω<sub>meas</sub>| "
+          f"(regime NRMSE = regime RMS error / std of the whole measurement). "
+          f"Resid: number of the {m['max_lag']} auto- (and {2 * m['max_lag'] + 1} cross-) "
+          f"correlation lags outside the 99 % band.</p>")
+    p.add("<table><tr><th>log</th><th>signal</th><th>NRMSE</th><th>fit [%]</th><th>RMS</th>"
+          "<th>max |err|</th><th>unit</th><th>near-zero NRMSE</th><th>rest NRMSE</th>"
+          "<th>near-zero max |err|</th><th>auto out</th><th>cross out</th></tr>")
+    for k, lg in enumerate(m["logs"]):
+        for s, sm in lg["signals"].items():
+            b = f"logs.{k}.signals.{s}"
+            reg = "".join(p.num(f"{b}.{r}.{q}") if r in sm else "<td>–</td>"
+                          for r, q in (("low_speed", "nrmse"), ("high_speed", "nrmse"),
+                                       ("low_speed", "max_abs")))
+            derived = " (derived)" if sm["derived"] else ""
+            p.add(f"<tr><td>{_esc(lg['name'])}</td><td>{_esc(s)}{derived}</td>"
+                  f"{p.num(b + '.nrmse')}{p.num(b + '.fit_percent')}{p.num(b + '.rms')}"
+                  f"{p.num(b + '.max_abs')}<td>{_esc(sm['unit'])}</td>{reg}"
+                  f"{p.num(b + '.resid.auto.outside')}{p.num(b + '.resid.cross.outside')}</tr>")
+    p.add("</table>")
+    p.img("fit.png", figs["fit.png"], "fit per log and signal")
+    p.add("</section>")
+
+
+def _before_after(p: Page, figs: dict[str, bytes]) -> None:
+    ba = p.m["before_after"]
+    p.add('<section id="before-after"><h2>Error before and after the added effects</h2>')
+    p.add(f"<p>Before: the model without <b>{_esc(', '.join(ba['effects']) or 'its effects')}"
+          f"</b> ({_esc(ba['before_label'])}); after: the model as given.</p>")
+    p.add("<table><tr><th>log</th><th>signal</th><th>NRMSE before</th><th>NRMSE after</th>"
+          "<th>change [%]</th></tr>")
+    for k, name in enumerate(ba["logs"]):
+        for s in ba["after"][k]:
+            b = f"before_after.before.{k}.{s}"
+            a = f"before_after.after.{k}.{s}"
+            c = f"before_after.change_percent.{k}.{s}"
+            p.add(f"<tr><td>{_esc(name)}</td><td>{_esc(s)}</td>{p.num(b)}{p.num(a)}"
+                  f"{p.num(c, 3)}</tr>")
+    for s in ba["mean_after"]:
+        p.add(f"<tr><th>mean</th><th>{_esc(s.replace('_nrmse', ''))}</th>"
+              f"{p.num('before_after.mean_before.' + s)}{p.num('before_after.mean_after.' + s)}"
+              f"<td></td></tr>")
+    p.add("</table>")
+    p.img("before_after.png", figs["before_after.png"], "NRMSE before and after")
+    p.add("</section>")
+
+
+def _summary(p: Page) -> None:
+    s = p.m["summary"]
+    p.add('<section id="diagnose"><h2>What diagnose found</h2>')
+    added = ", ".join(s.get("added", [])) or "nothing significant"
+    p.add(f"<p>Added: <b>{_esc(added)}</b>. Structure left unexplained: "
+          f"<b>{'yes' if s.get('unexplained') else 'no'}</b>.</p>")
+    cands = s.get("candidates", [])
+    if cands:
+        keys = [k for k in cands[0] if k != "effect"]
+        p.add("<table><tr><th>candidate effect</th>"
+              + "".join(f"<th>{_esc(k)}</th>" for k in keys) + "</tr>")
+        for j, c in enumerate(cands):
+            cells = "".join(p.num(f"summary.candidates.{j}.{k}") if isinstance(c.get(k), (int,
+                            float)) and not isinstance(c.get(k), bool) else
+                            f"<td>{_esc(c.get(k, ''))}</td>" for k in keys)
+            p.add(f"<tr><td>{_esc(c.get('effect', ''))}</td>{cells}</tr>")
+        p.add("</table>")
+    for side in ("before", "after"):
+        if isinstance(s.get(side), dict) and s[side]:
+            cells = "".join(f"<td>{_esc(k)}</td>{p.num(f'summary.{side}.{k}')}"
+                            for k, v in s[side].items() if isinstance(v, (int, float)))
+            p.add(f"<table><tr><th>{side}</th>{cells}</tr></table>")
+    p.add("</section>")
+
+
+def _log_sections(p: Page, figs: dict[str, bytes]) -> None:
+    for k, lg in enumerate(p.m["logs"]):
+        p.add(f'<section id="log-{k}"><h2>Log {_esc(lg["name"])}</h2>')
+        kind = f", {_esc(lg['kind'])}" if lg["kind"] else ""
+        thr = ""
+        if lg["omega_threshold"] is not None:
+            thr = (f" Near-zero band |ω| &lt; <span data-m='logs.{k}.omega_threshold'>"
+                   f"{fmt(lg['omega_threshold'])}</span> rad/s.")
+        blocked = " Rotor blocked: simulated with the rotor held." if lg["blocked"] else ""
+        p.add(f"<p><code>{_esc(lg['path'])}</code>: {lg['n']} samples, "
+              f"{fmt(lg['duration'])} s at {fmt(1.0 / lg['dt'])} Hz, driven by "
+              f"{_esc(lg['drive'])}{kind}.{thr}{blocked}</p>")
+        for f in lg["figures"]:
+            p.img(f, figs[f], f"{lg['name']} {f}")
+        p.add("</section>")
+
+
+def render(metrics: dict, figs: dict[str, bytes]) -> str:
+    """The whole page."""
+    p = Page(metrics)
+    title = f"pmdcid report: {metrics['model_name']}"
+    p.add(f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+          f"<meta name='viewport' content='width=device-width, initial-scale=1'>"
+          f"<title>{_esc(title)}</title><style>{CSS}</style></head><body>")
+    p.add(f"<h1>{_esc(title)}</h1>")
+    p.add(f"<p class='note'>pmdcid {_esc(metrics['version'])}, {_esc(metrics['created'])}. "
+          f"{len(metrics['logs'])} log(s). Model simulated open loop from rest on each log's "
+          f"input and compared with what the log measured. All numbers are in "
+          f"<code>metrics.json</code>.</p>")
+    mean = metrics["mean"]
+    if mean:
+        cells = "".join(f"<td>{_esc(s.replace('_nrmse', ''))}</td>{p.num('mean.' + s)}"
+                        for s in mean)
+        p.add(f"<section id='overview'><h2>Overview</h2><table><tr><th>mean NRMSE</th>{cells}"
+              f"</tr></table></section>")
+    _params(p)
+    _errors(p, figs)
+    if metrics.get("before_after"):
+        _before_after(p, figs)
+    if metrics.get("summary"):
+        _summary(p)
+    _log_sections(p, figs)
+    p.add("</body></html>")
+    return p.text() + "\n"
