@@ -1,0 +1,114 @@
+"""Rows: the compiled kernel against the solve_ivp baseline, and how the kernel scales."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.baseline import rms, simulate_baseline
+from bench.table import Row
+from bench.timing import Stats, interleaved, measure
+
+KERNEL_TARGET_S = 5e-3
+SPEEDUP_TARGET = 500.0
+
+
+@dataclass
+class Setup:
+    """The reference case: the paper's model on a +-2 V, 40 s-period triangle at 1 kHz."""
+
+    vals: dict[str, float]
+    seconds: float = 120.0
+    rate: float = 1000.0
+
+    def input(self, factor: int = 1, seconds: float | None = None):
+        from pmdcid.synth import triangle
+
+        n = int(round((seconds or self.seconds * factor) * self.rate))
+        t = np.arange(n) / self.rate
+        return t, triangle(t, 2.0, 40.0)
+
+
+def paper_setup() -> Setup:
+    from pmdcid.simulate import neutral_values
+    from pmdcid.synth import PAPER
+
+    return Setup({**neutral_values(), **PAPER})
+
+
+def _kernel_call(setup: Setup, factor: int = 1):
+    from pmdcid.simulate import param_vector
+    from pmdcid.simulate.kernel import choose_substeps, run_kernel
+
+    t, u = setup.input(factor)
+    dt = 1.0 / setup.rate
+    p = param_vector(setup.vals)
+    nsub = choose_substeps(dt, p)
+    return (lambda: run_kernel(u, dt, p)), len(t) * nsub
+
+
+def kernel_rows(setup: Setup, quick: bool) -> tuple[list[Row], Stats, Stats]:
+    """Kernel time, ns per step, baseline time, ratio and RMS difference.
+
+    Returns the rows, the kernel's Stats and the baseline's Stats (seconds per 120 s simulation)
+    for the other rows' ratios.
+    """
+    from pmdcid.simulate import simulate_values
+
+    run, steps = _kernel_call(setup)
+    t, u = setup.input()
+    # baseline: the full log unless quick (then a 10 s window, scaled per step)
+    if quick:
+        tb, ub = setup.input(seconds=10.0)
+        how = "LSODA, 10 s window x12 per step"
+    else:
+        tb, ub = t, u
+        how = "LSODA, rtol 1e-6, tanh-smoothed"
+    scale = len(t) / len(tb)
+    res: list = []
+    # in turns: a batch of kernel runs, then one baseline run, so that both see the same load
+    ks, bs = Stats(), Stats()
+    run()
+    for _ in range(3):
+        ks.values += measure(run, repeat=25, warmup=0, budget_s=2.0).values
+        bs.values += measure(lambda: res.append(simulate_baseline(tb, ub, setup.vals)),
+                             repeat=1, warmup=0).scaled(scale).values
+    base = res[-1]
+    ksim = simulate_values(tb, ub, setup.vals)
+    speedup = Stats([b / ks.median for b in bs.values])
+    ok_speed = speedup.median >= SPEEDUP_TARGET
+    rows = [
+        Row(f"kernel: {setup.seconds:.0f} s triangle at 1 kHz, one simulation", ks, "s",
+            f"{speedup.median:.0f}x faster than B1", "<= 5 ms, >= 500x B1",
+            ks.median <= KERNEL_TARGET_S and ok_speed,
+            f"run_kernel incl. expm discretisation; {steps} internal steps"),
+        Row("kernel: per internal step", ks.scaled(1e9 / steps), "ns"),
+        Row(f"B1 baseline: solve_ivp {setup.seconds:.0f} s ({how})", bs, "s", "B1", "",
+            None, f"{base.nfev} RHS calls; success={base.success}"),
+        _rms_row(ksim, base),
+    ]
+    return rows, ks, bs
+
+
+def _rms_row(ksim, base) -> Row:
+    parts = []
+    for name, unit in (("omega", "rad/s"), ("theta", "rad"), ("i", "A")):
+        a, b = getattr(ksim, name), getattr(base, name)
+        d = rms(a, b)
+        parts.append(f"{name} {d:.2g} {unit} ({d / np.std(a):.1e} of std)")
+    return Row("RMS difference kernel - B1", None, note="; ".join(parts))
+
+
+def kernel_scaling_rows(setup: Setup, quick: bool) -> list[Row]:
+    calls = {f: _kernel_call(setup, f) for f in (1, 4, 16)}
+    got = interleaved({f: c[0] for f, c in calls.items()}, rounds=5 if quick else 15,
+                      budget_s=5.0 if quick else 15.0)
+    rows = []
+    for factor in (1, 4, 16):
+        s, steps = got[factor], calls[factor][1]
+        ratio = s.median / got[1].median
+        rows.append(Row(f"scaling: kernel at {factor}x ({setup.seconds * factor:.0f} s)", s,
+                        "s", f"{ratio:.2f}x the 1x time (linear: {factor}x)", "",
+                        None, f"{s.median / steps * 1e9:.1f} ns per step; measured in turns"))
+    return rows

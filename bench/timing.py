@@ -1,0 +1,93 @@
+"""Repeated measurement: median, min and max of several runs, within a time budget."""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+
+@dataclass
+class Stats:
+    """Summary of repeated measurements of one figure (seconds, bytes, ... as measured)."""
+
+    values: list[float] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return len(self.values)
+
+    @property
+    def median(self) -> float:
+        return statistics.median(self.values) if self.values else math.nan
+
+    @property
+    def min(self) -> float:
+        return min(self.values) if self.values else math.nan
+
+    @property
+    def max(self) -> float:
+        return max(self.values) if self.values else math.nan
+
+    def scaled(self, factor: float) -> Stats:
+        """The same runs multiplied by ``factor`` (e.g. seconds -> ns per step)."""
+        return Stats([v * factor for v in self.values])
+
+
+def measure(fn: Callable[[], object], repeat: int = 5, budget_s: float = 30.0,
+            warmup: int = 1, min_runs: int = 1) -> Stats:
+    """Wall-clock seconds of ``fn()`` over up to ``repeat`` runs after ``warmup`` untimed runs.
+
+    Stops early once ``budget_s`` seconds have been spent on timed runs and at least
+    ``min_runs`` are done, so that a slow row cannot blow the total time of ``make bench``.
+    """
+    for _ in range(warmup):
+        fn()
+    out = Stats()
+    spent = 0.0
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        dt = time.perf_counter() - t0
+        out.values.append(dt)
+        spent += dt
+        if spent >= budget_s and out.n >= min_runs:
+            break
+    return out
+
+
+def collect(fn: Callable[[], float], repeat: int = 3, budget_s: float = 60.0,
+            min_runs: int = 1) -> Stats:
+    """Values returned by ``fn()`` (it measures itself, e.g. a subprocess) over several runs."""
+    out = Stats()
+    t_start = time.perf_counter()
+    for _ in range(repeat):
+        out.values.append(float(fn()))
+        if time.perf_counter() - t_start >= budget_s and out.n >= min_runs:
+            break
+    return out
+
+
+def interleaved(fns: dict[str, Callable[[], object]], rounds: int = 10, inner: int = 1,
+                budget_s: float = 30.0, warmup: int = 1) -> dict[str, Stats]:
+    """Seconds per call of several functions measured in turns (round-robin), so that a burst
+    of load from other processes falls on all of them alike and their ratios hold.
+
+    Each round calls every function ``inner`` times in a row and records the mean of those.
+    """
+    for fn in fns.values():
+        for _ in range(warmup):
+            fn()
+    out = {k: Stats() for k in fns}
+    t_start = time.perf_counter()
+    for _ in range(rounds):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            for _ in range(inner):
+                fn()
+            out[k].values.append((time.perf_counter() - t0) / inner)
+        if time.perf_counter() - t_start >= budget_s:
+            break
+    return out
