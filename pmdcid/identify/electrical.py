@@ -37,6 +37,8 @@ STAGE = "fit-electrical"
 MIN_TAU_SAMPLES = 3.0
 #: an intercept is reported as significant beyond this many standard errors
 INTERCEPT_SIGMAS = 3.0
+#: tau_e plus dead time must be under this fraction of the log after the step
+SETTLE_FRACTION = 0.25
 
 
 def paper_electrical(ke: float, tau_e: float) -> tuple[float, float]:
@@ -130,15 +132,18 @@ def fit_electrical(logs, model: Model | None = None) -> ElectricalResult:
     reps, steps = [], []
     for log in logs:
         log.require("v", "i", purpose="fit-electrical (blocked-rotor voltage step and current)")
+        step = find_step(log.t, log.u, log.path)
         if log.has("omega") and "omega" not in log.derived:
-            om = np.abs(np.asarray(log["omega"], float))
-            if np.percentile(om, 90) > 10 * max(residual_std(log.t, log["omega"],
-                                                             find_step(log.t, log.u, log.path)),
-                                                1e-9):
+            om = np.asarray(log["omega"], float)
+            noise = residual_std(log.t, om, step)
+            if abs(float(np.median(om[-max(3, log.n // 10):]))) > 10 * max(noise, 1e-12):
                 warns.append(f"{log.path}: the rotor turns: not a blocked-rotor log; back-EMF "
                              "will bias R and L")
-        step = find_step(log.t, log.u, log.path)
         rep, _ = _fit_one(log, step)
+        after = float(log.t[-1] - step.t0)
+        if not (rep.tau + rep.dead_time < SETTLE_FRACTION * after):
+            raise FitError(f"the log ends {after:.3g} s after the step, before the current "
+                           f"settles (tau_e about {rep.tau:.3g} s): record longer", log.path)
         if rep.strejc_order > 1:
             warns.append(f"{log.path}: Strejc's method says the current response is of order "
                          f"{rep.strejc_order}, not 1 (an extra lag: drive, current filter or "

@@ -39,6 +39,9 @@ from pmdcid.model import Model
 STAGE = "fit-mechanical"
 #: a step whose steady speed is within this many noise std of zero did not move the rotor
 MOVE_SIGMAS = 8.0
+#: the response's time constant plus dead time must be under this fraction of the log after
+#: the step (else the steady speed, hence bv and bc, is extrapolated)
+SETTLE_FRACTION = 0.25
 
 
 def paper_mechanical(kmot: float, tau_mot: float, km: float, r: float) -> tuple[float, float]:
@@ -203,6 +206,12 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
         ms.kmot = cf1["dy"] / step.amplitude
         ms.tau_mot = cf1["tau"]
         ms.b, ms.J_paper = paper_mechanical(ms.kmot, ms.tau_mot, km, R)
+        after = float(log.t[-1] - step.t0)
+        if not (cf1["tau"] + cf1["d"] < SETTLE_FRACTION * after):
+            raise FitError(f"the log ends {after:.3g} s after the step, before the speed settles "
+                           f"(time constant about {cf1['tau']:.3g} s): record at least "
+                           f"{(cf1['tau'] + cf1['d']) / SETTLE_FRACTION:.2g} s after the step",
+                           log.path)
         cf2 = _second_order(log.t, w, step, tau_e, st, sig)
         ms.omega_ss, ms.omega_ss_se = cf2["wss"], cf2.se("wss")
         ms.tau_m, ms.tau_m_se = cf2["tau_m"], cf2.se("tau_m")
@@ -211,8 +220,8 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
         chisqr += cf2.sigma**2 * max(cf2.ndata - 5, 1)
     moving = [s for s in steps if s.moved]
     if not moving:
-        raise FitError("no step log moves the rotor: fit-mechanical needs steps above the dead "
-                       "zone (larger voltages)")
+        raise FitError("no step moves the rotor: fit-mechanical needs steps above the dead "
+                       "zone (larger voltages)", ", ".join(lg.path for lg in logs))
     return _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns)
 
 

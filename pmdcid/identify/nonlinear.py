@@ -47,6 +47,8 @@ FREE_TAU = ("J", "bv", "bc", "tau0")
 GRID_N = 9
 GRID_BV = 7
 KNOWN_FREE = ("J", "bv", "bc", "dz", "tau0")
+#: fewest samples per log
+MIN_SAMPLES = 50
 
 
 @dataclass
@@ -229,6 +231,11 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
         raise FitError("fit-nonlinear needs at least one log")
     for lg in logs:
         lg.drive  # noqa: B018 - raises when a log has neither v nor tau
+        if not (lg.has("omega") or lg.has("theta")):
+            lg.require("omega", purpose="fit-nonlinear (a speed 'omega' or an angle 'theta')")
+        if lg.n < MIN_SAMPLES:
+            raise FitError(f"too short ({lg.n} samples) for a simulation-error fit (needs at "
+                           f"least {MIN_SAMPLES})", lg.path)
     any_v = any(lg.drive == "v" for lg in logs)
     if any_v:
         model.require("R", "L", "km", stage="fit-nonlinear")

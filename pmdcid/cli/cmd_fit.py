@@ -1,0 +1,76 @@
+"""``pmdcid fit-electrical``, ``fit-mechanical``, ``fit-nonlinear``: the paper's stages."""
+
+from __future__ import annotations
+
+import click
+
+from pmdcid.cli import main
+from pmdcid.cli.options import log_options, model_option
+
+LOGS = click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False),
+                      metavar="LOG...")
+
+
+def _names(allowed):
+    def parse(ctx, param, value):
+        if value is None:
+            return None
+        names = [v.strip() for v in value.split(",") if v.strip()]
+        bad = [n for n in names if n not in allowed]
+        if bad or not names:
+            raise click.BadParameter(f"{', '.join(bad) or 'empty'}: choose among "
+                                     f"{','.join(allowed)}")
+        return names
+    return parse
+
+
+def _show(result, model_path):
+    click.echo(result.table())
+    for w in result.warnings:
+        click.echo(f"warning: {w}", err=True)
+    click.echo(f"updated {model_path}")
+
+
+@main.command("fit-electrical")
+@LOGS
+@model_option()
+@log_options
+def fit_electrical_cmd(logs, model_path, mapping):
+    """Blocked-rotor current steps -> R, L (the model file is created if missing)."""
+    from pmdcid.identify.stages import run_fit_electrical
+
+    _show(run_fit_electrical(list(logs), model_path, mapping), model_path)
+
+
+@main.command("fit-mechanical")
+@LOGS
+@model_option()
+@click.option("--km", type=float, default=None, metavar="X",
+              help="Torque constant [N m/A] (datasheet); default: km from MODEL.")
+@log_options
+def fit_mechanical_cmd(logs, model_path, km, mapping):
+    """Free-speed speed steps -> Kmot, tau_mot -> b, J (paper) and bv, bc (steady-speed line)."""
+    from pmdcid.identify.stages import run_fit_mechanical
+
+    _show(run_fit_mechanical(list(logs), model_path, mapping, km=km), model_path)
+
+
+@main.command("fit-nonlinear")
+@LOGS
+@model_option()
+@click.option("--signals", callback=_names(("omega", "theta")), default=None,
+              metavar="omega,theta",
+              help="Measured signals in the simulation error (default: the measured speed and "
+                   "angle present). On closed-loop logs the open-loop angle drifts: try omega.")
+@click.option("--free", callback=_names(("J", "bv", "bc", "dz", "tau0")), default=None,
+              metavar="J,bv,bc,dz",
+              help="Parameters to fit (default J,bv,bc,dz; torque-driven logs J,bv,bc,tau0).")
+@click.option("--dead-zone", is_flag=True,
+              help="Torque-driven logs: fit the dead zone dz too (off by default).")
+@log_options
+def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, mapping):
+    """Triangular-input (or any rich) logs -> bc, bv, dz, J refined, by simulation error."""
+    from pmdcid.identify.stages import run_fit_nonlinear
+
+    _show(run_fit_nonlinear(list(logs), model_path, mapping, free=free, signals=signals,
+                            dead_zone=dead_zone), model_path)
