@@ -31,7 +31,7 @@ class _Group(click.Group):
         try:
             return super().invoke(ctx)
         except PmdcidError as exc:
-            click.echo(f"error: {exc}", err=True)
+            click.echo("error: " + " ".join(str(exc).split("\n")), err=True)  # always one line
             sys.exit(1)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
@@ -71,5 +71,5 @@ def _register() -> None:
 
 
 #: command modules, each registering its command(s) on ``main`` at import
-COMMAND_MODULES = ["cmd_simulate", "cmd_fit"]
+COMMAND_MODULES = ["cmd_simulate", "cmd_fit", "cmd_report"]
 _register()

@@ -89,6 +89,25 @@ def _clean(x):
     return v if math.isfinite(v) else None
 
 
+def load_summary(path) -> dict:
+    """Read a diagnose summary file (JSON object) given with ``--summary``."""
+    from pmdcid.errors import PmdcidError
+
+    try:
+        with open(path) as fh:
+            obj = json.load(fh)
+    except FileNotFoundError:
+        raise PmdcidError("no such summary file", str(path)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise PmdcidError(f"cannot read summary ({exc})", str(path)) from None
+    except json.JSONDecodeError as exc:
+        raise PmdcidError(f"summary is not valid JSON (line {exc.lineno}: {exc.msg})",
+                          str(path)) from None
+    if not isinstance(obj, dict):
+        raise PmdcidError("summary must hold a JSON object (diagnose --summary)", str(path))
+    return obj
+
+
 def parameter_table(model: Model) -> dict:
     out = {}
     for name, par in model.parameters.items():
@@ -179,4 +198,4 @@ def model_errors_from(cmps) -> list[dict]:
     return [{s: sm["nrmse"] for s, sm in c.metrics["signals"].items()} for c in cmps]
 
 
-__all__ = ["ReportResult", "make_report"]
+__all__ = ["ReportResult", "check_out_dir", "load_summary", "make_report"]

@@ -1,0 +1,35 @@
+"""``pmdcid report LOG... -m MODEL -o DIR``."""
+
+from __future__ import annotations
+
+import click
+
+from pmdcid.cli import main
+from pmdcid.cli.options import log_options, model_option
+
+
+@main.command("report")
+@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=click.Path(dir_okay=False))
+@model_option()
+@click.option("-o", "--output", "out_dir", required=True, type=click.Path(), metavar="DIR",
+              help="Folder for report.html, metrics.json and the figures (created).")
+@click.option("--summary", "summary_path", type=click.Path(dir_okay=False), default=None,
+              metavar="SUMMARY.json", help="A diagnose summary to show on the page.")
+@click.option("--before", "before_path", type=click.Path(dir_okay=False), default=None,
+              metavar="MODEL", help="Model to show as 'before' (default: MODEL without its "
+                                    "effects, when it has any).")
+@log_options
+def report_cmd(logs, model_path, out_dir, summary_path, before_path, mapping):
+    """Compare MODEL with measured LOGs: DIR/report.html, DIR/metrics.json, DIR/*.png."""
+    from pmdcid.io import read_logs
+    from pmdcid.model import load_model
+    from pmdcid.report import check_out_dir, load_summary, make_report
+
+    check_out_dir(out_dir)
+    model = load_model(model_path)
+    before = load_model(before_path) if before_path else None
+    summary = load_summary(summary_path) if summary_path else None
+    res = make_report(read_logs(logs, mapping), model, out_dir, summary=summary,
+                      before_model=before)
+    click.echo(f"wrote {res.html_path}")
+    click.echo(f"wrote {res.metrics_path} and {len(res.figures)} figures")
