@@ -131,7 +131,7 @@ def _before_after(logs, names, model: Model, before_model: Model | None) -> dict
     before = model_errors(logs, before_model)
     after = model_errors(logs, model)
     change = [{s: (100.0 * (a[s] - b[s]) / b[s] if a.get(s) is not None and b.get(s)
-                   else None) for s in a} for b, a in zip(before, after)]
+                   else None) for s in a} for b, a in zip(before, after, strict=True)]
     return {"effects": [e for e in model.effects if e not in before_model.effects],
             "before_label": label, "logs": names, "before": before, "after": after,
             "change_percent": change, "mean_before": mean_errors(before),
@@ -155,7 +155,7 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
         raise LogError("no log files given")
     check_out_dir(out_dir)
     names = unique_names(logs)
-    cmps = [compare_log(log, model, name) for log, name in zip(logs, names)]
+    cmps = [compare_log(log, model, name) for log, name in zip(logs, names, strict=True)]
     if summary is None and isinstance(model.extra.get("diagnose"), dict):
         summary = model.extra["diagnose"]
     figs: dict[str, bytes] = {}

@@ -14,7 +14,8 @@ SIM = dict(color="tab:red", lw=0.9, ls="--", label="simulated")
 LABELS = {"omega": "speed [rad/s]", "theta": "angle [rad]", "i": "current [A]"}
 
 
-def _new(nrows: int, ncols: int, height: float):
+def _new(nrows: int, ncols: int, height: float, left: float = 0.85, wspace: float = 0.22):
+    """A figure 11 in wide with fixed margins (``left`` in inches)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -22,9 +23,9 @@ def _new(nrows: int, ncols: int, height: float):
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, squeeze=False)
     # fixed margins (in inches): constrained layout doubles the drawing time
-    fig.subplots_adjust(left=0.85 / 11 if ncols < 2 or nrows > 1 else 1.6 / 11, right=0.985,
-                        top=1 - 0.45 / height, bottom=0.55 / height,
-                        hspace=0.55 * 2.3 / max(height / nrows, 1.0), wspace=0.22)
+    fig.subplots_adjust(left=left / 11, right=0.985, top=1 - 0.45 / height,
+                        bottom=0.55 / height, hspace=0.55 * 2.3 / max(height / nrows, 1.0),
+                        wspace=wspace)
     return fig, axes
 
 
@@ -69,7 +70,7 @@ def overlay_figure(cmp) -> bytes:
     rows = len(full) + (1 if zoom else 0)
     fig, axes = _new(rows, 1, 2.3 * rows + 0.4)
     st = _stride(len(t))
-    for ax, s in zip(axes[:, 0], full):
+    for ax, s in zip(axes[:, 0], full, strict=False):
         ax.plot(t[st], log[s][st], **MEAS)
         ax.plot(t[st], sim.get(s)[st], **SIM)
         ax.set_ylabel(LABELS[s] + (" (derived)" if s in getattr(log, "derived", ()) else ""))
@@ -144,8 +145,9 @@ def residual_figure(cmp) -> bytes:
 
 def fit_figure(rows: list[tuple[str, dict]]) -> bytes:
     """Fit % per log and signal (MATLAB compare's figure of merit), near-zero speed vs rest."""
-    fig, axes = _new(1, 2, 3.2 + 0.18 * len(rows))
     labels = [f"{name} {s}" for name, sig in rows for s in sig]
+    left = 0.3 + 0.065 * max(len(x) for x in labels)
+    fig, axes = _new(1, 2, 1.6 + 0.3 * len(labels), left=left, wspace=left / 4.5)
     fits = [sig[s]["fit_percent"] for _, sig in rows for s in sig]
     y = np.arange(len(labels))
     ax = axes[0, 0]
@@ -165,18 +167,20 @@ def fit_figure(rows: list[tuple[str, dict]]) -> bytes:
     ax.set_xlabel("regime RMS error / std(measurement)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="x")
+    fig.suptitle("fit per log and signal; error near zero speed and elsewhere", fontsize=11)
     return _png(fig)
 
 
 def before_after_figure(names: list[str], before: list[dict], after: list[dict]) -> bytes:
     """NRMSE per log and signal of the model without and with its added effects."""
     labels, b, a = [], [], []
-    for name, rb, ra in zip(names, before, after):
+    for name, rb, ra in zip(names, before, after, strict=True):
         for s in ra:
             labels.append(f"{name} {s}")
             b.append(rb.get(s) or 0.0)
             a.append(ra.get(s) or 0.0)
-    fig, axes = _new(1, 1, 2.6 + 0.22 * len(labels))
+    left = 0.3 + 0.065 * max((len(x) for x in labels), default=4)
+    fig, axes = _new(1, 1, 1.6 + 0.3 * len(labels), left=left)
     ax = axes[0, 0]
     y = np.arange(len(labels))
     ax.barh(y - 0.2, b, height=0.4, color="0.6", label="before (no added effects)")
@@ -184,6 +188,7 @@ def before_after_figure(names: list[str], before: list[dict], after: list[dict])
     ax.set_yticks(y, labels, fontsize=8)
     ax.invert_yaxis()
     ax.set_xlabel("NRMSE")
+    ax.set_title("error without and with the added effects", fontsize=11)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="x")
     return _png(fig)
