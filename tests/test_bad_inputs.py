@@ -213,6 +213,12 @@ CASES: list[Case] = [
       r"^error: step\.csv: .*'v'.*'tau'"),
     C("log-duplicated-column", combine(MODEL, text("step.csv", "t,v,v\n0,1,1\n1,1,1\n2,1,1\n")),
       SIM, 1, r"^error: step\.csv: header names column\(s\) v more than once"),
+    C("log-duplicated-after-strip",
+      combine(MODEL, text("step.csv", 't ,"t",v\n0,0,1\n1,1,1\n2,2,1\n')),
+      SIM, 1, r"^error: step\.csv: header names column\(s\) t more than once"),
+    C("log-newline-in-header-name",
+      combine(MODEL, text("step.csv", '"ti\nme",v\n0,1\n1,1\n2,1\n')),
+      SIM, 1, r"^error: step\.csv: has no time column 't' \(columns are ti me, v"),
     C("log-semicolon-separated", combine(MODEL, text(
         "step.csv", "t;v;i\n0,000;1,5;0,1\n0,001;1,5;0,1\n0,002;1,5;0,1\n")), SIM, 1,
       r"^error: step\.csv: .*(semicolon|';')"),

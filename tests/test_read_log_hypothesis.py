@@ -21,7 +21,8 @@ SETTINGS = settings(max_examples=int(__import__("os").environ.get("HYP_N", 150))
                                            HealthCheck.too_slow])
 
 NAMES = st.sampled_from(["t", "v", "i", "omega", "theta", "tau", "x", "speed_rpm", "", "t ",
-                         '"t"', "v.1", "Unnamed: 0", "t;v", "\ufefft"])
+                         '"t"', "v.1", "Unnamed: 0", "t;v", "\ufefft",
+                         '"a\nb"', '"t\r"'])
 CELLS = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
     st.integers(-10**30, 10**30).map(str),
@@ -102,3 +103,17 @@ def test_random_csv_with_mapping(tmp_path_factory, text, spec):
     p.write_text(text, encoding="utf-8", newline="")
     s = parse_spec(spec)
     _check(p, ColumnMap({s.canon: s}))
+
+
+@SETTINGS
+@given(spec=st.one_of(st.text(max_size=40),
+                      st.from_regex(r"[a-z]{1,6}=[a-z_]{0,8}([*/]([0-9.e+-]{1,6}|rpm|pi|ms|x)){0,3}"
+                                    r"([+-][0-9.e]{1,5})?", fullmatch=True)))
+def test_random_mapping_text(spec):
+    """A column mapping either parses to a finite scale and offset or raises the tool's error."""
+    try:
+        s = parse_spec(spec)
+    except PmdcidError as exc:
+        assert "\n" not in str(exc)
+        return
+    assert np.isfinite(s.scale) and np.isfinite(s.offset) and s.source

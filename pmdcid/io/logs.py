@@ -175,11 +175,12 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
         raise LogError(f"is not a readable CSV ({msg})", p) from None
-    cols = [str(c).strip() for c in df.columns]
+    cols = [" ".join(str(c).splitlines()).strip() for c in df.columns]  # one-line names
     # pandas renames duplicates to 'x.1'; check the raw header instead
     raw_header = next((ln for ln in head_text.splitlines()[nskip:] if ln.strip()), "")
     raw_names = [c.strip().strip('"') for c in raw_header.split(",")]
-    dups = sorted({c for c in raw_names if raw_names.count(c) > 1 and c})
+    dups = sorted({c for c in raw_names if raw_names.count(c) > 1 and c}
+                  | {c for c in cols if cols.count(c) > 1})  # also equal once stripped
     if dups:
         raise LogError(f"header names column(s) {', '.join(dups)} more than once", p)
     df.columns = cols

@@ -95,6 +95,8 @@ def parse_spec(text: str) -> ColumnSpec:
     """Parse one mapping ``CANON=SOURCE*FACTOR/DIVISOR+OFFSET`` (see module docstring)."""
     from pmdcid.io.logs import CANONICAL
 
+    if any(not c.isprintable() for c in text):
+        raise LogError(f"column mapping {text!r} holds control characters")
     m = _MAP_RE.match(text)
     if not m:
         raise LogError(f"column mapping '{text}' is not of the form CANON=SOURCE[*SCALE][+OFFSET]")
