@@ -114,12 +114,14 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
                    start: dict[str, float] | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
                    sigma: list[dict[str, float]] | None = None, max_nfev: int = 200,
-                   diff_step: float = 1e-3, nsub: int | None = None) -> SimFitResult:
+                   diff_step: float = 1e-3, nsub: int | None = None,
+                   cov_step: float = 1e-2) -> SimFitResult:
     """Fit ``free`` parameters of ``model`` by simulation error on ``logs``.
 
     Other parameters stay at the model's values (effects not in ``model.effects`` off).
     ``start`` overrides starting values; ``bounds`` maps name -> (lower, upper) in SI units;
-    ``sigma`` gives per-log noise std per signal (estimated when omitted).
+    ``sigma`` gives per-log noise std per signal (estimated when omitted). ``cov_step``: relative
+    step of the central differences giving the covariance (standard errors, correlations).
     Returns a :class:`SimFitResult`; the model is not modified.
     """
     free = list(free)
@@ -175,8 +177,13 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     x = sol.x * scale
     chisqr = float(np.sum(sol.fun**2))
     stats = FitStats(ndata, len(free), chisqr, int(sol.nfev), bool(sol.success), str(sol.message))
-    # covariance from the Jacobian at the solution, scaled by the reduced chi-square
-    Jm = sol.jac / scale[None, :]
+    # covariance from the Jacobian at the solution, scaled by the reduced chi-square. The
+    # solver's forward differences (diff_step) may not cross any switching event for a
+    # parameter like dz (a zero column, hence a zero standard error): the covariance uses
+    # central differences over a wider step, the slope of the cost's smooth envelope.
+    with blas_single_thread():
+        Jm = _envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale,
+                                cov_step) / scale[None, :]
     try:
         cov = np.linalg.pinv(Jm.T @ Jm) * stats.redchi
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -197,6 +204,29 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         errs[k][s] = nrmse(final[k].get(s), meas)
         sig_out[k][s] = sd
     return SimFitResult(est, stats, correl, errs, sig_out)
+
+
+def _envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
+    """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one-sided at a
+    bound); columns that still come out zero fall back to a 5x wider step."""
+    cols = []
+    for j in range(len(z)):
+        col = None
+        for r in (rel, 5 * rel):
+            h = r * max(abs(z[j]), 1e-12)
+            up, dn = min(z[j] + h, hi[j]), max(z[j] - h, lo[j])
+            if up <= dn:
+                col = np.zeros_like(f0)
+                break
+            zu, zd = z.copy(), z.copy()
+            zu[j], zd[j] = up, dn
+            fu = fun(zu) if up > z[j] else f0
+            fd = fun(zd) if dn < z[j] else f0
+            col = (fu - fd) / (up - dn)
+            if np.any(col != 0):
+                break
+        cols.append(col)
+    return np.column_stack(cols)
 
 
 def format_estimates(estimates, width: int = 10) -> list[str]:

@@ -1,0 +1,76 @@
+"""fit-electrical round trips: blocked-rotor steps simulated by the kernel, fitted back."""
+
+import numpy as np
+import pytest
+from ident_util import as_log, blocked_logs, perturbed_truth
+
+from pmdcid.errors import FitError
+from pmdcid.identify.electrical import fit_electrical
+from pmdcid.identify.steps import find_step, two_lag
+from pmdcid.model import Model
+from pmdcid.synth import PAPER
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_round_trip_r_l(seed):
+    rng = np.random.default_rng(seed)
+    vals = perturbed_truth(rng)
+    res = fit_electrical(blocked_logs(vals, rng), Model())
+    assert res.estimates["R"].value == pytest.approx(vals["R"], rel=5e-3)
+    assert res.estimates["L"].value == pytest.approx(vals["L"], rel=5e-3)
+    # the standard errors are honest: the truth lies within 5 of them
+    for k in ("R", "L"):
+        e = res.estimates[k]
+        assert abs(e.value - vals[k]) < 5 * e.stderr
+    assert not any("intercept" in w for w in res.warnings)
+    m = Model()
+    res.apply(m)
+    assert m.parameters["R"].stage == "fit-electrical" and set(m.parameters) == {"R", "L"}
+    assert "±" in res.table()
+
+
+def test_brush_drop_is_an_intercept_not_a_resistance(rng, paper_values):
+    vals = {**paper_values, "vb": 0.2}  # 0.2 V across the brushes
+    res = fit_electrical(blocked_logs(vals, rng), Model())
+    assert res.estimates["R"].value == pytest.approx(PAPER["R"], rel=5e-3)
+    assert res.estimates["i0"].value == pytest.approx(-0.2 / PAPER["R"], rel=0.05)
+    assert any("intercept" in w and "brush" in w for w in res.warnings)
+
+
+def test_fast_armature_warns_l_not_identifiable(rng, paper_values):
+    # tau_e = 0.3 ms at 1 kHz sampling: under one sample period
+    vals = {**paper_values, "L": 0.3e-3 * PAPER["R"]}
+    logs = blocked_logs(vals, rng, rate=1000.0, seconds=0.5, onset=0.1)
+    res = fit_electrical(logs, Model())
+    assert res.estimates["R"].value == pytest.approx(PAPER["R"], rel=5e-3)
+    assert any("not identifiable" in w for w in res.warnings)
+
+
+def test_strejc_flags_a_higher_order_response(rng):
+    t = np.arange(1500) / 5000.0
+    tau = 7.5e-3
+    logs = []
+    for a in (1.0, 2.0):
+        s = t - 0.05
+        i = np.where(s > 0, a / 2.37 * two_lag(s, tau, 0.5 * tau), 0.0)
+        logs.append(as_log(f"lag_{a}", t, {"v": np.where(s >= 0, a, 0.0),
+                                           "i": i + rng.normal(0, 1e-3, len(t))}))
+    res = fit_electrical(logs, Model())
+    assert any("order" in w for w in res.warnings)
+
+
+@pytest.mark.parametrize("onset,before,after", [(123, 0.0, 1.5), (400, 2.0, -1.0),
+                                                (57, -0.3, 0.4)])
+def test_find_step_locates_an_unannounced_step(onset, before, after, rng):
+    t = np.arange(1000) * 1e-3
+    u = np.where(np.arange(1000) >= onset, after, before) + rng.normal(0, 0.01, 1000)
+    st = find_step(t, u)
+    assert st.onset == onset
+    assert st.amplitude == pytest.approx(after - before, abs=0.01)
+
+
+def test_no_step_is_an_error(rng):
+    t = np.arange(1000) * 1e-3
+    log = as_log("flat.csv", t, {"v": np.ones(1000), "i": rng.normal(0.4, 1e-3, 1000)})
+    with pytest.raises(FitError, match="flat.csv: no step"):
+        fit_electrical([log], Model())

@@ -1,0 +1,69 @@
+"""fit-mechanical round trips: free-speed voltage steps simulated by the kernel, fitted back."""
+
+import math
+
+import numpy as np
+import pytest
+from ident_util import perturbed_truth, step_logs
+
+from pmdcid.errors import ModelError
+from pmdcid.identify.mechanical import fit_mechanical
+from pmdcid.model import Model
+from pmdcid.synth import PAPER
+
+
+def _electrical(vals, km=True):
+    m = Model()
+    m.set("R", vals["R"], stage="fit-electrical")
+    m.set("L", vals["L"], stage="fit-electrical")
+    if km:
+        m.set("km", vals["km"], stage="datasheet")
+    return m
+
+
+@pytest.mark.parametrize("seed", [21, 22, 23])
+def test_round_trip_bv_bc_j(seed):
+    rng = np.random.default_rng(seed)
+    vals = perturbed_truth(rng)
+    res = fit_mechanical(step_logs(vals, rng), _electrical(vals))
+    for k in ("J", "bv", "bc"):
+        assert res.estimates[k].value == pytest.approx(vals[k], rel=0.02), k
+    # the paper's lumped b: Coulomb friction inflates it above bv, more at small amplitudes
+    b_steps = [s.b for s in res.steps]
+    assert min(b_steps) > vals["bv"]
+    assert b_steps == sorted(b_steps, reverse=True)
+    s = res.steps[-1]
+    assert s.b == pytest.approx(vals["km"] / (s.kmot * vals["R"]))
+    assert s.J_paper == pytest.approx(s.tau_mot * s.b)
+    m = _electrical(vals)
+    res.apply(m)
+    assert {m.parameters[k].stage for k in ("b", "bv", "bc", "J")} == {"fit-mechanical"}
+    assert m.value("R") == vals["R"]  # other stages' parameters kept
+
+
+def test_step_below_dead_zone_is_reported_and_skipped(rng, paper_values):
+    # 0.1 V gives km*V/R = 2.1e-3 N m < dz: the rotor does not move
+    logs = step_logs(paper_values, rng, amplitudes=(0.1, 1.0, 2.0, 2.5))
+    res = fit_mechanical(logs, _electrical(paper_values))
+    assert [s.moved for s in res.steps] == [False, True, True, True]
+    assert any("does not move" in w and "step_0.1V" in w for w in res.warnings)
+    assert math.isnan(res.steps[0].kmot)
+    assert res.estimates["bv"].value == pytest.approx(PAPER["bv"], rel=0.02)
+    assert "did not move" in res.table()
+
+
+def test_km_from_option_is_stored_as_datasheet(rng, paper_values):
+    logs = step_logs(paper_values, rng, amplitudes=(1.0, 2.0))
+    m = _electrical(paper_values, km=False)
+    with pytest.raises(ModelError, match="--km"):
+        fit_mechanical(logs, m)
+    res = fit_mechanical(logs, m, km=PAPER["km"])
+    res.apply(m)
+    assert m.parameters["km"].stage == "datasheet"
+    assert m.value("km") == PAPER["km"]
+
+
+def test_needs_fit_electrical_first(rng, paper_values):
+    logs = step_logs(paper_values, rng, amplitudes=(1.0,))
+    with pytest.raises(ModelError, match="fit-electrical"):
+        fit_mechanical(logs, Model(), km=PAPER["km"])
