@@ -144,7 +144,8 @@ def _summary(p: Page) -> None:
           f"<b>{'yes' if s.get('unexplained') else 'no'}</b>.</p>")
     cands = s.get("candidates", [])
     if cands:
-        keys = [k for k in cands[0] if k != "effect"]
+        keys = [k for k in cands[0] if k != "effect"
+                and not isinstance(cands[0][k], (dict, list))]
         p.add("<table><tr><th>candidate effect</th>"
               + "".join(f"<th>{_esc(k)}</th>" for k in keys) + "</tr>")
         for j, c in enumerate(cands):

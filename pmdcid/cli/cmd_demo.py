@@ -1,0 +1,17 @@
+"""``pmdcid demo [-o DIR]``."""
+
+from __future__ import annotations
+
+import click
+
+from pmdcid.cli import main
+
+
+@main.command("demo")
+@click.option("-o", "--output", "out_dir", default="demo-output", show_default=True,
+              type=click.Path(), metavar="DIR", help="Folder for the models and the report.")
+def demo_cmd(out_dir):
+    """Run the whole pipeline on the bundled example logs and write a report."""
+    from pmdcid.demo import run_demo
+
+    run_demo(out_dir, echo=click.echo)
