@@ -1,7 +1,7 @@
 """Speed from position (and position from speed) for logs that lack one of them.
 
 Speed from position: the angle [rad] (or position [m]) is low-pass filtered by a Butterworth
-filter of order :data:`ORDER` run forwards and backwards (``scipy.signal.filtfilt``: zero phase,
+filter of order :data:`ORDER` run forwards and backwards (``scipy.signal.sosfiltfilt``: zero phase,
 so no lag, effective order doubled), then differentiated by central differences
 (``numpy.gradient``). The same filtered signal differentiated twice gives the acceleration used
 by the inverse-dynamics estimator. The cut-off [Hz] is the user's (``--cutoff HZ``) or
@@ -58,10 +58,10 @@ def noise_std(x: np.ndarray) -> float:
 def derivative_noise_gain(dt: float, cutoff_hz: float, nder: int, order: int = ORDER) -> float:
     """Std of the ``nder``-th derivative (filtered, central differences) of unit white noise
     sampled every ``dt`` [s]: [1/s^nder]."""
-    from scipy.signal import butter, freqz
+    from scipy.signal import butter, sosfreqz
 
-    b, a = butter(order, cutoff_hz, btype="low", fs=1.0 / dt)
-    w, h = freqz(b, a, worN=2048)
+    sos = butter(order, cutoff_hz, btype="low", fs=1.0 / dt, output="sos")
+    w, h = sosfreqz(sos, worN=2048)
     g2 = np.abs(h) ** 4 * (np.sin(w) / dt) ** (2 * nder)
     return float(np.sqrt(np.mean(g2)))
 
@@ -109,15 +109,17 @@ def check_cutoff(cutoff_hz: float, dt: float, path: str | None = None) -> float:
 def lowpass(x: np.ndarray, dt: float, cutoff_hz: float, order: int = ORDER) -> np.ndarray:
     """Zero-phase Butterworth low-pass of ``x`` (any unit) sampled every ``dt`` [s].
 
-    ``scipy.signal.butter(order, cutoff)`` applied by ``filtfilt`` with odd-reflection padding
-    of 3*order samples (as MATLAB's ``filtfilt``), shortened for very short signals.
+    ``scipy.signal.butter(order, cutoff)`` in second-order sections (numerically safe at cut-offs
+    far below the sample rate) applied forwards and backwards by ``sosfiltfilt`` with
+    odd-reflection padding of 3*order samples (as MATLAB's ``filtfilt``), shortened for very
+    short signals.
     """
-    from scipy.signal import butter, filtfilt
+    from scipy.signal import butter, sosfiltfilt
 
     x = np.asarray(x, dtype=float)
-    b, a = butter(order, cutoff_hz, btype="low", fs=1.0 / dt)
-    padlen = min(3 * (max(len(a), len(b)) - 1), len(x) - 1)
-    return filtfilt(b, a, x, padlen=padlen)
+    sos = butter(order, cutoff_hz, btype="low", fs=1.0 / dt, output="sos")
+    padlen = min(3 * order, len(x) - 1)
+    return sosfiltfilt(sos, x, padlen=padlen)
 
 
 @dataclass
