@@ -174,8 +174,7 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
     for log in logs:
         X, y, fc, k_used = regression_rows(log, model, cutoff_hz, rest_fraction, centre_zoh)
         fcs.append(fc)
-        speed = np.abs(X[:, 1])
-        if speed.max() <= 0:
+        if len(y) == 0 or np.abs(X[:, 1]).max() <= 0:
             warns.append(f"{log.path}: never moves: left out of the inverse-dynamics fit")
             continue
         rows.append(X)
