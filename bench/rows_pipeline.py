@@ -43,11 +43,18 @@ def _import_fit():
     return fit_nonlinear
 
 
+def _nfev(res) -> str:
+    try:
+        return f"{res.stats.nfev} least-squares evaluations"
+    except Exception:  # noqa: BLE001 - informational only
+        return ""
+
+
 def _fit_quality(res, truth: dict[str, float]) -> str:
     try:
         errs = [f"{k} {100 * (res.estimates[k].value / truth[k] - 1):+.1f}%"
                 for k in ("bc", "bv", "dz") if k in res.estimates]
-        return "error vs truth: " + ", ".join(errs) if errs else ""
+        return "; ".join(filter(None, [_nfev(res), "error vs truth: " + ", ".join(errs)]))
     except Exception:  # noqa: BLE001 - informational only
         return ""
 
@@ -75,14 +82,16 @@ def fit_rows(b1: Stats, quick: bool, tmp: Path) -> list[Row]:
         if quick and factor == 16:
             break
         log = read_log(_long_triangle(tmp, factor))
+        got: list = []
         try:
-            s = measure(lambda log=log: fit([log], model.copy()), repeat=3 if factor == 4 else 1,
-                        budget_s=20.0, warmup=0)
+            s = measure(lambda log=log, got=got: got.append(fit([log], model.copy())),
+                        repeat=3 if factor == 4 else 1, budget_s=20.0, warmup=0)
         except Exception as exc:  # noqa: BLE001
             rows.append(_fail(f"scaling: fit-nonlinear at {factor}x", exc))
             continue
         rows.append(Row(f"scaling: fit-nonlinear at {factor}x ({120 * factor} s)", s, "s",
-                        f"{s.median / s1.median:.1f}x the 1x time (linear: {factor}x)"))
+                        f"{s.median / s1.median:.1f}x the 1x time (linear: {factor}x)",
+                        note=_nfev(got[-1])))
     return rows
 
 
@@ -143,7 +152,8 @@ def pmdcid_cmd() -> list[str]:
 
 
 def run_child(cmd: list[str], timeout: float = 600.0, cwd: str | None = None):
-    """Run ``cmd``; return (seconds, peak RSS [bytes] of that child alone, exit code, stderr)."""
+    """Run ``cmd``; return (seconds, peak RSS [bytes], exit code, stderr, CPU seconds) of that
+    child alone (its rusage from ``os.wait4``)."""
     err = tempfile.TemporaryFile()
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, cwd=cwd)
@@ -162,7 +172,7 @@ def run_child(cmd: list[str], timeout: float = 600.0, cwd: str | None = None):
     err.seek(0)
     text = err.read().decode(errors="replace")
     rss = usage.ru_maxrss * (1 if sys.platform == "darwin" else 1024)
-    return seconds, rss, proc.returncode, text
+    return seconds, rss, proc.returncode, text, usage.ru_utime + usage.ru_stime
 
 
 def demo_rows(b1: Stats, quick: bool, tmp: Path) -> list[Row]:
@@ -170,7 +180,7 @@ def demo_rows(b1: Stats, quick: bool, tmp: Path) -> list[Row]:
     what = "demo: `pmdcid demo` end to end"
     times, rss = Stats(), Stats()
     for k in range(2 if quick else 3):
-        sec, mem, code, err = run_child(pmdcid_cmd() + ["demo", "-o", str(tmp / f"demo{k}")],
+        sec, mem, code, err, cpu = run_child(pmdcid_cmd() + ["demo", "-o", str(tmp / f"demo{k}")],
                                         timeout=300.0)
         if code != 0:
             if "No such command" in err:
@@ -178,6 +188,7 @@ def demo_rows(b1: Stats, quick: bool, tmp: Path) -> list[Row]:
             line = (err.strip().splitlines() or [""])[-1][:100]
             return [na(what, f"failed: exit {code}: {line}", "<= 30 s")]
         times.values.append(sec)
+        times.cpu.append(cpu)
         rss.values.append(mem / 2**20)
         if sec > 60.0:
             break
@@ -193,8 +204,8 @@ def startup_rows(quick: bool) -> list[Row]:
     """``pmdcid --help`` wall time against a bare interpreter, and which heavy modules load."""
     n = 5 if quick else 15
     run_child(pmdcid_cmd() + ["--help"])  # warm the file cache
-    hs = collect(lambda: run_child(pmdcid_cmd() + ["--help"])[0], repeat=n)
-    b2 = collect(lambda: run_child([sys.executable, "-c", "pass"])[0], repeat=n)
+    hs = collect(lambda: run_child(pmdcid_cmd() + ["--help"])[::4], repeat=n)
+    b2 = collect(lambda: run_child([sys.executable, "-c", "pass"])[::4], repeat=n)
     heavy = heavy_imports()
     return [Row("start-up: `pmdcid --help`", hs, "s", f"{hs.median / b2.median:.1f}x B2",
                 "<= 0.3 s", hs.median <= 0.3,

@@ -60,12 +60,13 @@ def status(ok: bool | None) -> str:
 
 
 def markdown(rows: list[Row]) -> str:
-    head = ("| figure | median | min .. max | vs baseline | target | | note |\n"
-            "|---|---|---|---|---|---|---|")
+    head = ("| figure | median | min .. max | CPU (median) | vs baseline | target | | note |\n"
+            "|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in rows:
         med, rng = fmt_stats(r.stats, r.unit)
-        cells = [r.what, med, rng, r.ratio, r.target, status(r.ok), r.note]
+        cpu = fmt_value(r.stats.cpu_median, r.unit) if r.stats is not None and r.stats.cpu else ""
+        cells = [r.what, med, rng, cpu, r.ratio, r.target, status(r.ok), r.note]
         lines.append("| " + " | ".join(c.replace("|", "/") for c in cells) + " |")
     return "\n".join(lines)
 
