@@ -189,7 +189,13 @@ def _stage_available(name):
         pytest.skip(f"{name} not available yet")
 
 
-@pytest.mark.parametrize("stage", list(STAGES))
+NO_EXCITATION_XFAIL = pytest.mark.xfail(strict=True, reason=(
+    "fit-nonlinear (identify/nonlinear.py) 'fits' a log where nothing moves and rewrites J, bv, "
+    "bc, dz (stderr 0, NRMSE inf) instead of refusing"))
+
+
+@pytest.mark.parametrize("stage", [pytest.param(s, marks=NO_EXCITATION_XFAIL)
+                                   if s == "fit-nonlinear" else s for s in STAGES])
 def test_failed_stage_leaves_model_byte_for_byte(tmp_path, monkeypatch, stage):
     """The stage reads a good model, then meets a log that cannot be fitted (no excitation)."""
     _stage_available(stage)
@@ -237,3 +243,46 @@ def test_stage_keeps_other_parameters_and_inputs(tmp_path, monkeypatch, stage):
         assert isinstance(v["value"], float | int) and math.isfinite(v["value"])
     assert _no_temp_files(tmp_path)
 
+
+
+# ---- report and demo folders -----------------------------------------------------------------
+
+def test_report_reuses_a_folder_and_leaves_other_files(tmp_path, monkeypatch):
+    _stage_available("report")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "step.csv").write_bytes((FIX / "paper" / "step_1.0V.csv").read_bytes())
+    _model_file(tmp_path / "model.json")
+    rep = tmp_path / "rep"
+    rep.mkdir()
+    (rep / "notes.txt").write_text("my notes\n")
+    for _ in range(2):  # a second run replaces its own files
+        res = CliRunner().invoke(main, ["report", "step.csv", "-m", "model.json", "-o", "rep"],
+                                 catch_exceptions=False)
+        assert res.exit_code == 0, res.stderr
+    assert (rep / "notes.txt").read_text() == "my notes\n"
+    assert json.loads((rep / "metrics.json").read_text())
+    assert _no_temp_files(rep)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "demo (pmdcid/demo.py) writes DIR/model.json, summary.json ... into an existing folder "
+    "without asking: a user's model.json there is overwritten; it should refuse a folder "
+    "holding files it did not write (or keep a backup)"))
+def test_demo_refuses_a_folder_holding_a_users_model(tmp_path, monkeypatch):
+    """Refused up front: if demo starts fitting, the patched stage makes the test fail fast."""
+    _stage_available("demo")
+    import pmdcid.identify.electrical as electrical
+
+    d = tmp_path / "work"
+    d.mkdir()
+    mine = b'{"parameters": {"R": {"value": 1.0}}, "effects": [], "note": "my model"}\n'
+    (d / "model.json").write_bytes(mine)
+
+    def started(*a, **k):
+        raise RuntimeError("demo started work in a folder holding a user's model.json")
+
+    monkeypatch.setattr(electrical, "fit_electrical", started)
+    res = CliRunner().invoke(main, ["demo", "-o", str(d)], catch_exceptions=False)
+    assert (d / "model.json").read_bytes() == mine
+    assert res.exit_code == 1, res.stderr
+    assert res.stderr.startswith("error: ") and "internal error" not in res.stderr

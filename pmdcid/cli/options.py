@@ -38,12 +38,16 @@ def log_options(f):
     return wrapper
 
 
-#: options naming files or folders a command writes
-OUTPUT_OPTIONS = frozenset({"-o", "--output", "--summary"})
+#: options naming files or folders a command writes: every command's -o, and per command more
+OUTPUT_OPTIONS = frozenset({"-o", "--output"})
+OUTPUT_OPTIONS_OF = {"diagnose": frozenset({"--summary"})}
+#: parameters (besides the arguments) naming files a command only reads
+INPUT_PARAMS = frozenset({"map_file", "summary_path", "before_path"})
 
 
 def guard_outputs(ctx: click.Context | None = None) -> None:
-    """Refuse (exit 1) when an output option names an input: a LOG argument or the --map file.
+    """Refuse (exit 1) when an output option names an input: a LOG argument, the --map file,
+    or another file the command only reads (report's ``--summary`` and ``--before``).
 
     Runs at the edge before the command does any work, so no command can overwrite a user's log.
     """
@@ -56,13 +60,14 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
         return
     inputs: list[str] = []
     outputs: list[tuple[str, str]] = []
+    out_opts = OUTPUT_OPTIONS | OUTPUT_OPTIONS_OF.get(ctx.command.name, frozenset())
     for p in ctx.command.params:
         v = ctx.params.get(p.name)
         vals = [x for x in (v if isinstance(v, (tuple, list)) else [v]) if isinstance(x, str)]
-        if isinstance(p, click.Argument) or p.name == "map_file":
-            inputs += vals
-        elif OUTPUT_OPTIONS & set(p.opts):
+        if out_opts & set(p.opts):
             outputs += [(x, p.opts[-1]) for x in vals]
+        elif isinstance(p, click.Argument) or p.name in INPUT_PARAMS:
+            inputs += vals
     for out, opt in outputs:
         if not os.path.exists(out):
             continue
