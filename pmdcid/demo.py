@@ -118,8 +118,8 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
     if has_diag:
         from pmdcid.diagnose import diagnose
 
-        diag_logs = read_logs([str(p) for p in tri + steps])
-        res = st.run("diagnose", "search the residual for what the model lacks, add, refit",
+        diag_logs = read_logs([str(p) for p in tri])
+        res = st.run("diagnose", "what the model lacks, from the triangle's residual; add, refit",
                      lambda: diagnose(diag_logs, model))
         final, summary, before = res.model, res.summary, model
         final.path = str(out / "model_diagnosed.json")
