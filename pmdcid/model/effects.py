@@ -7,6 +7,9 @@ The simulation kernel evaluates every effect's term from the flat parameter vect
 is not listed in a model's ``effects`` has its parameters held at their neutral values, so it is
 exactly off.
 
+Each effect also carries its ``signature`` and ``guess`` functions (:mod:`pmdcid.model.signatures`)
+used by diagnose to screen the residual and start the refit.
+
 Adding an effect: add its :class:`Effect` entry below and its term in
 :mod:`pmdcid.simulate.terms` (electrical or mechanical), or in
 :func:`pmdcid.simulate.sensors.apply_sensors` for a sensor effect. See docs/effects.md.
@@ -19,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from pmdcid.errors import ModelError
+from pmdcid.model import signatures as sg
 from pmdcid.model.params import ParamSpec
 
 
@@ -33,6 +37,14 @@ class Effect:
     interacts: tuple[str, ...] = ()
     #: optional hooks filled in by the diagnose stage: residual signature and starting guess
     hooks: dict[str, Callable] = field(default_factory=dict, compare=False, hash=False)
+    #: ``signature(ctx) -> list[Probe]``: small parameter settings switching the effect on, whose
+    #: simulated change is the effect's signature in the residual (see model/signatures.py)
+    signature: Callable | None = field(default=None, compare=False, hash=False)
+    #: ``guess(probe, coefs, ctx) -> dict | None``: starting values from the residual's regression
+    #: coefficients on the probe's columns (None: the residual does not point at this effect)
+    guess: Callable | None = field(default=None, compare=False, hash=False)
+    #: parameters set by the guess and held when refitting (integers such as a cogging order)
+    held: tuple[str, ...] = ()
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -70,6 +82,7 @@ register(Effect(
     (ParamSpec("ke", "V s/rad", "back-EMF constant", 0.0, 0.0, 1e3),),
     "electrical",
     ("bv", "J"),
+    **sg.linear("ke", sg.back_emf_probe),
 ))
 register(Effect(
     "stribeck",
@@ -80,6 +93,8 @@ register(Effect(
      ParamSpec("ws", "rad/s", "Stribeck speed", 1.0, 1e-6, 1e6)),
     "mechanical",
     ("bc", "dz"),
+    signature=sg.stribeck_signature,
+    guess=sg.stribeck_guess,
 ))
 register(Effect(
     "quadratic_drag",
@@ -88,6 +103,7 @@ register(Effect(
     (ParamSpec("bq", "N m s^2/rad^2", "quadratic drag coefficient", 0.0, 0.0, 1e6),),
     "mechanical",
     ("bv",),
+    **sg.linear("bq", sg.quadratic_probe),
 ))
 register(Effect(
     "torque_offset",
@@ -97,6 +113,7 @@ register(Effect(
     (ParamSpec("tau0", "N m", "constant load torque", 0.0, -1e6, 1e6),),
     "mechanical",
     ("bc",),
+    **sg.linear("tau0", sg.torque_probe, positive=False),
 ))
 register(Effect(
     "cogging",
@@ -108,6 +125,9 @@ register(Effect(
      ParamSpec("cphi", "rad", "cogging phase", 0.0, -2 * math.pi, 2 * math.pi)),
     "mechanical",
     (),
+    signature=sg.cogging_signature,
+    guess=sg.cogging_guess,
+    held=("cn",),
 ))
 register(Effect(
     "sensor_delay",
@@ -116,6 +136,7 @@ register(Effect(
     (ParamSpec("delay", "s", "measurement delay of speed and angle", 0.0, 0.0, 10.0),),
     "sensor",
     (),
+    **sg.linear("delay", sg.delay_probe),
 ))
 register(Effect(
     "speed_offset",
@@ -124,6 +145,7 @@ register(Effect(
     (ParamSpec("omega0", "rad/s", "speed sensor bias", 0.0, -1e6, 1e6),),
     "sensor",
     (),
+    **sg.linear("omega0", sg.speed_probe, positive=False),
 ))
 register(Effect(
     "voltage_saturation",
@@ -132,6 +154,8 @@ register(Effect(
     (ParamSpec("vmax", "V", "drive voltage limit", math.inf, 1e-6, math.inf),),
     "input",
     (),
+    signature=sg.saturation_signature,
+    guess=sg.saturation_guess,
 ))
 register(Effect(
     "brush_drop",
@@ -141,4 +165,5 @@ register(Effect(
     (ParamSpec("vb", "V", "brush voltage drop", 0.0, 0.0, 1e3),),
     "electrical",
     ("R",),
+    **sg.linear("vb", sg.voltage_probe),
 ))

@@ -1,0 +1,194 @@
+"""The diagnose loop: screen the catalogue, refit the strongest, keep what holds out, repeat.
+
+1. Simulate the model on every log; refit the base parameters the logs inform (J, bv, bc, dz from
+   moving logs; R from currents) on the fit part of each log, so that the comparison is fair.
+2. Screen every catalogue effect not in the model by regressing the residual on its simulated
+   signature (:mod:`pmdcid.diagnose.signatures`).
+3. Refit the strongest few by simulation error (own parameters and the base parameters they
+   interact with) on the fit part. Keep the best only if its BIC drops decisively
+   (``delta_bic < bic_threshold``) AND the fit improves the held-out part of the logs, never
+   used to fit it, by a decisive likelihood ratio (``heldout < heldout_threshold``).
+4. Repeat until no effect passes; refit the result on all the data (values, standard errors).
+5. ``unexplained``: the final residual of some current or speed signal is still clearly not white
+   (std over 1.5 noise levels and Ljung-Box p < 1e-6).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from pmdcid.diagnose.problem import FitOutcome, Problem
+from pmdcid.diagnose.residuals import context, error_table, pooled, whiteness
+from pmdcid.diagnose.signatures import Screen, Screener
+from pmdcid.diagnose.threads import single_blas_thread
+from pmdcid.errors import ModelError
+from pmdcid.model import EFFECTS, Model
+from pmdcid.simulate import param_values
+
+STAGE = "diagnose"
+#: base parameters diagnose refits along with the effects (those the logs inform)
+MECHANICAL_BASE = ("J", "bv", "bc", "dz")
+ELECTRICAL_BASE = ("R",)
+
+
+@dataclass
+class Candidate:
+    """What diagnose found about one effect in one round."""
+
+    effect: str
+    round: int
+    screen_gain: float
+    delta_bic: float
+    refit: bool = False
+    heldout: float | None = None  # held-out n log(chi2 ratio); < 0 means better
+    omega_nrmse: float | None = None
+    chosen: bool = False
+    values: dict[str, float] = field(default_factory=dict)
+    outcome: FitOutcome | None = None
+
+    def to_json(self) -> dict:
+        def num(x):
+            return float(x) if x is not None and math.isfinite(x) else None
+
+        return {"effect": self.effect, "delta_bic": num(self.delta_bic),
+                "omega_nrmse": num(self.omega_nrmse), "refit": self.refit,
+                "heldout_delta": num(self.heldout), "screen_gain": num(self.screen_gain),
+                "round": self.round, "chosen": self.chosen,
+                "parameters": {k: num(v) for k, v in self.values.items()}}
+
+
+@dataclass
+class DiagnoseResult:
+    """The new model, the summary (CONTRACT.md), per-log errors and the candidates."""
+
+    model: Model
+    summary: dict
+    candidates: list[Candidate]
+    paths: list[str]
+    before: list[dict[str, float]]
+    after: list[dict[str, float]]
+
+    def table(self) -> str:
+        from pmdcid.diagnose.report import format_table
+
+        return format_table(self)
+
+
+def _free_base(problem: Problem, vals: dict[str, float]) -> list[str]:
+    out = []
+    moving = problem.has_signal("omega", moving=True) or problem.has_signal("theta", moving=True)
+    if moving:
+        out += list(MECHANICAL_BASE)
+    if problem.has_signal("i"):
+        out += list(ELECTRICAL_BASE)
+    return [p for p in out if math.isfinite(vals.get(p, math.nan))]
+
+
+def _effect_free(name: str) -> list[str]:
+    eff = EFFECTS[name]
+    return [p for p in eff.param_names if p not in eff.held]
+
+
+def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
+             split: float = 0.6, max_samples: int = 20000, refit_top: int = 3,
+             bic_threshold: float = -10.0, heldout_threshold: float = -10.0,
+             max_nfev: int = 40, max_rounds: int = 4) -> DiagnoseResult:
+    """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
+
+    ``effects`` restricts the catalogue searched (default: all not already in the model).
+    The input model is not modified.
+    """
+    with single_blas_thread():
+        return _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
+                         heldout_threshold, max_nfev, max_rounds)
+
+
+def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
+              heldout_threshold, max_nfev, max_rounds) -> DiagnoseResult:
+    if effects is not None:
+        unknown = [e for e in effects if e not in EFFECTS]
+        if unknown:
+            raise ModelError(f"unknown effect(s) {', '.join(unknown)} "
+                             f"(known: {', '.join(EFFECTS)})")
+    problem = Problem(logs, split, max_samples)
+    torque_only = all(log.drive == "tau" for log in problem.logs)
+    vals0 = param_values(model, torque_driven=torque_only)
+    before = error_table(problem, problem.simulate_all(vals0))
+    base_free = _free_base(problem, vals0)
+    cur = problem.fit(vals0, base_free, "fit", max_nfev)
+    n_fit, n_held = problem.count("fit"), problem.count("held")
+    pool = [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)]
+    added: list[str] = []
+    seen: dict[str, Candidate] = {}
+    for rnd in range(1, max_rounds + 1):
+        if not pool:
+            break
+        sims = problem.simulate_all(cur.values)
+        scr = Screener(problem, cur.values, context(problem, cur.values, sims), base_free)
+        screens: list[Screen] = [scr.screen(EFFECTS[e]) for e in pool]
+        for s in screens:
+            seen[s.effect] = Candidate(s.effect, rnd, s.gain, s.approx_delta_bic)
+        ranked = sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
+                        key=lambda s: -s.gain)[:refit_top]
+        passing = []
+        for s in ranked:
+            eff = EFFECTS[s.effect]
+            free = _effect_free(s.effect) + [p for p in eff.interacts if p in base_free]
+            fo = problem.fit({**cur.values, **s.start}, free, "fit", max_nfev)
+            k = len(_effect_free(s.effect))
+            dbic = n_fit * math.log(max(fo.chi2["fit"], 1e-300) / max(cur.chi2["fit"], 1e-300))
+            dbic += k * math.log(max(n_fit, 2))
+            held = (n_held * math.log(max(fo.chi2["held"], 1e-300) / max(cur.chi2["held"], 1e-300))
+                    if n_held else None)
+            om = pooled(error_table(problem, problem.simulate_all(fo.values)))["omega_nrmse"]
+            c = Candidate(s.effect, rnd, s.gain, dbic, True, held, om,
+                          values={p: fo.values[p] for p in eff.param_names}, outcome=fo)
+            seen[s.effect] = c
+            if dbic < bic_threshold and (held is None or held < heldout_threshold):
+                passing.append(c)
+        if not passing:
+            break
+        best = min(passing, key=lambda c: c.delta_bic)
+        best.chosen = True
+        added.append(best.effect)
+        pool.remove(best.effect)
+        free = base_free + [p for e in added for p in _effect_free(e)]
+        cur = problem.fit(best.outcome.values, free, "fit", max_nfev)
+    new = model.copy()
+    if added:
+        free = base_free + [p for e in added for p in _effect_free(e)]
+        final = problem.fit(cur.values, free, "all", max_nfev)
+        for e in added:
+            new.add_effect(e)
+            for p in EFFECTS[e].held:
+                new.set(p, final.values[p], stage=STAGE)
+        for name, est in final.estimates.items():
+            new.set(name, est.value, est.stderr, est.unit, stage=STAGE)
+        final_vals = final.values
+        after = error_table(problem, problem.simulate_all(final_vals))
+    else:
+        final_vals = cur.values
+        after = before
+    white = whiteness(problem, problem.simulate_all(final_vals))
+    unexplained = any(w.structured for w in white)
+    cands = sorted(seen.values(), key=lambda c: (not c.chosen, c.delta_bic))
+    new.extra.setdefault("fits", {})[STAGE] = {
+        "logs": [log.path for log in problem.logs], "added": list(added)}
+    summary = {
+        "added": list(added),
+        "candidates": [c.to_json() for c in cands],
+        "before": pooled(before),
+        "after": pooled(after),
+        "unexplained": bool(unexplained),
+        "logs": [{"path": log.path, "before": b, "after": a}
+                 for log, b, a in zip(problem.logs, before, after)],
+        "whiteness": [{"log": problem.logs[w.log].path, "signal": w.signal,
+                       "std_over_noise": w.ratio, "rho1": w.rho1, "ljung_box_p": w.p_value,
+                       "structured": w.structured} for w in white],
+    }
+    return DiagnoseResult(new, summary, cands, [log.path for log in problem.logs], before, after)
+
+
+__all__ = ["Candidate", "DiagnoseResult", "diagnose"]

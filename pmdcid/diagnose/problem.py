@@ -1,0 +1,215 @@
+"""The logs as one simulation-error problem: channels, noise weights, time split, refits.
+
+Every log is simulated from rest on its own input with the shared kernel (blocked-rotor logs with
+the rotor held). A *channel* is one measured signal of one log (current ``i`` of a voltage-driven
+log, speed ``omega``, angle ``theta``), compared at a strided subset of its samples (at most
+``max_samples`` per channel: the kernel still runs at full rate), weighted by the signal's noise
+level. Each log is split in time: the first ``split`` of it is *fit* data, the rest *held-out*
+data, never used to fit, on which diagnose checks that an effect's gain is real.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from pmdcid.errors import FitError, LogError
+from pmdcid.identify.results import Estimate, FitStats
+from pmdcid.identify.simfit import noise_level
+from pmdcid.model.effects import effect_param_specs
+from pmdcid.model.params import BASE_PARAMS
+from pmdcid.simulate import SimResult, param_vector
+from pmdcid.simulate.kernel import _run, choose_substeps, discretize
+from pmdcid.simulate.layout import BV, DZ_SLOPE, KE, KM, SENSOR_NAMES, J, L, R
+from pmdcid.simulate.sensors import apply_sensors
+
+SIGNALS = ("i", "omega", "theta")
+#: static friction that holds a blocked rotor [N m]
+BLOCKED = 1e300
+
+
+def is_blocked(log) -> bool:
+    """A blocked-rotor log: says so in its metadata, or measures neither speed nor angle."""
+    kind = (log.kind or "").lower()
+    return "block" in kind or not (log.has("omega") or log.has("theta"))
+
+
+@dataclass
+class Channel:
+    """One measured signal of one log at the compared samples ``idx``."""
+
+    log: int
+    signal: str
+    idx: np.ndarray
+    meas: np.ndarray
+    sigma: float
+    fit: np.ndarray  # bool over idx: fit part (True) or held-out (False)
+
+
+@dataclass
+class FitOutcome:
+    """A refit: values (all parameters), estimates of the free ones, chi-squares per part."""
+
+    values: dict[str, float]
+    estimates: dict[str, Estimate]
+    stats: FitStats
+    chi2: dict[str, float] = field(default_factory=dict)  # part -> chi-square
+    n: dict[str, int] = field(default_factory=dict)
+
+
+def bounds_of(name: str) -> tuple[float, float]:
+    spec = BASE_PARAMS.get(name) or effect_param_specs().get(name)
+    return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
+
+
+def unit_of(name: str) -> str:
+    spec = BASE_PARAMS.get(name) or effect_param_specs().get(name)
+    return spec.unit if spec else ""
+
+
+#: kernel parameters the discretisation depends on
+_LINEAR = (R, L, KE, KM, DZ_SLOPE, J, BV)
+
+
+class _Discretizations:
+    """Cache of the kernel's exact discretisation (two 6x6 matrix exponentials per call).
+
+    A refit of friction or sensor parameters leaves the linear part unchanged, and logs share
+    sample rates: caching removes most exponentials (which also suffer badly from BLAS thread
+    contention on a loaded machine).
+    """
+
+    def __init__(self, size: int = 64):
+        self.size = size
+        self.store: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    def get(self, p: np.ndarray, h: float, torque: bool):
+        key = (tuple(float(p[k]) for k in _LINEAR), h, torque)
+        hit = self.store.get(key)
+        if hit is None:
+            if len(self.store) >= self.size:
+                self.store.pop(next(iter(self.store)))
+            hit = self.store[key] = discretize(p, h, torque)
+        return hit
+
+
+def simulate_cached(cache: _Discretizations, t: np.ndarray, u: np.ndarray,
+                    vals: dict[str, float], torque: bool) -> SimResult:
+    """:func:`pmdcid.simulate.simulate_values` (from rest) with cached discretisations."""
+    dt = float((t[-1] - t[0]) / (len(t) - 1))
+    p = param_vector(vals)
+    nsub = choose_substeps(dt, p)
+    phi, gam = cache.get(p, dt / nsub, torque)
+    x = _run(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p), phi, gam,
+             int(nsub), bool(torque), np.zeros(3))
+    om, th = apply_sensors(t, x[:, 1], x[:, 2], {n: vals.get(n, 0.0) for n in SENSOR_NAMES})
+    i = np.full(len(t), np.nan) if torque else x[:, 0]
+    return SimResult(t, i, om, th, x[:, 1], x[:, 2])
+
+
+class Problem:
+    """Simulate and compare a parameter set on all logs; refit chosen parameters."""
+
+    def __init__(self, logs: Sequence, split: float = 0.6, max_samples: int = 20000):
+        self.logs = list(logs)
+        self.split = split
+        self.channels: list[Channel] = []
+        for k, log in enumerate(self.logs):
+            torque = log.drive == "tau"
+            have = [s for s in SIGNALS if log.has(s) and not (s == "i" and torque)]
+            measured = [s for s in have if s not in log.derived] or have
+            stride = max(1, int(math.ceil(log.n / max_samples)))
+            idx = np.arange(0, log.n, stride)
+            fit = log.t[idx] < log.t[0] + split * log.duration
+            for s in measured:
+                x = np.asarray(log[s], float)
+                self.channels.append(Channel(k, s, idx, x[idx], noise_level(x), fit))
+        if not self.channels:
+            raise LogError("no log carries current, speed or angle to compare the model with")
+        self.blocked = [is_blocked(log) for log in self.logs]
+        self._cache = _Discretizations()
+
+    def simulate(self, vals: dict[str, float], k: int) -> SimResult:
+        log = self.logs[k]
+        if self.blocked[k]:
+            vals = {**vals, "bc": BLOCKED}
+        return simulate_cached(self._cache, log.t, log.u, vals, log.drive == "tau")
+
+    def simulate_all(self, vals: dict[str, float]) -> list[SimResult]:
+        return [self.simulate(vals, k) for k in range(len(self.logs))]
+
+    def weighted(self, sims: list[SimResult], part: str = "fit") -> np.ndarray:
+        """(measured - simulated) / sigma over the channels' samples of ``part``.
+
+        ``part`` is 'fit', 'held' or 'all'.
+        """
+        out = []
+        for ch in self.channels:
+            r = (ch.meas - sims[ch.log].get(ch.signal)[ch.idx]) / ch.sigma
+            r = np.where(np.isfinite(r), r, 0.0)
+            out.append(r if part == "all" else r[ch.fit] if part == "fit" else r[~ch.fit])
+        return np.concatenate(out)
+
+    def chi2(self, vals: dict[str, float]) -> dict[str, float]:
+        sims = self.simulate_all(vals)
+        return {p: float(np.sum(self.weighted(sims, p) ** 2)) for p in ("fit", "held", "all")}
+
+    def count(self, part: str) -> int:
+        return sum(int(ch.fit.sum()) if part == "fit" else int((~ch.fit).sum())
+                   if part == "held" else len(ch.idx) for ch in self.channels)
+
+    def has_signal(self, signal: str, moving: bool | None = None) -> bool:
+        return any(ch.signal == signal and (moving is None or moving != self.blocked[ch.log])
+                   for ch in self.channels)
+
+    def fit(self, vals: dict[str, float], free: Sequence[str], part: str = "fit",
+            max_nfev: int = 40) -> FitOutcome:
+        """Least squares (scipy TRF) of ``free`` by simulation error on ``part``, from ``vals``."""
+        free = list(free)
+        if not free:
+            c = self.chi2(vals)
+            stats = FitStats(self.count(part), 0, c[part], 1)
+            return FitOutcome(dict(vals), {}, stats, c, {p: self.count(p) for p in c})
+        x0 = np.array([vals[n] for n in free], float)
+        lo = np.array([bounds_of(n)[0] for n in free])
+        hi = np.array([bounds_of(n)[1] for n in free])
+        x0 = np.clip(x0, lo, hi)
+        if not np.all(np.isfinite(x0)):
+            bad = [n for n, v in zip(free, x0) if not math.isfinite(v)]
+            raise FitError(f"no finite starting value for {', '.join(bad)}")
+        scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
+
+        def with_x(z):
+            v = dict(vals)
+            v.update(zip(free, z * scale))
+            return v
+
+        def resid(z):
+            return self.weighted(self.simulate_all(with_x(z)), part)
+
+        try:
+            sol = least_squares(resid, x0 / scale, bounds=(lo / scale, hi / scale),
+                                method="trf", diff_step=1e-3, max_nfev=max_nfev, x_scale="jac")
+        except ValueError as exc:
+            raise FitError(f"diagnose refit failed: {exc}") from None
+        out = with_x(sol.x)
+        n = len(sol.fun)
+        stats = FitStats(n, len(free), float(np.sum(sol.fun**2)), int(sol.nfev),
+                         bool(sol.success), str(sol.message))
+        jm = sol.jac / scale[None, :]
+        try:
+            cov = np.linalg.pinv(jm.T @ jm) * stats.redchi
+            se = np.sqrt(np.clip(np.diag(cov), 0, None))
+        except np.linalg.LinAlgError:
+            se = np.full(len(free), math.nan)
+        est = {nm: Estimate(nm, float(out[nm]), float(e), unit_of(nm))
+               for nm, e in zip(free, se)}
+        c = self.chi2(out)
+        return FitOutcome(out, est, stats, c, {p: self.count(p) for p in c})
+
+
+__all__ = ["BLOCKED", "Channel", "FitOutcome", "Problem", "is_blocked"]

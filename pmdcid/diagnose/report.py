@@ -1,0 +1,53 @@
+"""Text table of a diagnose run: candidates, evidence, chosen effects, errors before and after."""
+
+from __future__ import annotations
+
+import math
+import os
+
+
+def _f(x, fmt: str = ".4g") -> str:
+    return "-" if x is None or not math.isfinite(x) else format(x, fmt)
+
+
+def _short(path: str, width: int = 28) -> str:
+    name = os.path.basename(path) or path
+    return name if len(name) <= width else "..." + name[-(width - 3):]
+
+
+def format_table(res) -> str:
+    """Candidates (screen gain, ΔBIC, held-out check), chosen effects, per-log NRMSE."""
+    lines = ["diagnose: candidate effects (ΔBIC < -10 and a held-out gain needed to add one)", ""]
+    lines.append(f"{'effect':<20} {'round':>5} {'screen Δχ²':>12} {'ΔBIC':>12} "
+                 f"{'held-out':>10} {'omega NRMSE':>12}  chosen")
+    for c in res.candidates:
+        lines.append(f"{c.effect:<20} {c.round:>5} {_f(c.screen_gain, '.4g'):>12} "
+                     f"{_f(c.delta_bic, '.1f'):>12} {_f(c.heldout, '.1f'):>10} "
+                     f"{_f(c.omega_nrmse):>12}  {'yes' if c.chosen else ''}")
+    s = res.summary
+    lines.append("")
+    lines.append("added: " + (", ".join(s["added"]) if s["added"] else "nothing"))
+    for e in s["added"]:
+        from pmdcid.model import EFFECTS
+
+        pars = []
+        for p in EFFECTS[e].param_names:
+            par = res.model.parameters.get(p)
+            if par is not None:
+                se = f" ± {par.stderr:.2g}" if math.isfinite(par.stderr) else ""
+                pars.append(f"{p} = {par.value:.5g}{se} {par.unit}".rstrip())
+        lines.append(f"  {e}: " + "; ".join(pars))
+    if s["unexplained"]:
+        lines.append("unexplained: the residual still has structure no catalogue effect explains")
+    lines.append("")
+    lines.append("NRMSE before -> after (RMS error / std of the measurement)")
+    lines.append(f"{'log':<28} {'i':>17} {'omega':>17} {'theta':>17}")
+    for path, b, a in zip(res.paths, res.before, res.after):
+        cells = [f"{_f(b.get(sig))} -> {_f(a.get(sig))}" if sig in b else "-"
+                 for sig in ("i", "omega", "theta")]
+        lines.append(f"{_short(path):<28} " + " ".join(f"{c:>17}" for c in cells))
+    pb, pa = s["before"], s["after"]
+    cells = [f"{_f(pb.get(f'{sig}_nrmse'))} -> {_f(pa.get(f'{sig}_nrmse'))}"
+             for sig in ("i", "omega", "theta")]
+    lines.append(f"{'mean':<28} " + " ".join(f"{c:>17}" for c in cells))
+    return "\n".join(lines)

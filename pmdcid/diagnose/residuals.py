@@ -1,0 +1,115 @@
+"""Residuals of a model on logs: errors per log and signal, whiteness, the effects' context."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats as sst
+
+from pmdcid.diagnose.problem import Problem
+from pmdcid.identify.results import nrmse
+from pmdcid.model.context import LogResidual, ResidualContext
+from pmdcid.simulate import SimResult
+
+#: residual std over the noise level beyond which a channel shows structure ...
+STRUCTURE_RATIO = 1.5
+#: ... and the Ljung-Box p-value below which it is clearly not white
+WHITENESS_P = 1e-6
+LJUNG_BOX_LAGS = 20
+
+
+def error_table(problem: Problem, sims: list[SimResult]) -> list[dict[str, float]]:
+    """Per log: signal -> NRMSE (RMS error / std of the measurement) at the full sample rate."""
+    out = []
+    for k, log in enumerate(problem.logs):
+        row = {}
+        for s in ("i", "omega", "theta"):
+            if log.has(s) and not (s == "i" and log.drive == "tau"):
+                row[s] = nrmse(sims[k].get(s), np.asarray(log[s], float))
+        out.append(row)
+    return out
+
+
+def pooled(table: list[dict[str, float]]) -> dict[str, float | None]:
+    """Mean NRMSE over the logs carrying each signal (``omega_nrmse``, ``theta_nrmse``, ...)."""
+    out: dict[str, float | None] = {}
+    for s in ("omega", "theta", "i"):
+        v = [r[s] for r in table if s in r and math.isfinite(r[s])]
+        out[f"{s}_nrmse"] = float(np.mean(v)) if v else None
+    return out
+
+
+@dataclass
+class Whiteness:
+    """One channel's residual: std over noise level, lag-1 autocorrelation, Ljung-Box p-value."""
+
+    log: int
+    signal: str
+    ratio: float
+    rho1: float
+    p_value: float
+
+    @property
+    def structured(self) -> bool:
+        return self.ratio > STRUCTURE_RATIO and self.p_value < WHITENESS_P
+
+
+def ljung_box(r: np.ndarray, lags: int = LJUNG_BOX_LAGS) -> tuple[float, float]:
+    """(lag-1 autocorrelation, Ljung-Box p-value) of a residual sequence."""
+    r = r - np.mean(r)
+    n = len(r)
+    den = float(np.dot(r, r))
+    if n <= lags + 2 or den <= 0:
+        return 0.0, 1.0
+    rho = np.array([np.dot(r[:-k], r[k:]) / den for k in range(1, lags + 1)])
+    q = n * (n + 2) * float(np.sum(rho**2 / (n - np.arange(1, lags + 1))))
+    return float(rho[0]), float(sst.chi2.sf(q, lags))
+
+
+def whiteness(problem: Problem, sims: list[SimResult]) -> list[Whiteness]:
+    """Whiteness of the current and speed residuals (the angle integrates, it is never white)."""
+    out = []
+    for ch in problem.channels:
+        if ch.signal == "theta":
+            continue
+        r = ch.meas - sims[ch.log].get(ch.signal)[ch.idx]
+        r = r[np.isfinite(r)]
+        if len(r) < 30:
+            continue
+        rho1, p = ljung_box(r)
+        out.append(Whiteness(ch.log, ch.signal, float(np.std(r)) / ch.sigma, rho1, p))
+    return out
+
+
+def context(problem: Problem, vals: dict[str, float], sims: list[SimResult]) -> ResidualContext:
+    """The effects' view of the residual (fit part only; held-out samples NaN)."""
+    logs = []
+    for k, log in enumerate(problem.logs):
+        fit = log.t < log.t[0] + problem.split * log.duration
+        resid = {}
+        for s in ("i", "omega", "theta"):
+            if log.has(s) and not (s == "i" and log.drive == "tau"):
+                r = np.asarray(log[s], float) - sims[k].get(s)
+                resid[s] = np.where(fit, r, np.nan)
+        blocked = problem.blocked[k]
+        logs.append(LogResidual(
+            log.t, log.u, log.drive == "tau", blocked,
+            None if blocked or not log.has("omega") else np.asarray(log["omega"], float),
+            None if blocked or not log.has("theta") else np.asarray(log["theta"], float),
+            sims[k].omega_true, resid))
+    speeds = [np.abs(lg.omega) for lg in logs if lg.omega is not None]
+    speed = float(np.percentile(np.concatenate(speeds), 95)) if speeds else 0.0
+    if not speed > 0:
+        speed = max(float(max(np.max(np.abs(s.omega_true)) for s in sims)), 1.0)
+    bv, bc, dz = (max(vals.get(n, 0.0), 0.0) for n in ("bv", "bc", "dz"))
+    torque = max(bc + bv * speed, dz)
+    if not torque > 0:
+        torque = max(vals.get("J", 1.0) * speed, 1e-12)
+    volts = [float(np.max(np.abs(lg.u))) for lg in logs if not lg.torque_driven]
+    return ResidualContext(dict(vals), logs, torque, speed, max(volts) if volts else 0.0,
+                           min(lg.dt for lg in logs))
+
+
+__all__ = ["Whiteness", "context", "error_table", "ljung_box", "pooled", "whiteness"]

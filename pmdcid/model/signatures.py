@@ -1,0 +1,169 @@
+"""Signature probes and starting guesses of the catalogue effects (pure functions of numpy arrays).
+
+For each effect, ``signature(ctx) -> list[Probe]`` proposes one or a few small settings of its
+parameters (alternatives for parameters that enter non-linearly: a Stribeck speed, a cogging
+order, a voltage limit); ``guess(probe, coefs, ctx) -> dict | None`` turns the regression
+coefficients of the residual on the probe's columns into starting values, or None when the sign
+is impossible (e.g. negative static friction: the residual does not point at this effect).
+The registry in :mod:`pmdcid.model.effects` attaches them to the effects.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from pmdcid.model.context import Probe, ResidualContext
+
+#: probe sizes, as fractions of the context scales (small: linear regime; not tiny: stick-slip
+#: events quantise the simulated response)
+PROBE = 0.05
+
+
+def linear(param: str, size: Callable[[ResidualContext], float], positive: bool = True):
+    """``{signature, guess}`` for an effect with one amplitude parameter entering near-linearly."""
+
+    def signature(ctx: ResidualContext) -> list[Probe]:
+        return [Probe([{param: size(ctx)}])]
+
+    def guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> dict | None:
+        v = float(coefs[0]) * probe.columns[0][param]
+        if not math.isfinite(v) or (positive and v <= 0.0):
+            return None
+        return {param: v}
+
+    return {"signature": signature, "guess": guess}
+
+
+def torque_probe(ctx: ResidualContext) -> float:
+    """[N m] a few percent of the typical friction torque."""
+    return PROBE * ctx.torque_scale
+
+
+def speed_probe(ctx: ResidualContext) -> float:
+    """[rad/s] a few percent of the typical speed."""
+    return PROBE * ctx.speed_scale
+
+
+def voltage_probe(ctx: ResidualContext) -> float:
+    """[V] a few percent of the largest voltage."""
+    return PROBE * max(ctx.voltage_scale, 1e-6)
+
+
+def delay_probe(ctx: ResidualContext) -> float:
+    """[s] one sample period."""
+    return ctx.dt
+
+
+def quadratic_probe(ctx: ResidualContext) -> float:
+    """[N m s^2/rad^2] drag giving a few percent of the friction torque at the typical speed."""
+    return PROBE * ctx.torque_scale / ctx.speed_scale**2
+
+
+def back_emf_probe(ctx: ResidualContext) -> float:
+    """[V s/rad] a few percent of km (ke = km in SI units)."""
+    km = ctx.values.get("km", math.nan)
+    if not math.isfinite(km) or km <= 0:
+        km = 1.0
+    return PROBE * km
+
+
+# --- stribeck: the Stribeck speed enters non-linearly: a few alternatives -----------------------
+
+#: Stribeck speeds tried, as fractions of the typical speed
+STRIBECK_SPEEDS = (0.02, 0.06, 0.2)
+
+
+def stribeck_signature(ctx: ResidualContext) -> list[Probe]:
+    fs = torque_probe(ctx)
+    return [Probe([{"fs": fs, "ws": f * ctx.speed_scale}], f"ws={f * ctx.speed_scale:.3g}")
+            for f in STRIBECK_SPEEDS]
+
+
+def stribeck_guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> dict | None:
+    col = probe.columns[0]
+    fs = float(coefs[0]) * col["fs"]
+    if not math.isfinite(fs) or fs <= 0:
+        return None
+    return {"fs": fs, "ws": col["ws"]}
+
+
+# --- cogging: the order from the residual's spectrum in rotor angle -----------------------------
+
+ANGLE_BINS = 1024
+
+
+def angle_spectrum(ctx: ResidualContext) -> np.ndarray:
+    """Power of the speed residual's harmonics in rotor angle, index n = periods per revolution.
+
+    The residual of every moving sample is binned by measured angle modulo 2 pi; the mean per bin
+    (empty bins 0) is Fourier-transformed. Returns |c_n|^2 for n = 0 .. ANGLE_BINS/2.
+    """
+    sums = np.zeros(ANGLE_BINS)
+    counts = np.zeros(ANGLE_BINS)
+    for lg, mov in ctx.moving():
+        r = lg.resid.get("omega")
+        if r is None:
+            continue
+        ok = mov & np.isfinite(r)
+        if ok.sum() < 10:
+            continue
+        rr = r[ok] - np.mean(r[ok])
+        k = (np.mod(lg.theta[ok], 2 * math.pi) / (2 * math.pi) * ANGLE_BINS).astype(int)
+        k = np.clip(k, 0, ANGLE_BINS - 1)
+        sums += np.bincount(k, rr, ANGLE_BINS)
+        counts += np.bincount(k, None, ANGLE_BINS)
+    mean = np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
+    return np.abs(np.fft.rfft(mean)) ** 2
+
+
+#: cogging orders tried (the strongest lines of the angle spectrum)
+COGGING_ORDERS = 3
+
+
+def cogging_signature(ctx: ResidualContext) -> list[Probe]:
+    p = angle_spectrum(ctx)
+    if len(p) < 3 or not np.any(p[1:] > 0):
+        return []
+    orders = np.argsort(p[1:])[::-1][:COGGING_ORDERS] + 1
+    ca = torque_probe(ctx)
+    return [Probe([{"ca": ca, "cn": float(n), "cphi": 0.0},
+                   {"ca": ca, "cn": float(n), "cphi": math.pi / 2}], f"cn={int(n)}")
+            for n in orders]
+
+
+def cogging_guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> dict | None:
+    """-ca sin(n theta + phi) = -a sin(n theta) - b cos(n theta): a, b from the two columns."""
+    col = probe.columns[0]
+    a, b = float(coefs[0]) * col["ca"], float(coefs[1]) * col["ca"]
+    ca = math.hypot(a, b)
+    if not math.isfinite(ca) or ca <= 0:
+        return None
+    return {"ca": ca, "cn": col["cn"], "cphi": math.atan2(b, a)}
+
+
+# --- voltage_saturation: the limit enters non-linearly: a few alternatives ----------------------
+
+SATURATION_FRACTIONS = (0.95, 0.85, 0.7, 0.5)
+
+
+def saturation_signature(ctx: ResidualContext) -> list[Probe]:
+    if ctx.voltage_scale <= 0:
+        return []
+    return [Probe([{"vmax": f * ctx.voltage_scale}], f"vmax={f * ctx.voltage_scale:.3g}")
+            for f in SATURATION_FRACTIONS]
+
+
+def saturation_guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> dict | None:
+    """The probe is the full effect at that limit: keep it when the residual follows it."""
+    if not (float(coefs[0]) > 0.3):
+        return None
+    return {"vmax": probe.columns[0]["vmax"]}
+
+
+__all__ = [
+    "angle_spectrum", "cogging_guess", "cogging_signature", "linear", "saturation_guess",
+    "saturation_signature", "stribeck_guess", "stribeck_signature",
+]
