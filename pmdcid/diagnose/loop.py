@@ -183,7 +183,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         "after": pooled(after),
         "unexplained": bool(unexplained),
         "logs": [{"path": log.path, "before": b, "after": a}
-                 for log, b, a in zip(problem.logs, before, after)],
+                 for log, b, a in zip(problem.logs, before, after, strict=True)],
         "whiteness": [{"log": problem.logs[w.log].path, "signal": w.signal,
                        "std_over_noise": w.ratio, "rho1": w.rho1, "ljung_box_p": w.p_value,
                        "structured": w.structured} for w in white],

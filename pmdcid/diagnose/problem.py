@@ -179,13 +179,13 @@ class Problem:
         hi = np.array([bounds_of(n)[1] for n in free])
         x0 = np.clip(x0, lo, hi)
         if not np.all(np.isfinite(x0)):
-            bad = [n for n, v in zip(free, x0) if not math.isfinite(v)]
+            bad = [n for n, v in zip(free, x0, strict=True) if not math.isfinite(v)]
             raise FitError(f"no finite starting value for {', '.join(bad)}")
         scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
 
         def with_x(z):
             v = dict(vals)
-            v.update(zip(free, z * scale))
+            v.update(zip(free, z * scale, strict=True))
             return v
 
         def resid(z):
@@ -207,7 +207,7 @@ class Problem:
         except np.linalg.LinAlgError:
             se = np.full(len(free), math.nan)
         est = {nm: Estimate(nm, float(out[nm]), float(e), unit_of(nm))
-               for nm, e in zip(free, se)}
+               for nm, e in zip(free, se, strict=True)}
         c = self.chi2(out)
         return FitOutcome(out, est, stats, c, {p: self.count(p) for p in c})
 

@@ -42,7 +42,7 @@ def format_table(res) -> str:
     lines.append("")
     lines.append("NRMSE before -> after (RMS error / std of the measurement)")
     lines.append(f"{'log':<28} {'i':>17} {'omega':>17} {'theta':>17}")
-    for path, b, a in zip(res.paths, res.before, res.after):
+    for path, b, a in zip(res.paths, res.before, res.after, strict=True):
         cells = [f"{_f(b.get(sig))} -> {_f(a.get(sig))}" if sig in b else "-"
                  for sig in ("i", "omega", "theta")]
         lines.append(f"{_short(path):<28} " + " ".join(f"{c:>17}" for c in cells))

@@ -18,8 +18,8 @@ Adding an effect: add its :class:`Effect` entry below and its term in
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 from pmdcid.errors import ModelError
 from pmdcid.model import signatures as sg
