@@ -46,9 +46,15 @@ FREE_TAU = ("J", "bv", "bc", "tau0")
 #: grid points per axis of the global stage
 GRID_N = 9
 GRID_BV = 7
+#: relative finite-difference steps of the local stage: the switching parameters move events by
+#: whole internal steps, so their steps must span several (a torque ramp of ~1e-3 relative per
+#: internal step on a slow triangle)
+DIFF_STEP = {"J": 1e-3, "bv": 1e-3, "bc": 1e-2, "dz": 1e-2, "tau0": 1e-2}
 KNOWN_FREE = ("J", "bv", "bc", "dz", "tau0")
 #: fewest samples per log
 MIN_SAMPLES = 50
+#: points of the dz profile that tests whether the dead zone is visible at all
+DZ_PROFILE_N = 25
 
 
 @dataclass
@@ -183,6 +189,15 @@ def _axis(name: str, start: dict[str, float], tscale: float) -> np.ndarray:
     raise ValueError(name)
 
 
+def _cost(logs, base_vals, sets, signals, sigma) -> np.ndarray:
+    """Weighted squared simulation error of each parameter set, summed over the logs."""
+    total = np.zeros(len(sets))
+    for k, lg in enumerate(logs):
+        vl = [{**base_vals[k], **s} for s in sets]
+        total += batch_cost(lg, vl, {s: sigma[k][s] for s in signals if s in sigma[k]})
+    return total
+
+
 def _grid_search(logs, base_vals, start, free, signals, sigma, tscale):
     """Coarse grid over (two switching parameters), then over bv; returns (best, nsets)."""
     best = {k: start[k] for k in free}
@@ -190,26 +205,43 @@ def _grid_search(logs, base_vals, start, free, signals, sigma, tscale):
     nsets = 0
 
     def run(sets):
-        total = np.zeros(len(sets))
-        for k, lg in enumerate(logs):
-            vl = [{**base_vals[k], **best, **s} for s in sets]
-            total += batch_cost(lg, vl, {s: sigma[k][s] for s in signals if s in sigma[k]})
-        return total
+        return _cost(logs, base_vals, [{**best, **s} for s in sets], signals, sigma)
 
     if sw:
         axes = [_axis(n, start, tscale) for n in sw]
         mesh = np.meshgrid(*axes, indexing="ij")
         sets = [dict(zip(sw, vals, strict=True))
                 for vals in zip(*(m.ravel() for m in mesh), strict=True)]
+        sets.append({n: start[n] for n in sw})  # the start itself competes
         cost = run(sets)
         nsets += len(sets)
         best.update(sets[int(np.argmin(cost))])
     if "bv" in free:
-        sets = [{"bv": v} for v in start["bv"] * np.geomspace(0.67, 1.5, GRID_BV)]
+        sets = [{"bv": v} for v in start["bv"] * np.geomspace(1 / 1.5, 1.5, GRID_BV)]
         cost = run(sets)
         nsets += len(sets)
         best.update(sets[int(np.argmin(cost))])
     return best, nsets
+
+
+def dz_profile(logs, base_vals, point, signals, sigma, ndata, n=DZ_PROFILE_N):
+    """Cost along dz at ``point`` (other parameters held), dz in [0, 1.5 max(bc, dz)] [N m].
+
+    Returns (dz values, cost, threshold, cost at ``point``): the threshold is a chi-square rise
+    of 4 (two standard errors), scaled by the reduced chi-square when the fit is worse than the
+    noise.
+    """
+    top = 1.5 * max(point.get("bc", 0.0), point.get("dz", 0.0), 1e-12)
+    dzs = np.linspace(0.0, top, n)
+    c = _cost(logs, base_vals, [{**point, "dz": d} for d in dzs] + [point], signals, sigma)
+    return dzs, c[:-1], 4.0 * max(float(c.min()) / max(ndata, 1), 1.0), float(c[-1])
+
+
+def masked_upper(dzs, cost, thr) -> float:
+    """Largest dz [N m] up to which the cost stays within ``thr`` of its value at dz = 0."""
+    ok = (cost - cost[0]) <= thr
+    j = int(np.argmin(ok)) if not ok.all() else len(ok)
+    return float(dzs[max(j - 1, 0)])
 
 
 def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool = False,
@@ -275,9 +307,50 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
     best, nsets = ({k: start[k] for k in free}, 0)
     if grid:
         best, nsets = _grid_search(logs, base_vals, start, free, signals, sigma, tscale)
-    fit = fit_simulation(logs, work, free, signals=signals, start=best, sigma=sigma,
-                         max_nfev=max_nfev)
+    ndata = sum(lg.n * len(sg) for lg, sg in zip(logs, sigma, strict=True))
+    masked = False
+    ls_free = list(free)
+    if "dz" in free and len(free) > 1:
+        # a dead zone below the static friction never acts on a slowly driven rotor (it moves
+        # only while |km i| > bc > dz): the cost is then flat in dz from 0 up to about bc
+        dzs, c, thr, _ = dz_profile(logs, base_vals, best, signals, sigma, ndata, 13)
+        masked = bool(c[0] - c.min() <= thr)
+        if masked:
+            ls_free.remove("dz")
+            best["dz"] = 0.0
+            work.set("dz", 0.0, stage="start")
+    fit = fit_simulation(logs, work, ls_free, signals=signals,
+                         start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
+                         diff_step=DIFF_STEP)
+    if "dz" in free and len(free) > 1:
+        # check dz at the fitted point: the grid's hint comes from its coarse bc, and a local
+        # stage may stop where dz = 0 (a bound) or in a side valley. If some dz on the profile
+        # is clearly better, fit again from there; if dz = 0 fits as well as the best, the dead
+        # zone is not identified.
+        point = {**best, **fit.values()}
+        dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
+        if c.min() < cfit - thr:
+            start2 = {**point, "dz": float(dzs[int(np.argmin(c))])}
+            fit = fit_simulation(logs, work, free, signals=signals,
+                                 start={k: start2[k] for k in free}, sigma=sigma,
+                                 max_nfev=max_nfev, diff_step=DIFF_STEP)
+            point = {**best, **fit.values()}
+            dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
+        masked = bool(c[0] - min(c.min(), cfit) <= thr)
     est = dict(fit.estimates)
+    if masked:
+        upper = masked_upper(dzs, c, thr)
+        if upper < dzs[-1]:  # refine the edge inside the next interval
+            fine = np.linspace(upper, upper + (dzs[1] - dzs[0]), 17)
+            cf = _cost(logs, base_vals, [{**point, "dz": d} for d in fine], signals, sigma)
+            upper = masked_upper(np.concatenate([[0.0], fine]),
+                                 np.concatenate([[c[0]], cf]), thr)
+        est["dz"] = Estimate("dz", 0.5 * upper, upper / math.sqrt(12.0), "N m")
+        warns.append(f"dz is not identifiable from these logs: any dead zone from 0 to "
+                     f"{upper:.3g} N m fits equally (it is masked by the Coulomb friction bc = "
+                     f"{est['bc'].value if 'bc' in est else point.get('bc', 0):.3g} N m: the rotor "
+                     "only moves while the torque exceeds bc); written as the interval's "
+                     "midpoint ± its uniform std. Fast reversals or steps down reveal it")
     _check(fit, est, tscale, warns)
     return NonlinearResult(est, fit, signals, [lg.path for lg in logs], start, best, nsets,
                            time.perf_counter() - t_start, warns)
@@ -288,7 +361,7 @@ def _check(fit: SimFitResult, est, tscale, warns) -> None:
     if math.isfinite(r) and abs(r) > 0.9:
         warns.append(f"bc and dz are strongly correlated ({r:+.2f}): the logs hardly tell "
                      "Coulomb friction from the dead zone (use slower reversals)")
-    if "dz" in est and est["dz"].value < 1e-6 * tscale:
+    if "dz" in fit.estimates and est["dz"].value < 1e-6 * tscale:
         warns.append("dz is at 0: no dead zone visible in these logs")
     if not fit.stats.success:
         warns.append(f"the least-squares stage did not converge ({fit.stats.message})")

@@ -114,13 +114,14 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
                    start: dict[str, float] | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
                    sigma: list[dict[str, float]] | None = None, max_nfev: int = 200,
-                   diff_step: float = 1e-3, nsub: int | None = None,
+                   diff_step: float | dict[str, float] = 1e-3, nsub: int | None = None,
                    cov_step: float = 1e-2) -> SimFitResult:
     """Fit ``free`` parameters of ``model`` by simulation error on ``logs``.
 
     Other parameters stay at the model's values (effects not in ``model.effects`` off).
     ``start`` overrides starting values; ``bounds`` maps name -> (lower, upper) in SI units;
-    ``sigma`` gives per-log noise std per signal (estimated when omitted). ``cov_step``: relative
+    ``sigma`` gives per-log noise std per signal (estimated when omitted). ``diff_step``: relative
+    finite-difference step, one for all or per parameter name (default 1e-3). ``cov_step``: relative
     step of the central differences giving the covariance (standard errors, correlations).
     Returns a :class:`SimFitResult`; the model is not modified.
     """
@@ -168,10 +169,14 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             parts.append(np.where(np.isfinite(r), r, 0.0))
         return np.concatenate(parts)
 
+    if isinstance(diff_step, dict):
+        steps = np.array([float(diff_step.get(n, 1e-3)) for n in free])
+    else:
+        steps = float(diff_step)
     try:
         with blas_single_thread():
             sol = least_squares(resid, x0 / scale, bounds=(lo / scale, hi / scale), method="trf",
-                                diff_step=diff_step, max_nfev=max_nfev, x_scale="jac")
+                                diff_step=steps, max_nfev=max_nfev, x_scale="jac")
     except ValueError as exc:
         raise FitError(f"simulation-error fit failed: {exc}") from None
     x = sol.x * scale
