@@ -27,15 +27,22 @@ DATA_ENV = "PMDCID_DEMO_DATA"
 def demo_data_dir() -> Path:
     """The folder of the demo logs: $PMDCID_DEMO_DATA, the package's data/hidden, or the
     repository's fixtures/hidden (running from a clone)."""
+    need = "blocked_*.csv, step_*.csv and triangle.csv"
+    if os.environ.get(DATA_ENV):
+        c = Path(os.environ[DATA_ENV])
+        if not ((c / "triangle.csv").is_file() and any(c.glob("blocked_*.csv"))
+                and any(c.glob("step_*.csv"))):
+            raise PmdcidError(f"{DATA_ENV} names a folder without the demo logs ({need})",
+                              str(c))
+        return c
     here = Path(__file__).resolve().parent
-    cands = [Path(os.environ[DATA_ENV])] if os.environ.get(DATA_ENV) else []
-    cands += [here / "data" / "hidden", here.parent / "fixtures" / "hidden"]
+    cands = [here / "data" / "hidden", here.parent / "fixtures" / "hidden"]
     for c in cands:
         if (c / "triangle.csv").is_file():
             return c
     raise PmdcidError("demo logs not found (looked in " + ", ".join(map(str, cands)) +
                       "): run the demo from a clone of the repository, or set "
-                      f"{DATA_ENV} to a folder holding blocked_*.csv, step_*.csv, triangle.csv")
+                      f"{DATA_ENV} to a folder holding {need}")
 
 
 class _Stage:
