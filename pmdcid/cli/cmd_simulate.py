@@ -5,19 +5,21 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import main
-from pmdcid.cli.options import log_options, model_option
+from pmdcid.cli.options import FiniteFloat, log_options, model_option
 
 
 @main.command("simulate")
 @click.argument("input_log", metavar="INPUT", type=click.Path(dir_okay=False))
 @model_option()
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), metavar="OUT.csv")
-@click.option("--noise-i", type=float, default=0.0, show_default=True, help="Current noise std [A].")
-@click.option("--noise-omega", type=float, default=0.0, show_default=True,
+@click.option("--noise-i", type=FiniteFloat(min=0.0), default=0.0, show_default=True,
+              help="Current noise std [A].")
+@click.option("--noise-omega", type=FiniteFloat(min=0.0), default=0.0, show_default=True,
               help="Speed noise std [rad/s].")
-@click.option("--encoder", type=int, default=0, show_default=True,
+@click.option("--encoder", type=click.IntRange(min=0), default=0, show_default=True,
               help="Quantise the angle to this many counts per revolution (0: off).")
-@click.option("--seed", type=int, default=None, help="Seed of the noise generator.")
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed of the noise generator.")
 @click.option("--blocked", is_flag=True, help="Rotor blocked (blocked-rotor test): omega = 0.")
 @click.option("--force", is_flag=True, help="Overwrite OUT.csv if it exists.")
 @log_options

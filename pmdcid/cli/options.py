@@ -7,6 +7,27 @@ import functools
 import click
 
 
+class FiniteFloat(click.ParamType):
+    """A finite number (no nan/inf) not below ``min`` (or above it, when ``min_open``)."""
+
+    name = "number"
+
+    def __init__(self, min: float = 0.0, min_open: bool = False):  # noqa: A002 - as click's
+        self.min, self.min_open = min, min_open
+
+    def convert(self, value, param, ctx):
+        import math
+
+        try:
+            x = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number", param, ctx)
+        if not math.isfinite(x) or x < self.min or (self.min_open and x == self.min):
+            need = f"{'>' if self.min_open else '>='} {self.min:g}"
+            self.fail(f"{value!r} is not a finite number {need}", param, ctx)
+        return x
+
+
 def log_options(f):
     """``-c/--column CANON=SOURCE*SCALE+OFFSET`` (repeatable), ``--map FILE``, ``--cutoff HZ``."""
 
@@ -15,7 +36,7 @@ def log_options(f):
                        "(repeatable; see docs/cli.md).")
     @click.option("--map", "map_file", type=click.Path(dir_okay=False), default=None,
                   help="File of column mappings, one CANON=SRC*K+OFF per line (or JSON).")
-    @click.option("--cutoff", "cutoff_hz", type=click.FloatRange(min=0.0, min_open=True),
+    @click.option("--cutoff", "cutoff_hz", type=FiniteFloat(min=0.0, min_open=True),
                   default=None, metavar="HZ",
                   help="Cut-off of the zero-phase low-pass used to derive speed from angle "
                        "(and acceleration) [Hz]; default min(rate/10, 100 Hz).")
