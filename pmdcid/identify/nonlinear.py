@@ -55,6 +55,8 @@ KNOWN_FREE = ("J", "bv", "bc", "dz", "tau0")
 MIN_SAMPLES = 50
 #: points of the dz profile that tests whether the dead zone is visible at all
 DZ_PROFILE_N = 25
+#: a dead zone must lower the chi-square by more than this fraction to count as identified
+MASK_REL = 1e-3
 
 
 @dataclass
@@ -336,7 +338,10 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
                                  max_nfev=max_nfev, diff_step=DIFF_STEP)
             point = {**best, **fit.values()}
             dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
-        masked = bool(c[0] - min(c.min(), cfit) <= thr)
+        # identified only if the dead zone improves the fit clearly: by more than two standard
+        # errors AND 0.1 % of the chi-square (the kernel's event quantisation leaves wiggles of
+        # a few units of chi-square at the edge of a flat valley)
+        masked = bool(c[0] - min(c.min(), cfit) <= max(thr, MASK_REL * min(c.min(), cfit)))
     est = dict(fit.estimates)
     if masked:
         upper = masked_upper(dzs, c, thr)

@@ -1,0 +1,146 @@
+"""fit-nonlinear round trips (voltage- and torque-driven), the compiled grid, and the CLI stages."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from ident_util import as_log, blocked_logs, perturbed_truth, step_logs, triangle_log
+
+from pmdcid.identify.electrical import fit_electrical
+from pmdcid.identify.grid import batch_cost
+from pmdcid.identify.mechanical import fit_mechanical
+from pmdcid.identify.nonlinear import fit_nonlinear
+from pmdcid.identify.results import nrmse
+from pmdcid.model import Model
+from pmdcid.simulate import neutral_values, param_values, simulate_values
+from pmdcid.synth import PAPER, PAPER_NOISE, staircase, synth_log, triangle
+
+
+@pytest.mark.parametrize("seed", [31, 32, 33])
+def test_pipeline_round_trip_and_held_out_prediction(seed):
+    """The three stages on logs like the fixtures (+-25 % around Table II, paper noise)."""
+    rng = np.random.default_rng(seed)
+    vals = perturbed_truth(rng)
+    m = Model()
+    m.set("km", vals["km"], stage="datasheet")
+    fit_electrical(blocked_logs(vals, rng), m).apply(m)
+    fit_mechanical(step_logs(vals, rng), m).apply(m)
+    res = fit_nonlinear([triangle_log(vals, rng)], m)
+    res.apply(m)
+    for k in ("R", "L"):
+        assert m.value(k) == pytest.approx(vals[k], rel=5e-3), k
+    masked = any("dz is not identifiable" in w for w in res.warnings)
+    for k in ("J", "bv", "bc") + (() if masked else ("dz",)):
+        assert m.value(k) == pytest.approx(vals[k], rel=0.02), k
+        assert m.parameters[k].stage == "fit-nonlinear"
+    if masked:  # only when the dead zone hides under Coulomb friction (see the test below)
+        assert vals["dz"] < vals["bc"] and vals["dz"] <= 2 * m.value("dz") * 1.05
+    assert math.isfinite(res.bc_dz_correlation)
+    assert "correlation bc-dz" in res.table()
+    assert m.extra["fits"]["fit-nonlinear"]["bc_dz_correlation"] == res.bc_dz_correlation
+    # held-out input: a random staircase, noise-free truth against the fitted model
+    t = np.arange(30000) * 1e-3
+    u = staircase(t, 2.0, 2.0, np.random.default_rng(seed + 1000))
+    truth = simulate_values(t, u, vals).omega
+    pred = simulate_values(t, u, param_values(m)).omega
+    assert nrmse(pred, truth) <= 0.01
+
+
+def test_dead_zone_masked_by_coulomb_is_reported(rng, paper_values):
+    """dz < bc: a slowly driven rotor moves only while |km i| > bc > dz, so no triangle shows the
+    dead zone; the fit says so and gives the interval instead of a made-up value."""
+    vals = {**paper_values, "dz": 0.6 * PAPER["bc"]}
+    m = Model()
+    for k in ("R", "L", "km", "J", "bv", "bc"):
+        m.set(k, vals[k] * (1.1 if k in ("J", "bc") else 1.0), stage="start")
+    res = fit_nonlinear([triangle_log(vals, rng)], m)
+    assert any("dz is not identifiable" in w for w in res.warnings)
+    upper = 2 * res.estimates["dz"].value
+    assert vals["dz"] <= upper * 1.05 and upper <= 1.05 * vals["bc"]
+    for k in ("J", "bv", "bc"):
+        assert res.estimates[k].value == pytest.approx(vals[k], rel=0.02), k
+
+
+def _tau_log(vals, rng, seconds=40.0):
+    t = np.arange(int(seconds * 1000)) * 1e-3
+    cols, _ = synth_log(t, triangle(t, 0.04, 20.0), vals, PAPER_NOISE, rng, torque_driven=True)
+    return as_log("tau.csv", t, cols)
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_torque_driven_round_trip(seed):
+    """A torque-driven log (as EMPS): no R, L, km; J, bv, bc and a torque offset tau0."""
+    rng = np.random.default_rng(seed)
+    vals = {**neutral_values(), **PAPER, "dz": 0.0, "tau0": rng.uniform(-1e-3, 1e-3)}
+    for k in ("J", "bv", "bc"):
+        vals[k] = PAPER[k] * rng.uniform(0.75, 1.25)
+    res = fit_nonlinear([_tau_log(vals, rng)], Model())
+    for k in ("J", "bv", "bc"):
+        assert res.estimates[k].value == pytest.approx(vals[k], rel=0.02), k
+    assert res.estimates["tau0"].value == pytest.approx(vals["tau0"], abs=0.02 * vals["bc"])
+    m = Model()
+    res.apply(m)
+    assert "torque_offset" in m.effects and "R" not in m.parameters
+
+
+def test_free_subset_and_signals(rng, paper_values):
+    """--free bc,dz --signals omega: only those change; the others stay as in the model."""
+    vals = dict(paper_values)
+    log = triangle_log(vals, rng, periods=1)
+    m = Model()
+    for k in ("R", "L", "km", "J", "bv"):
+        m.set(k, vals[k], stage="truth")
+    m.set("bc", 0.8 * vals["bc"], stage="start")
+    m.set("dz", 1.2 * vals["dz"], stage="start")
+    res = fit_nonlinear([log], m, free=["bc", "dz"], signals=["omega"])
+    assert set(res.estimates) == {"bc", "dz"} and res.signals == ("omega",)
+    assert res.estimates["bc"].value == pytest.approx(vals["bc"], rel=0.02)
+    res.apply(m)
+    assert m.parameters["J"].stage == "truth" and m.value("J") == vals["J"]
+
+
+def test_batch_grid_matches_single_simulations(rng, paper_values):
+    log = triangle_log(paper_values, rng, periods=1, period=10.0)
+    sets = [{**paper_values, "bc": bc, "dz": dz, "bv": bv}
+            for bc, dz, bv in [(3e-3, 0.0, 0.03), (5e-3, 6e-3, 0.0314), (8e-3, 2e-3, 0.04)]]
+    sigma = {"omega": 4e-3, "theta": 1e-3}
+    cost = batch_cost(log, sets, sigma)
+    for c, v in zip(cost, sets, strict=True):
+        sim = simulate_values(log.t, log.u, v)
+        ref = (np.sum(((sim.omega - log["omega"]) / 4e-3) ** 2)
+               + np.sum(((sim.theta - log["theta"]) / 1e-3) ** 2))
+        assert c == pytest.approx(ref, rel=1e-9)
+    assert np.argmin(cost) == 1
+
+
+def test_cli_three_stages_on_fixtures(tmp_path):
+    from pmdcid.cli import main
+
+    d = "fixtures/paper"
+    model = str(tmp_path / "model.json")
+    run = CliRunner().invoke
+    r = run(main, ["fit-electrical", *[f"{d}/blocked_{a}V.csv" for a in ("0.5", "1.5", "2.5")],
+                   "-m", model])
+    assert r.exit_code == 0, r.output
+    assert "±" in r.output and "ohm" in r.output
+    r = run(main, ["fit-mechanical", *[f"{d}/step_{a}V.csv" for a in ("1.0", "2.0", "2.5")],
+                   "-m", model, "--km", "0.0502"])
+    assert r.exit_code == 0, r.output
+    r = run(main, ["fit-nonlinear", f"{d}/triangle.csv", "-m", model, "--free", "J,bv,bc,dz"])
+    assert r.exit_code == 0, r.output
+    got = json.loads(open(model).read())["parameters"]
+    stages = {k: v["stage"] for k, v in got.items()}
+    assert stages == {"R": "fit-electrical", "L": "fit-electrical", "km": "datasheet",
+                      "b": "fit-mechanical", "bv": "fit-nonlinear", "bc": "fit-nonlinear",
+                      "J": "fit-nonlinear", "dz": "fit-nonlinear"}
+    for k in ("J", "bv", "bc", "dz"):
+        assert got[k]["value"] == pytest.approx(PAPER[k], rel=0.02), k
+    # re-running an earlier stage updates only its own parameters
+    r = run(main, ["fit-electrical", f"{d}/blocked_1.0V.csv", "-m", model])
+    assert r.exit_code == 0, r.output
+    again = json.loads(open(model).read())["parameters"]
+    assert again["J"] == got["J"] and again["R"] != got["R"]
+    r = run(main, ["fit-nonlinear", f"{d}/triangle.csv", "-m", model, "--free", "J,xx"])
+    assert r.exit_code == 2
