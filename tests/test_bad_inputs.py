@@ -114,6 +114,19 @@ def _replace_data_row(k: int, col: int, value: str):
     return fn
 
 
+def _clip_column(col: int, level: float):
+    """Clip data column ``col`` of a fixture's lines at ``level`` (a saturated sensor)."""
+    def fn(lines):
+        h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+        out = lines[:h + 1]
+        for ln in lines[h + 1:]:
+            cells = ln.split(",")
+            cells[col] = f"{min(float(cells[col]), level):.9g}"
+            out.append(",".join(cells))
+        return out
+    return fn
+
+
 def _drop_column(col: int):
     def fn(lines):
         return [ln if ln.startswith("#") else ",".join(c for j, c in enumerate(ln.split(","))
@@ -386,6 +399,14 @@ CASES: list[Case] = [
       r"^error: notes\.txt: .*not a folder"),
     C("fe-model-is-input-log", BLOCKED, ["fit-electrical", "blocked.csv", "-m", "blocked.csv"], 1,
       r"^error: blocked\.csv: "),
+    C("fe-rotor-turns", combine(MODEL, fixture("paper/step_1.5V.csv", "blocked.csv")), FE, 0,
+      r"^warning: blocked\.csv: .*rotor turns", changes=("model.json",)),
+    C("fe-saturated-current", combine(MODEL, edited("paper/blocked_2.5V.csv", "blocked.csv",
+                                                    _clip_column(2, 0.9))), FE, 0,
+      r"^warning: blocked\.csv: column 'i' .*saturated", changes=("model.json",)),
+    C("fe-second-log-bad", combine(MODEL, BLOCKED, text("bad.csv", "t,v,i\n")),
+      ["fit-electrical", "blocked.csv", "bad.csv", "-m", "model.json"], 1,
+      r"^error: bad\.csv: has a header but no data rows"),
     C("fe-no-logs", MODEL, ["fit-electrical", "-m", "model.json"], 2, r"Missing argument"),
     # ---- fit-mechanical --------------------------------------------------------------------
     C("fm-before-fit-electrical", combine(STEP, model(only=("km",))), FM, 1,
