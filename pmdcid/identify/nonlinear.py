@@ -287,7 +287,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
     if unknown:
         raise FitError(f"unknown signal(s) {', '.join(unknown)} (choose omega, theta)")
     warns: list[str] = []
-    for s in signals:
+    for s in signals if len(signals) > 1 else ():
         if any(s in lg.derived for lg in logs):
             warns.append(f"'{s}' is derived from the other measured signal in some logs: it "
                          "adds no independent information")
