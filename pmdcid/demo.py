@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import threading
 import time
 from pathlib import Path
 
@@ -45,8 +46,13 @@ def demo_data_dir() -> Path:
                       f"{DATA_ENV} to a folder holding {need}")
 
 
+#: seconds between the "still running" lines of a long stage
+TICK_S = 5.0
+
+
 class _Stage:
-    """Prints ``[k/n] what ...`` before a stage and its duration after it."""
+    """Prints ``[k/n] what ...`` before a stage, a line every :data:`TICK_S` seconds while it
+    runs, and its duration after it."""
 
     def __init__(self, echo, total: int):
         self.echo, self.total, self.k, self.times = echo, total, 0, {}
@@ -55,7 +61,19 @@ class _Stage:
         self.k += 1
         self.echo(f"[{self.k}/{self.total}] {name}: {what} ...")
         t0 = time.perf_counter()
-        out = fn()
+        done = threading.Event()
+
+        def tick():
+            while not done.wait(TICK_S):
+                self.echo(f"      ... {name} running, {time.perf_counter() - t0:.0f} s")
+
+        ticker = threading.Thread(target=tick, daemon=True)
+        ticker.start()
+        try:
+            out = fn()
+        finally:
+            done.set()
+            ticker.join()
         dt = time.perf_counter() - t0
         self.times[name] = dt
         self.echo(f"      done in {dt:.1f} s")
