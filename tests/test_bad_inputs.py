@@ -579,7 +579,9 @@ def test_bad_input_real_process(case: Case, tmp_path):
     case.build(tmp_path)
     before = _snapshot(tmp_path)
     env = {k: v for k, v in os.environ.items() if k != "PMDCID_DEBUG"}
-    proc = subprocess.run([str(PMDCID), *case.args], cwd=tmp_path, capture_output=True,
+    exe = [str(PMDCID)] if PMDCID.exists() else [
+        sys.executable, "-c", "import sys; from pmdcid.cli import main; sys.exit(main())"]
+    proc = subprocess.run([*exe, *case.args], cwd=tmp_path, capture_output=True,
                           text=True, env=env, timeout=120)
     _check_outcome(case, tmp_path, proc.returncode, proc.stderr, before)
 
