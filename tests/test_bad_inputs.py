@@ -588,3 +588,64 @@ def test_bad_input_real_process(case: Case, tmp_path):
 
 def test_table_is_large_enough():
     assert len(CASES) >= 40
+
+
+# ---- the plausibility checks themselves: no false alarms on good logs, right unit named ------
+
+@pytest.mark.parametrize("folder", ["paper", "hidden"])
+def test_no_warning_on_the_bundled_logs(folder):
+    import warnings
+
+    from pmdcid.errors import PmdcidWarning
+    from pmdcid.io import read_log
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PmdcidWarning)
+        for p in sorted((FIX / folder).glob("*.csv")):
+            read_log(p)
+
+
+def test_no_warning_on_real_emps_logs():
+    import warnings
+
+    from pmdcid.errors import PmdcidWarning
+    from pmdcid.io import parse_mapping, read_log
+
+    logs = sorted((FIX / "emps").glob("*.csv"))
+    if not logs:
+        pytest.skip("no EMPS logs bundled")
+    m = parse_mapping(["t=t_s", "theta=qm_meas_m", "tau=force_N"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PmdcidWarning)
+        for p in logs:
+            read_log(p, m)
+
+
+@pytest.mark.parametrize("scale, unit", [(60 / (2 * np.pi), "rpm"), (180 / np.pi, "deg/s"),
+                                         (1 / (2 * np.pi), "rev/s"), (1e3, "milli")])
+def test_speed_unit_named(scale, unit, rng):
+    from pmdcid.errors import PmdcidWarning
+    from pmdcid.io.checks import check_speed_units
+
+    t = np.arange(20000) * 5e-4
+    om = 3.0 * np.sin(2 * np.pi * 0.3 * t) + rng.normal(0, 0.05, t.size)
+    th = np.round(3.0 / (2 * np.pi * 0.3) * (1 - np.cos(2 * np.pi * 0.3 * t)) / 1.5e-3) * 1.5e-3
+    assert check_speed_units(om, th, 5e-4, "x.csv") == pytest.approx(1.0, rel=0.02)
+    with pytest.warns(PmdcidWarning, match=unit):
+        k = check_speed_units(om * scale, th, 5e-4, "x.csv")
+    assert k == pytest.approx(scale, rel=0.02)
+
+
+def test_saturation_needs_a_pile_up_at_the_rail(rng):
+    from pmdcid.errors import PmdcidWarning
+    from pmdcid.io.checks import check_saturation
+
+    t = np.arange(5000) * 1e-3
+    x = 2.0 * (1 - np.exp(-t / 0.3)) + rng.normal(0, 0.01, t.size)
+    assert not check_saturation(x, "omega", "x.csv")  # noisy settle: no rail
+    assert not check_saturation(2.0 * (1 - np.exp(-t / 0.05)), "omega", "x.csv")  # exact settle
+    assert not check_saturation(np.round(x / 0.02) * 0.02, "omega", "x.csv")  # ADC steps
+    with pytest.warns(PmdcidWarning, match="maximum 1.5"):
+        assert check_saturation(np.minimum(x, 1.5), "omega", "x.csv")
+    with pytest.warns(PmdcidWarning, match="minimum -1.5"):
+        assert check_saturation(np.maximum(-x, -1.5), "i", "x.csv")

@@ -5,8 +5,7 @@
   rail. Fits on clipped data are biased.
 - :func:`check_speed_units`: when a log measures both speed and angle, the speed must equal the
   angle's time derivative. A ratio near 60/(2 pi) says the speed is in rpm, near 180/pi that it is
-  in deg/s, and so on: the warning names the likely unit
-  and the mapping that fixes it.
+  in deg/s, and so on: the warning names the likely unit and the mapping that fixes it.
 """
 
 from __future__ import annotations
