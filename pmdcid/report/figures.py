@@ -43,9 +43,13 @@ def zoom_window(t: np.ndarray, omega: np.ndarray, threshold: float) -> tuple[int
     """Sample range around the first zero-speed crossing (or the first breakaway from rest).
 
     A crossing is where the measured speed goes from below -threshold to above +threshold (or the
-    reverse); the window shows the dwell near zero plus as much again on each side.
+    reverse); the window shows the dwell near zero plus as much again on each side. The threshold
+    is raised to 5 noise standard deviations so that sensor noise at rest is no crossing.
     """
+    from pmdcid.io.derive import noise_std
+
     n = len(omega)
+    threshold = max(threshold, 5.0 * noise_std(omega))
     big = np.flatnonzero(np.abs(omega) >= threshold) if threshold > 0 else np.array([], int)
     if len(big) >= 2:
         sgn = np.sign(omega[big])
@@ -75,7 +79,8 @@ def overlay_figure(cmp) -> bytes:
         ax.plot(t[st], sim.get(s)[st], **SIM)
         ax.set_ylabel(LABELS[s] + (" (derived)" if s in getattr(log, "derived", ()) else ""))
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8)
+    axes[0, 0].legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8,
+                      frameon=False)
     if zoom:
         a, b, what = zoom_window(t, log["omega"], cmp.threshold)
         ax = axes[-1, 0]
