@@ -44,7 +44,7 @@ SIGNALS = ("omega", "theta")
 FREE_V = ("J", "bv", "bc", "dz")
 FREE_TAU = ("J", "bv", "bc", "tau0")
 #: grid points per axis of the global stage
-GRID_N = 9
+GRID_N = 7
 GRID_BV = 7
 #: relative finite-difference steps of the local stage: the switching parameters move events by
 #: whole internal steps, so their steps must span several (a torque ramp of ~1e-3 relative per
@@ -183,7 +183,8 @@ def _axis(name: str, start: dict[str, float], tscale: float) -> np.ndarray:
         return (np.geomspace(bc / 3, 3 * bc, GRID_N) if bc > 0
                 else np.linspace(0, 0.3 * tscale, GRID_N))
     if name == "dz":
-        top = 2.0 * max(start["dz"], bc, 0.02 * tscale)
+        ref = max(start["dz"], bc)
+        top = 2.0 * ref if ref > 0 else 0.3 * tscale
         return np.linspace(0.0, top, GRID_N)
     if name == "tau0":
         half = max(bc, 0.05 * tscale)
@@ -321,6 +322,11 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
             ls_free.remove("dz")
             best["dz"] = 0.0
             work.set("dz", 0.0, stage="start")
+    for k in ("bc", "dz", "tau0"):
+        # the local stage scales each parameter by its start: a start at exactly 0 would make
+        # its finite-difference step as large as 1 N m
+        if k in ls_free and best[k] == 0.0:
+            best[k] = 1e-3 * tscale
     fit = fit_simulation(logs, work, ls_free, signals=signals,
                          start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
                          diff_step=DIFF_STEP)
