@@ -207,3 +207,24 @@ def test_report_cli(tmp_path):
                                   str(model), "-o", str(tmp_path / "o2"), "--summary", str(bad)])
     assert r.exit_code == 1 and "bad.json" in r.output
     assert not (tmp_path / "o2").exists()
+
+
+def test_zoom_window_finds_the_crossing_not_the_noise(rng):
+    from pmdcid.report.figures import zoom_window
+
+    t = np.arange(3000) * 1e-3
+    slow = np.where(t > 1.0, 0.1 * (t - 1.0), 0.0)  # at most 0.2 rad/s
+    noisy = slow + rng.normal(0, 0.005, len(t))  # noise at rest above the 5 % band
+    a, b, what = zoom_window(t, noisy, speed_threshold(noisy))
+    assert what == "breakaway from rest" and t[a] < 1.0 < t[b - 1]
+    om = np.cos(2 * np.pi * t / 2.0) + rng.normal(0, 0.005, len(t))  # crosses zero at 0.5 s
+    a, b, what = zoom_window(t, om, speed_threshold(om))
+    assert what == "zero-speed crossing" and t[a] < 0.5 < t[b - 1] and b - a < 600
+
+
+def test_report_shows_the_diagnose_record_of_the_model(tmp_path):
+    model = truth_model(PAPER)
+    model.extra["fits"] = {"diagnose": {"logs": ["x.csv"], "added": ["stribeck"]}}
+    res = make_report([read_log(FIX / "paper" / "step_1.5V.csv")], model, tmp_path / "r")
+    assert res.metrics["summary"]["added"] == ["stribeck"]
+    assert 'id="diagnose"' in Path(res.html_path).read_text()

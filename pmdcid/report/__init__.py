@@ -156,8 +156,9 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     check_out_dir(out_dir)
     names = unique_names(logs)
     cmps = [compare_log(log, model, name) for log, name in zip(logs, names, strict=True)]
-    if summary is None and isinstance(model.extra.get("diagnose"), dict):
-        summary = model.extra["diagnose"]
+    if summary is None:
+        rec = model.extra.get("diagnose") or model.extra.get("fits", {}).get("diagnose")
+        summary = rec if isinstance(rec, dict) and "added" in rec else None
     figs: dict[str, bytes] = {}
     for c in cmps:
         c.metrics["figures"] = [f"{c.name}_overlay.png", f"{c.name}_residual.png"]

@@ -136,6 +136,14 @@ def _before_after(p: Page, figs: dict[str, bytes]) -> None:
     p.add("</section>")
 
 
+def _cand_cell(p: Page, path: str, v) -> str:
+    if isinstance(v, bool):
+        return f"<td>{'yes' if v else 'no'}</td>"
+    if v is None or isinstance(v, (int, float)):
+        return p.num(path)
+    return f"<td>{_esc(v)}</td>"
+
+
 def _summary(p: Page) -> None:
     s = p.m["summary"]
     p.add('<section id="diagnose"><h2>What diagnose found</h2>')
@@ -149,9 +157,8 @@ def _summary(p: Page) -> None:
         p.add("<table><tr><th>candidate effect</th>"
               + "".join(f"<th>{_esc(k)}</th>" for k in keys) + "</tr>")
         for j, c in enumerate(cands):
-            cells = "".join(p.num(f"summary.candidates.{j}.{k}") if isinstance(c.get(k), (int,
-                            float)) and not isinstance(c.get(k), bool) else
-                            f"<td>{_esc(c.get(k, ''))}</td>" for k in keys)
+            cells = "".join(_cand_cell(p, f"summary.candidates.{j}.{k}", c.get(k))
+                            for k in keys)
             p.add(f"<tr><td>{_esc(c.get('effect', ''))}</td>{cells}</tr>")
         p.add("</table>")
     for side in ("before", "after"):
