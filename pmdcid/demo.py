@@ -143,8 +143,9 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
     if has_diag:
         from pmdcid.diagnose import diagnose
 
-        diag_logs = read_logs([str(p) for p in tri])
-        res = st.run("diagnose", "what the model lacks, from the triangle's residual; add, refit",
+        diag_logs = read_logs([str(p) for p in tri + steps])
+        res = st.run("diagnose", "what the model lacks, from the residual on the triangle and "
+                     "steps; add, refit",
                      lambda: diagnose(diag_logs, model))
         final, summary, before = res.model, res.summary, model
         final.path = str(out / "model_diagnosed.json")
@@ -172,8 +173,8 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
         b, a = summary.get("before", {}), summary.get("after", {})
         for key in ("omega_nrmse", "theta_nrmse"):
             if key in b and key in a and b[key] is not None and a[key] is not None:
-                echo(f"  {key.replace('_nrmse', '')} NRMSE before {b[key]:.4g} -> "
-                     f"after {a[key]:.4g}")
+                echo(f"  on the triangle and steps: {key.replace('_nrmse', '')} NRMSE before "
+                     f"{b[key]:.4g} -> after {a[key]:.4g}")
     else:
         echo("diagnose is not available in this version: the report shows the fitted model")
     if warnings:
