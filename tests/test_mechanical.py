@@ -67,3 +67,26 @@ def test_needs_fit_electrical_first(rng, paper_values):
     logs = step_logs(paper_values, rng, amplitudes=(1.0,))
     with pytest.raises(ModelError, match="fit-electrical"):
         fit_mechanical(logs, Model(), km=PAPER["km"])
+
+
+def test_joint_fit_sees_through_stribeck_and_warns(rng, paper_values):
+    """Undeclared Stribeck friction: the steps' residual is far above noise, and it is said."""
+    vals = {**paper_values, "fs": 3e-3, "ws": 0.15}
+    res = fit_mechanical(step_logs(vals, rng), _electrical(vals))
+    assert res.joint and "bv_line" in res.estimates
+    assert any("residual" in w for w in res.warnings)
+    assert res.estimates["bv"].value == pytest.approx(PAPER["bv"], rel=0.05)
+
+
+def test_speed_from_rest_is_the_kernel_step_response(paper_values):
+    """The exact joint model agrees with the simulator (fine internal step) to 0.5 %."""
+    from pmdcid.identify.mechanical import speed_from_rest
+    from pmdcid.simulate import simulate_values
+
+    v = paper_values
+    t = np.arange(1500) * 1e-3
+    sim = simulate_values(t, np.where(t >= 0.1, 1.5, 0.0), v, nsub=50).omega
+    s = t - 0.1
+    w = speed_from_rest(s, v["km"] * 1.5 / v["R"], v["J"], v["bv"], v["bc"], v["dz"],
+                        v["L"] / v["R"])
+    assert np.max(np.abs(w - sim)) < 5e-3 * np.max(sim)

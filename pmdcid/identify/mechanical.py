@@ -53,6 +53,30 @@ def paper_mechanical(kmot: float, tau_mot: float, km: float, r: float) -> tuple[
     return b, tau_mot * b
 
 
+def speed_from_rest(s, torque, J, bv, bc, t_break, tau_e):
+    """Speed [rad/s] after a voltage step from rest at s = 0 [s].
+
+    The magnetic torque rises as ``torque (1 - exp(-s/tau_e))`` [N m]; the rotor is held until it
+    reaches ``max(t_break, bc)`` (the dead zone's break point or static friction), then
+    ``J omega' = torque(s) - bc - bv omega``. Exact solution; zero if the torque never breaks free.
+    """
+    s = np.asarray(s, float)
+    T, sg = abs(torque), math.copysign(1.0, torque)
+    brk = max(t_break, bc)
+    if T <= brk or bv <= 0 or J <= 0:
+        return np.zeros_like(s)
+    sb = -tau_e * math.log1p(-brk / T)
+    tm = J / bv
+    if abs(tm - tau_e) < 1e-9 * tm:
+        tm *= 1 + 1e-6
+    wss = (T - bc) / bv
+    a = (T / bv) * tau_e / (tm - tau_e)
+    c = -(wss + a * math.exp(-sb / tau_e)) * math.exp(sb / tm)
+    x = np.maximum(s, sb)
+    w = wss + a * np.exp(-x / tau_e) + c * np.exp(-x / tm)
+    return sg * np.where(s > sb, w, 0.0)
+
+
 def steady_line(v: np.ndarray, w: np.ndarray, w_se: np.ndarray):
     """Weighted line |omega_ss| = a |V| + c [rad/s]: returns (a, c, cov 2x2)."""
     X = np.column_stack([np.abs(v), np.ones(len(v))])
@@ -96,6 +120,7 @@ class MechanicalResult:
     stats: FitStats
     km_from_option: bool = False
     warnings: list[str] = field(default_factory=list)
+    joint: bool = False  # bv, bc, J from the joint exact fit of all steps (else from the line)
 
     def apply(self, model: Model) -> None:
         """Write b, bv, bc, J (stage 'fit-mechanical'); km with stage 'datasheet' if given."""
@@ -135,7 +160,14 @@ class MechanicalResult:
         lines.append("")
         lines.append("affine steady-state line w_ss = (km/(R bv)) V - bc/bv, "
                      "second-order steps (tau_e held), J = tau_m bv:")
-        lines += format_estimates([self.estimates[k] for k in ("bv", "bc", "J", "T_break")])
+        sfx = "_line" if self.joint else ""
+        lines += format_estimates([self.estimates[k + sfx] for k in ("bv", "bc", "J")])[1:]
+        if self.joint:
+            lines.append("")
+            lines.append("joint exact fit of all steps (shared J, bv, bc, breakaway torque), "
+                         "written to the model:")
+            lines += format_estimates([self.estimates[k] for k in ("bv", "bc", "J")])[1:]
+        lines += format_estimates([self.estimates["T_break"]])[1:]
         return "\n".join(lines)
 
 
@@ -181,6 +213,7 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
     tau_e = L / R
     warns: list[str] = []
     steps: list[MechStep] = []
+    data: list[tuple] = []  # moving steps: (time from onset, speed, torque amplitude, noise)
     ndata, chisqr = 0, 0.0
     for log in logs:
         log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
@@ -218,11 +251,49 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
         ms.dead_time, ms.beta = cf2["d"], cf2["beta"]
         ndata += cf2.ndata
         chisqr += cf2.sigma**2 * max(cf2.ndata - 5, 1)
+        data.append((log.t - step.t0, w - cf2["y0"], km * step.amplitude / R, sig))
     moving = [s for s in steps if s.moved]
     if not moving:
         raise FitError("no step moves the rotor: fit-mechanical needs steps above the dead "
                        "zone (larger voltages)", ", ".join(lg.path for lg in logs))
-    return _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns)
+    res = _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns)
+    if len({round(abs(s.amplitude), 9) for s in moving}) >= 2:
+        _joint(res, data, tau_e)
+    return res
+
+
+def _joint(res: MechanicalResult, data, tau_e) -> None:
+    """Refine J, bv, bc and the breakaway torque jointly over all moving steps with the exact
+    step response (:func:`speed_from_rest`), starting from the line; replaces the estimates."""
+    est = res.estimates
+    x0 = [est["J"].value, est["bv"].value, max(est["bc"].value, 0.0),
+          max(est["T_break"].value, est["bc"].value)]
+    if not all(math.isfinite(v) and v >= 0 for v in x0) or x0[0] <= 0 or x0[1] <= 0:
+        return
+
+    def resid(x):
+        return np.concatenate([(speed_from_rest(sk, T, *x, tau_e) - w) / sig
+                               for sk, w, T, sig in data])
+
+    lo = np.array([1e-3 * x0[0], 1e-3 * x0[1], 0.0, 0.0])
+    hi = np.array([1e3 * x0[0], 1e3 * x0[1], np.inf, np.inf])
+    if x0[2] == 0.0:
+        x0[2] = 1e-3 * max(abs(T) for _, _, T, _ in data)
+    x0[3] = max(x0[3], x0[2])
+    cf = lsq(resid, x0, lo, hi, ("J", "bv", "bc", "T_break"))
+    if not cf.success or not np.all(np.isfinite(cf.values)):
+        res.warnings.append("the joint fit of the steps did not converge: bv, bc, J from the "
+                            "steady-speed line are written")
+        return
+    for k, unit in (("bv", "N m s/rad"), ("bc", "N m"), ("J", "kg m^2")):
+        est[f"{k}_line"] = Estimate(f"{k}_line", est[k].value, est[k].stderr, unit)
+        est[k] = Estimate(k, cf[k], cf.se(k), unit)
+    est["T_break"] = Estimate("T_break", max(cf["T_break"], cf["bc"]), cf.se("T_break"), "N m")
+    res.joint = True
+    res.stats = FitStats(cf.ndata, 4, cf.sigma**2 * max(cf.ndata - 4, 1), 0, cf.success)
+    if cf.sigma > 3:
+        res.warnings.append(f"the steps leave a residual {cf.sigma:.2g} times their noise: the "
+                            "model misses something (Stribeck friction, back-EMF: try diagnose)")
 
 
 def _mean_se(x: np.ndarray, se: np.ndarray | None = None) -> tuple[float, float]:
