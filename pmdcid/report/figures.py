@@ -14,7 +14,8 @@ SIM = dict(color="tab:red", lw=0.9, ls="--", label="simulated")
 LABELS = {"omega": "speed [rad/s]", "theta": "angle [rad]", "i": "current [A]"}
 
 
-def _new(nrows: int, ncols: int, height: float, left: float = 0.85, wspace: float = 0.22):
+def _new(nrows: int, ncols: int, height: float, left: float = 0.85, wspace: float = 0.22,
+         top: float = 0.45):
     """A figure 11 in wide with fixed margins (``left`` in inches)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -23,7 +24,7 @@ def _new(nrows: int, ncols: int, height: float, left: float = 0.85, wspace: floa
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, squeeze=False)
     # fixed margins (in inches): constrained layout doubles the drawing time
-    fig.subplots_adjust(left=left / 11, right=0.985, top=1 - 0.45 / height,
+    fig.subplots_adjust(left=left / 11, right=0.985, top=1 - top / height,
                         bottom=0.55 / height, hspace=0.55 * 2.3 / max(height / nrows, 1.0),
                         wspace=wspace)
     return fig, axes
@@ -105,7 +106,7 @@ def residual_figure(cmp) -> bytes:
     s = cmp.signals[0]
     m = cmp.metrics["signals"][s]
     e = sim.get(s) - log[s]
-    fig, axes = _new(2, 2, 6.0)
+    fig, axes = _new(2, 2, 6.3, top=0.7)
     st = _stride(len(e))
     ax = axes[0, 0]
     ax.plot(log.t[st], e[st], color="tab:purple", lw=0.7)
