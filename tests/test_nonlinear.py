@@ -144,3 +144,19 @@ def test_cli_three_stages_on_fixtures(tmp_path):
     assert again["J"] == got["J"] and again["R"] != got["R"]
     r = run(main, ["fit-nonlinear", f"{d}/triangle.csv", "-m", model, "--free", "J,xx"])
     assert r.exit_code == 2
+
+
+def test_several_logs_are_fitted_jointly(rng, paper_values):
+    """A triangle and two speed steps share J, bv, bc, dz: one fit, NRMSE per log."""
+    vals = dict(paper_values)
+    logs = [triangle_log(vals, rng, periods=1, period=20.0, amplitude=1.5),
+            *step_logs(vals, rng, amplitudes=(0.5, 2.0))]
+    m = Model()
+    for k in ("R", "L", "km"):
+        m.set(k, vals[k], stage="truth")
+    for k in ("J", "bv", "bc"):
+        m.set(k, 1.15 * vals[k], stage="start")
+    res = fit_nonlinear(logs, m)
+    assert len(res.nrmse) == 3 and res.stats.ndata == sum(2 * lg.n for lg in logs)
+    for k in ("J", "bv", "bc", "dz"):
+        assert res.estimates[k].value == pytest.approx(vals[k], rel=0.02), k
