@@ -228,3 +228,14 @@ def test_report_shows_the_diagnose_record_of_the_model(tmp_path):
     res = make_report([read_log(FIX / "paper" / "step_1.5V.csv")], model, tmp_path / "r")
     assert res.metrics["summary"]["added"] == ["stribeck"]
     assert 'id="diagnose"' in Path(res.html_path).read_text()
+
+
+def test_blockwise_covariance_equals_direct_sum(rng, monkeypatch):
+    from pmdcid.report import metrics
+
+    for n, nlag in ((1000, 40), (1030, 100)):  # the second ends on a block shorter than nlag
+        a, b = rng.normal(size=n), rng.normal(size=n)
+        direct = np.array([np.dot(a[: n - k], b[k:]) for k in range(nlag)]) / n
+        for block in (64, 1 << 17):  # many blocks and one block
+            monkeypatch.setattr(metrics, "BLOCK", block)
+            assert np.allclose(metrics._cov_lags(a, b, nlag), direct, rtol=1e-10, atol=1e-12)

@@ -14,9 +14,10 @@ Definitions (every one is reported in ``metrics.json``):
   r_ee(k)/r_ee(0), k = 0..M, and the cross-correlation of the input with the residual
   r_ue(k)/sqrt(r_uu(0) r_ee(0)), k = -M..M, with 99 % confidence bands. The autocorrelation band
   is +-z/sqrt(N) (white residual); the cross-correlation band is +-z sqrt(sum_j rho_uu(j)
-  rho_ee(j) / N) (Bartlett: residual independent of the input, both possibly coloured). Lags are
+  rho_ee(j) / N) (Bartlett: residual independent of the input, both possibly coloured; j up to
+  N/4, at most 2^17). Lags are
   taken in steps of ``lag_step`` samples so that the M lags span about two mechanical time
-  constants J/bv of the model (``lag_s`` gives them in seconds).
+  constants J/bv of the model (``lags`` are in samples: multiply by the log's dt).
 """
 
 from __future__ import annotations
@@ -59,22 +60,28 @@ def speed_threshold(omega_meas: np.ndarray, fraction: float = LOW_SPEED_FRACTION
     return fraction * float(np.max(np.abs(omega_meas))) if len(omega_meas) else 0.0
 
 
-def _acov(x: np.ndarray, nlag: int) -> np.ndarray:
-    """Biased autocovariance of ``x`` (mean removed) at lags 0..nlag-1, by FFT."""
-    n = len(x)
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    fx = np.fft.rfft(x - x.mean(), nfft)
-    return np.fft.irfft(fx * np.conj(fx), nfft)[:nlag] / n
+#: lags of the Bartlett sum of the cross-correlation band: n/4, at most this many samples
+BARTLETT_MAX_LAG = 1 << 17
+#: block length of the blockwise (overlap-save) correlation: bounds memory on long logs
+BLOCK = 1 << 17
 
 
-def _xcov(u: np.ndarray, e: np.ndarray, lags: np.ndarray) -> np.ndarray:
-    """Biased cross-covariance sum_t u(t) e(t+k) / N at the given (signed) lags, by FFT."""
-    n = len(u)
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    fu = np.fft.rfft(u - u.mean(), nfft)
-    fe = np.fft.rfft(e - e.mean(), nfft)
-    c = np.fft.irfft(np.conj(fu) * fe, nfft) / n  # c[k] = sum u(t) e(t+k), negative k wrap
-    return c[lags % nfft]
+def _cov_lags(a: np.ndarray, b: np.ndarray, nlag: int) -> np.ndarray:
+    """sum_t a(t) b(t+k) / N for k = 0..nlag-1 (a, b mean-removed, same length N).
+
+    Blockwise FFT (overlap-save), so memory stays O(BLOCK + nlag) on a long log.
+    """
+    n = len(a)
+    out = np.zeros(nlag)
+    blk = max(BLOCK, nlag)
+    for s0 in range(0, n, blk):
+        ab = a[s0:s0 + blk]
+        bb = b[s0:s0 + blk + nlag]
+        nfft = 1 << int(math.ceil(math.log2(len(ab) + len(bb))))
+        c = np.fft.irfft(np.conj(np.fft.rfft(ab, nfft)) * np.fft.rfft(bb, nfft), nfft)
+        m = min(nlag, len(bb))  # beyond len(bb) the true sum is 0 and c[k] holds wrap-around
+        out[:m] += c[:m]
+    return out / n
 
 
 def residual_correlations(e: np.ndarray, u: np.ndarray, lag_step: int = 1,
@@ -84,13 +91,18 @@ def residual_correlations(e: np.ndarray, u: np.ndarray, lag_step: int = 1,
     lag_step = max(1, int(lag_step))
     max_lag = max(1, min(max_lag, (n - 1) // (2 * lag_step)))
     k = np.arange(max_lag + 1) * lag_step
-    full = min(n, max(n // 4, int(k[-1]) + 1))
-    ree = _acov(e, full)
-    ruu = _acov(u, full)
+    full = min(n, max(min(n // 4, BARTLETT_MAX_LAG), int(k[-1]) + 1))
+    e = np.asarray(e, float) - np.mean(e)
+    u = np.asarray(u, float) - np.mean(u)
+    ree = _cov_lags(e, e, full)
+    ruu = _cov_lags(u, u, full)
     auto = ree[k] / ree[0] if ree[0] > 0 else np.full(len(k), np.nan)
     kx = np.arange(-max_lag, max_lag + 1) * lag_step
     if ree[0] > 0 and ruu[0] > 0:
-        cross = _xcov(u, e, kx) / math.sqrt(ree[0] * ruu[0])
+        pos = _cov_lags(u, e, int(k[-1]) + 1)  # sum u(t) e(t+k)
+        neg = _cov_lags(e, u, int(k[-1]) + 1)  # sum u(t) e(t-k)
+        cxy = np.where(kx >= 0, pos[np.abs(kx)], neg[np.abs(kx)])
+        cross = cxy / math.sqrt(ree[0] * ruu[0])
         rho = (ree / ree[0]) * (ruu / ruu[0])
         var = max((rho[0] + 2.0 * rho[1:].sum()) / n, 1.0 / n)
         xband = z * math.sqrt(var)
