@@ -259,6 +259,11 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
     res = _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns)
     if len({round(abs(s.amplitude), 9) for s in moving}) >= 2:
         _joint(res, data, tau_e)
+        b, bv = res.estimates["b"].value, res.estimates["bv"].value
+        if b > 1.02 * bv:
+            res.warnings.append(f"the paper's b = {b:.4g} exceeds the viscous bv = {bv:.4g} "
+                                "N m s/rad: Coulomb friction is lumped into b (it varies with "
+                                "the step amplitude)")
     return res
 
 
@@ -344,9 +349,6 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
             bc = 0.0
         est["bv"] = Estimate("bv", bv, bv_se, "N m s/rad")
         est["bc"] = Estimate("bc", bc, bc_se, "N m")
-        if b > 1.02 * bv:
-            warns.append(f"the paper's b = {b:.4g} exceeds the viscous bv = {bv:.4g} N m s/rad: "
-                         "Coulomb friction is lumped into b (it varies with the step amplitude)")
     else:
         warns.append("all steps have the same amplitude: Coulomb friction cannot be separated "
                      "from viscous; bv = b (paper) and bc = 0 are written")
