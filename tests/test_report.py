@@ -239,3 +239,16 @@ def test_blockwise_covariance_equals_direct_sum(rng, monkeypatch):
         for block in (64, 1 << 17):  # many blocks and one block
             monkeypatch.setattr(metrics, "BLOCK", block)
             assert np.allclose(metrics._cov_lags(a, b, nlag), direct, rtol=1e-10, atol=1e-12)
+
+
+def test_report_never_overwrites_an_input(tmp_path):
+    src = FIX / "paper" / "step_1.0V.csv"
+    log_path = tmp_path / "metrics.json"  # a log that happens to bear an output's name
+    log_path.write_bytes(src.read_bytes())
+    before = log_path.read_bytes()
+    from pmdcid.errors import LogError
+
+    with pytest.raises(LogError, match="overwrite"):
+        make_report([read_log(log_path)], truth_model(PAPER), tmp_path)
+    assert log_path.read_bytes() == before
+    assert not (tmp_path / "report.html").exists()

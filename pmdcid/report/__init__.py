@@ -184,6 +184,8 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
         "figures": sorted(figs),
     })
     page = html.render(metrics, figs)
+    _refuse_overwriting_inputs(out_dir, [*figs, "metrics.json", "report.html"],
+                               [str(lg.path) for lg in logs] + [model.path or ""])
     out = make_out_dir(out_dir)
     for name, png in figs.items():
         write_bytes_atomic(out / name, png)
@@ -192,6 +194,18 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     write_bytes_atomic(metrics_path, (json.dumps(metrics, indent=1) + "\n").encode())
     write_bytes_atomic(html_path, page.encode("utf-8"))
     return ReportResult(str(out), str(html_path), str(metrics_path), metrics, sorted(figs))
+
+
+def _refuse_overwriting_inputs(out_dir, names, inputs) -> None:
+    """An input log or the model file must never be one of the report's outputs."""
+    for name in names:
+        target = Path(out_dir) / name
+        if not target.exists():
+            continue
+        for src in inputs:
+            if src and os.path.exists(src) and os.path.samefile(src, target):
+                raise LogError(f"the report would overwrite this input ({name}); choose another -o",
+                               src)
 
 
 def model_errors_from(cmps) -> list[dict]:
