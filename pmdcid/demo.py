@@ -47,7 +47,7 @@ def demo_data_dir() -> Path:
 
 
 #: seconds between the "still running" lines of a long stage
-TICK_S = 5.0
+TICK_S = 3.0
 
 
 class _Stage:

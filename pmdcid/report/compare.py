@@ -94,7 +94,8 @@ def compare_log(log, model: Model, name: str) -> LogComparison:
         per[s]["derived"] = s in getattr(log, "derived", set())
     m = {
         "name": name, "path": str(log.path), "kind": log.kind, "drive": log.drive,
-        "n": int(log.n), "dt": float(log.dt), "duration": float(log.duration),
+        "n": int(log.n), "dt": float(log.dt), "rate_hz": 1.0 / float(log.dt),
+        "duration": float(log.duration),
         "blocked": blocked, "omega_threshold": threshold, "signals": per,
     }
     return LogComparison(name, log, sim, blocked, signals, low, threshold, m)

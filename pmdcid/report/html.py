@@ -57,6 +57,10 @@ class Page:
         return (f'<td class="num" data-m="{html.escape(path)}">'
                 f"{fmt(get_path(self.m, path), digits)}</td>")
 
+    def span(self, path: str, digits: int = 4) -> str:
+        return (f'<span data-m="{html.escape(path)}">'
+                f"{fmt(get_path(self.m, path), digits)}</span>")
+
     def img(self, name: str, png: bytes, alt: str) -> None:
         b64 = base64.b64encode(png).decode("ascii")
         self.add(f'<img src="data:image/png;base64,{b64}" alt="{html.escape(alt)}" '
@@ -90,9 +94,9 @@ def _errors(p: Page, figs: dict[str, bytes]) -> None:
     p.add('<section id="errors"><h2>Errors per log and signal</h2>')
     p.add(f"<p class='note'>NRMSE = RMS(sim − meas) / std(meas); fit = 100 (1 − NRMSE) as "
           f"MATLAB <code>compare</code>. Near zero speed: |ω<sub>meas</sub>| below "
-          f"{100 * m['low_speed_fraction']:g} % of the log's largest |ω<sub>meas</sub>| "
+          f"{p.span('low_speed_percent')} % of the log's largest |ω<sub>meas</sub>| "
           f"(regime NRMSE = regime RMS error / std of the whole measurement). "
-          f"Resid: number of the {m['max_lag']} auto- (and {2 * m['max_lag'] + 1} cross-) "
+          f"Resid: number of the {p.span('max_lag')} auto- (and {p.span('cross_lags')} cross-) "
           f"correlation lags outside the 99 % band.</p>")
     p.add("<table><tr><th>log</th><th>signal</th><th>NRMSE</th><th>fit [%]</th><th>RMS</th>"
           "<th>max |err|</th><th>unit</th><th>near-zero NRMSE</th><th>rest NRMSE</th>"
@@ -175,11 +179,10 @@ def _log_sections(p: Page, figs: dict[str, bytes]) -> None:
         kind = f", {_esc(lg['kind'])}" if lg["kind"] else ""
         thr = ""
         if lg["omega_threshold"] is not None:
-            thr = (f" Near-zero band |ω| &lt; <span data-m='logs.{k}.omega_threshold'>"
-                   f"{fmt(lg['omega_threshold'])}</span> rad/s.")
+            thr = f" Near-zero band |ω| &lt; {p.span(f'logs.{k}.omega_threshold')} rad/s."
         blocked = " Rotor blocked: simulated with the rotor held." if lg["blocked"] else ""
-        p.add(f"<p><code>{_esc(lg['path'])}</code>: {lg['n']} samples, "
-              f"{fmt(lg['duration'])} s at {fmt(1.0 / lg['dt'])} Hz, driven by "
+        p.add(f"<p><code>{_esc(lg['path'])}</code>: {p.span(f'logs.{k}.n')} samples, "
+              f"{p.span(f'logs.{k}.duration')} s at {p.span(f'logs.{k}.rate_hz')} Hz, driven by "
               f"{_esc(lg['drive'])}{kind}.{thr}{blocked}</p>")
         for f in lg["figures"]:
             p.img(f, figs[f], f"{lg['name']} {f}")
