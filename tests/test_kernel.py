@@ -97,3 +97,16 @@ def test_sensor_effects(paper_values):
     late = simulate_values(t, v, {**paper_values, "delay": 0.01, "omega0": 0.05})
     assert np.allclose(late.omega[20:] - 0.05, base.omega[10:-10], atol=1e-12)
     assert np.allclose(late.theta[20:], base.theta[10:-10], atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 50.0, 3e3])
+def test_compiled_expm_matches_scipy(scale, rng):
+    from scipy.linalg import expm
+
+    from pmdcid.simulate.kernel import expm_small
+
+    M = rng.normal(size=(6, 6)) * scale
+    M[3:, :] = 0.0
+    M[:3, :3] -= np.eye(3) * scale  # stable block, as the motor's A
+    ref = expm(M)
+    assert np.allclose(expm_small(M), ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
