@@ -426,6 +426,14 @@ CASES: list[Case] = [
       r"^error: step\.csv: .*omega"),
     C("fm-rpm-as-rad-per-s", combine(MODEL, _step_log("step.csv", omega_scale=60 / (2 * np.pi))),
       FM, 0, r"^warning: step\.csv: .*rpm", changes=("model.json",)),
+    C("fm-torque-driven-log", combine(MODEL, table("step.csv", {
+        "t": T1K, "tau": np.where(T1K > 0.5, 0.02, 0.0), "omega": T1K})), FM, 1,
+      r"^error: step\.csv: needs column\(s\) v for fit-mechanical"),
+    C("fm-km-not-positive", combine(STEP, MODEL), FM + ["--km", "-0.05"], 2, r"--km",
+      marks=(pytest.mark.xfail(strict=True, reason=(
+          "cmd_fit.py checks --km in the command body (exit 1, a line naming no file) where a "
+          "bad option value is a usage error (exit 2): type=FiniteFloat(min=0, min_open=True) "
+          "from cli/options.py would do")),)),
     C("fm-bad-km", combine(STEP, MODEL), ["fit-mechanical", "step.csv", "-m", "model.json",
                                           "--km", "fast"], 2, r"'fast' is not a valid float"),
     # ---- fit-nonlinear ---------------------------------------------------------------------
@@ -461,6 +469,8 @@ CASES: list[Case] = [
     C("report-summary-not-json", combine(STEP, MODEL, text("sum.json", "added: stribeck")),
       ["report", "step.csv", "-m", "model.json", "-o", "rep", "--summary", "sum.json"], 1,
       r"^error: sum\.json: "),
+    C("report-out-is-model", combine(STEP, MODEL),
+      ["report", "step.csv", "-m", "model.json", "-o", "model.json"], 1, r"^error: model\.json: "),
     C("report-model-missing", STEP, ["report", "step.csv", "-m", "model.json", "-o", "rep"], 1,
       r"^error: model\.json: "),
     C("report-model-incomplete", combine(STEP, model(only=("R", "L"))),
