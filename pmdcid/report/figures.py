@@ -36,6 +36,15 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
+def _maybe_log(ax, values, label: str) -> None:
+    """Log x-scale when the positive values span more than two decades."""
+    v = np.asarray([x for x in values if x is not None and x > 0], float)
+    if len(v) and v.max() / v.min() > 100:
+        ax.set_xscale("log")
+        label += " (log scale)"
+    ax.set_xlabel(label)
+
+
 def _stride(n: int, limit: int = MAX_POINTS) -> slice:
     return slice(None, None, max(1, n // limit))
 
@@ -170,7 +179,7 @@ def fit_figure(rows: list[tuple[str, dict]]) -> bytes:
     ax.barh(y + 0.2, hi, height=0.4, color="tab:blue", label="rest")
     ax.set_yticks(y, labels, fontsize=8)
     ax.invert_yaxis()
-    ax.set_xlabel("regime RMS error / std(measurement)")
+    _maybe_log(ax, lo + hi, "regime RMS error / std(measurement)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="x")
     fig.suptitle("fit per log and signal; error near zero speed and elsewhere", fontsize=11)
@@ -193,7 +202,7 @@ def before_after_figure(names: list[str], before: list[dict], after: list[dict])
     ax.barh(y + 0.2, a, height=0.4, color="tab:green", label="after (with effects)")
     ax.set_yticks(y, labels, fontsize=8)
     ax.invert_yaxis()
-    ax.set_xlabel("NRMSE")
+    _maybe_log(ax, b + a, "NRMSE")
     ax.set_title("error without and with the added effects", fontsize=11)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="x")
