@@ -1,0 +1,37 @@
+"""``pmdcid diagnose LOG... -m MODEL -o NEW_MODEL [--summary SUMMARY.json]``."""
+
+from __future__ import annotations
+
+import click
+
+from pmdcid.cli import main
+from pmdcid.cli.options import log_options, model_option
+
+
+@main.command("diagnose")
+@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=click.Path(dir_okay=False))
+@model_option()
+@click.option("-o", "--output", "out_path", required=True, type=click.Path(dir_okay=False),
+              metavar="NEW_MODEL", help="Where to write the model with the effects found "
+                                        "(MODEL itself is only changed if this is MODEL).")
+@click.option("--summary", "summary_path", type=click.Path(dir_okay=False), default=None,
+              metavar="SUMMARY.json", help="Write the summary (added, candidates, before, "
+                                           "after, unexplained) as JSON.")
+@click.option("--effect", "effects", multiple=True, metavar="NAME",
+              help="Search only this catalogue effect (repeatable; default: all).")
+@log_options
+def diagnose_cmd(logs, model_path, out_path, summary_path, effects, mapping):
+    """Find the catalogue effects MODEL lacks on LOGs, add them, refit, report before/after."""
+    from pmdcid.diagnose.files import run_diagnose
+    from pmdcid.model import EFFECTS
+
+    unknown = [e for e in effects if e not in EFFECTS]
+    if unknown:
+        raise click.BadParameter(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})",
+                                 param_hint="'--effect'")
+    res = run_diagnose(list(logs), model_path, out_path, summary_path, mapping,
+                       effects=list(effects) or None)
+    click.echo(res.table())
+    click.echo(f"wrote {out_path}")
+    if summary_path:
+        click.echo(f"wrote {summary_path}")

@@ -1,0 +1,61 @@
+"""``pmdcid diagnose`` on files: read logs and model, diagnose, write NEW_MODEL and the summary."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+
+from pmdcid.errors import LogError, ModelError
+
+
+def _same(a: str, b: str) -> bool:
+    if os.path.exists(a) and os.path.exists(b):
+        return os.path.samefile(a, b)
+    return os.path.abspath(a) == os.path.abspath(b)
+
+
+def _clean(obj):
+    """JSON-safe: non-finite floats become null."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    return obj
+
+
+def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, effects=None,
+                 **opts):
+    """Diagnose ``model_path`` on the logs ``paths``; write ``out_path`` (and the summary).
+
+    Neither output may be an input log; the summary may not be a model file. ``model_path`` is
+    only rewritten when ``out_path`` is the same file. Both writes are atomic, after the whole
+    analysis succeeded.
+    """
+    from pmdcid.diagnose.loop import diagnose
+    from pmdcid.io import read_logs
+    from pmdcid.io.logs import atomic_write_text
+    from pmdcid.model import load_model, save_model
+
+    for p in paths:
+        if _same(p, out_path):
+            raise LogError(f"NEW_MODEL would overwrite the input log {p}; choose another -o",
+                           out_path)
+        if summary_path and _same(p, summary_path):
+            raise LogError(f"the summary would overwrite the input log {p}; choose another "
+                           "--summary", summary_path)
+    if summary_path and (_same(summary_path, model_path) or _same(summary_path, out_path)):
+        raise ModelError("the summary would overwrite a model file; choose another --summary",
+                         summary_path)
+    model = load_model(model_path)
+    logs = read_logs(paths, mapping)
+    res = diagnose(logs, model, effects=effects, **opts)
+    save_model(res.model, out_path)
+    if summary_path:
+        atomic_write_text(summary_path, json.dumps(_clean(res.summary), indent=2) + "\n")
+    return res
+
+
+__all__ = ["run_diagnose"]
