@@ -252,3 +252,25 @@ def test_report_never_overwrites_an_input(tmp_path):
         make_report([read_log(log_path)], truth_model(PAPER), tmp_path)
     assert log_path.read_bytes() == before
     assert not (tmp_path / "report.html").exists()
+
+
+def test_report_cli_on_real_torque_driven_log_with_mapping(tmp_path):
+    """EMPS (real, a linear axis driven by force; fixtures/emps/CITATION.md): columns mapped
+    from the command line, speed derived from the angle, no current."""
+    model = tmp_path / "emps.json"
+    # parameters of the order fit-nonlinear gives on the estimation file [kg, N s/m, N, N]
+    model.write_text(json.dumps({"parameters": {"J": 90.1, "bv": 180.0, "bc": 23.2,
+                                                "tau0": -3.38}, "effects": ["torque_offset"]}))
+    log = FIX / "emps" / "emps_train_DATA_EMPS.csv"
+    r = CliRunner().invoke(main, ["report", str(log), "-m", str(model), "-o", str(tmp_path / "o"),
+                                  "-c", "t=t_s", "-c", "tau=force_N", "-c", "theta=qm_meas_m"])
+    assert r.exit_code == 0, r.output
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    lg = m["logs"][0]
+    assert lg["drive"] == "tau" and set(lg["signals"]) == {"omega", "theta"}
+    assert lg["signals"]["omega"]["derived"] and not lg["signals"]["theta"]["derived"]
+    assert lg["signals"]["theta"]["fit_percent"] > 90
+    # without its load-torque offset the same model is worse on the angle
+    ba = m["before_after"]
+    assert ba["effects"] == ["torque_offset"]
+    assert ba["after"][0]["theta"] < ba["before"][0]["theta"]
