@@ -10,8 +10,6 @@ finite-difference steps large enough to step over the kernel's event quantisatio
 
 from __future__ import annotations
 
-import contextlib
-import ctypes
 import math
 from collections.abc import Sequence
 
@@ -46,43 +44,15 @@ def noise_level(x: np.ndarray) -> float:
     return s
 
 
-@contextlib.contextmanager
 def blas_single_thread():
-    """Run with the bundled OpenBLAS libraries limited to one thread, restoring them after.
+    """Context limiting BLAS to one thread (threadpoolctl), for the fits' small linear algebra.
 
-    The fits call scipy's ``expm`` on 6x6 matrices thousands of times; OpenBLAS's thread pool
-    makes each call cost milliseconds instead of microseconds (spin-waiting threads, worse on a
-    busy machine). Libraries without the OpenBLAS entry points are left alone.
+    The least-squares steps work on tall, thin Jacobians; a multi-threaded BLAS spin-waits on a
+    busy 2-core machine and makes each fit 2-4x slower than one thread does.
     """
-    handles = []
-    for path, setter, getter in _openblas_entry_points():
-        try:
-            lib = ctypes.CDLL(path)
-            old = int(getattr(lib, getter)())
-            getattr(lib, setter)(1)
-            handles.append((lib, setter, old))
-        except (OSError, AttributeError):
-            continue
-    try:
-        yield
-    finally:
-        for lib, setter, old in handles:
-            getattr(lib, setter)(old)
+    from threadpoolctl import threadpool_limits
 
-
-def _openblas_entry_points():
-    try:
-        with open("/proc/self/maps") as fh:
-            paths = {ln.split()[-1] for ln in fh if "openblas" in ln.lower() and "/" in ln}
-    except OSError:
-        return []
-    out = []
-    for path in sorted(paths):
-        for suffix in ("", "64_"):
-            for prefix in ("scipy_openblas", "openblas"):
-                out.append((path, f"{prefix}_set_num_threads{suffix}",
-                            f"{prefix}_get_num_threads{suffix}"))
-    return out
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _unit(name: str) -> str:
