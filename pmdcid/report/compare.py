@@ -82,7 +82,7 @@ def compare_log(log, model: Model, name: str) -> LogComparison:
     if log.has("omega") and not blocked:
         threshold = speed_threshold(log["omega"])
         low = np.abs(log["omega"]) < threshold
-    step = lag_step_for(param_values(model, log.drive == "tau"), log.dt)
+    step = lag_step_for(param_values(model, log.drive == "tau"), log.dt, electrical=blocked)
     per = {}
     for s in signals:
         simv = sim.get(s)

@@ -15,9 +15,9 @@ Definitions (every one is reported in ``metrics.json``):
   r_ue(k)/sqrt(r_uu(0) r_ee(0)), k = -M..M, with 99 % confidence bands. The autocorrelation band
   is +-z/sqrt(N) (white residual); the cross-correlation band is +-z sqrt(sum_j rho_uu(j)
   rho_ee(j) / N) (Bartlett: residual independent of the input, both possibly coloured; j up to
-  N/4, at most 2^17). Lags are
-  taken in steps of ``lag_step`` samples so that the M lags span about two mechanical time
-  constants J/bv of the model (``lags`` are in samples: multiply by the log's dt).
+  N/4, at most 2^17). Lags are taken in steps of ``lag_step`` samples so that the M lags span
+  about two mechanical time constants J/bv of the model (electrical L/R for a blocked rotor);
+  ``lags`` are in samples: multiply by the log's dt.
 """
 
 from __future__ import annotations
@@ -119,13 +119,15 @@ def residual_correlations(e: np.ndarray, u: np.ndarray, lag_step: int = 1,
     }
 
 
-def lag_step_for(model_vals: dict, dt: float, max_lag: int = MAX_LAG) -> int:
-    """Lag step [samples] so that ``max_lag`` lags span about 2 J/bv (at least 1 sample)."""
-    j = model_vals.get("J", math.nan)
-    bv = model_vals.get("bv", math.nan)
-    if not (math.isfinite(j) and math.isfinite(bv) and bv > 0 and j > 0):
+def lag_step_for(model_vals: dict, dt: float, max_lag: int = MAX_LAG,
+                 electrical: bool = False) -> int:
+    """Lag step [samples] so that ``max_lag`` lags span about two time constants of the model:
+    mechanical J/bv, or electrical L/R when ``electrical`` (a blocked rotor); at least 1."""
+    a, b = ("L", "R") if electrical else ("J", "bv")
+    num, den = model_vals.get(a, math.nan), model_vals.get(b, math.nan)
+    if not (math.isfinite(num) and math.isfinite(den) and num > 0 and den > 0):
         return 1
-    return max(1, int(round(2.0 * j / bv / max_lag / dt)))
+    return max(1, int(round(2.0 * num / den / max_lag / dt)))
 
 
 def signal_metrics(sim: np.ndarray, meas: np.ndarray, u: np.ndarray, low: np.ndarray | None,
