@@ -274,3 +274,16 @@ def test_report_cli_on_real_torque_driven_log_with_mapping(tmp_path):
     ba = m["before_after"]
     assert ba["effects"] == ["torque_offset"]
     assert ba["after"][0]["theta"] < ba["before"][0]["theta"]
+
+
+def test_report_on_a_rotor_that_never_moves(tmp_path, paper_values):
+    """Noise-free log below breakaway: speed and angle are constant (std 0, NRMSE undefined)."""
+    t = np.arange(2000) * 1e-3
+    cols, _ = synth_log(t, np.full(len(t), 0.05), paper_values, PAPER_NOISE, None)
+    write_log(tmp_path / "still.csv", t, cols)
+    res = make_report([read_log(tmp_path / "still.csv")], truth_model(PAPER), tmp_path / "r")
+    sig = res.metrics["logs"][0]["signals"]
+    assert sig["omega"]["nrmse"] is None and sig["omega"]["fit_percent"] is None
+    assert sig["omega"]["rms"] == 0.0
+    assert sig["i"]["nrmse"] < 1e-6  # the CSV keeps 9 significant digits
+    _check_numbers_match(Path(res.html_path).read_text(), res.metrics)

@@ -88,7 +88,7 @@ def residual_correlations(e: np.ndarray, u: np.ndarray, lag_step: int = 1,
                           max_lag: int = MAX_LAG, z: float = Z99) -> dict:
     """MATLAB ``resid``-style correlations of residual ``e`` and input ``u`` (see module doc)."""
     n = len(e)
-    lag_step = max(1, int(lag_step))
+    lag_step = max(1, min(int(lag_step), (n - 1) // 2))
     max_lag = max(1, min(max_lag, (n - 1) // (2 * lag_step)))
     k = np.arange(max_lag + 1) * lag_step
     full = min(n, max(min(n // 4, BARTLETT_MAX_LAG), int(k[-1]) + 1))
