@@ -189,6 +189,30 @@ def _log_sections(p: Page, figs: dict[str, bytes]) -> None:
         p.add("</section>")
 
 
+def _overview(p: Page) -> None:
+    m = p.m
+    p.add("<section id='overview'><h2>Overview</h2>")
+    if m["mean"]:
+        cells = "".join(f"<td>{_esc(s.replace('_nrmse', ''))}</td>{p.num('mean.' + s)}"
+                        for s in m["mean"])
+        p.add(f"<table><tr><th>mean NRMSE</th>{cells}</tr>")
+        ba = m.get("before_after")
+        if ba:
+            cells = "".join(f"<td>{_esc(s.replace('_nrmse', ''))}</td>"
+                            f"{p.num('before_after.mean_before.' + s)}"
+                            for s in m["mean"] if s in ba["mean_before"])
+            p.add(f"<tr><th>before the added effects</th>{cells}</tr>")
+        p.add("</table>")
+    links = [("parameters", "parameters"), ("errors", "errors per log and signal")]
+    if m.get("before_after"):
+        links.append(("before-after", "before and after"))
+    if m.get("summary"):
+        links.append(("diagnose", "what diagnose found"))
+    links += [(f"log-{k}", f"log {lg['name']}") for k, lg in enumerate(m["logs"])]
+    p.add("<p>Contents: " + " · ".join(f"<a href='#{a}'>{_esc(t)}</a>" for a, t in links)
+          + "</p></section>")
+
+
 def render(metrics: dict, figs: dict[str, bytes]) -> str:
     """The whole page."""
     p = Page(metrics)
@@ -201,12 +225,7 @@ def render(metrics: dict, figs: dict[str, bytes]) -> str:
           f"{len(metrics['logs'])} log(s). Model simulated open loop from rest on each log's "
           f"input and compared with what the log measured. All numbers are in "
           f"<code>metrics.json</code>.</p>")
-    mean = metrics["mean"]
-    if mean:
-        cells = "".join(f"<td>{_esc(s.replace('_nrmse', ''))}</td>{p.num('mean.' + s)}"
-                        for s in mean)
-        p.add(f"<section id='overview'><h2>Overview</h2><table><tr><th>mean NRMSE</th>{cells}"
-              f"</tr></table></section>")
+    _overview(p)
     _params(p)
     _errors(p, figs)
     if metrics.get("before_after"):
