@@ -38,7 +38,7 @@ def test_read_with_comments_mapping_and_units(tmp_path):
     p = tmp_path / "rig.csv"
     p.write_text("# kind: free-speed-step\n# rig: bench 3\n"
                  "time_ms, volts ,speed_rpm\n"
-                 + "".join(f"{1000 * a:.3f},{1.5},{b:.9g}\n" for a, b in zip(t, rpm)))
+                 + "".join(f"{1000 * a:.3f},{1.5},{b:.9g}\n" for a, b in zip(t, rpm, strict=True)))
     before = p.read_bytes()
     mfile = tmp_path / "rig.map"
     mfile.write_text("# my rig\nt=time_ms*ms\nomega=speed_rpm*rpm\n")

@@ -10,7 +10,7 @@ import numpy as np
 
 @dataclass
 class Estimate:
-    """One estimated parameter [unit], its standard error (NaN if unknown), and whether it varied."""
+    """One estimated parameter [unit], its standard error (NaN if unknown), whether it varied."""
 
     name: str
     value: float

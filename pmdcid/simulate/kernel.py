@@ -2,8 +2,8 @@
 
 State x = (i [A], omega [rad/s], theta [rad]). Between events the model is linear with constant
 forcing, so each internal step of length h uses the exact discretisation
-``x+ = Phi x + Gamma f`` (matrix exponential of the augmented system, compiled), computed once per call for
-the two dead-zone modes. Input is zero-order held over each sample period. Non-linear terms
+``x+ = Phi x + Gamma f`` (matrix exponential of the augmented system, compiled), computed once
+per call for the two dead-zone modes. Input is zero-order held over each sample period. Non-linear terms
 (Coulomb sign, Stribeck, quadratic drag, cogging, brush drop, the dead-zone jump) are evaluated at
 the start of each internal step and held over it; a rotor at rest stays exactly at rest while the
 torque on it is within the static friction level (no tanh smoothing), and a rotor whose speed
@@ -20,10 +20,16 @@ import math
 import numpy as np
 from numba import njit
 
-from pmdcid.simulate.layout import BC, BV, DZ_OFFSET, DZ_SLOPE, FS, J, KE, KM, L, R
+from pmdcid.simulate.layout import BC, BV, DZ_OFFSET, DZ_SLOPE, FS, KE, KM, J, L, R
 from pmdcid.simulate.terms import (
-    armature_voltage, dead_zone, dead_zone_engaged, drive_voltage, load_torque, sgn,
-    sliding_friction, static_friction,
+    armature_voltage,
+    dead_zone,
+    dead_zone_engaged,
+    drive_voltage,
+    load_torque,
+    sgn,
+    sliding_friction,
+    static_friction,
 )
 
 

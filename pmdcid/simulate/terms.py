@@ -11,7 +11,21 @@ import math
 from numba import njit
 
 from pmdcid.simulate.layout import (
-    BC, BQ, BV, CA, CN, CPHI, DZ, DZ_OFFSET, DZ_SLOPE, FS, KE, TAU0, VB, VMAX, WS,
+    BC,
+    BQ,
+    BV,
+    CA,
+    CN,
+    CPHI,
+    DZ,
+    DZ_OFFSET,
+    DZ_SLOPE,
+    FS,
+    KE,
+    TAU0,
+    VB,
+    VMAX,
+    WS,
 )
 
 
