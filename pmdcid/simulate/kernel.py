@@ -5,9 +5,9 @@ forcing, so each internal step of length h uses the exact discretisation
 ``x+ = Phi x + Gamma f`` (matrix exponential of the augmented system, compiled), computed once
 per call for the two dead-zone modes. Input is zero-order held over each sample period.
 Non-linear terms (Coulomb sign, Stribeck, quadratic drag, cogging, brush drop, the dead-zone jump)
-are evaluated at the start of each internal step and held over it; a rotor at rest stays exactly at rest while the
-torque on it is within the static friction level (no tanh smoothing), and a rotor whose speed
-would cross zero is stopped there and re-tested for sticking.
+are evaluated at the start of each internal step and held over it; a rotor at rest stays exactly
+at rest while the torque on it is within the static friction level (no tanh smoothing), and a
+rotor whose speed would cross zero is stopped there and re-tested for sticking.
 
 With bc = dz = 0 and no effects the kernel is exact to rounding for any step; with them it
 converges at first order in h at the events.
