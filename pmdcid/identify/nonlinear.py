@@ -124,15 +124,26 @@ class NonlinearResult:
 
 
 def default_signals(logs) -> tuple[str, ...]:
-    """Measured (not derived) speed and angle present in the logs; else whatever is present."""
-    measured = [s for s in SIGNALS if any(lg.has(s) and s not in lg.derived for lg in logs)]
-    if measured:
-        return tuple(measured)
-    present = [s for s in SIGNALS if any(lg.has(s) for lg in logs)]
-    if not present:
+    """Signals the simulation error uses by default.
+
+    The speed whenever a log has it, measured or derived from the angle: its simulation error
+    does not accumulate (viscous friction forgets), so a small force error cannot dominate the
+    cost as it does through the open-loop angle, which integrates every error (badly so on
+    closed-loop data, where the real axis is held on its trajectory by a controller). The angle
+    joins when both are measured by separate sensors (the paper's rig: tachometer and encoder).
+    """
+    def measured(s):
+        return any(lg.has(s) and s not in lg.derived for lg in logs)
+
+    out = []
+    if any(lg.has("omega") for lg in logs):
+        out.append("omega")
+    if measured("theta") and (measured("omega") or not out):
+        out.append("theta")
+    if not out:
         raise FitError("fit-nonlinear needs a speed 'omega' or angle 'theta' column in the logs "
                        "(map one with -c)")
-    return tuple(present)
+    return tuple(out)
 
 
 def _start_values(logs, model: Model, free, warns) -> dict[str, float]:
