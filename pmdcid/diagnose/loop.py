@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from pmdcid.diagnose.problem import FitOutcome, Problem
-from pmdcid.diagnose.residuals import context, error_table, pooled, whiteness
+from pmdcid.diagnose.residuals import context, error_table, pooled, typical_scales, whiteness
 from pmdcid.diagnose.signatures import Screen, Screener
 from pmdcid.diagnose.threads import single_blas_thread
 from pmdcid.errors import ModelError
@@ -30,7 +30,9 @@ from pmdcid.simulate import param_values
 STAGE = "diagnose"
 #: base parameters diagnose refits along with the effects (those the logs inform)
 MECHANICAL_BASE = ("J", "bv", "bc", "dz")
-ELECTRICAL_BASE = ("R",)
+ELECTRICAL_BASE = ("R", "L")
+#: friction start (fraction of the torque scale) tried when the model has none
+NUDGE = 0.2
 
 
 @dataclass
@@ -46,6 +48,9 @@ class Candidate:
     omega_nrmse: float | None = None
     chosen: bool = False
     values: dict[str, float] = field(default_factory=dict)
+    z: float | None = None  # the effect's size in standard errors
+    gain_fit: float | None = None  # relative chi-square drop, fit part
+    gain_held: float | None = None  # relative chi-square drop, held-out part
     outcome: FitOutcome | None = None
 
     def to_json(self) -> dict:
@@ -55,7 +60,8 @@ class Candidate:
         return {"effect": self.effect, "delta_bic": num(self.delta_bic),
                 "omega_nrmse": num(self.omega_nrmse), "refit": self.refit,
                 "heldout_delta": num(self.heldout), "screen_gain": num(self.screen_gain),
-                "round": self.round, "chosen": self.chosen,
+                "round": self.round, "chosen": self.chosen, "size_sigmas": num(self.z),
+                "chi2_drop_fit": num(self.gain_fit), "chi2_drop_heldout": num(self.gain_held),
                 "parameters": {k: num(v) for k, v in self.values.items()}}
 
 
@@ -69,6 +75,7 @@ class DiagnoseResult:
     paths: list[str]
     before: list[dict[str, float]]
     after: list[dict[str, float]]
+    history: list[Candidate] = field(default_factory=list)
 
     def table(self) -> str:
         from pmdcid.diagnose.report import format_table
@@ -86,6 +93,18 @@ def _free_base(problem: Problem, vals: dict[str, float]) -> list[str]:
     return [p for p in out if math.isfinite(vals.get(p, math.nan))]
 
 
+def effect_z(eff, fo: FitOutcome) -> float:
+    """Size of an effect in standard errors: its first parameter's distance from neutral."""
+    spec = eff.params[0]
+    est = fo.estimates.get(spec.name)
+    if est is None:
+        return math.inf
+    if not math.isfinite(spec.neutral):
+        return math.inf
+    d = abs(est.value - spec.neutral)
+    return d / est.stderr if est.stderr > 0 else (math.inf if d > 0 else 0.0)
+
+
 def _effect_free(name: str) -> list[str]:
     eff = EFFECTS[name]
     return [p for p in eff.param_names if p not in eff.held]
@@ -94,7 +113,8 @@ def _effect_free(name: str) -> list[str]:
 def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
              split: float = 0.6, max_samples: int = 20000, refit_top: int = 3,
              bic_threshold: float = -10.0, heldout_threshold: float = -10.0,
-             max_nfev: int = 40, max_rounds: int = 4) -> DiagnoseResult:
+             max_nfev: int = 40, max_rounds: int = 4, min_z: float = 5.0,
+             min_gain: float = 0.02) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
     ``effects`` restricts the catalogue searched (default: all not already in the model).
@@ -102,11 +122,11 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
     """
     with single_blas_thread():
         return _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
-                         heldout_threshold, max_nfev, max_rounds)
+                         heldout_threshold, max_nfev, max_rounds, min_z, min_gain)
 
 
 def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
-              heldout_threshold, max_nfev, max_rounds) -> DiagnoseResult:
+              heldout_threshold, max_nfev, max_rounds, min_z, min_gain) -> DiagnoseResult:
     if effects is not None:
         unknown = [e for e in effects if e not in EFFECTS]
         if unknown:
@@ -117,11 +137,24 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
     vals0 = param_values(model, torque_driven=torque_only)
     before = error_table(problem, problem.simulate_all(vals0))
     base_free = _free_base(problem, vals0)
-    cur = problem.fit(vals0, base_free, "fit", max_nfev)
+    ctx0 = context(problem, vals0, problem.simulate_all(vals0))
+    typ = typical_scales(ctx0)
+
+    def fit(start, free, part="fit", nfev=max_nfev):
+        return problem.fit(start, free, part, nfev, typ)
+
+    cur = fit(vals0, base_free)
+    friction = [p for p in ("bc", "dz") if p in base_free]
+    if friction and all(vals0[p] < 0.01 * ctx0.torque_scale for p in friction):
+        # a model without friction: also try from some, keep the better polish
+        alt = fit({**vals0, **{p: NUDGE * ctx0.torque_scale for p in friction}}, base_free)
+        if alt.chi2["fit"] < cur.chi2["fit"]:
+            cur = alt
     n_fit, n_held = problem.count("fit"), problem.count("held")
     pool = [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)]
     added: list[str] = []
     seen: dict[str, Candidate] = {}
+    history: list[Candidate] = []  # every refit, in order
     for rnd in range(1, max_rounds + 1):
         if not pool:
             break
@@ -135,8 +168,8 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         passing = []
         for s in ranked:
             eff = EFFECTS[s.effect]
-            free = _effect_free(s.effect) + [p for p in eff.interacts if p in base_free]
-            fo = problem.fit({**cur.values, **s.start}, free, "fit", max_nfev)
+            free = _effect_free(s.effect) + base_free
+            fo = fit({**cur.values, **s.start}, free)
             k = len(_effect_free(s.effect))
             dbic = n_fit * math.log(max(fo.chi2["fit"], 1e-300) / max(cur.chi2["fit"], 1e-300))
             dbic += k * math.log(max(n_fit, 2))
@@ -146,7 +179,12 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
             c = Candidate(s.effect, rnd, s.gain, dbic, True, held, om,
                           values={p: fo.values[p] for p in eff.param_names}, outcome=fo)
             seen[s.effect] = c
-            if dbic < bic_threshold and (held is None or held < heldout_threshold):
+            history.append(c)
+            c.z = effect_z(eff, fo)
+            c.gain_fit = 1.0 - fo.chi2["fit"] / max(cur.chi2["fit"], 1e-300)
+            c.gain_held = 1.0 - fo.chi2["held"] / max(cur.chi2["held"], 1e-300) if n_held else 1
+            if (dbic < bic_threshold and (held is None or held < heldout_threshold)
+                    and c.z >= min_z and min(c.gain_fit, c.gain_held) >= min_gain):
                 passing.append(c)
         if not passing:
             break
@@ -155,11 +193,11 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         added.append(best.effect)
         pool.remove(best.effect)
         free = base_free + [p for e in added for p in _effect_free(e)]
-        cur = problem.fit(best.outcome.values, free, "fit", max_nfev)
+        cur = fit(best.outcome.values, free, nfev=2 * max_nfev)
     new = model.copy()
     if added:
         free = base_free + [p for e in added for p in _effect_free(e)]
-        final = problem.fit(cur.values, free, "all", max_nfev)
+        final = fit(cur.values, free, "all")
         for e in added:
             new.add_effect(e)
             for p in EFFECTS[e].held:
@@ -188,7 +226,8 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
                        "std_over_noise": w.ratio, "rho1": w.rho1, "ljung_box_p": w.p_value,
                        "structured": w.structured} for w in white],
     }
-    return DiagnoseResult(new, summary, cands, [log.path for log in problem.logs], before, after)
+    return DiagnoseResult(new, summary, cands, [log.path for log in problem.logs], before, after,
+                          history)
 
 
 __all__ = ["Candidate", "DiagnoseResult", "diagnose"]

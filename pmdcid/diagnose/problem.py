@@ -71,6 +71,10 @@ def unit_of(name: str) -> str:
     return spec.unit if spec else ""
 
 
+#: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)
+MAX_SUBSTEPS = 64
+#: positive base parameters are refitted within this factor of their starting value
+BASE_RANGE = 20.0
 #: kernel parameters the discretisation depends on
 _LINEAR = (R, L, KE, KM, DZ_SLOPE, J, BV)
 
@@ -102,7 +106,7 @@ def simulate_cached(cache: _Discretizations, t: np.ndarray, u: np.ndarray,
     """:func:`pmdcid.simulate.simulate_values` (from rest) with cached discretisations."""
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
-    nsub = choose_substeps(dt, p)
+    nsub = min(choose_substeps(dt, p), MAX_SUBSTEPS)
     phi, gam = cache.get(p, dt / nsub, torque)
     x = _run(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p), phi, gam,
              int(nsub), bool(torque), np.zeros(3))
@@ -167,8 +171,11 @@ class Problem:
                    for ch in self.channels)
 
     def fit(self, vals: dict[str, float], free: Sequence[str], part: str = "fit",
-            max_nfev: int = 40) -> FitOutcome:
-        """Least squares (scipy TRF) of ``free`` by simulation error on ``part``, from ``vals``."""
+            max_nfev: int = 40, typical_scale: dict[str, float] | None = None) -> FitOutcome:
+        """Least squares (scipy TRF) of ``free`` by simulation error on ``part``, from ``vals``.
+
+        ``typical_scale`` gives the size of parameters whose start is 0 (default 1 in SI).
+        """
         free = list(free)
         if not free:
             c = self.chi2(vals)
@@ -177,11 +184,16 @@ class Problem:
         x0 = np.array([vals[n] for n in free], float)
         lo = np.array([bounds_of(n)[0] for n in free])
         hi = np.array([bounds_of(n)[1] for n in free])
+        for j, n in enumerate(free):
+            if n in BASE_PARAMS and x0[j] > 0 and BASE_PARAMS[n].lower > 0:
+                lo[j] = max(lo[j], x0[j] / BASE_RANGE)
+                hi[j] = min(hi[j], x0[j] * BASE_RANGE)
         x0 = np.clip(x0, lo, hi)
         if not np.all(np.isfinite(x0)):
             bad = [n for n, v in zip(free, x0, strict=True) if not math.isfinite(v)]
             raise FitError(f"no finite starting value for {', '.join(bad)}")
-        scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
+        typical = np.array([(typical_scale or {}).get(n, 1.0) for n in free])
+        scale = np.where(np.abs(x0) > 0, np.abs(x0), typical)
 
         def with_x(z):
             v = dict(vals)

@@ -112,4 +112,21 @@ def context(problem: Problem, vals: dict[str, float], sims: list[SimResult]) -> 
                            min(lg.dt for lg in logs))
 
 
-__all__ = ["Whiteness", "context", "error_table", "ljung_box", "pooled", "whiteness"]
+def typical_scales(ctx: ResidualContext) -> dict[str, float]:
+    """Typical size of every parameter (SI) from the context's scales, by unit.
+
+    Used to scale refits of parameters that start at 0.
+    """
+    from pmdcid.model.effects import effect_param_specs
+    from pmdcid.model.params import BASE_PARAMS
+
+    t, w = ctx.torque_scale, ctx.speed_scale
+    v = max(ctx.voltage_scale, 1e-3)
+    by_unit = {"N m": t, "rad/s": w, "V": v, "s": 10 * ctx.dt, "N m s/rad": t / w,
+               "N m s^2/rad^2": t / w**2, "V s/rad": v / w, "rad": 1.0, "1": 1.0}
+    specs = {**BASE_PARAMS, **effect_param_specs()}
+    return {n: by_unit.get(sp.unit, 1.0) for n, sp in specs.items()}
+
+
+__all__ = ["Whiteness", "context", "error_table", "ljung_box", "pooled", "typical_scales",
+           "whiteness"]

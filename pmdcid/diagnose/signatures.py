@@ -3,8 +3,9 @@
 For an effect, each probe column (its parameters switched on slightly, see
 :mod:`pmdcid.model.signatures`) is simulated on every log; the weighted change of the simulated
 signals is one regressor. The residual (fit part) is regressed on the effect's columns together
-with the sensitivities to the base parameters it interacts with (which may have absorbed part of
-it); the drop in the residual sum of squares over the interacting parameters alone is the
+with the sensitivities to the refitted base parameters (which may have absorbed part of it:
+``Effect.interacts`` names the usual suspects, all are included); the drop in the residual sum of
+squares over the base parameters alone is the
 effect's *screening gain* (a linearised likelihood-ratio statistic), and the coefficients give the
 refit's starting point through the effect's ``guess``.
 """
@@ -82,8 +83,7 @@ class Screener:
         best = Screen(effect.name, 0.0)
         if effect.signature is None or effect.guess is None:
             return best
-        inter = [c for c in (self.base_column(p) for p in effect.interacts
-                             if p in self.base_free) if c is not None]
+        inter = [c for c in (self.base_column(p) for p in self.base_free) if c is not None]
         d = np.column_stack(inter) if inter else None
         rss_d, _ = _rss(d, self.r0)
         for probe in effect.signature(self.ctx):
