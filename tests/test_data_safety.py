@@ -286,3 +286,38 @@ def test_demo_refuses_a_folder_holding_a_users_model(tmp_path, monkeypatch):
     assert (d / "model.json").read_bytes() == mine
     assert res.exit_code == 1, res.stderr
     assert res.stderr.startswith("error: ") and "internal error" not in res.stderr
+
+
+# ---- diagnose: MODEL is only read; failed runs leave earlier outputs ------------------------
+
+def test_diagnose_never_changes_model_or_logs(tmp_path, monkeypatch):
+    _stage_available("diagnose")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "step.csv").write_bytes((FIX / "hidden" / "step_1.0V.csv").read_bytes())
+    old = _model_file(tmp_path / "model.json")
+    log = (tmp_path / "step.csv").read_bytes()
+    res = CliRunner().invoke(main, ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json",
+                                    "--summary", "sum.json"], catch_exceptions=False)
+    assert res.exit_code == 0, res.stderr
+    assert (tmp_path / "model.json").read_bytes() == old
+    assert (tmp_path / "step.csv").read_bytes() == log
+    load_model(tmp_path / "new.json").require(*PAPER)  # a complete, valid model file
+    summary = json.loads((tmp_path / "sum.json").read_text())
+    assert {"added", "candidates", "before", "after", "unexplained"} <= set(summary)
+    assert _no_temp_files(tmp_path)
+
+
+def test_failed_diagnose_keeps_earlier_outputs(tmp_path, monkeypatch):
+    _stage_available("diagnose")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.csv").write_text("t,v,i,omega,theta\n")
+    _model_file(tmp_path / "model.json")
+    earlier = {"new.json": b'{"parameters": {}, "effects": [], "note": "earlier"}\n',
+               "sum.json": b'{"added": ["stribeck"]}\n'}
+    for name, data in earlier.items():
+        (tmp_path / name).write_bytes(data)
+    res = CliRunner().invoke(main, ["diagnose", "bad.csv", "-m", "model.json", "-o", "new.json",
+                                    "--summary", "sum.json"], catch_exceptions=False)
+    assert res.exit_code == 1 and res.stderr.startswith("error: bad.csv: ")
+    assert {n: (tmp_path / n).read_bytes() for n in earlier} == earlier
+    assert _no_temp_files(tmp_path)
