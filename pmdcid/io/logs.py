@@ -76,7 +76,8 @@ class Log:
             return "v"
         if "tau" in self.data:
             return "tau"
-        raise LogError("has no input column: it needs 'v' [V] or 'tau' [N m]", self.path)
+        raise LogError("has no input column: it needs 'v' [V] or 'tau' [N m] "
+                       "(map one with e.g. -c v=SOURCE*SCALE)", self.path)
 
     @property
     def u(self) -> np.ndarray:
@@ -126,7 +127,8 @@ def _fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
         return x
     if np.isinf(x).any():
         row = int(np.flatnonzero(np.isinf(x))[0])
-        raise LogError(f"column '{name}' holds an infinite value (data row {row + 1})", path)
+        raise LogError(f"column '{name}' holds an infinite value (data row {row + 1}): "
+                       "fix or remove that row", path)
     nbad = int(bad.sum())
     frac = nbad / len(x)
     # longest run of NaN
@@ -152,7 +154,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
 
     p = str(path)
     if not os.path.exists(p):
-        raise LogError("no such log file", p)
+        raise LogError("no such log file (check the path)", p)
     if os.path.isdir(p):
         raise LogError("is a folder, not a log file", p)
     try:
@@ -161,7 +163,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     except OSError as exc:
         raise LogError(f"cannot read log ({exc.strerror})", p) from None
     if b"\x00" in head:
-        raise LogError("is not a text CSV file (binary content)", p)
+        raise LogError("is not a text CSV file (binary content): export the log as CSV", p)
     try:
         head_text = head.decode("utf-8", errors="replace")
     except Exception:  # pragma: no cover - decode with replace does not fail
@@ -171,10 +173,12 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
         df = pd.read_csv(p, skiprows=nskip, skipinitialspace=True, low_memory=False,
                          encoding_errors="replace")
     except pd.errors.EmptyDataError:
-        raise LogError("is empty: expected a header row and data", p) from None
+        raise LogError("is empty: expected a header row naming the columns, then data rows",
+                       p) from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-        raise LogError(f"is not a readable CSV ({msg})", p) from None
+        raise LogError(f"is not a readable CSV ({msg}): check quotes and the number of fields "
+                       "per row", p) from None
     cols = [" ".join(str(c).splitlines()).strip() for c in df.columns]  # one-line names
     # pandas renames duplicates to 'x.1'; check the raw header instead
     raw_header = next((ln for ln in head_text.splitlines()[nskip:] if ln.strip()), "")
@@ -182,10 +186,11 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     dups = sorted({c for c in raw_names if raw_names.count(c) > 1 and c}
                   | {c for c in cols if cols.count(c) > 1})  # also equal once stripped
     if dups:
-        raise LogError(f"header names column(s) {', '.join(dups)} more than once", p)
+        raise LogError(f"header names column(s) {', '.join(dups)} more than once: rename one",
+                       p)
     df.columns = cols
     if len(df) == 0:
-        raise LogError("has a header but no data rows", p)
+        raise LogError("has a header but no data rows: was the recording saved?", p)
     mapping = mapping or ColumnMap()
     # which source column feeds each canonical column
     sources: dict[str, tuple[str, float, float]] = {}
@@ -222,7 +227,8 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
                 row = int(np.flatnonzero(notnum)[0])
                 raise LogError(
                     f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
-                    f"(data row {row + 1})",
+                    f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
+                    "that row (or map another column)",
                     p,
                 )
         data[canon] = col * scale + offset
@@ -235,9 +241,10 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     t = data.pop("t")
     if not np.isfinite(t).all():
         row = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise LogError(f"time column has a missing or non-finite value (data row {row + 1})", p)
+        raise LogError(f"time column has a missing or non-finite value (data row {row + 1}): "
+                       "fix or remove that row", p)
     if len(t) < 3:
-        raise LogError(f"has only {len(t)} data row(s): too short to use", p)
+        raise LogError(f"has only {len(t)} data row(s): too short to use (at least 3)", p)
     dtv = np.diff(t)
     if (dtv <= 0).any():
         row = int(np.flatnonzero(dtv <= 0)[0])
@@ -248,6 +255,13 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     med = float(np.median(dtv))
     dev = float(np.max(np.abs(dtv - med)) / med)
     if dev > JITTER_TOL:
+        gaps = np.flatnonzero(dtv > 1.5 * med)
+        if len(gaps) and np.all(np.abs(np.delete(dtv, gaps) - med) <= JITTER_TOL * med):
+            k = int(gaps[0])
+            raise LogError(
+                f"samples missing: {len(gaps)} gap(s), the first of {dtv[k]:.3g} s after data "
+                f"row {k + 1} (t={t[k]:g} s) where the period is {med:.3g} s; cut the log there "
+                "or resample it to a uniform grid", p)
         raise LogError(
             f"irregular sampling: the sample period varies from {dtv.min():.3g} to "
             f"{dtv.max():.3g} s ({100 * dev:.0f} % jitter); resample to a uniform grid first",
@@ -316,7 +330,7 @@ def atomic_write(path: str | os.PathLike, fill) -> None:
         up = next((a for a in folder.parents if a.exists()), None)
         if up is not None and not up.is_dir():
             raise LogError("is a file, not a folder: cannot write outputs under it", str(up))
-        raise LogError("output folder does not exist", str(folder))
+        raise LogError("output folder does not exist: create it first", str(folder))
     if not folder.is_dir():
         raise LogError("is a file, not a folder: cannot write outputs under it", str(folder))
     try:
