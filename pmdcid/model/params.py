@@ -132,10 +132,12 @@ def _unit_of(name: str) -> str:
 
 def _check_value(name: str, value: Any, path: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ModelError(f"parameter '{name}' has non-numeric value {value!r}", path)
+        raise ModelError(f"parameter '{name}' has non-numeric value {value!r}: give a plain "
+                         "number in SI units", path)
     v = float(value)
     if not math.isfinite(v):
-        raise ModelError(f"parameter '{name}' is not finite ({value!r})", path)
+        raise ModelError(f"parameter '{name}' is not finite ({value!r}): give a finite number "
+                         "or remove it and rerun its stage", path)
     spec = BASE_PARAMS.get(name)
     if spec is None:
         from pmdcid.model.effects import effect_param_specs
@@ -155,7 +157,8 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
     from pmdcid.model.effects import EFFECTS
 
     if not isinstance(obj, dict):
-        raise ModelError("model file must hold a JSON object", path)
+        raise ModelError("model file must hold a JSON object {\"parameters\": ..., "
+                         "\"effects\": [...]}", path)
     params = obj.get("parameters", {})
     if not isinstance(params, dict):
         raise ModelError("'parameters' must be an object of name -> {value, stderr, unit}", path)
@@ -208,8 +211,8 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
     try:
         obj = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ModelError(f"model file is not valid JSON (line {exc.lineno}: {exc.msg})",
-                         p) from None
+        raise ModelError(f"model file is not valid JSON (line {exc.lineno}: {exc.msg}): "
+                         "repair it, or delete it to start afresh", p) from None
     return model_from_json(obj, p)
 
 
