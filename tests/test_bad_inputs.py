@@ -341,6 +341,14 @@ CASES: list[Case] = [
     C("model-nan-value", combine(STEP, text("model.json",
                                             '{"parameters": {"R": {"value": NaN}}}')), SIM, 1,
       r"^error: model\.json: parameter 'R' is not finite"),
+    C("model-huge-integer", combine(STEP, text("model.json", '{"parameters": {"R": {"value": 1'
+                                                 + "0" * 400 + "}}}")), SIM, 1,
+      r"^error: model\.json: parameter 'R' is not finite"),
+    C("model-5000-digit-integer", combine(STEP, text(
+        "model.json", '{"parameters": {"R": {"value": 1' + "0" * 5000 + "}}}")), SIM, 1,
+      r"^error: model\.json: model file is not usable JSON"),
+    C("model-deeply-nested", combine(STEP, text("model.json", "[" * 100000 + "]" * 100000)),
+      SIM, 1, r"^error: model\.json: model file is not usable JSON"),
     C("model-string-value", combine(STEP, model(L="17.8 mH")), SIM, 1,
       r"^error: model\.json: parameter 'L' has non-numeric value '17\.8 mH'"),
     C("model-bad-entry", combine(STEP, text("model.json", '{"parameters": {"R": [2.37]}}')), SIM,

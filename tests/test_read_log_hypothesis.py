@@ -117,3 +117,47 @@ def test_random_mapping_text(spec):
         assert "\n" not in str(exc)
         return
     assert np.isfinite(s.scale) and np.isfinite(s.offset) and s.source
+
+
+JSON = st.recursive(
+    st.none() | st.booleans() | st.floats(allow_nan=True) | st.integers(-10**20, 10**20)
+    | st.text(max_size=8),
+    lambda kids: st.lists(kids, max_size=4) | st.dictionaries(st.text(max_size=6), kids,
+                                                               max_size=4),
+    max_leaves=12)
+PARAM_NAMES = st.sampled_from(["R", "L", "km", "J", "bv", "bc", "dz", "fs", "ws", "x", ""])
+
+
+@st.composite
+def model_objects(draw):
+    """Model-file-like JSON: parameters with odd entries, effects with odd names."""
+    params = draw(st.dictionaries(PARAM_NAMES, st.one_of(
+        JSON, st.fixed_dictionaries({"value": JSON}, optional={"stderr": JSON, "unit": JSON,
+                                                               "stage": JSON})), max_size=5))
+    obj = {"parameters": params}
+    if draw(st.booleans()):
+        obj["effects"] = draw(st.one_of(JSON, st.lists(st.sampled_from(
+            ["stribeck", "cogging", "nope", ""]), max_size=3)))
+    return draw(st.one_of(st.just(obj), JSON))
+
+
+@SETTINGS
+@given(obj=model_objects())
+def test_random_model_files(tmp_path_factory, obj):
+    """load_model returns a valid Model or raises the tool's error, whatever the JSON holds."""
+    import json
+    import math
+
+    from pmdcid.model import Model, load_model
+
+    p = tmp_path_factory.mktemp("m") / "model.json"
+    p.write_text(json.dumps(obj))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PmdcidWarning)
+        try:
+            m = load_model(p)
+        except PmdcidError as exc:
+            assert "\n" not in str(exc)
+            return
+    assert isinstance(m, Model)
+    assert all(math.isfinite(par.value) for par in m.parameters.values())

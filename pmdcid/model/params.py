@@ -132,12 +132,15 @@ def _unit_of(name: str) -> str:
 
 def _check_value(name: str, value: Any, path: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ModelError(f"parameter '{name}' has non-numeric value {value!r}: give a plain "
-                         "number in SI units", path)
-    v = float(value)
+        raise ModelError(f"parameter '{name}' has non-numeric value {repr(value)[:30]}: "
+                         "give a plain number in SI units", path)
+    try:
+        v = float(value)
+    except OverflowError:  # an integer too large for a float
+        v = math.inf
     if not math.isfinite(v):
-        raise ModelError(f"parameter '{name}' is not finite ({value!r}): give a finite number "
-                         "or remove it and rerun its stage", path)
+        raise ModelError(f"parameter '{name}' is not finite ({repr(value)[:30]}): give a finite "
+                         "number or remove it and rerun its stage", path)
     spec = BASE_PARAMS.get(name)
     if spec is None:
         from pmdcid.model.effects import effect_param_specs
@@ -213,6 +216,9 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
     except json.JSONDecodeError as exc:
         raise ModelError(f"model file is not valid JSON (line {exc.lineno}: {exc.msg}): "
                          "repair it, or delete it to start afresh", p) from None
+    except (ValueError, RecursionError) as exc:  # e.g. an integer of more than 4300 digits
+        raise ModelError(f"model file is not usable JSON ({str(exc)[:60]}): repair it, or "
+                         "delete it to start afresh", p) from None
     return model_from_json(obj, p)
 
 
