@@ -318,6 +318,10 @@ CASES: list[Case] = [
       r"^error: cols\.map: cannot read column-mapping file"),
     C("map-file-bad-json", combine(MODEL, STEP, text("cols.map", '{"omega": ')),
       SIM + ["--map", "cols.map"], 1, r"^error: cols\.map: mapping file is not valid JSON"),
+    C("map-file-deeply-nested", combine(MODEL, STEP, text("cols.map", '{"a":' * 50000)),
+      SIM + ["--map", "cols.map"], 1, r"^error: cols\.map: mapping file is not usable JSON"),
+    C("map-file-binary", combine(MODEL, STEP, text("cols.map", b"\xff\xfe\x00omega=x")),
+      SIM + ["--map", "cols.map"], 1, r"^error: cols\.map: column-mapping file is not UTF-8"),
     C("map-file-bad-line", combine(MODEL, STEP, text("cols.map", "omega = speed * bananas\n")),
       SIM + ["--map", "cols.map"], 1, r"^error: cols\.map: column mapping .*bananas"),
     # ---- the model file --------------------------------------------------------------------

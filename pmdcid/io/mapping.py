@@ -138,12 +138,17 @@ def parse_mapping(items: list[str] | tuple[str, ...] = (),
             text = p.read_text()
         except OSError as exc:
             raise LogError(f"cannot read column-mapping file ({exc.strerror})", p) from None
+        except UnicodeDecodeError:
+            raise LogError("column-mapping file is not UTF-8 text: save it as plain text",
+                           p) from None
         lines: list[str]
         if text.lstrip().startswith("{"):
             try:
                 obj = json.loads(text)
             except json.JSONDecodeError as exc:
                 raise LogError(f"mapping file is not valid JSON ({exc.msg})", p) from None
+            except (ValueError, RecursionError) as exc:
+                raise LogError(f"mapping file is not usable JSON ({str(exc)[:60]})", p) from None
             lines = [f"{k}={v}" for k, v in obj.items()]
         else:
             lines = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
