@@ -113,3 +113,31 @@ def kernel_scaling_rows(setup: Setup, quick: bool) -> list[Row]:
                         "s", f"{ratio:.2f}x the 1x time (linear: {factor}x)", "",
                         None, f"{s.median / steps * 1e9:.1f} ns per step; measured in turns"))
     return rows
+
+
+def hard_sign_row(b1: Stats, seconds: float = 20.0, timeout: float = 30.0) -> Row:
+    """The paper's discontinuous model (hard sign()) in solve_ivp LSODA: chatters at zero speed.
+
+    Run in a child process killed after ``timeout`` seconds (it can take many minutes).
+    """
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    script = Path(__file__).with_name("baseline.py")
+    what = f"B0: solve_ivp LSODA, hard sign() friction, first {seconds:.0f} s of the log"
+    t0 = time.perf_counter()
+    try:
+        out = subprocess.run([sys.executable, str(script), str(seconds)], capture_output=True,
+                             text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        per_120 = b1.median * seconds / 120.0
+        return Row(what, None, target="", note=f"did not finish in {timeout:.0f} s (killed); "
+                   f"B1 (smoothed) does those {seconds:.0f} s in about {per_120:.2g} s")
+    wall = time.perf_counter() - t0
+    if out.returncode != 0:
+        return Row(what, None, note="failed: " + (out.stderr.strip().splitlines() or [""])[-1])
+    sec, nfev, _ = out.stdout.split()
+    return Row(what, Stats([float(sec)]), "s", f"{float(sec) / b1.median:.2g} B1", "",
+               None, f"{nfev} RHS calls; child wall {wall:.1f} s")

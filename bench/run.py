@@ -19,7 +19,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.rows_kernel import kernel_rows, kernel_scaling_rows, paper_setup  # noqa: E402
+from bench.rows_kernel import (  # noqa: E402
+    hard_sign_row,
+    kernel_rows,
+    kernel_scaling_rows,
+    paper_setup,
+)
 from bench.rows_pipeline import demo_rows, diagnose_rows, fit_rows, startup_rows  # noqa: E402
 from bench.table import Row, machine, markdown, write_docs  # noqa: E402
 
@@ -53,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
         krows, _, b1 = step("kernel and solve_ivp baseline", lambda: kernel_rows(setup,
                                                                                  args.quick))
         rows += krows
+        if not args.quick:
+            rows.append(step("solve_ivp with hard sign()", lambda: hard_sign_row(b1)))
         rows += step("fit-nonlinear", lambda: fit_rows(b1, args.quick, tmp))
         rows += step("diagnose", lambda: diagnose_rows(b1, args.quick))
         rows += step("demo", lambda: demo_rows(b1, args.quick, tmp))
