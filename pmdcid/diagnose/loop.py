@@ -193,7 +193,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         added.append(best.effect)
         pool.remove(best.effect)
         free = base_free + [p for e in added for p in _effect_free(e)]
-        cur = fit(best.outcome.values, free, nfev=2 * max_nfev)
+        cur = fit(best.outcome.values, free, nfev=4 * max_nfev)
     new = model.copy()
     if added:
         free = base_free + [p for e in added for p in _effect_free(e)]

@@ -72,9 +72,9 @@ def unit_of(name: str) -> str:
 
 
 #: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)
-MAX_SUBSTEPS = 64
+MAX_SUBSTEPS = 16
 #: positive base parameters are refitted within this factor of their starting value
-BASE_RANGE = 20.0
+BASE_RANGE = 30.0
 #: kernel parameters the discretisation depends on
 _LINEAR = (R, L, KE, KM, DZ_SLOPE, J, BV)
 
