@@ -19,11 +19,15 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import context, error_table, pooled, typical_scales, whiteness
 from pmdcid.diagnose.signatures import Screen, Screener
-from pmdcid.diagnose.threads import single_blas_thread
 from pmdcid.errors import ModelError
+from pmdcid.identify.nonlinear import masked_upper
+from pmdcid.identify.results import Estimate
+from pmdcid.identify.simfit import blas_single_thread
 from pmdcid.model import EFFECTS, Model
 from pmdcid.simulate import param_values
 
@@ -105,6 +109,26 @@ def effect_z(eff, fo: FitOutcome) -> float:
     return d / est.stderr if est.stderr > 0 else (math.inf if d > 0 else 0.0)
 
 
+def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
+                    rel: float = 1e-3) -> float | None:
+    """Upper end [N m] of the dead zones that fit as well as the fit ``fo`` does, or None.
+
+    A dead zone below the breakaway torque never acts on a rotor that turns only while the
+    torque exceeds it: every dz from 0 up to some level fits equally (within two standard errors,
+    4 x the reduced chi-square, or ``rel`` of the chi-square). Returns that level when dz = 0 is
+    among them (the dead zone is not identified), None when the data see the dead zone.
+    """
+    v = fo.values
+    c = fo.chi2["all"]
+    thr = max(4.0 * max(c / max(problem.count("all") - len(fo.estimates), 1), 1.0), rel * c)
+    top = 1.5 * max(v.get("bc", 0.0) + max(v.get("fs", 0.0), 0.0), v.get("dz", 0.0), 1e-300)
+    dzs = np.linspace(0.0, top, n)
+    cost = np.array([problem.chi2({**v, "dz": d})["all"] for d in dzs])
+    if cost[0] - c > thr:
+        return None
+    return masked_upper(dzs, cost, thr)
+
+
 def _effect_free(name: str) -> list[str]:
     eff = EFFECTS[name]
     return [p for p in eff.param_names if p not in eff.held]
@@ -120,7 +144,7 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
     ``effects`` restricts the catalogue searched (default: all not already in the model).
     The input model is not modified.
     """
-    with single_blas_thread():
+    with blas_single_thread():
         return _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
                          heldout_threshold, max_nfev, max_rounds, min_z, min_gain)
 
@@ -153,6 +177,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
     n_fit, n_held = problem.count("fit"), problem.count("held")
     pool = [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)]
     added: list[str] = []
+    notes: list[str] = []
     seen: dict[str, Candidate] = {}
     history: list[Candidate] = []  # every refit, in order
     for rnd in range(1, max_rounds + 1):
@@ -198,6 +223,16 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
     if added:
         free = base_free + [p for e in added for p in _effect_free(e)]
         final = fit(cur.values, free, "all")
+        upper = dead_zone_range(problem, final) if "dz" in free else None
+        if upper is not None:
+            # its refit value and standard error would mean nothing: written as the interval's
+            # midpoint +- its uniform std, as fit-nonlinear does, the others refitted with it
+            free = [p for p in free if p != "dz"]
+            final = fit({**final.values, "dz": 0.5 * upper}, free, "all")
+            final.estimates["dz"] = Estimate("dz", 0.5 * upper, upper / math.sqrt(12.0), "N m")
+            notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
+                         f"to {upper:.3g} N m fits equally (below the breakaway torque); written "
+                         "as the interval's midpoint +- its uniform std")
         for e in added:
             new.add_effect(e)
             for p in EFFECTS[e].held:
@@ -220,6 +255,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         "before": pooled(before),
         "after": pooled(after),
         "unexplained": bool(unexplained),
+        "notes": notes,
         "logs": [{"path": log.path, "before": b, "after": a}
                  for log, b, a in zip(problem.logs, before, after, strict=True)],
         "whiteness": [{"log": problem.logs[w.log].path, "signal": w.signal,

@@ -37,6 +37,8 @@ def format_table(res) -> str:
                 se = f" ± {par.stderr:.2g}" if math.isfinite(par.stderr) else ""
                 pars.append(f"{p} = {par.value:.5g}{se} {par.unit}".rstrip())
         lines.append(f"  {e}: " + "; ".join(pars))
+    for note in s.get("notes", []):
+        lines.append(f"note: {note}")
     if s["unexplained"]:
         lines.append("unexplained: the residual still has structure no catalogue effect explains")
     lines.append("")
