@@ -24,6 +24,7 @@ import numpy as np
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import context, error_table, pooled, typical_scales, whiteness
 from pmdcid.diagnose.signatures import Screen, Screener
+from pmdcid.diagnose.starts import grid_start
 from pmdcid.errors import ModelError
 from pmdcid.identify.nonlinear import masked_upper
 from pmdcid.identify.results import Estimate
@@ -129,6 +130,22 @@ def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
     return masked_upper(dzs, cost, thr)
 
 
+def _weakest(problem: Problem, fo: FitOutcome, added: list[str],
+             bic_threshold: float) -> str | None:
+    """The added effect whose removal from the fit ``fo`` costs least, if that cost is not
+    decisive (removal ΔBIC above -``bic_threshold``, chi-square on all data), else None."""
+    n = problem.count("all")
+    worst, worst_d = None, math.inf
+    for e in added:
+        off = {p.name: p.neutral for p in EFFECTS[e].params}
+        c = problem.chi2({**fo.values, **off})["all"]
+        d = n * math.log(max(c, 1e-300) / max(fo.chi2["all"], 1e-300))
+        d -= len(_effect_free(e)) * math.log(max(n, 2))
+        if d < worst_d:
+            worst, worst_d = e, d
+    return worst if worst_d < -bic_threshold else None
+
+
 def _effect_free(name: str) -> list[str]:
     eff = EFFECTS[name]
     return [p for p in eff.param_names if p not in eff.held]
@@ -164,10 +181,13 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
     ctx0 = context(problem, vals0, problem.simulate_all(vals0))
     typ = typical_scales(ctx0)
 
-    def fit(start, free, part="fit", nfev=max_nfev):
-        return problem.fit(start, free, part, nfev, typ)
+    limits = {k: v for e in EFFECTS.values() if e.limits for k, v in e.limits(ctx0).items()}
 
-    cur = fit(vals0, base_free)
+    def fit(start, free, part="fit", nfev=max_nfev):
+        return problem.fit(start, free, part, nfev, typ, limits)
+
+    tscale = ctx0.torque_scale
+    cur = fit(grid_start(problem, vals0, base_free, tscale), base_free)
     friction = [p for p in ("bc", "dz") if p in base_free]
     if friction and all(vals0[p] < 0.01 * ctx0.torque_scale for p in friction):
         # a model without friction: also try from some, keep the better polish
@@ -180,6 +200,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
     notes: list[str] = []
     seen: dict[str, Candidate] = {}
     history: list[Candidate] = []  # every refit, in order
+    cur_free = list(base_free)
     for rnd in range(1, max_rounds + 1):
         if not pool:
             break
@@ -191,14 +212,26 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         ranked = sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
                         key=lambda s: -s.gain)[:refit_top]
         passing = []
+        rebase = None  # a better point of the current model met while refitting a candidate
         for s in ranked:
             eff = EFFECTS[s.effect]
-            free = _effect_free(s.effect) + base_free
-            fo = fit({**cur.values, **s.start}, free)
+            free = _effect_free(s.effect) + cur_free
+            fo = fit(grid_start(problem, {**cur.values, **s.start}, free, tscale), free)
+            # ablation: the refit's values with the effect switched off. A refit may also move
+            # the base parameters to a better point that the current model could reach without
+            # the effect (the cost is only piecewise smooth): the effect is credited only with
+            # what it adds over the better of that point and the current fit.
+            off = {**fo.values, **{p.name: p.neutral for p in eff.params}}
+            abl = problem.chi2(off)
+            ref = cur.chi2
+            if abl["fit"] < cur.chi2["fit"]:
+                ref = abl
+                if rebase is None or abl["fit"] < rebase[1]["fit"]:
+                    rebase = (off, abl)
             k = len(_effect_free(s.effect))
-            dbic = n_fit * math.log(max(fo.chi2["fit"], 1e-300) / max(cur.chi2["fit"], 1e-300))
+            dbic = n_fit * math.log(max(fo.chi2["fit"], 1e-300) / max(ref["fit"], 1e-300))
             dbic += k * math.log(max(n_fit, 2))
-            held = (n_held * math.log(max(fo.chi2["held"], 1e-300) / max(cur.chi2["held"], 1e-300))
+            held = (n_held * math.log(max(fo.chi2["held"], 1e-300) / max(ref["held"], 1e-300))
                     if n_held else None)
             om = pooled(error_table(problem, problem.simulate_all(fo.values)))["omega_nrmse"]
             c = Candidate(s.effect, rnd, s.gain, dbic, True, held, om,
@@ -206,23 +239,44 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
             seen[s.effect] = c
             history.append(c)
             c.z = effect_z(eff, fo)
-            c.gain_fit = 1.0 - fo.chi2["fit"] / max(cur.chi2["fit"], 1e-300)
-            c.gain_held = 1.0 - fo.chi2["held"] / max(cur.chi2["held"], 1e-300) if n_held else 1
+            c.gain_fit = 1.0 - fo.chi2["fit"] / max(ref["fit"], 1e-300)
+            c.gain_held = 1.0 - fo.chi2["held"] / max(ref["held"], 1e-300) if n_held else 1
             if (dbic < bic_threshold and (held is None or held < heldout_threshold)
                     and c.z >= min_z and min(c.gain_fit, c.gain_held) >= min_gain):
                 passing.append(c)
         if not passing:
+            if rebase is not None and rebase[1]["fit"] < (1 - min_gain) * cur.chi2["fit"]:
+                # no effect, but the current model fits clearly better elsewhere: move there
+                # and screen again
+                better = fit(rebase[0], cur_free)
+                if better.chi2["fit"] < cur.chi2["fit"]:
+                    cur = better
+                    continue
             break
         best = min(passing, key=lambda c: c.delta_bic)
         best.chosen = True
         added.append(best.effect)
         pool.remove(best.effect)
-        free = base_free + [p for e in added for p in _effect_free(e)]
-        cur = fit(best.outcome.values, free, nfev=4 * max_nfev)
+        cur_free = base_free + [p for e in added for p in _effect_free(e)]
+        cur = fit(grid_start(problem, best.outcome.values, cur_free, tscale), cur_free,
+                  nfev=4 * max_nfev)
     new = model.copy()
     if added:
         free = base_free + [p for e in added for p in _effect_free(e)]
-        final = fit(cur.values, free, "all")
+        final = fit(grid_start(problem, cur.values, free, tscale, "all"), free, "all")
+        weak = _weakest(problem, final, added, bic_threshold)
+        while weak is not None:
+            # an effect that the final fit no longer needs (another one took its part) goes
+            added.remove(weak)
+            notes.append(f"{weak} dropped: with the other added effects it no longer improves "
+                         "the fit decisively")
+            for c in history:
+                if c.effect == weak:
+                    c.chosen = False
+            free = base_free + [p for e in added for p in _effect_free(e)]
+            off = {p.name: p.neutral for p in EFFECTS[weak].params}
+            final = fit({**final.values, **off}, free, "all")
+            weak = _weakest(problem, final, added, bic_threshold) if added else None
         upper = dead_zone_range(problem, final) if "dz" in free else None
         if upper is not None:
             # its refit value and standard error would mean nothing: written as the interval's
@@ -233,6 +287,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
             notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
                          f"to {upper:.3g} N m fits equally (below the breakaway torque); written "
                          "as the interval's midpoint +- its uniform std")
+    if added:
         for e in added:
             new.add_effect(e)
             for p in EFFECTS[e].held:

@@ -75,6 +75,10 @@ def unit_of(name: str) -> str:
 MAX_SUBSTEPS = 16
 #: positive base parameters are refitted within this factor of their starting value
 BASE_RANGE = 30.0
+#: parameters that move stick-slip and dead-zone events by whole internal steps: their
+#: finite-difference step must span several (as in fit-nonlinear)
+SWITCHING = ("bc", "dz", "fs", "tau0")
+SWITCH_STEP = 1e-2
 #: kernel parameters the discretisation depends on
 _LINEAR = (R, L, KE, KM, DZ_SLOPE, J, BV)
 
@@ -178,10 +182,12 @@ class Problem:
                    for ch in self.channels)
 
     def fit(self, vals: dict[str, float], free: Sequence[str], part: str = "fit",
-            max_nfev: int = 40, typical_scale: dict[str, float] | None = None) -> FitOutcome:
+            max_nfev: int = 40, typical_scale: dict[str, float] | None = None,
+            limits: dict[str, tuple[float, float]] | None = None) -> FitOutcome:
         """Least squares (scipy TRF) of ``free`` by simulation error on ``part``, from ``vals``.
 
-        ``typical_scale`` gives the size of parameters whose start is 0 (default 1 in SI).
+        ``typical_scale`` gives the size of parameters whose start is 0 (default 1 in SI);
+        ``limits`` tightens the catalogue bounds of some parameters (name -> (lower, upper)).
         """
         free = list(free)
         if not free:
@@ -192,6 +198,8 @@ class Problem:
         lo = np.array([bounds_of(n)[0] for n in free])
         hi = np.array([bounds_of(n)[1] for n in free])
         for j, n in enumerate(free):
+            if limits and n in limits:
+                lo[j], hi[j] = max(lo[j], limits[n][0]), min(hi[j], limits[n][1])
             if n in BASE_PARAMS and x0[j] > 0 and BASE_PARAMS[n].lower > 0:
                 lo[j] = max(lo[j], x0[j] / BASE_RANGE)
                 hi[j] = min(hi[j], x0[j] * BASE_RANGE)
@@ -211,8 +219,10 @@ class Problem:
             return self.weighted(self.simulate_all(with_x(z)), part)
 
         try:
+            steps = np.array([SWITCH_STEP if n in SWITCHING else 1e-3 for n in free])
             sol = least_squares(resid, x0 / scale, bounds=(lo / scale, hi / scale),
-                                method="trf", diff_step=1e-3, max_nfev=max_nfev, x_scale="jac")
+                                method="trf", diff_step=steps, max_nfev=max_nfev,
+                                x_scale="jac")
         except ValueError as exc:
             raise FitError(f"diagnose refit failed: {exc}") from None
         out = with_x(sol.x)

@@ -45,6 +45,9 @@ class Effect:
     guess: Callable | None = field(default=None, compare=False, hash=False)
     #: parameters set by the guess and held when refitting (integers such as a cogging order)
     held: tuple[str, ...] = ()
+    #: optional ``limits(ctx) -> {param: (lower, upper)}``: tighter refit bounds from the data's
+    #: scales, where a parameter outside them makes the effect indistinguishable from another
+    limits: Callable | None = field(default=None, compare=False, hash=False)
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -95,6 +98,7 @@ register(Effect(
     ("bc", "dz"),
     signature=sg.stribeck_signature,
     guess=sg.stribeck_guess,
+    limits=sg.stribeck_limits,
 ))
 register(Effect(
     "quadratic_drag",

@@ -90,6 +90,12 @@ def stribeck_guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> dic
     return {"fs": fs, "ws": col["ws"]}
 
 
+def stribeck_limits(ctx: ResidualContext) -> dict[str, tuple[float, float]]:
+    """ws [rad/s] below half the typical speed: a Stribeck curve that decays only at the top
+    speeds is Coulomb friction with a speed-squared correction (quadratic drag's signature)."""
+    return {"ws": (1e-3 * ctx.speed_scale, 0.5 * ctx.speed_scale)}
+
+
 # --- cogging: the order from the residual's spectrum in rotor angle -----------------------------
 
 ANGLE_BINS = 1024
@@ -165,5 +171,5 @@ def saturation_guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> d
 
 __all__ = [
     "angle_spectrum", "cogging_guess", "cogging_signature", "linear", "saturation_guess",
-    "saturation_signature", "stribeck_guess", "stribeck_signature",
+    "saturation_signature", "stribeck_guess", "stribeck_limits", "stribeck_signature",
 ]
