@@ -24,7 +24,7 @@ import numpy as np
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import context, error_table, pooled, typical_scales, whiteness
 from pmdcid.diagnose.signatures import Screen, Screener
-from pmdcid.diagnose.starts import grid_start
+from pmdcid.diagnose.starts import grid_start, profile_best, profile_stderr
 from pmdcid.errors import ModelError
 from pmdcid.identify.nonlinear import masked_upper
 from pmdcid.identify.results import Estimate
@@ -128,6 +128,14 @@ def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
     if cost[0] - c > thr:
         return None
     return masked_upper(dzs, cost, thr)
+
+
+def _fits_as_well(problem: Problem, fo: FitOutcome, change: dict[str, float]) -> bool:
+    """True when ``change`` applied to the fit ``fo`` raises the chi-square (all data) by at
+    most two standard errors (4 x the reduced chi-square)."""
+    c = fo.chi2["all"]
+    thr = 4.0 * max(c / max(problem.count("all") - len(fo.estimates), 1), 1.0)
+    return problem.chi2({**fo.values, **change})["all"] - c <= thr
 
 
 def _weakest(problem: Problem, fo: FitOutcome, added: list[str],
@@ -277,6 +285,10 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
             off = {p.name: p.neutral for p in EFFECTS[weak].params}
             final = fit({**final.values, **off}, free, "all")
             weak = _weakest(problem, final, added, bic_threshold) if added else None
+        polished = profile_best(problem, final.values, free)
+        if problem.chi2(polished)["all"] < final.chi2["all"] - 4.0 * max(
+                final.chi2["all"] / max(problem.count("all"), 1), 1.0):
+            final = fit(polished, free, "all")
         upper = dead_zone_range(problem, final) if "dz" in free else None
         if upper is not None:
             # its refit value and standard error would mean nothing: written as the interval's
@@ -287,7 +299,19 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
             notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
                          f"to {upper:.3g} N m fits equally (below the breakaway torque); written "
                          "as the interval's midpoint +- its uniform std")
+        elif "dz" in free and _fits_as_well(problem, final, {"dz": vals0["dz"]}):
+            # the dead zone shows only at a few switching instants: when the model's own dz (from
+            # fit-nonlinear's slow reversals) fits these logs as well, these logs do not move it
+            free = [p for p in free if p != "dz"]
+            final = fit({**final.values, "dz": vals0["dz"]}, free, "all")
+            notes.append("dz kept from the model: it fits these logs as well as a refitted one")
     if added:
+        for name in ("bc", "dz"):
+            est = final.estimates.get(name)
+            if est is not None and name in free:
+                se = profile_stderr(problem, final.values, name, final.stats.redchi)
+                if math.isfinite(se) and not se <= est.stderr:
+                    final.estimates[name] = Estimate(name, est.value, se, est.unit)
         for e in added:
             new.add_effect(e)
             for p in EFFECTS[e].held:

@@ -52,4 +52,49 @@ def grid_start(problem, vals: dict[str, float], free, torque_scale: float,
     return best
 
 
-__all__ = ["grid_start"]
+
+
+
+#: points of the profile scan of each switching parameter, and its half-width (relative)
+PROFILE_N = 21
+PROFILE_SPAN = 0.5
+
+
+def profile_best(problem, vals: dict[str, float], free, part: str = "all") -> dict[str, float]:
+    """Scan bc, then dz (those in ``free``) one at a time over +-50 % of their value, others
+    held; returns the values with each moved to its best point.
+
+    The cost is piecewise flat in a switching parameter: an event (a stair level's torque against
+    the dead zone, a breakaway) flips between two of its values and the gradient sees nothing in
+    between; a local fit can stop a few percent away from a cliff it never felt.
+    """
+    best = dict(vals)
+    best_c = problem.chi2(best)[part]
+    for name in ("bc", "dz"):
+        v = best.get(name, 0.0)
+        if name not in free or not v > 0:
+            continue
+        for x in v * np.linspace(1 - PROFILE_SPAN, 1 + PROFILE_SPAN, PROFILE_N):
+            trial = {**best, name: float(x)}
+            c = problem.chi2(trial)[part]
+            if c < best_c:
+                best, best_c = trial, c
+    return best
+
+
+def profile_stderr(problem, vals: dict[str, float], name: str, redchi: float,
+                   span: float = 0.2, n: int = 41) -> float:
+    """Standard error [unit of ``name``] of a switching parameter from its profile: half the
+    width of the values within a chi-square rise of ``redchi`` (one standard error) of the best,
+    others held; at least one scan step. The Jacobian's error is meaningless where the cost
+    is flat between events (it comes out 0)."""
+    v = vals[name]
+    if not v > 0:
+        return float("nan")
+    xs = v * np.linspace(1 - span, 1 + span, n)
+    c = np.array([problem.chi2({**vals, name: float(x)})["all"] for x in xs])
+    ok = xs[c - c.min() <= max(redchi, 1.0)]
+    return float(max(0.5 * (ok.max() - ok.min()), xs[1] - xs[0]))
+
+
+__all__ = ["grid_start", "profile_best", "profile_stderr"]
