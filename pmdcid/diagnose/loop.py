@@ -88,14 +88,20 @@ class DiagnoseResult:
         return format_table(self)
 
 
-def _free_base(problem: Problem, vals: dict[str, float]) -> list[str]:
+def _free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[str]:
+    """Parameters refitted with every candidate: those of J, bv, bc (and dz when the model has a
+    dead zone) that moving logs inform, R and L when a current is logged, and the parameters of
+    the effects the model already declares."""
     out = []
     moving = problem.has_signal("omega", moving=True) or problem.has_signal("theta", moving=True)
     if moving:
-        out += list(MECHANICAL_BASE)
+        out += [p for p in MECHANICAL_BASE if p != "dz" or model.has("dz")]
     if problem.has_signal("i"):
         out += list(ELECTRICAL_BASE)
-    return [p for p in out if math.isfinite(vals.get(p, math.nan))]
+    for e in model.effects:
+        if e in EFFECTS and (moving or EFFECTS[e].acts_on == "electrical"):
+            out += [p for p in EFFECTS[e].param_names if p not in EFFECTS[e].held]
+    return [p for p in dict.fromkeys(out) if math.isfinite(vals.get(p, math.nan))]
 
 
 def effect_z(eff, fo: FitOutcome) -> float:
@@ -163,7 +169,7 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
              split: float = 0.6, max_samples: int = 20000, refit_top: int = 3,
              bic_threshold: float = -10.0, heldout_threshold: float = -10.0,
              max_nfev: int = 40, max_rounds: int = 4, min_z: float = 5.0,
-             min_gain: float = 0.02) -> DiagnoseResult:
+             min_gain: float = 0.01) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
     ``effects`` restricts the catalogue searched (default: all not already in the model).
@@ -185,7 +191,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
     torque_only = all(log.drive == "tau" for log in problem.logs)
     vals0 = param_values(model, torque_driven=torque_only)
     before = error_table(problem, problem.simulate_all(vals0))
-    base_free = _free_base(problem, vals0)
+    base_free = _free_base(problem, vals0, model)
     ctx0 = context(problem, vals0, problem.simulate_all(vals0))
     typ = typical_scales(ctx0)
 
@@ -203,7 +209,8 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         if alt.chi2["fit"] < cur.chi2["fit"]:
             cur = alt
     n_fit, n_held = problem.count("fit"), problem.count("held")
-    pool = [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)]
+    pool = [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)
+            and all(problem.measures(s) for s in EFFECTS[e].requires)]
     added: list[str] = []
     notes: list[str] = []
     seen: dict[str, Candidate] = {}

@@ -177,6 +177,10 @@ class Problem:
         return sum(int(ch.fit.sum()) if part == "fit" else int((~ch.fit).sum())
                    if part == "held" else len(ch.idx) for ch in self.channels)
 
+    def measures(self, signal: str) -> bool:
+        """Some log measures ``signal`` by its own sensor (not derived from another signal)."""
+        return any(log.has(signal) and signal not in log.derived for log in self.logs)
+
     def has_signal(self, signal: str, moving: bool | None = None) -> bool:
         return any(ch.signal == signal and (moving is None or moving != self.blocked[ch.log])
                    for ch in self.channels)

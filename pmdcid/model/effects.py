@@ -48,6 +48,9 @@ class Effect:
     #: optional ``limits(ctx) -> {param: (lower, upper)}``: tighter refit bounds from the data's
     #: scales, where a parameter outside them makes the effect indistinguishable from another
     limits: Callable | None = field(default=None, compare=False, hash=False)
+    #: signals some log must measure by its own sensor (not derived from another) for the
+    #: effect to mean anything (a speed-sensor bias needs a speed sensor)
+    requires: tuple[str, ...] = ()
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -150,6 +153,7 @@ register(Effect(
     "sensor",
     (),
     **sg.linear("omega0", sg.speed_probe, positive=False),
+    requires=("omega",),
 ))
 register(Effect(
     "voltage_saturation",
