@@ -144,20 +144,24 @@ def _fits_as_well(problem: Problem, fo: FitOutcome, change: dict[str, float]) ->
     return problem.chi2({**fo.values, **change})["all"] - c <= thr
 
 
-def _weakest(problem: Problem, fo: FitOutcome, added: list[str],
-             bic_threshold: float) -> str | None:
-    """The added effect whose removal from the fit ``fo`` costs least, if that cost is not
-    decisive (removal ΔBIC above -``bic_threshold``, chi-square on all data), else None."""
+def _weakest(problem: Problem, fo: FitOutcome, added: list[str], base_free: list[str],
+             fit, bic_threshold: float) -> tuple[str, FitOutcome] | None:
+    """Backward check of several added effects: each is removed in turn and the rest refitted;
+    returns (the effect whose removal costs least, the refit without it) when that cost is not
+    decisive (ΔBIC of the removal, all data, below -``bic_threshold``), else None."""
+    if len(added) < 2:
+        return None
     n = problem.count("all")
-    worst, worst_d = None, math.inf
+    worst = None
     for e in added:
+        rest = base_free + [p for a in added if a != e for p in _effect_free(a)]
         off = {p.name: p.neutral for p in EFFECTS[e].params}
-        c = problem.chi2({**fo.values, **off})["all"]
-        d = n * math.log(max(c, 1e-300) / max(fo.chi2["all"], 1e-300))
+        without = fit({**fo.values, **off}, rest, "all")
+        d = n * math.log(max(without.chi2["all"], 1e-300) / max(fo.chi2["all"], 1e-300))
         d -= len(_effect_free(e)) * math.log(max(n, 2))
-        if d < worst_d:
-            worst, worst_d = e, d
-    return worst if worst_d < -bic_threshold else None
+        if worst is None or d < worst[2]:
+            worst = (e, without, d)
+    return (worst[0], worst[1]) if worst[2] < -bic_threshold else None
 
 
 def _effect_free(name: str) -> list[str]:
@@ -279,19 +283,18 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
     if added:
         free = base_free + [p for e in added for p in _effect_free(e)]
         final = fit(grid_start(problem, cur.values, free, tscale, "all"), free, "all")
-        weak = _weakest(problem, final, added, bic_threshold)
+        weak = _weakest(problem, final, added, base_free, fit, bic_threshold)
         while weak is not None:
             # an effect that the final fit no longer needs (another one took its part) goes
-            added.remove(weak)
-            notes.append(f"{weak} dropped: with the other added effects it no longer improves "
-                         "the fit decisively")
+            added.remove(weak[0])
+            final = weak[1]
+            notes.append(f"{weak[0]} dropped: with the other added effects it no longer "
+                         "improves the fit decisively")
             for c in history:
-                if c.effect == weak:
+                if c.effect == weak[0]:
                     c.chosen = False
             free = base_free + [p for e in added for p in _effect_free(e)]
-            off = {p.name: p.neutral for p in EFFECTS[weak].params}
-            final = fit({**final.values, **off}, free, "all")
-            weak = _weakest(problem, final, added, bic_threshold) if added else None
+            weak = _weakest(problem, final, added, base_free, fit, bic_threshold)
         polished = profile_best(problem, final.values, free)
         if problem.chi2(polished)["all"] < final.chi2["all"] - 4.0 * max(
                 final.chi2["all"] / max(problem.count("all"), 1), 1.0):
