@@ -205,7 +205,18 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         return problem.fit(start, free, part, nfev, typ, limits)
 
     tscale = ctx0.torque_scale
-    cur = fit(grid_start(problem, vals0, base_free, tscale), base_free)
+
+    def robust_fit(start, free, part="fit", nfev=max_nfev):
+        """Grid start over the friction, local fit, then a profile polish of bc and dz (the cost
+        is piecewise flat in them) and a refit when the polish found a clearly better point."""
+        fo = fit(grid_start(problem, start, free, tscale, part), free, part, nfev)
+        pol = profile_best(problem, fo.values, free, part)
+        thr = 4.0 * max(fo.chi2[part] / max(problem.count(part), 1), 1.0)
+        if problem.chi2(pol)[part] < fo.chi2[part] - thr:
+            fo = fit(pol, free, part, nfev)
+        return fo
+
+    cur = robust_fit(vals0, base_free)
     friction = [p for p in ("bc", "dz") if p in base_free]
     if friction and all(vals0[p] < 0.01 * ctx0.torque_scale for p in friction):
         # a model without friction: also try from some, keep the better polish
@@ -235,7 +246,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         for s in ranked:
             eff = EFFECTS[s.effect]
             free = _effect_free(s.effect) + cur_free
-            fo = fit(grid_start(problem, {**cur.values, **s.start}, free, tscale), free)
+            fo = robust_fit({**cur.values, **s.start}, free)
             # ablation: the refit's values with the effect switched off. A refit may also move
             # the base parameters to a better point that the current model could reach without
             # the effect (the cost is only piecewise smooth): the effect is credited only with
@@ -277,12 +288,11 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         added.append(best.effect)
         pool.remove(best.effect)
         cur_free = base_free + [p for e in added for p in _effect_free(e)]
-        cur = fit(grid_start(problem, best.outcome.values, cur_free, tscale), cur_free,
-                  nfev=4 * max_nfev)
+        cur = robust_fit(best.outcome.values, cur_free, nfev=4 * max_nfev)
     new = model.copy()
     if added:
         free = base_free + [p for e in added for p in _effect_free(e)]
-        final = fit(grid_start(problem, cur.values, free, tscale, "all"), free, "all")
+        final = robust_fit(cur.values, free, "all")
         weak = _weakest(problem, final, added, base_free, fit, bic_threshold)
         while weak is not None:
             # an effect that the final fit no longer needs (another one took its part) goes
@@ -295,10 +305,6 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
                     c.chosen = False
             free = base_free + [p for e in added for p in _effect_free(e)]
             weak = _weakest(problem, final, added, base_free, fit, bic_threshold)
-        polished = profile_best(problem, final.values, free)
-        if problem.chi2(polished)["all"] < final.chi2["all"] - 4.0 * max(
-                final.chi2["all"] / max(problem.count("all"), 1), 1.0):
-            final = fit(polished, free, "all")
         upper = dead_zone_range(problem, final) if "dz" in free else None
         if upper is not None:
             # its refit value and standard error would mean nothing: written as the interval's

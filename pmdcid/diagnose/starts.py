@@ -61,8 +61,9 @@ PROFILE_SPAN = 0.5
 
 
 def profile_best(problem, vals: dict[str, float], free, part: str = "all") -> dict[str, float]:
-    """Scan bc, then dz (those in ``free``) one at a time over +-50 % of their value, others
-    held; returns the values with each moved to its best point.
+    """Scan bc, then dz (those in ``free``) one at a time over +-50 % of their value (a dz at 0:
+    from 0 to twice the breakaway torque), others held; returns the values with each moved to
+    its best point.
 
     The cost is piecewise flat in a switching parameter: an event (a stair level's torque against
     the dead zone, a breakaway) flips between two of its values and the gradient sees nothing in
@@ -71,10 +72,19 @@ def profile_best(problem, vals: dict[str, float], free, part: str = "all") -> di
     best = dict(vals)
     best_c = problem.chi2(best)[part]
     for name in ("bc", "dz"):
-        v = best.get(name, 0.0)
-        if name not in free or not v > 0:
+        if name not in free:
             continue
-        for x in v * np.linspace(1 - PROFILE_SPAN, 1 + PROFILE_SPAN, PROFILE_N):
+        v = best.get(name, 0.0)
+        breakaway = max(best.get("bc", 0.0), 0.0) + max(best.get("fs", 0.0), 0.0)
+        if name == "dz" and v < 0.05 * breakaway:
+            # a dead zone at (or near) 0 has no gradient at all: scan from 0 to beyond the
+            # breakaway torque
+            xs = np.linspace(0.0, 2.0 * breakaway, 2 * PROFILE_N)
+        elif v > 0:
+            xs = v * np.linspace(1 - PROFILE_SPAN, 1 + PROFILE_SPAN, PROFILE_N)
+        else:
+            continue
+        for x in xs:
             trial = {**best, name: float(x)}
             c = problem.chi2(trial)[part]
             if c < best_c:
