@@ -82,14 +82,18 @@ class _Stage:
 
 def _param_table(model, truth: dict[str, float]) -> str:
     lines = [f"{'parameter':<10} {'value':>12} {'± stderr':>11} {'unit':<10} {'true':>11} "
-             f"{'error':>8}  stage"]
+             f"{'error':>8} {'/stderr':>7}  stage"]
     for name, p in model.parameters.items():
         se = f"{p.stderr:.2g}" if math.isfinite(p.stderr) else "-"
         tv = truth.get(name)
         err = f"{100 * (p.value - tv) / tv:+.1f} %" if tv else ""
+        # the error in standard errors: a parameter the logs cannot pin down (a dead zone below
+        # the breakaway torque) carries a wide stderr, and its error is within it
+        zs = (f"{abs(p.value - tv) / p.stderr:.1f}"
+              if tv and math.isfinite(p.stderr) and p.stderr > 0 else "")
         true = f"{tv:.6g}" if tv is not None else ""
-        lines.append(f"{name:<10} {p.value:>12.6g} {se:>11} {p.unit:<10} {true:>11} {err:>8}  "
-                     f"{p.stage}")
+        lines.append(f"{name:<10} {p.value:>12.6g} {se:>11} {p.unit:<10} {true:>11} {err:>8} "
+                     f"{zs:>7}  {p.stage}")
     return "\n".join(lines)
 
 
