@@ -18,9 +18,11 @@ from pmdcid.diagnose import diagnose
 from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.mechanical import fit_mechanical
 from pmdcid.identify.nonlinear import fit_nonlinear
+from pmdcid.io import Log
+from pmdcid.io.derive import derive_missing
 from pmdcid.model import EFFECTS, Model
 from pmdcid.simulate import param_values, simulate_values
-from pmdcid.synth import staircase
+from pmdcid.synth import PAPER_NOISE, staircase, synth_log, triangle
 
 #: every CONTRACT.md catalogue effect at a clearly visible size (SI units)
 VISIBLE = {
@@ -115,3 +117,31 @@ def test_effects_option_restricts_the_search():
     res = diagnose(logs, model, effects=["cogging", "speed_offset"])
     assert "torque_offset" not in res.summary["added"]
     assert {c["effect"] for c in res.summary["candidates"]} <= {"cogging", "speed_offset"}
+
+
+def torque_log(truth: dict, rng: np.random.Generator) -> Log:
+    """A torque-driven log measured by a 4096-count encoder only (speed derived, as on EMPS):
+    a +-40 mN m triangle of period 20 s plus a 0.7 Hz sine, 60 s at 1 kHz."""
+    t = np.arange(60000) / 1000.0
+    tau = 0.04 * triangle(t, 1.0, 20.0) + 0.01 * np.sin(2 * np.pi * 0.7 * t)
+    cols, _ = synth_log(t, tau, truth, PAPER_NOISE, rng, torque_driven=True)
+    del cols["omega"]
+    log = Log(path="tau.csv", t=t, data=cols)
+    derive_missing(log)
+    return log
+
+
+@pytest.mark.parametrize("effect", ["", "cogging", "stribeck", "sensor_delay"])
+def test_torque_driven_encoder_only(effect):
+    """fit-nonlinear then diagnose on a torque-driven log whose speed is derived from the angle:
+    the derived speed is compared with the simulated angle's speed derived the same way."""
+    seed = 700 + len(effect)
+    rng = np.random.default_rng(seed)
+    truth = {**perturbed_truth(rng, 0.2, **VISIBLE.get(effect, {})), "dz": 0.0}  # no dead zone
+    log = torque_log(truth, rng)
+    model = Model()
+    fit_nonlinear([log], model).apply(model)
+    res = diagnose([log], model)
+    assert res.summary["added"] == ([effect] if effect else []), res.table()
+    if not effect:
+        assert res.summary["unexplained"] is False

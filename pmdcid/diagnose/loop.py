@@ -136,6 +136,16 @@ def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
     return masked_upper(dzs, cost, thr)
 
 
+def _gain(before: float, after: float, n: int) -> float:
+    """Share of the chi-square in excess of the noise (n samples) that a refit removed.
+
+    On a model that misses something large (real logs) this is the relative chi-square drop;
+    where the residual is mostly noise, a real effect removes most of the small excess. The
+    excess is taken as at least 5 % of the chi-square (noise levels are estimates).
+    """
+    return (before - after) / max(before - n, 0.05 * before, 1e-300)
+
+
 def _fits_as_well(problem: Problem, fo: FitOutcome, change: dict[str, float]) -> bool:
     """True when ``change`` applied to the fit ``fo`` raises the chi-square (all data) by at
     most two standard errors (4 x the reduced chi-square)."""
@@ -269,8 +279,8 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
             seen[s.effect] = c
             history.append(c)
             c.z = effect_z(eff, fo)
-            c.gain_fit = 1.0 - fo.chi2["fit"] / max(ref["fit"], 1e-300)
-            c.gain_held = 1.0 - fo.chi2["held"] / max(ref["held"], 1e-300) if n_held else 1
+            c.gain_fit = _gain(ref["fit"], fo.chi2["fit"], n_fit)
+            c.gain_held = _gain(ref["held"], fo.chi2["held"], n_held) if n_held else 1.0
             if (dbic < bic_threshold and (held is None or held < heldout_threshold)
                     and c.z >= min_z and min(c.gain_fit, c.gain_held) >= min_gain):
                 passing.append(c)

@@ -20,6 +20,7 @@ from scipy.optimize import least_squares
 from pmdcid.errors import FitError, LogError
 from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import noise_level
+from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
 from pmdcid.model.effects import effect_param_specs
 from pmdcid.model.params import BASE_PARAMS
 from pmdcid.simulate import SimResult, param_vector
@@ -48,6 +49,9 @@ class Channel:
     meas: np.ndarray
     sigma: float
     fit: np.ndarray  # bool over idx: fit part (True) or held-out (False)
+    #: the speed was derived from the angle (filter + derivative, cut-off [Hz]): the simulated
+    #: speed is derived the same way before the comparison
+    derived_cutoff: float | None = None
 
 
 @dataclass
@@ -142,7 +146,14 @@ class Problem:
             fit = log.t[idx] < log.t[0] + split * log.duration
             for s in measured:
                 x = np.asarray(log[s], float)
-                self.channels.append(Channel(k, s, idx, x[idx], noise_level(x), fit))
+                fc = log_cutoff(log) if s == "omega" and s in log.derived else None
+                sigma = noise_level(x)
+                if fc is not None and log.has("theta"):
+                    # filtered noise is smooth: its second differences say nothing. The angle's
+                    # noise (encoder quantisation) through the filter and derivative does.
+                    sigma = max(sigma, derivative_noise_gain(log.dt, fc, 1)
+                                * noise_std(np.asarray(log["theta"], float)))
+                self.channels.append(Channel(k, s, idx, x[idx], sigma, fit, fc))
         if not self.channels:
             raise LogError("no log carries current, speed or angle to compare the model with")
         self.blocked = [is_blocked(log) for log in self.logs]
@@ -157,6 +168,16 @@ class Problem:
     def simulate_all(self, vals: dict[str, float]) -> list[SimResult]:
         return [self.simulate(vals, k) for k in range(len(self.logs))]
 
+    def simulated(self, sims: list[SimResult], ch: Channel) -> np.ndarray:
+        """The simulated counterpart of channel ``ch`` at its samples: a derived speed compares
+        with the simulated angle's speed derived by the same zero-phase filter and derivative
+        (an unfiltered simulated speed would differ at every stick-slip edge)."""
+        sim = sims[ch.log]
+        if ch.derived_cutoff is not None:
+            log = self.logs[ch.log]
+            return speed_from_position(sim.theta, log.dt, ch.derived_cutoff)[ch.idx]
+        return sim.get(ch.signal)[ch.idx]
+
     def weighted(self, sims: list[SimResult], part: str = "fit") -> np.ndarray:
         """(measured - simulated) / sigma over the channels' samples of ``part``.
 
@@ -164,7 +185,7 @@ class Problem:
         """
         out = []
         for ch in self.channels:
-            r = (ch.meas - sims[ch.log].get(ch.signal)[ch.idx]) / ch.sigma
+            r = (ch.meas - self.simulated(sims, ch)) / ch.sigma
             r = np.where(np.isfinite(r), r, 0.0)
             out.append(r if part == "all" else r[ch.fit] if part == "fit" else r[~ch.fit])
         return np.concatenate(out)

@@ -73,8 +73,14 @@ def whiteness(problem: Problem, sims: list[SimResult]) -> list[Whiteness]:
     out = []
     for ch in problem.channels:
         if ch.signal == "theta":
-            continue
-        r = ch.meas - sims[ch.log].get(ch.signal)[ch.idx]
+            continue  # the angle integrates: never white
+        r = ch.meas - problem.simulated(sims, ch)
+        if ch.derived_cutoff is not None:
+            # a derived speed's noise is filtered, correlated over about 1/(2 fc): test the
+            # residual at that spacing, where filtered white noise is nearly white again
+            log = problem.logs[ch.log]
+            step = (ch.idx[1] - ch.idx[0]) * log.dt if len(ch.idx) > 1 else log.dt
+            r = r[:: max(1, int(math.ceil(1.0 / (2.0 * ch.derived_cutoff * step))))]
         r = r[np.isfinite(r)]
         if len(r) < 30:
             continue
