@@ -97,6 +97,19 @@ def _param_table(model, truth: dict[str, float]) -> str:
     return "\n".join(lines)
 
 
+#: file marking a folder as the demo's own output (the demo may rewrite it)
+MARKER = ".pmdcid-demo"
+
+
+def _check_demo_folder(out: Path) -> None:
+    """Refuse an existing folder that holds files and is not an earlier demo's output: the demo
+    writes model.json, summary.json and report/ there and must not overwrite a user's files."""
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
+        raise PmdcidError("folder holds files the demo did not write (it would overwrite "
+                          "model.json, summary.json, report/): give -o a new or empty folder",
+                          str(out))
+
+
 def _diagnose_available() -> bool:
     try:
         from pmdcid.diagnose import diagnose  # noqa: F401
@@ -114,7 +127,7 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
     from pmdcid.model import Model, save_model
     from pmdcid.report import check_out_dir, make_out_dir, make_report
 
-    check_out_dir(out_dir)
+    _check_demo_folder(check_out_dir(out_dir))
     data = demo_data_dir()
     blocked = sorted(data.glob("blocked_*.csv"))
     steps = sorted(data.glob("step_*.csv"))
@@ -124,6 +137,7 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
         truth = json.loads((data / "truth.json").read_text()).get("parameters", {})
     has_diag = _diagnose_available()
     out = make_out_dir(out_dir)
+    (out / MARKER).write_text("written by pmdcid demo; the demo rewrites this folder\n")
     echo(f"pmdcid demo: logs from {data} (the paper's motor plus an effect no stage is told of)")
     st = _Stage(echo, 5 if has_diag else 4)
     model = Model(path=str(out / "model.json"))

@@ -442,13 +442,9 @@ CASES: list[Case] = [
     C("fm-torque-driven-log", combine(MODEL, table("step.csv", {
         "t": T1K, "tau": np.where(T1K > 0.5, 0.02, 0.0), "omega": T1K})), FM, 1,
       r"^error: step\.csv: needs column\(s\) v for fit-mechanical"),
-    C("fm-km-not-positive", combine(STEP, MODEL), FM + ["--km", "-0.05"], 2, r"--km",
-      marks=(pytest.mark.xfail(strict=True, reason=(
-          "cmd_fit.py checks --km in the command body (exit 1, a line naming no file) where a "
-          "bad option value is a usage error (exit 2): type=FiniteFloat(min=0, min_open=True) "
-          "from cli/options.py would do")),)),
+    C("fm-km-not-positive", combine(STEP, MODEL), FM + ["--km", "-0.05"], 2, r"--km"),
     C("fm-bad-km", combine(STEP, MODEL), ["fit-mechanical", "step.csv", "-m", "model.json",
-                                          "--km", "fast"], 2, r"'fast' is not a valid float"),
+                                          "--km", "fast"], 2, r"'fast' is not a number"),
     # ---- fit-nonlinear ---------------------------------------------------------------------
     C("fn-before-fit-mechanical", combine(TRI, model(drop=("J", "bv", "bc", "dz"))), FN, 1,
       r"^error: model\.json: .*\bJ\b.*fit-mechanical"),
@@ -461,9 +457,7 @@ CASES: list[Case] = [
       r"^error: tri\.csv: "),
     C("fn-nothing-moves", combine(MODEL, table("tri.csv", {
         "t": T1K, "v": 0 * T1K, "i": 0 * T1K, "omega": 0 * T1K, "theta": 0 * T1K})), FN, 1,
-      r"^error: tri\.csv: ", marks=(pytest.mark.xfail(strict=True, reason=(
-          "fit-nonlinear (identify/nonlinear.py) fits a log with no excitation: rewrites J, bv, "
-          "bc, dz with stderr 0 and NRMSE inf instead of refusing")),)),
+      r"^error: tri\.csv: nothing moves"),
     C("fn-saturated-speed", combine(MODEL, _triangle_log("tri.csv", clip=0.8)), FN, 0,
       r"^warning: tri\.csv: column 'omega' .*saturat", changes=("model.json",)),
     # ---- report ----------------------------------------------------------------------------
@@ -486,9 +480,7 @@ CASES: list[Case] = [
       ["report", "step.csv", "-m", "model.json", "-o", "model.json"], 1, r"^error: model\.json: "),
     C("report-summary-deeply-nested", combine(STEP, MODEL, text("sum.json", "[" * 100000)),
       ["report", "step.csv", "-m", "model.json", "-o", "rep", "--summary", "sum.json"], 1,
-      r"^error: sum\.json: ", marks=(pytest.mark.xfail(strict=True, reason=(
-          "report's load_summary catches JSONDecodeError only: a RecursionError from deeply "
-          "nested JSON becomes an internal error")),)),
+      r"^error: sum\.json: .*nested"),
     C("report-model-missing", STEP, ["report", "step.csv", "-m", "model.json", "-o", "rep"], 1,
       r"^error: model\.json: "),
     C("report-model-incomplete", combine(STEP, model(only=("R", "L"))),

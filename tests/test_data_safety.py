@@ -189,13 +189,7 @@ def _stage_available(name):
         pytest.skip(f"{name} not available yet")
 
 
-NO_EXCITATION_XFAIL = pytest.mark.xfail(strict=True, reason=(
-    "fit-nonlinear (identify/nonlinear.py) 'fits' a log where nothing moves and rewrites J, bv, "
-    "bc, dz (stderr 0, NRMSE inf) instead of refusing"))
-
-
-@pytest.mark.parametrize("stage", [pytest.param(s, marks=NO_EXCITATION_XFAIL)
-                                   if s == "fit-nonlinear" else s for s in STAGES])
+@pytest.mark.parametrize("stage", STAGES)
 def test_failed_stage_leaves_model_byte_for_byte(tmp_path, monkeypatch, stage):
     """The stage reads a good model, then meets a log that cannot be fitted (no excitation)."""
     _stage_available(stage)
@@ -264,10 +258,6 @@ def test_report_reuses_a_folder_and_leaves_other_files(tmp_path, monkeypatch):
     assert _no_temp_files(rep)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "demo (pmdcid/demo.py) writes DIR/model.json, summary.json ... into an existing folder "
-    "without asking: a user's model.json there is overwritten; it should refuse a folder "
-    "holding files it did not write (or keep a backup)"))
 def test_demo_refuses_a_folder_holding_a_users_model(tmp_path, monkeypatch):
     """Refused up front: if demo starts fitting, the patched stage makes the test fail fast."""
     _stage_available("demo")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import main
-from pmdcid.cli.options import log_options, model_option
+from pmdcid.cli.options import FiniteFloat, log_options, model_option
 
 LOGS = click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False),
                       metavar="LOG...")
@@ -45,7 +45,7 @@ def fit_electrical_cmd(logs, model_path, mapping):
 @main.command("fit-mechanical")
 @LOGS
 @model_option()
-@click.option("--km", type=float, default=None, metavar="X",
+@click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
               help="Torque constant [N m/A] (datasheet); default: km from MODEL.")
 @log_options
 def fit_mechanical_cmd(logs, model_path, km, mapping):

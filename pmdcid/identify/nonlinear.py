@@ -318,6 +318,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
     sigma = [{s: noise_level(lg[s]) for s in signals if lg.has(s)} for lg in logs]
     if not any(sigma):
         raise FitError(f"no log carries {' or '.join(signals)} to fit")
+    _require_motion(logs, sigma)
     tscale = _torque_scale(logs, base_vals)
     best, nsets = ({k: start[k] for k in free}, 0)
     if grid:
@@ -379,6 +380,24 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
     _check(fit, est, tscale, warns)
     return NonlinearResult(est, fit, signals, [lg.path for lg in logs], start, best, nsets,
                            time.perf_counter() - t_start, warns)
+
+
+#: a signal whose span is below this many noise levels shows no motion
+MOTION_SIGMAS = 10.0
+
+
+def _require_motion(logs, sigma) -> None:
+    """Refuse logs where nothing moves: inertia and friction leave no trace in them."""
+    for lg, sg in zip(logs, sigma, strict=True):
+        for s, sd in sg.items():
+            x = np.asarray(lg[s], float)
+            x = x[np.isfinite(x)]
+            if len(x) and float(np.ptp(x)) > MOTION_SIGMAS * sd and float(np.ptp(x)) > 0:
+                return
+    names = ", ".join(sorted({s for sg in sigma for s in sg}))
+    raise FitError(f"nothing moves in this log ({names} stay within their noise): J, bv, "
+                   "bc, dz cannot be identified from it; give a log where the rotor turns (e.g. "
+                   "the triangular input)", logs[0].path)
 
 
 def _check(fit: SimFitResult, est, tscale, warns) -> None:

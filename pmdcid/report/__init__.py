@@ -103,6 +103,9 @@ def load_summary(path) -> dict:
     except json.JSONDecodeError as exc:
         raise PmdcidError(f"summary is not valid JSON (line {exc.lineno}: {exc.msg})",
                           str(path)) from None
+    except RecursionError:
+        raise PmdcidError("summary is nested too deeply to be a diagnose summary; give the "
+                          "file diagnose --summary wrote", str(path)) from None
     if not isinstance(obj, dict):
         raise PmdcidError("summary must hold a JSON object (diagnose --summary)", str(path))
     return obj
