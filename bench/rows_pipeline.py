@@ -153,12 +153,14 @@ def pmdcid_cmd() -> list[str]:
 
 def run_child(cmd: list[str], timeout: float = 600.0, cwd: str | None = None):
     """Run ``cmd``; return (seconds, peak RSS [bytes], exit code, stderr, CPU seconds) of that
-    child alone (its rusage from ``os.wait4``)."""
+    child alone (rusage from ``os.wait4``; peak RSS from /proc VmHWM polled while it runs)."""
     err = tempfile.TemporaryFile()
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, cwd=cwd)
     deadline = t0 + timeout
+    hwm = 0
     while True:
+        hwm = max(hwm, _vm_hwm(proc.pid))
         pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
         if pid:
             break
@@ -172,7 +174,23 @@ def run_child(cmd: list[str], timeout: float = 600.0, cwd: str | None = None):
     err.seek(0)
     text = err.read().decode(errors="replace")
     rss = usage.ru_maxrss * (1 if sys.platform == "darwin" else 1024)
+    if hwm:
+        # Linux carries the parent's RSS at fork into the child's ru_maxrss (kept across exec):
+        # the child's own high-water mark (VmHWM, read while it runs) is the true figure
+        rss = hwm
     return seconds, rss, proc.returncode, text, usage.ru_utime + usage.ru_stime
+
+
+def _vm_hwm(pid: int) -> int:
+    """Peak resident set [bytes] of a running process (Linux /proc VmHWM), 0 if unknown."""
+    try:
+        with open(f"/proc/{pid}/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0
 
 
 def demo_rows(b1: Stats, quick: bool, tmp: Path) -> list[Row]:
