@@ -97,7 +97,7 @@ def _nonlinear(logs, signals=None):
 
 @pytest.fixture(scope="module")
 def nonlinear_fit(logs):
-    """fit-nonlinear with its defaults (the measured signal: the position)."""
+    """fit-nonlinear with its defaults (the speed, derived from the encoder)."""
     return _nonlinear(logs)
 
 
@@ -115,10 +115,10 @@ def test_simulation_error_fit_beats_the_authors_open_loop(logs):
 
 
 @pytest.mark.skipif(not HAVE_NONLINEAR, reason="fit-nonlinear not there yet")
-@pytest.mark.xfail(strict=True, reason="issue #6 targets not all met by fit-nonlinear's "
-                   "defaults: the symmetric friction model cannot fit the screw's asymmetric "
-                   "viscous friction, so its parameters depend on the criterion; see "
-                   "docs/examples/emps.md")
+@pytest.mark.xfail(strict=True, reason="issue #6 targets not all met: offset +9.9 % and "
+                   "validation error 6.55 % > 6.3 % before diagnose; the symmetric friction model "
+                   "cannot fit the screw's direction-dependent viscous friction, so the offset "
+                   "depends on the criterion; see docs/examples/emps.md")
 def test_issue_targets_offset_and_validation_error(logs, nonlinear_fit):
     """All of issue #6's EMPS targets with fit-nonlinear's defaults: J, bv, bc, offset within
     5 %, validation error <= 6.3 % before diagnose and lower after it (diagnose on the
