@@ -28,17 +28,13 @@ def noise_level(x: np.ndarray) -> float:
 
     For a quantised signal (encoder angle) the floor is quantum/sqrt(12).
     """
+    from pmdcid.io.derive import noise_std
+
     x = np.asarray(x, float)
     x = x[np.isfinite(x)]
     if len(x) < 5:
         return 1.0
-    d2 = np.diff(x, 2)
-    s = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-    d1 = np.abs(np.diff(x))
-    nz = d1[d1 > 0]
-    if len(nz):
-        q = float(np.min(nz))
-        s = max(s, q / math.sqrt(12.0))
+    s = noise_std(x)
     if s <= 0 or not math.isfinite(s):
         s = max(float(np.std(x)) * 1e-3, 1e-12)
     return s

@@ -319,10 +319,10 @@ def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, st
     return buf.getvalue()
 
 
-def atomic_write(path: str | os.PathLike, fill) -> None:
-    """Write ``path`` atomically: ``fill(fh)`` writes a temporary file in the same folder, which
-    then replaces ``path`` (os.replace). On any failure the temporary file is removed and an
-    existing ``path`` is left byte-for-byte as it was.
+def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
+    """Write ``path`` atomically: ``fill(fh)`` writes a temporary file in the same folder (opened
+    in binary mode when ``binary``), which then replaces ``path`` (os.replace). On any failure
+    the temporary file is removed and an existing ``path`` is left byte-for-byte as it was.
     """
     p = Path(path)
     folder = p.parent if str(p.parent) else Path(".")
@@ -338,7 +338,7 @@ def atomic_write(path: str | os.PathLike, fill) -> None:
     except OSError as exc:
         raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
     try:
-        with os.fdopen(fd, "w") as fh:
+        with os.fdopen(fd, "wb" if binary else "w") as fh:
             fill(fh)
             fh.flush()
             os.fsync(fh.fileno())

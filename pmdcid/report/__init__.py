@@ -53,23 +53,9 @@ def make_out_dir(out_dir) -> Path:
 
 def write_bytes_atomic(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    except OSError as exc:
-        raise LogError(f"cannot write here ({exc.strerror})", str(path.parent)) from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        if isinstance(exc, OSError):
-            raise LogError(f"cannot write ({exc.strerror})", str(path)) from None
-        raise
+    from pmdcid.io.logs import atomic_write
+
+    atomic_write(path, lambda fh: fh.write(data), binary=True)
 
 
 def _clean(x):
