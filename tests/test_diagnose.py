@@ -35,6 +35,7 @@ VISIBLE = {
     "speed_offset": {"omega0": 0.5},
     "voltage_saturation": {"vmax": 1.5},
     "brush_drop": {"vb": 0.3},
+    "viscous_asymmetry": {"dbv": 0.008},
 }
 #: held-out targets (issue #5)
 HELD_MAX = 0.02

@@ -62,6 +62,20 @@ def quadratic_probe(ctx: ResidualContext) -> float:
     return PROBE * ctx.torque_scale / ctx.speed_scale**2
 
 
+def viscous_probe(ctx: ResidualContext) -> float:
+    """[N m s/rad] a viscous difference giving a few percent of the friction torque at the
+    typical speed."""
+    return PROBE * ctx.torque_scale / ctx.speed_scale
+
+
+def viscous_asymmetry_limits(ctx: ResidualContext) -> dict[str, tuple[float, float]]:
+    """|dbv| below 0.9 bv: the viscous friction stays positive in both directions."""
+    bv = ctx.values.get("bv", math.nan)
+    if not (math.isfinite(bv) and bv > 0):
+        return {}
+    return {"dbv": (-0.9 * bv, 0.9 * bv)}
+
+
 def back_emf_probe(ctx: ResidualContext) -> float:
     """[V s/rad] a few percent of km (ke = km in SI units)."""
     km = ctx.values.get("km", math.nan)
@@ -172,4 +186,5 @@ def saturation_guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> d
 __all__ = [
     "angle_spectrum", "cogging_guess", "cogging_signature", "linear", "saturation_guess",
     "saturation_signature", "stribeck_guess", "stribeck_limits", "stribeck_signature",
+    "viscous_asymmetry_limits", "viscous_probe",
 ]

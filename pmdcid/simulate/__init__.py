@@ -14,9 +14,13 @@ import numpy as np
 from pmdcid.errors import ModelError
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.params import BASE_PARAMS
-from pmdcid.simulate.kernel import choose_substeps, run_kernel
-from pmdcid.simulate.layout import INDEX, NAMES, SENSOR_NAMES
-from pmdcid.simulate.sensors import apply_sensors
+from pmdcid.simulate.cache import invalidate_if_stale
+
+invalidate_if_stale()  # before anything compiled is loaded from the cache
+
+from pmdcid.simulate.kernel import choose_substeps, run_kernel  # noqa: E402
+from pmdcid.simulate.layout import INDEX, NAMES, SENSOR_NAMES  # noqa: E402
+from pmdcid.simulate.sensors import apply_sensors  # noqa: E402
 
 
 @dataclass

@@ -17,6 +17,7 @@ from pmdcid.simulate.layout import (
     CA,
     CN,
     CPHI,
+    DBV,
     DZ,
     DZ_OFFSET,
     DZ_SLOPE,
@@ -89,13 +90,16 @@ def static_friction(p) -> float:
 def sliding_friction(p, omega: float, direction: float) -> float:
     """Friction torque [N m] while sliding in ``direction`` (+1/-1), less the viscous bv*omega.
 
-    Coulomb bc, Stribeck fs*exp(-(omega/ws)^2) and quadratic drag bq*omega*|omega|.
+    Coulomb bc, Stribeck fs*exp(-(omega/ws)^2), quadratic drag bq*omega*|omega| and the
+    direction-dependent part of the viscous friction dbv*|omega| (viscous bv + dbv forward,
+    bv - dbv backward).
     """
     f = direction * p[BC]
     if p[FS] > 0.0:
         r = omega / p[WS]
         f += direction * p[FS] * math.exp(-r * r)
     f += p[BQ] * omega * abs(omega)
+    f += p[DBV] * abs(omega)
     return f
 
 
