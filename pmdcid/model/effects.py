@@ -175,6 +175,8 @@ register(Effect(
     ("R",),
     **sg.linear("vb", sg.voltage_probe),
 ))
+
+
 def _viscous_probe(ctx) -> float:
     """[N m s/rad] a viscous difference worth a few percent of the torque at the typical speed."""
     return sg.PROBE * ctx.torque_scale / ctx.speed_scale
