@@ -177,19 +177,6 @@ register(Effect(
 ))
 
 
-def _viscous_probe(ctx) -> float:
-    """[N m s/rad] a viscous difference worth a few percent of the torque at the typical speed."""
-    return sg.PROBE * ctx.torque_scale / ctx.speed_scale
-
-
-def _viscous_asymmetry_limits(ctx) -> dict[str, tuple[float, float]]:
-    """|dbv| below 0.9 bv: the viscous friction stays positive in both directions."""
-    bv = ctx.values.get("bv", math.nan)
-    if not (math.isfinite(bv) and bv > 0):
-        return {}
-    return {"dbv": (-0.9 * bv, 0.9 * bv)}
-
-
 register(Effect(
     "viscous_asymmetry",
     "Viscous friction that depends on the direction of motion: friction gains dbv*|omega|, i.e. "
@@ -201,6 +188,6 @@ register(Effect(
                -1e6, 1e6),),
     "mechanical",
     ("bv", "tau0"),
-    **sg.linear("dbv", _viscous_probe, positive=False),
-    limits=_viscous_asymmetry_limits,
+    **sg.linear("dbv", sg.viscous_probe, positive=False),
+    limits=sg.viscous_asymmetry_limits,
 ))
