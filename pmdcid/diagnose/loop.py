@@ -338,6 +338,14 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
                 se = profile_stderr(problem, final.values, name, final.stats.redchi)
                 if math.isfinite(se) and not se <= est.stderr:
                     final.estimates[name] = Estimate(name, est.value, se, est.unit)
+        # the refits' errors assume white residuals; on real data the residual is correlated
+        hac, info = problem.correlated_stderr(final.values, list(final.estimates))
+        for name, se in hac.items():
+            est = final.estimates[name]
+            if math.isfinite(se) and se > est.stderr and name in free:
+                final.estimates[name] = Estimate(name, est.value, se, est.unit)
+        if info is not None and info.inflation > 1.5:
+            notes.append(info.describe())
         for e in added:
             new.add_effect(e)
             for p in EFFECTS[e].held:

@@ -18,8 +18,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError, LogError
+from pmdcid.identify.covariance import CovarianceInfo, block_covariance
 from pmdcid.identify.results import Estimate, FitStats
-from pmdcid.identify.simfit import noise_level
+from pmdcid.identify.simfit import envelope_jacobian, noise_level
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
 from pmdcid.model.effects import effect_param_specs
 from pmdcid.model.params import BASE_PARAMS
@@ -264,6 +265,41 @@ class Problem:
                for nm, e in zip(free, se, strict=True)}
         c = self.chi2(out)
         return FitOutcome(out, est, stats, c, {p: self.count(p) for p in c})
+
+    def correlated_stderr(self, vals: dict[str, float], free: Sequence[str],
+                          rel: float = 1e-2) -> tuple[dict[str, float], CovarianceInfo | None]:
+        """Standard errors of ``free`` at ``vals`` on all the data, allowing for a residual
+        correlated in time (block sandwich, :mod:`pmdcid.identify.covariance`): the refits'
+        white-residual errors count every sample as independent evidence. Central differences
+        with relative step ``rel`` (2 simulations per parameter)."""
+        free = [n for n in free if n in vals]
+        if not free:
+            return {}, None
+        x0 = np.array([vals[n] for n in free], float)
+        scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
+
+        def resid(z):
+            v = dict(vals)
+            v.update(zip(free, z * scale, strict=True))
+            return self.weighted(self.simulate_all(v), "all")
+
+        z0 = x0 / scale
+        f0 = resid(z0)
+        lo = np.array([bounds_of(n)[0] for n in free]) / scale
+        hi = np.array([bounds_of(n)[1] for n in free]) / scale
+        jm = envelope_jacobian(resid, z0, f0, lo, hi, rel) / scale[None, :]
+        segments, row = [], 0
+        for ch in self.channels:
+            segments.append(((ch.log, len(ch.idx)), row, row + len(ch.idx)))
+            row += len(ch.idx)
+        n = len(f0)
+        try:
+            white = np.linalg.pinv(jm.T @ jm) * float(f0 @ f0) / max(n - len(free), 1)
+            cov, info = block_covariance(jm, f0, segments, white)
+        except np.linalg.LinAlgError:
+            return {}, None
+        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+        return dict(zip(free, (float(e) for e in se), strict=True)), info
 
 
 __all__ = ["BLOCKED", "Channel", "FitOutcome", "Problem", "is_blocked"]

@@ -104,6 +104,7 @@ class NonlinearResult:
             "logs": self.paths, "signals": list(self.signals),
             "nrmse": self.nrmse, "redchi": self.stats.redchi, "ndata": self.stats.ndata,
             "bc_dz_correlation": r if math.isfinite(r) else None,
+            "covariance": self.fit.covariance.as_dict() if self.fit.covariance else None,
         }
 
     def table(self) -> str:
@@ -111,6 +112,8 @@ class NonlinearResult:
                  f"({len(self.paths)} log(s); grid {self.grid_sets} sets, then least squares)",
                  ""]
         lines += format_estimates(list(self.estimates.values()))
+        if self.fit.covariance and self.fit.covariance.inflation > 1.5:
+            lines.append(self.fit.covariance.describe())
         r = self.bc_dz_correlation
         if math.isfinite(r):
             lines.append(f"correlation bc-dz {r:+.3f}")

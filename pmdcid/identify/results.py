@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pmdcid.identify.covariance import CovarianceInfo
+
 
 @dataclass
 class Estimate:
@@ -65,6 +67,8 @@ class SimFitResult:
     correl: dict[str, dict[str, float]] = field(default_factory=dict)
     nrmse: list[dict[str, float]] = field(default_factory=list)  # per log: signal -> NRMSE
     sigma: list[dict[str, float]] = field(default_factory=list)  # per log: signal -> weight std
+    #: how the covariance allowed for correlated residuals (None: white-residual formula)
+    covariance: CovarianceInfo | None = None
 
     def values(self) -> dict[str, float]:
         return {k: e.value for k, e in self.estimates.items()}

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError
+from pmdcid.identify.covariance import block_covariance
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.model import Model
 from pmdcid.model.params import BASE_PARAMS
@@ -81,7 +82,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
                    bounds: dict[str, tuple[float, float]] | None = None,
                    sigma: list[dict[str, float]] | None = None, max_nfev: int = 200,
                    diff_step: float | dict[str, float] = 1e-3, nsub: int | None = None,
-                   cov_step: float = 1e-2) -> SimFitResult:
+                   cov_step: float = 1e-2, correlated: bool = True) -> SimFitResult:
     """Fit ``free`` parameters of ``model`` by simulation error on ``logs``.
 
     Other parameters stay at the model's values (effects not in ``model.effects`` off).
@@ -89,6 +90,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     ``sigma`` gives per-log noise std per signal (estimated when omitted). ``diff_step``: relative
     finite-difference step, one for all or per parameter name (default 1e-3). ``cov_step``: relative
     step of the central differences giving the covariance (standard errors, correlations).
+    ``correlated``: the covariance allows for a residual correlated in time (block sandwich,
+    :mod:`.covariance`); False gives the white-residual formula ``(J'J)^-1 redchi``.
     Returns a :class:`SimFitResult`; the model is not modified.
     """
     free = list(free)
@@ -108,12 +111,15 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
     sig_list = sigma or []
     plan = []  # (log index, signal, measured, sigma)
+    segments = []  # (log index, first row, end row) of each signal in the residual vector
     for k, log in enumerate(logs):
         sigs = available_signals(log, signals)
         given = sig_list[k] if k < len(sig_list) else {}
         for s in sigs:
             meas = log[s]
             plan.append((k, s, meas, float(given.get(s, noise_level(meas)))))
+            row = segments[-1][2] if segments else 0
+            segments.append((k, row, row + len(meas)))
     if not plan:
         raise FitError(f"no log carries any of the signals {', '.join(signals)} to fit")
     ndata = int(sum(np.isfinite(m).sum() for _, _, m, _ in plan))
@@ -153,10 +159,13 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     # parameter like dz (a zero column, hence a zero standard error): the covariance uses
     # central differences over a wider step, the slope of the cost's smooth envelope.
     with blas_single_thread():
-        Jm = _envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale,
+        Jm = envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale,
                                 cov_step) / scale[None, :]
+    info = None
     try:
         cov = np.linalg.pinv(Jm.T @ Jm) * stats.redchi
+        if correlated:
+            cov, info = block_covariance(Jm, sol.fun, segments, cov)
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = cov / np.outer(se, se)
@@ -174,10 +183,10 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     for k, s, meas, sd in plan:
         errs[k][s] = nrmse(final[k].get(s), meas)
         sig_out[k][s] = sd
-    return SimFitResult(est, stats, correl, errs, sig_out)
+    return SimFitResult(est, stats, correl, errs, sig_out, info)
 
 
-def _envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
+def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
     """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one-sided at a
     bound); columns that still come out zero fall back to a 5x wider step."""
     cols = []
