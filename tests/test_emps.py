@@ -79,7 +79,11 @@ def test_our_inverse_dynamics_within_5_percent(logs):
     assert res.cutoff_hz == pytest.approx(100.0)  # a fine encoder: the benchmark's own cut-off
     for name, rel in _rel(res.values()).items():
         assert abs(rel) < 0.05, name
-        assert res.estimates[name].rel_stderr < 0.02, name
+        # standard errors allow for the correlated residual (model error): a few %, and the
+        # authors' values lie within 3 of them (the white formula gave 0.07-0.75 % and put the
+        # authors' values 4-12 of its standard errors away)
+        assert res.estimates[name].rel_stderr < 0.1, name
+        assert abs(res.estimates[name].value - AUTHORS[name]) < 3 * res.estimates[name].stderr
     assert res.warnings == []
 
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.identify.covariance import block_covariance
 from pmdcid.identify.results import Estimate
 from pmdcid.io.derive import check_cutoff, choose_cutoff, log_cutoff, log_kinematics, lowpass
 from pmdcid.model import Model
@@ -170,13 +171,15 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
     if not logs:
         raise FitError("no logs given to the inverse-dynamics fit")
     rows, ys, warns = [], [], []
-    fcs, k_used = [], 1
+    fcs, k_used, segments = [], 1, []
     for log in logs:
         X, y, fc, k_used = regression_rows(log, model, cutoff_hz, rest_fraction, centre_zoh)
         fcs.append(fc)
         if len(y) == 0 or np.abs(X[:, 1]).max() <= 0:
             warns.append(f"{log.path}: never moves: left out of the inverse-dynamics fit")
             continue
+        first = segments[-1][2] if segments else 0
+        segments.append((len(segments), first, first + len(y)))
         rows.append(X)
         ys.append(y)
     if not rows:
@@ -203,6 +206,8 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
     n, p = X.shape
     s2 = float(resid @ resid) / max(n - p, 1)
     cov = np.linalg.inv(Xs.T @ Xs) * s2 / np.outer(scale, scale)
+    # the torque residual is model error, correlated in time: block sandwich (covariance.py)
+    cov, _ = block_covariance(X, resid, segments, cov)
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     units = _units()
     est = {nm: Estimate(nm, float(v), float(e), units[nm]) for nm, v, e in
