@@ -193,7 +193,10 @@ def _joint(logs, steps, reps, warns) -> ElectricalResult:
             parts.append((model - log["i"]) / sig[k])
         return np.concatenate(parts)
 
-    cf = lsq(resid, x0, lo, hi, names)
+    ends = np.cumsum([len(log["i"]) for log in logs])
+    cf = lsq(resid, x0, lo, hi, names,
+             segments=[(k, int(e - len(log["i"])), int(e)) for k, (log, e)
+                       in enumerate(zip(logs, ends, strict=True))])
     g, c, tau = cf["G"], cf["i0"], cf["tau"]
     if g <= 0:
         raise FitError("blocked-rotor fit gives a non-positive conductance: check the sign of the "

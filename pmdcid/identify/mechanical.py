@@ -285,7 +285,10 @@ def _joint(res: MechanicalResult, data, tau_e) -> None:
     if x0[2] == 0.0:
         x0[2] = 1e-3 * max(abs(T) for _, _, T, _ in data)
     x0[3] = max(x0[3], x0[2])
-    cf = lsq(resid, x0, lo, hi, ("J", "bv", "bc", "T_break"))
+    ends = np.cumsum([len(w) for _, w, _, _ in data])
+    cf = lsq(resid, x0, lo, hi, ("J", "bv", "bc", "T_break"),
+             segments=[(k, int(e - len(d[1])), int(e)) for k, (d, e)
+                       in enumerate(zip(data, ends, strict=True))])
     if not cf.success or not np.all(np.isfinite(cf.values)):
         res.warnings.append("the joint fit of the steps did not converge: bv, bc, J from the "
                             "steady-speed line are written")

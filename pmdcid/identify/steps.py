@@ -18,6 +18,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError
+from pmdcid.identify.covariance import block_covariance
 from pmdcid.identify.simfit import blas_single_thread
 
 #: Strejc's table: Tu/Tn of the tangent at the inflection point for n equal lags, n = 1..6
@@ -189,8 +190,10 @@ class CurveFit:
         return float(self.stderr[self.names.index(name)])
 
 
-def lsq(fun, x0, lo, hi, names, ndata: int | None = None) -> CurveFit:
-    """scipy ``least_squares`` (TRF) on residual ``fun(x)``; stderr from J'J scaled by s^2."""
+def lsq(fun, x0, lo, hi, names, ndata: int | None = None, segments=None) -> CurveFit:
+    """scipy ``least_squares`` (TRF) on residual ``fun(x)``; standard errors from J'J scaled by
+    s^2, in the sandwich that allows for a residual correlated in time (:mod:`.covariance`).
+    ``segments``: (log, first, end) rows of each log in the residual (default: one log)."""
     x0 = np.clip(np.asarray(x0, float), lo, hi)
     scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
     with blas_single_thread():
@@ -204,6 +207,7 @@ def lsq(fun, x0, lo, hi, names, ndata: int | None = None) -> CurveFit:
     Jm = sol.jac / scale[None, :]
     try:
         cov = np.linalg.pinv(Jm.T @ Jm) * s2
+        cov, _ = block_covariance(Jm, r, segments or [(0, 0, len(r))], cov)
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
     except np.linalg.LinAlgError:
         se = np.full(len(x), math.nan)
