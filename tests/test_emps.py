@@ -215,6 +215,6 @@ def test_criteria_script_in_the_docs_runs(capsys, monkeypatch):
     runpy.run_path(str(FIX.parents[1] / "docs" / "examples" / "emps_criteria.py"),
                    run_name="__main__")
     out = capsys.readouterr().out
-    for label in ("default: speed", "weighted by spread", "residual-weighted",
+    for label in ("default: speed", "weighted by spread", "residual-weighted", "DIDIM",
                   "least absolute", "best symmetric model", "undeclared load"):
         assert label in out, label
