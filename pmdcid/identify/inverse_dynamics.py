@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
@@ -147,7 +148,7 @@ def regression_rows(log, model: Model | None = None, cutoff_hz: float | None = N
     # (widened by one period of the cut-off: the parallel filter spreads their error)
     slow = np.abs(kin.omega) < rest_fraction * np.percentile(np.abs(kin.omega), 99)
     width = int(math.ceil(1.0 / (fc * log.dt)))
-    slow = np.convolve(slow.astype(float), np.ones(2 * width + 1), mode="same") > 0
+    slow = maximum_filter1d(slow.astype(np.uint8), 2 * width + 1, mode="constant") > 0
     keep &= ~slow
     return Xf[keep], yf[keep], fc, k
 
@@ -224,3 +225,39 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
     rel = 100.0 * float(np.linalg.norm(resid) / np.linalg.norm(y)) if np.any(y) else math.nan
     return InverseDynamicsResult(est, rel, n, float(min(fcs)), k_used,
                                  float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf, warns)
+
+
+def fit_quasi_static(logs, model: Model | None = None,
+                     rest_fraction: float = REST_FRACTION) -> dict[str, float]:
+    """Torque on speed, sign(speed) and 1 at the samples themselves (no filter, no acceleration):
+    bv [N m s/rad], bc [N m] and tau0 [N m] when the sampling is too slow to resolve the
+    acceleration, so that :func:`fit_inverse_dynamics` has nothing to regress on. A start for
+    the simulation-error fit, not an estimate: J is left out. Raises :class:`FitError` when the
+    speed never leaves rest or the rows cannot separate the terms."""
+    rows, ys = [], []
+    for log in logs:
+        # the speed at t_k follows the torque held over the period before it, u[k-1]
+        tau = applied_torque(log, model)[:-1]
+        om = (np.asarray(log["omega"], float) if log.has("omega") else np.gradient(
+            np.asarray(log["theta"], float), log.dt))[1:]
+        ok = np.isfinite(om) & np.isfinite(tau)
+        if not ok.any():
+            continue
+        moving = ok & (np.abs(om) > rest_fraction * np.percentile(np.abs(om[ok]), 99))
+        rows.append(np.column_stack([om[moving], np.sign(om[moving]), np.ones(moving.sum())]))
+        ys.append(tau[moving])
+    X = np.vstack(rows) if rows else np.zeros((0, 3))
+    y = np.concatenate(ys) if ys else np.zeros(0)
+    if len(y) < 10:
+        raise FitError("the speed never leaves rest: no quasi-static start either")
+    sgn = X[:, 1]
+    both = min((sgn > 0).mean(), (sgn < 0).mean()) >= 0.01
+    if not both:
+        X = X[:, :2]
+    theta, _, rank, _ = np.linalg.lstsq(X, y, rcond=None)
+    if rank < X.shape[1]:
+        raise FitError("torque and speed do not separate viscous from Coulomb friction")
+    out = {"bv": float(theta[0]), "bc": float(theta[1]), "tau0": float(theta[2]) if both else 0.0}
+    if out["bv"] <= 0:
+        raise FitError(f"a quasi-static fit gives a non-positive bv = {out['bv']:.3g}")
+    return out

@@ -28,6 +28,7 @@ import numpy as np
 
 from pmdcid.errors import FitError, ModelError
 from pmdcid.identify.grid import batch_cost
+from pmdcid.identify.identifiability import poorly_determined_warning
 from pmdcid.identify.results import Estimate, SimFitResult
 from pmdcid.identify.simfit import (
     blas_single_thread,
@@ -150,20 +151,32 @@ def default_signals(logs) -> tuple[str, ...]:
                    "(map one with -c)")
 
 
-def _start_values(logs, model: Model, free, warns) -> dict[str, float]:
+def _start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set[str]]:
     """Starting values: the model's (fit-mechanical) for voltage logs, inverse dynamics for
-    torque-driven logs (falling back on the model)."""
+    torque-driven logs, else a quasi-static fit with J from a one-sample time constant (too slow
+    a sampling to see the acceleration), else the model. Returns (start, names guessed)."""
+    from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics, fit_quasi_static
+
     start: dict[str, float] = {}
+    guessed: set[str] = set()
     tau_logs = [lg for lg in logs if lg.drive == "tau"]
     if tau_logs:
         try:
-            from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics
-
             idm = fit_inverse_dynamics(tau_logs, model)
             start.update({k: v for k, v in idm.values().items() if math.isfinite(v)})
             warns.extend(idm.warnings)
         except FitError as exc:
-            warns.append(f"inverse dynamics gave no start ({exc}); starting from the model")
+            try:
+                start.update(fit_quasi_static(tau_logs, model))
+                if not model.has("J"):
+                    start["J"] = start["bv"] * max(lg.dt for lg in tau_logs)
+                    guessed.add("J")
+                warns.append(f"inverse dynamics gave no start ({exc}); bv, bc, tau0 start from "
+                             "the torque against the speed (quasi-static), J from a mechanical "
+                             "time constant of one sample period")
+            except FitError as exc2:
+                warns.append(f"inverse dynamics gave no start ({exc}; {exc2}); starting from "
+                             "the model")
     for name in ("J", "bv", "bc", "dz", "tau0"):
         if name not in start and model.has(name):
             start[name] = model.value(name)
@@ -171,8 +184,10 @@ def _start_values(logs, model: Model, free, warns) -> dict[str, float]:
         start["bv"] = model.value("b")
     missing = [n for n in ("J", "bv") if n not in start]
     if missing:
-        raise ModelError(f"model lacks {', '.join(missing)} to start fit-nonlinear: run "
-                         "fit-mechanical first", model.path)
+        how = ("put them in the model: the torque-driven logs gave no start" if tau_logs
+               else "run fit-mechanical first")
+        raise ModelError(f"model lacks {', '.join(missing)} to start fit-nonlinear: {how}",
+                         model.path)
     start.setdefault("bc", 0.0)
     start["bc"] = max(start["bc"], 0.0)
     start["bv"] = max(start["bv"], 1e-3 * start["J"])
@@ -180,7 +195,7 @@ def _start_values(logs, model: Model, free, warns) -> dict[str, float]:
         tb = model.extra.get("fits", {}).get("fit-mechanical", {}).get("breakaway_torque")
         start["dz"] = float(tb) if isinstance(tb, (int, float)) and tb > 0 else start["bc"]
     start.setdefault("tau0", 0.0)
-    return start
+    return start, guessed
 
 
 def _torque_scale(logs, vals) -> float:
@@ -310,7 +325,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
     work = model.copy()
     if "tau0" in free:
         work.add_effect("torque_offset")
-    start = _start_values(logs, work, free, warns)
+    start, guessed = _start_values(logs, work, free, warns)
     if "dz" not in free and not work.has("dz"):
         start["dz"] = 0.0  # no dead zone unless the model has one or it is fitted
     for name in ("J", "bv", "bc", "dz", "tau0"):
@@ -343,7 +358,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
         # its finite-difference step as large as 1 N m
         if k in ls_free and best[k] == 0.0:
             best[k] = 1e-3 * tscale
-    bounds = {k: (start[k] / REFINE_RANGE, start[k] * REFINE_RANGE)
+    bounds = {k: (start[k] / REFINE_RANGE ** (3 if k in guessed else 1),
+                  start[k] * REFINE_RANGE)
               for k in ("J", "bv") if k in free and start[k] > 0}
     fit = fit_simulation(logs, work, ls_free, signals=signals,
                          start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
@@ -380,7 +396,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
                      f"{est['bc'].value if 'bc' in est else point.get('bc', 0):.3g} N m: the rotor "
                      "only moves while the torque exceeds bc); written as the interval's "
                      "midpoint ± its uniform std. Fast reversals or steps down reveal it")
-    _check(fit, est, tscale, warns)
+    _check(fit, est, tscale, warns, masked)
     return NonlinearResult(est, fit, signals, [lg.path for lg in logs], start, best, nsets,
                            time.perf_counter() - t_start, warns)
 
@@ -398,12 +414,18 @@ def _require_motion(logs, sigma) -> None:
             if len(x) and float(np.ptp(x)) > MOTION_SIGMAS * sd and float(np.ptp(x)) > 0:
                 return
     names = ", ".join(sorted({s for sg in sigma for s in sg}))
-    raise FitError(f"nothing moves in this log ({names} stay within their noise): J, bv, "
-                   "bc, dz cannot be identified from it; give a log where the rotor turns (e.g. "
-                   "the triangular input)", logs[0].path)
+    raise FitError(f"nothing moves in this log ({names} stay within their noise, estimated "
+                   "from sample-to-sample changes): J, bv, bc, dz cannot be identified from it; "
+                   "give a log where the rotor turns (e.g. the triangular input), sampled "
+                   "faster than its mechanical time constant", logs[0].path)
 
 
-def _check(fit: SimFitResult, est, tscale, warns) -> None:
+def _check(fit: SimFitResult, est, tscale, warns, masked: bool) -> None:
+    judged = {k: e for k, e in est.items() if not (masked and k == "dz")}  # dz: warned above
+    bc = est["bc"].value if "bc" in est else 0.0
+    w = poorly_determined_warning(judged, max(bc, 0.01 * tscale))
+    if w:
+        warns.append(w)
     r = fit.correlation("bc", "dz")
     if math.isfinite(r) and abs(r) > 0.9:
         warns.append(f"bc and dz are strongly correlated ({r:+.2f}): the logs hardly tell "
