@@ -110,3 +110,19 @@ def test_no_motion_is_a_fit_error(tmp_path):
     write_log(p, t, {"tau": np.full_like(t, 0.001), "theta": np.zeros_like(t)})
     with pytest.raises(FitError, match="moves"):
         fit_inverse_dynamics([read_log(p)])
+
+
+def test_slow_short_log_fails_cleanly():
+    """200 samples 2 s apart (the mechanical time constant is 0.1 s): the cut-off the noise rule
+    picks is below one cycle per log, and the rest rows' widening spans more than the log. A
+    FitError saying why, never a numpy broadcasting error."""
+    from pmdcid.io.logs import Log
+    from pmdcid.simulate import simulate_values
+
+    t = np.arange(200) * 2.0
+    u = 0.02 + 0.025 * np.sin(2 * np.pi * t / 37) + 0.01 * np.sign(np.sin(2 * np.pi * t / 9.1))
+    om = simulate_values(t, u, {**neutral_values(), **PAPER}, torque_driven=True).omega
+    om = om + np.random.default_rng(1).normal(0, 0.02 * np.std(om), len(t))
+    log = Log(path="slow.csv", t=t, data={"tau": u, "omega": om})
+    with pytest.raises(FitError):
+        fit_inverse_dynamics([log])
