@@ -285,6 +285,13 @@ def _joint(res: MechanicalResult, data, tau_e) -> None:
     if x0[2] == 0.0:
         x0[2] = 1e-3 * max(abs(T) for _, _, T, _ in data)
     x0[3] = max(x0[3], x0[2])
+    # the breakaway torque delays each response by a time that, sampled slowly, is a fraction of
+    # a sample: the cost has side minima in it (e.g. just below the smallest step's torque, which
+    # then barely starts); start from the best of a grid from bc to the largest step's torque
+    grid = np.linspace(x0[2], max(abs(T) for _, _, T, _ in data), 41)
+    costs = [float(np.sum(resid([x0[0], x0[1], x0[2], g]) ** 2)) for g in grid]
+    if min(costs) < float(np.sum(resid(x0) ** 2)):
+        x0[3] = float(grid[int(np.argmin(costs))])
     ends = np.cumsum([len(w) for _, w, _, _ in data])
     cf = lsq(resid, x0, lo, hi, ("J", "bv", "bc", "T_break"),
              segments=[(k, int(e - len(d[1])), int(e)) for k, (d, e)
