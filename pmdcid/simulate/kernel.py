@@ -191,12 +191,21 @@ def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compile
     return out
 
 
+#: internal steps per mechanical time constant. The linear dynamics are exact at any step (the
+#: matrix exponential), but a stop or a breakaway is placed to within one internal step, an
+#: error of about h / tau of the transient (2 %): measured on a fast motor (tau = 10 ms), the
+#: speed's RMS error against a 200-substep reference halves with each halving of h
+STEPS_PER_TAU = 50.0
+
+
 def choose_substeps(dt: float, p: np.ndarray, h_max: float | None = None) -> int:
-    """Internal steps per sample: h <= min(1 ms, tau_mech/20) unless ``h_max`` [s] is given."""
+    """Internal steps per sample: h <= min(1 ms, tau_mech / 50) unless ``h_max`` [s] is given;
+    tau_mech = J / (bv + km ke / R) [s], the back-EMF's damping included."""
     if h_max is None:
         h_max = 1e-3
-        if p[BV] > 0 and p[J] > 0:
-            h_max = min(h_max, p[J] / p[BV] / 20.0)
+        damping = p[BV] + (p[KM] * p[KE] / p[R] if p[R] > 0 else 0.0)
+        if damping > 0 and p[J] > 0:
+            h_max = min(h_max, p[J] / damping / STEPS_PER_TAU)
     return max(1, int(math.ceil(dt / h_max - 1e-9)))
 
 
