@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 #: a standard error above this fraction of the value: the value means little
 MAX_REL_STDERR = 0.25
 #: parameters that may be near zero, judged against the friction level instead of themselves
@@ -48,3 +50,32 @@ def poorly_determined_warning(estimates, friction_level: float) -> str | None:
     return (f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} poorly determined by these "
             "logs: the value means little. Give logs with more excitation (torque levels in "
             "both directions, transients, several speeds), faster sampling or less noise")
+
+
+#: a sample period above this fraction of the mechanical time constant makes the input's hold
+#: matter: a ramp applied continuously but modelled as held lags by dt/2
+HOLD_TAU_FRACTION = 0.1
+#: fraction of samples at which the input changes for it to count as continuously varying
+RAMP_FRACTION = 0.8
+
+
+def hold_warning(logs, J: float, bv: float) -> str | None:
+    """A warning when a log's input changes at nearly every sample (a ramp, a sine) and its
+    sample period exceeds a tenth of the mechanical time constant J/bv [s]: if that input was
+    not held between samples (CONTRACT.md: zero-order hold), the model applies it half a
+    sample late and J absorbs the lag (docs/identification.md: -63 % at 10 Hz)."""
+    if not (J > 0 and bv > 0):
+        return None
+    tau = J / bv
+    for log in logs:
+        if log.dt <= HOLD_TAU_FRACTION * tau:
+            continue
+        du = np.diff(np.asarray(log.u, float))
+        du = du[np.isfinite(du)]
+        if len(du) and float(np.mean(du != 0)) >= RAMP_FRACTION:
+            return (f"{log.path}: the input changes at almost every sample and the sample "
+                    f"period ({log.dt * 1e3:.3g} ms) is over a tenth of the mechanical time "
+                    f"constant J/bv = {tau * 1e3:.3g} ms: the model holds each input value for "
+                    "a whole period; if the drive did not (a continuous ramp or sine logged "
+                    "slowly), J is biased. Log faster, or log the drive's own updates")
+    return None

@@ -28,7 +28,7 @@ import numpy as np
 
 from pmdcid.errors import FitError, ModelError
 from pmdcid.identify.grid import batch_cost
-from pmdcid.identify.identifiability import poorly_determined_warning
+from pmdcid.identify.identifiability import hold_warning, poorly_determined_warning
 from pmdcid.identify.results import Estimate, SimFitResult
 from pmdcid.identify.simfit import (
     blas_single_thread,
@@ -397,6 +397,10 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
                      "only moves while the torque exceeds bc); written as the interval's "
                      "midpoint ± its uniform std. Fast reversals or steps down reveal it")
     _check(fit, est, tscale, warns, masked)
+    hold = hold_warning(logs, est["J"].value if "J" in est else math.nan,
+                        est["bv"].value if "bv" in est else math.nan)
+    if hold:
+        warns.append(hold)
     return NonlinearResult(est, fit, signals, [lg.path for lg in logs], start, best, nsets,
                            time.perf_counter() - t_start, warns)
 
