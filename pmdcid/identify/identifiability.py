@@ -1,5 +1,9 @@
 """Say when the data do not pin a parameter down (the brief: physics is right or flagged).
 
+The fitting stages' checks on their logs and results: :func:`require_motion` (refuse a log
+where nothing moves), :func:`fit_warnings` (a simulation-error fit's warnings), :func:`hold_warning`
+(an input varying at every sample, logged slowly) and :func:`poorly_determined`:
+
 A parameter is **poorly determined** when its standard error (allowing for correlated
 residuals, :mod:`.covariance`) exceeds :data:`MAX_REL_STDERR` of its value or, for a parameter
 that may legitimately be near zero (a torque offset, a dead zone), of the friction level.
@@ -15,6 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from pmdcid.errors import FitError
 
 #: a standard error above this fraction of the value: the value means little
 MAX_REL_STDERR = 0.25
@@ -79,3 +85,46 @@ def hold_warning(logs, J: float, bv: float) -> str | None:
                     "a whole period; if the drive did not (a continuous ramp or sine logged "
                     "slowly), J is biased. Log faster, or log the drive's own updates")
     return None
+
+
+#: a signal whose span is below this many noise levels shows no motion
+MOTION_SIGMAS = 10.0
+
+
+def require_motion(logs, sigma) -> None:
+    """Refuse logs where nothing moves: inertia and friction leave no trace in them."""
+    for lg, sg in zip(logs, sigma, strict=True):
+        for s, sd in sg.items():
+            x = np.asarray(lg[s], float)
+            x = x[np.isfinite(x)]
+            if len(x) and float(np.ptp(x)) > MOTION_SIGMAS * sd and float(np.ptp(x)) > 0:
+                return
+    names = ", ".join(sorted({s for sg in sigma for s in sg}))
+    raise FitError(f"nothing moves in this log ({names} stay within their noise, estimated "
+                   "from sample-to-sample changes): J, bv, bc, dz cannot be identified from it; "
+                   "give a log where the rotor turns (e.g. the triangular input), sampled "
+                   "faster than its mechanical time constant", logs[0].path)
+
+
+def fit_warnings(fit, est, tscale: float, masked: bool) -> list[str]:
+    """Warnings on a simulation-error fit: parameters the logs do not determine, bc-dz
+    correlation, dz at 0, no convergence, a residual far above the noise."""
+    warns: list[str] = []
+    # a masked dz has its own warning (the interval that fits equally)
+    judged = {k: e for k, e in est.items() if not (masked and k == "dz")}
+    bc = est["bc"].value if "bc" in est else 0.0
+    w = poorly_determined_warning(judged, max(bc, 0.01 * tscale))
+    if w:
+        warns.append(w)
+    r = fit.correlation("bc", "dz")
+    if math.isfinite(r) and abs(r) > 0.9:
+        warns.append(f"bc and dz are strongly correlated ({r:+.2f}): the logs hardly tell "
+                     "Coulomb friction from the dead zone (use slower reversals)")
+    if "dz" in fit.estimates and est["dz"].value < 1e-6 * tscale:
+        warns.append("dz is at 0: no dead zone visible in these logs")
+    if not fit.stats.success:
+        warns.append(f"the least-squares stage did not converge ({fit.stats.message})")
+    if fit.stats.redchi > 10:
+        warns.append(f"reduced chi-square {fit.stats.redchi:.3g} >> 1: the model leaves "
+                     "structure in the residual (try pmdcid diagnose)")
+    return warns

@@ -28,7 +28,7 @@ import numpy as np
 
 from pmdcid.errors import FitError, ModelError
 from pmdcid.identify.grid import batch_cost
-from pmdcid.identify.identifiability import hold_warning, poorly_determined_warning
+from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
 from pmdcid.identify.results import Estimate, SimFitResult
 from pmdcid.identify.simfit import (
     blas_single_thread,
@@ -336,7 +336,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
     sigma = [{s: noise_level(lg[s]) for s in signals if lg.has(s)} for lg in logs]
     if not any(sigma):
         raise FitError(f"no log carries {' or '.join(signals)} to fit")
-    _require_motion(logs, sigma)
+    require_motion(logs, sigma)
     tscale = _torque_scale(logs, base_vals)
     best, nsets = ({k: start[k] for k in free}, 0)
     if grid:
@@ -396,48 +396,10 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
                      f"{est['bc'].value if 'bc' in est else point.get('bc', 0):.3g} N m: the rotor "
                      "only moves while the torque exceeds bc); written as the interval's "
                      "midpoint ± its uniform std. Fast reversals or steps down reveal it")
-    _check(fit, est, tscale, warns, masked)
+    warns.extend(fit_warnings(fit, est, tscale, masked))
     hold = hold_warning(logs, est["J"].value if "J" in est else math.nan,
                         est["bv"].value if "bv" in est else math.nan)
     if hold:
         warns.append(hold)
     return NonlinearResult(est, fit, signals, [lg.path for lg in logs], start, best, nsets,
                            time.perf_counter() - t_start, warns)
-
-
-#: a signal whose span is below this many noise levels shows no motion
-MOTION_SIGMAS = 10.0
-
-
-def _require_motion(logs, sigma) -> None:
-    """Refuse logs where nothing moves: inertia and friction leave no trace in them."""
-    for lg, sg in zip(logs, sigma, strict=True):
-        for s, sd in sg.items():
-            x = np.asarray(lg[s], float)
-            x = x[np.isfinite(x)]
-            if len(x) and float(np.ptp(x)) > MOTION_SIGMAS * sd and float(np.ptp(x)) > 0:
-                return
-    names = ", ".join(sorted({s for sg in sigma for s in sg}))
-    raise FitError(f"nothing moves in this log ({names} stay within their noise, estimated "
-                   "from sample-to-sample changes): J, bv, bc, dz cannot be identified from it; "
-                   "give a log where the rotor turns (e.g. the triangular input), sampled "
-                   "faster than its mechanical time constant", logs[0].path)
-
-
-def _check(fit: SimFitResult, est, tscale, warns, masked: bool) -> None:
-    judged = {k: e for k, e in est.items() if not (masked and k == "dz")}  # dz: warned above
-    bc = est["bc"].value if "bc" in est else 0.0
-    w = poorly_determined_warning(judged, max(bc, 0.01 * tscale))
-    if w:
-        warns.append(w)
-    r = fit.correlation("bc", "dz")
-    if math.isfinite(r) and abs(r) > 0.9:
-        warns.append(f"bc and dz are strongly correlated ({r:+.2f}): the logs hardly tell "
-                     "Coulomb friction from the dead zone (use slower reversals)")
-    if "dz" in fit.estimates and est["dz"].value < 1e-6 * tscale:
-        warns.append("dz is at 0: no dead zone visible in these logs")
-    if not fit.stats.success:
-        warns.append(f"the least-squares stage did not converge ({fit.stats.message})")
-    if fit.stats.redchi > 10:
-        warns.append(f"reduced chi-square {fit.stats.redchi:.3g} >> 1: the model leaves "
-                     "structure in the residual (try pmdcid diagnose)")
