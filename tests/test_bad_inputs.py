@@ -460,6 +460,20 @@ CASES: list[Case] = [
       r"^error: tri\.csv: nothing moves"),
     C("fn-saturated-speed", combine(MODEL, _triangle_log("tri.csv", clip=0.8)), FN, 0,
       r"^warning: tri\.csv: column 'omega' .*saturat", changes=("model.json",)),
+    # ---- fit-inverse-dynamics (beyond the contract) ----------------------------------------
+    C("fid-voltage-log-without-km", TRI, ["fit-inverse-dynamics", "tri.csv", "-m", "model.json"],
+      1, r"^error: tri\.csv: voltage-driven log: .*--km"),
+    C("fid-nothing-moves", table("tri.csv", {
+        "t": T1K, "tau": 0.01 * np.sin(T1K), "omega": 0 * T1K}),
+      ["fit-inverse-dynamics", "tri.csv", "-m", "model.json"], 1, r"^error: .*(move|excite)"),
+    C("fid-slow-short-log", table("tri.csv", {
+        "t": np.arange(200) * 2.0, "tau": 0.02 * np.sign(np.sin(np.arange(200) / 3.0)),
+        "omega": np.sign(np.sin(np.arange(200) / 3.0)) + 0.01 * np.cos(np.arange(200.0))}),
+      ["fit-inverse-dynamics", "tri.csv", "-m", "model.json"], 1, r"^error: ", subprocess=True),
+    C("fid-model-is-input", TRI, ["fit-inverse-dynamics", "tri.csv", "-m", "tri.csv", "--km",
+                                  "0.05"], 1, r"^error: tri\.csv: .*overwrite"),
+    C("fid-ok-with-km", TRI, ["fit-inverse-dynamics", "tri.csv", "-m", "model.json", "--km",
+                              "0.0502"], 0, None, changes=("model.json",)),
     # ---- report ----------------------------------------------------------------------------
     C("report-out-is-input", combine(STEP, MODEL),
       ["report", "step.csv", "-m", "model.json", "-o", "step.csv"], 1,

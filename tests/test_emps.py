@@ -218,3 +218,27 @@ def test_criteria_script_in_the_docs_runs(capsys, monkeypatch):
     for label in ("default: speed", "weighted by spread", "residual-weighted", "DIDIM",
                   "least absolute", "best symmetric model", "undeclared load"):
         assert label in out, label
+
+
+def test_cli_fit_inverse_dynamics_as_published(tmp_path):
+    """`pmdcid fit-inverse-dynamics --as-published` gives the authors' IDIM-LS on the estimation
+    file (within 0.5 %) and writes it, with the torque offset, into the model."""
+    from click.testing import CliRunner
+
+    from pmdcid.cli import main
+    from pmdcid.model import load_model
+
+    model = tmp_path / "idim.json"
+    args = ["fit-inverse-dynamics", str(TRAIN), "-m", str(model), "--as-published"]
+    for m in MAPPING:
+        args += ["-c", m]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    saved = load_model(model)
+    assert "torque_offset" in saved.effects
+    for name, ref in AUTHORS.items():
+        assert saved.value(name) == pytest.approx(ref, rel=0.005), name
+    r = CliRunner().invoke(main, ["fit-inverse-dynamics", str(FIX.parent / "paper" /
+                                                            "triangle.csv"), "-m",
+                                  str(tmp_path / "v.json")])
+    assert r.exit_code == 1 and "give --km" in r.output and "Traceback" not in r.output

@@ -60,8 +60,8 @@ def fit_mechanical_cmd(logs, model_path, km, mapping):
 @model_option()
 @click.option("--signals", callback=_names(("omega", "theta")), default=None,
               metavar="omega,theta",
-              help="Measured signals in the simulation error (default: the measured speed and "
-                   "angle present). On closed-loop logs the open-loop angle drifts: try omega.")
+              help="Measured signals in the simulation error (default: the speed, measured or "
+                   "derived from the angle; the angle only when no log has a speed).")
 @click.option("--free", callback=_names(("J", "bv", "bc", "dz", "tau0")), default=None,
               metavar="J,bv,bc,dz",
               help="Parameters to fit (default J,bv,bc,dz; torque-driven logs J,bv,bc,tau0).")
@@ -74,3 +74,21 @@ def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, mapping):
 
     _show(run_fit_nonlinear(list(logs), model_path, mapping, free=free, signals=signals,
                             dead_zone=dead_zone), model_path)
+
+
+@main.command("fit-inverse-dynamics")
+@LOGS
+@model_option()
+@click.option("--as-published", is_flag=True,
+              help="The EMPS authors' IDIM-LS exactly: every row kept, the held torque not "
+                   "centred (default: rows near rest left out, torque centred on the hold).")
+@click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
+              help="Torque constant [N m/A] for voltage logs with a current column.")
+@log_options
+def fit_inverse_dynamics_cmd(logs, model_path, as_published, km, mapping):
+    """Any logs with torque (or current) and angle or speed -> J, bv, bc, tau0 by inverse
+    dynamics (linear least squares, instant; fit-nonlinear's start on torque-driven logs)."""
+    from pmdcid.identify.stages import run_fit_inverse_dynamics
+
+    _show(run_fit_inverse_dynamics(list(logs), model_path, mapping, as_published=as_published,
+                                   km=km), model_path)

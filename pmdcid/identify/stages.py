@@ -53,3 +53,20 @@ def run_fit_nonlinear(paths, model_path, mapping=None, **opts):
 
     logs, model = _load(paths, model_path, mapping)
     return _save(fit_nonlinear(logs, model, **opts), model, model_path)
+
+
+def run_fit_inverse_dynamics(paths, model_path, mapping=None, as_published=False, km=None):
+    """``pmdcid fit-inverse-dynamics``: J, bv, bc, tau0 by inverse-dynamics least squares (the
+    torque regressed on filtered acceleration, speed, sign of speed and 1) into ``model_path``.
+    ``as_published``: the EMPS authors' IDIM-LS (every row, torque not centred on the ZOH)."""
+    from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics
+
+    logs, model = _load(paths, model_path, mapping)
+    if km is not None:
+        model.set("km", km, stage="datasheet")
+    opts = {"rest_fraction": 0.0, "centre_zoh": False} if as_published else {}
+    result = fit_inverse_dynamics(logs, model, **opts)
+    new = model.copy()
+    result.apply(new)
+    save_model(new, model_path)
+    return result
