@@ -146,3 +146,41 @@ def test_torque_driven_encoder_only(effect):
     assert res.summary["added"] == ([effect] if effect else []), res.table()
     if not effect:
         assert res.summary["unexplained"] is False
+
+
+def test_drifting_friction_is_pointed_at():
+    """Coulomb friction growing by 30 % over the logs (warm-up): no catalogue effect is that,
+    the residual stays structured, and the summary says which parameter differs between the
+    first part of the logs and the rest, so the user knows to look for a drift."""
+    from ident_util import as_log
+
+    from pmdcid.simulate import neutral_values, param_vector, run_kernel
+    from pmdcid.synth import PAPER
+
+    vals = {**neutral_values(), **PAPER}
+    rng = np.random.default_rng(7)
+
+    def drifting(t, u, chunks=40):
+        x0, parts = np.zeros(3), []
+        for c, ix in enumerate(np.array_split(np.arange(len(t)), chunks)):
+            v = {**vals, "bc": vals["bc"] * (1 + 0.3 * c / (chunks - 1))}
+            x = run_kernel(np.append(u[ix], u[ix[-1]]), 1e-3, param_vector(v), x0=x0)
+            parts.append(x[:-1])
+            x0 = x[-1]
+        x = np.vstack(parts)
+        n = len(t)
+        return as_log("drift.csv", t, {"v": u, "i": x[:, 0] + rng.normal(0, 4e-3, n),
+                                       "omega": x[:, 1] + rng.normal(0, 4e-3, n),
+                                       "theta": x[:, 2]})
+
+    t = np.arange(80_000) / 1000.0
+    logs = [drifting(t, triangle(t, 2.0, 20.0)),
+            drifting(t[:40_000], staircase(t[:40_000], 2.0, 2.0, np.random.default_rng(5)))]
+    m = Model()
+    for k in ("R", "L", "km", "J", "bv", "bc", "dz"):
+        m.set(k, vals[k])
+    fit_nonlinear([logs[0]], m).apply(m)
+    out = diagnose(logs, m)
+    assert out.summary["unexplained"]
+    drift = [n for n in out.summary["notes"] if "may drift over time" in n]
+    assert len(drift) == 1 and drift[0].startswith("bc differs by +"), out.summary["notes"]

@@ -22,7 +22,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.diagnose.problem import FitOutcome, Problem
-from pmdcid.diagnose.residuals import context, error_table, pooled, typical_scales, whiteness
+from pmdcid.diagnose.residuals import (
+    context,
+    drift_notes,
+    error_table,
+    pooled,
+    typical_scales,
+    whiteness,
+)
 from pmdcid.diagnose.signatures import Screen, Screener
 from pmdcid.diagnose.starts import grid_start, profile_best, profile_stderr
 from pmdcid.errors import ModelError
@@ -359,6 +366,8 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         after = before
     white = whiteness(problem, problem.simulate_all(final_vals))
     unexplained = any(w.structured for w in white)
+    if unexplained:
+        notes.extend(drift_notes(problem, final_vals, max_nfev))
     cands = sorted(seen.values(), key=lambda c: (not c.chosen, c.delta_bic))
     new.extra.setdefault("fits", {})[STAGE] = {
         "logs": [log.path for log in problem.logs], "added": list(added)}

@@ -136,3 +136,39 @@ def typical_scales(ctx: ResidualContext) -> dict[str, float]:
 
 __all__ = ["Whiteness", "context", "error_table", "ljung_box", "pooled", "typical_scales",
            "whiteness"]
+
+
+#: base parameters whose stability over time is checked, and the size of a change that is noted
+DRIFT_PARAMS = ("J", "bv", "bc")
+DRIFT_REL = 0.10
+DRIFT_Z = 2.0
+
+
+def drift_notes(problem: Problem, vals: dict[str, float], max_nfev: int = 40) -> list[str]:
+    """Notes on base parameters that differ between the fit part (the first ``split`` of each
+    log) and the held-out rest, each refitted alone from ``vals``: a change of at least
+    :data:`DRIFT_REL` and :data:`DRIFT_Z` standard errors of the difference (the standard error
+    allowing for correlated residuals, scaled from all the data to the two parts). A friction
+    that drifts (warm-up, wear) is no catalogue effect, and a time-invariant effect may be
+    credited in its place: this says where to look."""
+    free = [n for n in DRIFT_PARAMS if n in vals and vals[n] > 0]
+    if not free or problem.count("held") == 0 or problem.count("fit") == 0:
+        return []
+    first = problem.fit(vals, free, "fit", max_nfev=max_nfev)
+    last = problem.fit(vals, free, "held", max_nfev=max_nfev)
+    se, _ = problem.correlated_stderr(vals, free)
+    n_all = problem.count("all")
+    # var(a - b) = var_all * (N/N_fit + N/N_held): each part has a share of the evidence
+    scale = math.sqrt(n_all / problem.count("fit") + n_all / problem.count("held"))
+    notes = []
+    for name in free:
+        a, b = first.values[name], last.values[name]
+        sd = se.get(name, math.nan) * scale
+        rel = (b - a) / a if a else math.nan
+        if abs(rel) >= DRIFT_REL and math.isfinite(sd) and sd > 0 and abs(b - a) / sd >= DRIFT_Z:
+            notes.append(f"{name} differs by {100 * rel:+.0f} % between the first part of the "
+                         f"logs and the rest ({abs(b - a) / sd:.1f} standard errors): it may "
+                         "drift over time (warm-up, wear), which no catalogue effect represents "
+                         "and a time-invariant effect may imitate; fit parts of the log "
+                         "separately to see it")
+    return notes
