@@ -3,6 +3,8 @@ linear regression whose true sampling spread is known from repetition."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.signal import lfilter
 
 from pmdcid.identify.covariance import block_covariance, integrated_time
@@ -114,3 +116,26 @@ def test_fit_nonlinear_standard_errors_match_the_spread_under_correlated_noise()
     for name, r in zip(names, ratio, strict=True):
         assert 0.6 < r < 1.6, (name, ratio)
     assert np.median(inflation) > 5
+
+
+@settings(max_examples=40, deadline=None)
+@given(c=st.floats(0.01, 100.0), s=st.floats(0.01, 100.0), seed=st.integers(0, 10_000))
+def test_covariance_scales_with_the_residual_and_the_parameters(c, s, seed):
+    """Units: a residual c times larger gives standard errors c times larger; a parameter
+    measured in units s times smaller (its Jacobian column s times larger) has a standard
+    error s times smaller; the block choice depends on neither."""
+    rng = np.random.default_rng(seed)
+    n = 600
+    jac = np.column_stack([np.ones(n), np.linspace(0, 1, n), rng.normal(size=n)])
+    r = lfilter([1.0], [1.0, -0.9], rng.normal(size=n))
+    white = np.eye(3)
+    cov, info = block_covariance(jac, r, [(0, 0, n)], white)
+    cov_c, info_c = block_covariance(jac, c * r, [(0, 0, n)], white)
+    jac_s = jac.copy()
+    jac_s[:, 1] *= s
+    cov_s, info_s = block_covariance(jac_s, r, [(0, 0, n)], white)
+    assert info_c.block == info.block == info_s.block
+    np.testing.assert_allclose(np.sqrt(np.diag(cov_c)), c * np.sqrt(np.diag(cov)), rtol=1e-8)
+    se, se_s = np.sqrt(np.diag(cov)), np.sqrt(np.diag(cov_s))
+    np.testing.assert_allclose(se_s[1], se[1] / s, rtol=1e-8)
+    np.testing.assert_allclose(se_s[[0, 2]], se[[0, 2]], rtol=1e-8)
