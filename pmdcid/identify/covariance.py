@@ -17,7 +17,7 @@ Romano 1994 for the block idea, Newey & West 1987 for HAC):
 with blocks of consecutive samples longer than the residual's correlation time, one time
 window of one log per block (every signal of that log in that window summed into the same
 block, since they share the model error). For white residuals it equals the textbook
-covariance (blocks of ~1 sample); for correlated residuals it grows as the effective number of
+covariance (blocks of a few samples); for correlated residuals it grows as the effective number of
 independent samples shrinks. The block length is four times the residual's integrated
 autocorrelation time (Sokal's automatic window), capped so that every log keeps at least
 :data:`MIN_BLOCKS` blocks. The estimate is consistent but biased low when a log spans few
@@ -36,7 +36,7 @@ MIN_BLOCKS = 10
 #: block length in integrated autocorrelation times (longer: less bias, fewer blocks)
 BLOCK_TAUS = 4.0
 #: a log shorter than this many correlation times gives standard errors biased low (Monte Carlo
-#: in tests/test_covariance.py: ~0.5x the true spread at 50, 0.8-1.1x at 150)
+#: of fit-nonlinear: ~0.5x the true spread at 50, 0.8-1.1x at 150, tests/test_covariance.py)
 MIN_TAUS = 50.0
 #: Sokal's window constant: sum the autocorrelation up to the first lag W >= C * tau(W)
 SOKAL_C = 5.0
