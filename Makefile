@@ -4,7 +4,7 @@ PIP := $(VENV)/bin/pip
 PMDCID := $(VENV)/bin/pmdcid
 STAMP := $(VENV)/.installed
 
-.PHONY: install test lint bench demo fixtures clean
+.PHONY: install test test-fast lint bench realbench demo fixtures clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || python3 -m venv $(VENV)
@@ -17,11 +17,17 @@ install: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -n 2
 
+test-fast: $(STAMP)
+	$(PY) -m pytest -n 2 -m "not slow"
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check pmdcid tests bench
 
 bench: $(STAMP)
 	$(PY) bench/run.py
+
+realbench: $(STAMP)
+	$(PY) bench/realbench.py --write docs/real-data.md
 
 demo: $(STAMP)
 	$(PMDCID) demo -o demo-output

@@ -17,7 +17,7 @@ import numpy as np
 from pmdcid.errors import LogError
 from pmdcid.io import ColumnMap, read_log, write_log
 from pmdcid.model import Model, load_model
-from pmdcid.simulate import SimResult, param_values, simulate_values
+from pmdcid.simulate import SimResult, input_is_torque, param_values, simulate_values
 
 #: the paper's Table II parameters, km from its Table I (SI units)
 PAPER = {"R": 2.3724, "L": 17.7933e-3, "km": 50.2e-3, "J": 3.10442e-3, "bv": 0.0314,
@@ -69,15 +69,20 @@ def add_noise(sim: SimResult, noise: NoiseSpec, rng: np.random.Generator) -> dic
 
 
 def synth_log(t, u, vals: dict[str, float], noise: NoiseSpec, rng: np.random.Generator | None,
-              torque_driven: bool = False, blocked: bool = False, nsub: int | None = None):
-    """Simulate and add noise; returns (columns dict, SimResult). ``blocked`` holds the rotor."""
+              torque_driven: bool = False, blocked: bool = False, nsub: int | None = None,
+              x0=None, input_name: str | None = None):
+    """Simulate and add noise; returns (columns dict, SimResult). ``blocked`` holds the rotor;
+    ``x0`` = (i, omega, theta) at ``t[0]`` (default rest); ``input_name`` names the input
+    column (default ``tau`` or ``v``; a lumped model takes ``v`` through the torque path)."""
     vals = dict(vals)
     if blocked:
         vals["bc"] = 1e300  # infinite static friction: the rotor never moves
-    sim = simulate_values(t, u, vals, torque_driven, nsub)
+        if x0 is not None:
+            x0 = np.array([x0[0], 0.0, x0[2]], float)
+    sim = simulate_values(t, u, vals, torque_driven, nsub, x0)
     meas = add_noise(sim, noise, rng) if rng is not None else {
         "i": sim.i, "omega": sim.omega, "theta": sim.theta}
-    cols = {("tau" if torque_driven else "v"): np.asarray(u, float)}
+    cols = {(input_name or ("tau" if torque_driven else "v")): np.asarray(u, float)}
     if not torque_driven:
         cols["i"] = meas["i"]
     if not blocked:
@@ -97,7 +102,7 @@ def _is_ours(path: str) -> bool:
 
 def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = None,
                   noise: NoiseSpec = NoiseSpec(), seed: int | None = None, blocked: bool = False,
-                  force: bool = False) -> str:
+                  force: bool = False, x0: dict[str, float] | str | None = None) -> str:
     """``pmdcid simulate``: read INPUT's t and v/tau, simulate MODEL, write OUT (atomically)."""
     for src, what in ((input_path, "input log"), (model_path, "model file")):
         if os.path.exists(output) and os.path.exists(src) and os.path.samefile(src, output):
@@ -107,18 +112,38 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
     log = read_log(input_path, mapping)
     log.drive  # noqa: B018 - raises a clear error when neither v nor tau is present
     model = load_model(model_path)
-    torque = log.drive == "tau"
+    torque = input_is_torque(log, model)
     vals = param_values(model, torque)
     rng = np.random.default_rng(seed)
     has_noise = noise.i > 0 or noise.omega > 0 or noise.encoder > 0
-    cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque, blocked)
+    cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque, blocked,
+                        x0=start_state(log, x0), input_name=log.drive)
     meta = {"generator": GENERATOR, "source": os.path.basename(str(input_path)),
             "model": os.path.basename(str(model_path))}
     if has_noise:
         meta["noise"] = f"i={noise.i} A, omega={noise.omega} rad/s, encoder={noise.encoder}"
         meta["seed"] = str(seed)
-    write_log(output, log.t, cols, meta)
+    write_log(output, log.t if log.t_file is None else log.t_file, cols, meta)
     return str(output)
+
+
+def start_state(log, x0: dict[str, float] | str | None) -> np.ndarray:
+    """The state (i [A], omega [rad/s], theta [rad]) a simulation of ``log``'s input starts
+    from: rest (None), given values (missing ones 0), or ``"measured"``: the log's own
+    measured columns at its first sample (each one it lacks: 0)."""
+    if x0 is None:
+        return np.zeros(3)
+    if isinstance(x0, str):
+        if x0 != "measured":
+            raise LogError(f"--x0 {x0!r}: give 'measured' or omega=VAL,i=VAL,theta=VAL")
+        out = np.zeros(3)
+        for k, name in enumerate(("i", "omega", "theta")):
+            if log.has(name) and not (name == "i" and log.drive == "tau"):
+                first = np.asarray(log[name], float)[:1]
+                if first.size and np.isfinite(first[0]):
+                    out[k] = float(first[0])
+        return out
+    return np.array([float(x0.get(n, 0.0)) for n in ("i", "omega", "theta")])
 
 
 def paper_protocols(vals: dict[str, float], noise: NoiseSpec, rng: np.random.Generator,

@@ -67,13 +67,16 @@ def fit_mechanical_cmd(logs, model_path, km, mapping):
               help="Parameters to fit (default J,bv,bc,dz; torque-driven logs J,bv,bc,tau0).")
 @click.option("--dead-zone", is_flag=True,
               help="Torque-driven logs: fit the dead zone dz too (off by default).")
+@click.option("--no-prior", is_flag=True,
+              help="Use these logs alone (default: combine them with the estimates earlier "
+                   "stages wrote, each a Gaussian prior of its standard error).")
 @log_options
-def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, mapping):
+def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, no_prior, mapping):
     """Triangular-input (or any rich) logs -> bc, bv, dz, J refined, by simulation error."""
     from pmdcid.identify.stages import run_fit_nonlinear
 
     _show(run_fit_nonlinear(list(logs), model_path, mapping, free=free, signals=signals,
-                            dead_zone=dead_zone), model_path)
+                            dead_zone=dead_zone, priors=not no_prior), model_path)
 
 
 @main.command("fit-inverse-dynamics")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import main
-from pmdcid.cli.options import FiniteFloat, log_options, model_option
+from pmdcid.cli.options import FiniteFloat, log_options, model_option, parse_x0
 
 
 @main.command("simulate")
@@ -22,13 +22,18 @@ from pmdcid.cli.options import FiniteFloat, log_options, model_option
               help="Seed of the noise generator.")
 @click.option("--blocked", is_flag=True, help="Rotor blocked (blocked-rotor test): omega = 0.")
 @click.option("--force", is_flag=True, help="Overwrite OUT.csv if it exists.")
+@click.option("--x0", "x0", callback=parse_x0, default=None,
+              metavar="measured|omega=VAL,i=VAL,theta=VAL",
+              help="Initial state (SI; any subset, the rest 0), or 'measured': INPUT's own "
+                   "measured omega, theta, i at its first sample. Default: rest.")
 @log_options
 def simulate_cmd(input_log, model_path, output, noise_i, noise_omega, encoder, seed, blocked,
-                 force, mapping):
-    """Predict what the sensors read for INPUT's t and v (or tau), starting from rest."""
+                 force, x0, mapping):
+    """Predict what the sensors read for INPUT's t and v (or tau), from rest unless --x0."""
     from pmdcid.synth import NoiseSpec, simulate_file
 
     path = simulate_file(input_log, model_path, output, mapping=mapping,
                          noise=NoiseSpec(noise_i, noise_omega, encoder), seed=seed,
-                         blocked=blocked, force=force)
+                         blocked=blocked, force=force, x0=x0)
     click.echo(f"wrote {path}")
+

@@ -101,3 +101,26 @@ def model_option(required: bool = True):
     return click.option("-m", "--model", "model_path", required=required,
                         type=click.Path(dir_okay=False), metavar="MODEL",
                         help="Model file (JSON), read and updated.")
+
+
+def parse_x0(ctx, param, value):
+    """``measured`` or ``name=VAL,...`` with names among i, omega, theta (finite numbers)."""
+    import math
+
+    if value is None or value.strip() == "measured":
+        return None if value is None else "measured"
+    out = {}
+    for part in value.split(","):
+        name, sep, num = part.partition("=")
+        name = name.strip()
+        if not sep or name not in ("i", "omega", "theta"):
+            raise click.BadParameter(f"{part.strip()!r}: give 'measured' or name=VALUE with "
+                                     "names among omega, i, theta")
+        try:
+            x = float(num)
+        except ValueError:
+            x = math.nan
+        if not math.isfinite(x):
+            raise click.BadParameter(f"{part.strip()!r}: the value must be a finite number")
+        out[name] = x
+    return out

@@ -38,6 +38,8 @@ def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, e
     from pmdcid.io import read_logs
     from pmdcid.io.logs import atomic_write_text
     from pmdcid.model import load_model, save_model
+    from pmdcid.model.lumped import is_lumped, mark_lumped
+    from pmdcid.simulate import logs_for
 
     for p in paths:
         if _same(p, out_path):
@@ -50,8 +52,10 @@ def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, e
         raise ModelError("the summary would overwrite a model file; choose another --summary",
                          summary_path)
     model = load_model(model_path)
-    logs = read_logs(paths, mapping)
+    logs = logs_for(read_logs(paths, mapping), model)
     res = diagnose(logs, model, effects=effects, **opts)
+    if is_lumped(model):
+        mark_lumped(res.model)
     save_model(res.model, out_path)
     if summary_path:
         atomic_write_text(summary_path, json.dumps(_clean(res.summary), indent=2) + "\n")

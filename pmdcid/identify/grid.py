@@ -25,11 +25,10 @@ from pmdcid.simulate.layout import BV, DZ_SLOPE, KE, KM, J, L, R
 
 @njit(parallel=True, cache=True)
 def _batch_cost(u, P, Phi, Gam, nsub, torque_driven, w_meas, th_meas, sw, sth,
-                omega0):  # pragma: no cover - compiled
+                omega0, x0):  # pragma: no cover - compiled
     m = P.shape[0]
     n = u.shape[0]
     cost = np.empty(m)
-    x0 = np.zeros(3)
     for j in prange(m):
         out = _run(u, P[j], Phi[j], Gam[j], nsub, torque_driven, x0)
         c = 0.0
@@ -47,12 +46,13 @@ def _batch_cost(u, P, Phi, Gam, nsub, torque_driven, w_meas, th_meas, sw, sth,
 
 
 def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
-               nsub: int | None = None) -> np.ndarray:
+               nsub: int | None = None, x0=None) -> np.ndarray:
     """Weighted squared simulation error of each parameter set on one log (one compiled call).
 
     ``vals_list``: parameter dicts as :func:`pmdcid.simulate.param_values` gives;
     ``sigma``: noise std per signal used (``omega`` [rad/s], ``theta`` [rad]); a signal absent
-    from ``sigma`` is not used. Returns one cost per set (dimensionless chi-square).
+    from ``sigma`` is not used. ``x0``: the state (i, omega, theta) every set starts from
+    (default rest). Returns one cost per set (dimensionless chi-square).
     """
     torque = log.drive == "tau"
     P = np.array([param_vector(v) for v in vals_list], dtype=float)
@@ -76,4 +76,4 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     omega0 = float(vals_list[0].get("omega0", 0.0))
     return _batch_cost(np.ascontiguousarray(log.u, float), P, Phi, Gam, int(nsub), torque, w,
                        th, float(sigma.get("omega", 0.0)), float(sigma.get("theta", 0.0)),
-                       omega0)
+                       omega0, np.zeros(3) if x0 is None else np.asarray(x0, float))

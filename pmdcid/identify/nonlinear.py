@@ -29,6 +29,7 @@ import numpy as np
 from pmdcid.errors import FitError, ModelError
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
+from pmdcid.identify.priors import prior_terms, stage_priors
 from pmdcid.identify.results import Estimate, SimFitResult
 from pmdcid.identify.simfit import (
     blas_single_thread,
@@ -77,6 +78,8 @@ class NonlinearResult:
     grid_sets: int
     seconds: float
     warnings: list[str] = field(default_factory=list)
+    #: name -> the stage whose estimate entered as a prior (see :func:`stage_priors`)
+    prior_from: dict[str, str] = field(default_factory=dict)
 
     @property
     def stats(self):
@@ -106,6 +109,9 @@ class NonlinearResult:
             "nrmse": self.nrmse, "redchi": self.stats.redchi, "ndata": self.stats.ndata,
             "bc_dz_correlation": r if math.isfinite(r) else None,
             "covariance": self.fit.covariance.as_dict() if self.fit.covariance else None,
+            "priors": {n: {"from": s, "value": self.fit.priors[n][0],
+                           "stderr": self.fit.priors[n][1]}
+                       for n, s in self.prior_from.items() if n in self.fit.priors},
         }
 
     def table(self) -> str:
@@ -113,6 +119,12 @@ class NonlinearResult:
                  f"({len(self.paths)} log(s); grid {self.grid_sets} sets, then least squares)",
                  ""]
         lines += format_estimates(list(self.estimates.values()))
+        if self.prior_from:
+            by = {}
+            for n, src in self.prior_from.items():
+                by.setdefault(src, []).append(n)
+            lines.append("combined with earlier estimates (Gaussian priors): " + "; ".join(
+                f"{', '.join(ns)} from {src}" for src, ns in by.items()))
         if self.fit.covariance and self.fit.covariance.inflation > 1.5:
             lines.append(self.fit.covariance.describe())
         r = self.bc_dz_correlation
@@ -223,11 +235,15 @@ def _axis(name: str, start: dict[str, float], tscale: float) -> np.ndarray:
 
 
 def _cost(logs, base_vals, sets, signals, sigma) -> np.ndarray:
-    """Weighted squared simulation error of each parameter set, summed over the logs."""
+    """Weighted squared simulation error of each parameter set, summed over the logs (each
+    from its measured initial state, :mod:`.initial`)."""
+    from pmdcid.identify.initial import initial_state
+
     total = np.zeros(len(sets))
     for k, lg in enumerate(logs):
         vl = [{**base_vals[k], **s} for s in sets]
-        total += batch_cost(lg, vl, {s: sigma[k][s] for s in signals if s in sigma[k]})
+        total += batch_cost(lg, vl, {s: sigma[k][s] for s in signals if s in sigma[k]},
+                            x0=initial_state(lg, sigma[k].get("omega")))
     return total
 
 
@@ -278,19 +294,22 @@ def masked_upper(dzs, cost, thr) -> float:
 
 
 def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool = False,
-                  grid: bool = True, max_nfev: int = 200) -> NonlinearResult:
+                  grid: bool = True, max_nfev: int = 200,
+                  priors: bool = True) -> NonlinearResult:
     """Fit J, bv, bc, dz (voltage logs) or J, bv, bc, tau0 (torque logs) by simulation error.
 
     ``free``: parameters to fit (subset of J, bv, bc, dz, tau0); ``signals``: measured signals
     in the cost (default: the measured speed and angle present); ``dead_zone``: also fit dz on
     torque-driven logs. R, L, km (voltage logs) and the model's other parameters are held.
-    The model is not modified: call :meth:`NonlinearResult.apply`.
+    ``priors``: combine with the estimates earlier stages wrote (:func:`stage_priors`); False
+    lets these logs alone decide. The model is not modified: call :meth:`NonlinearResult.apply`.
     """
     with blas_single_thread():
-        return _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev)
+        return _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev, priors)
 
 
-def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> NonlinearResult:
+def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
+                   priors=True) -> NonlinearResult:
     t_start = time.perf_counter()
     if not logs:
         raise FitError("fit-nonlinear needs at least one log")
@@ -301,6 +320,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
         if lg.n < MIN_SAMPLES:
             raise FitError(f"too short ({lg.n} samples) for a simulation-error fit (needs at "
                            f"least {MIN_SAMPLES})", lg.path)
+    prior = stage_priors(model, KNOWN_FREE, STAGE) if priors else {}
     any_v = any(lg.drive == "v" for lg in logs)
     if any_v:
         model.require("R", "L", "km", stage="fit-nonlinear")
@@ -363,7 +383,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
               for k in ("J", "bv") if k in free and start[k] > 0}
     fit = fit_simulation(logs, work, ls_free, signals=signals,
                          start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
-                         diff_step=DIFF_STEP, bounds=bounds)
+                         diff_step=DIFF_STEP, bounds=bounds,
+                         priors=prior_terms(prior))
     if "dz" in free and len(free) > 1:
         # check dz at the fitted point: the grid's hint comes from its coarse bc, and a local
         # stage may stop where dz = 0 (a bound) or in a side valley. If some dz on the profile
@@ -375,7 +396,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
             start2 = {**point, "dz": float(dzs[int(np.argmin(c))])}
             fit = fit_simulation(logs, work, free, signals=signals,
                                  start={k: start2[k] for k in free}, sigma=sigma,
-                                 max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds)
+                                 max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
+                         priors=prior_terms(prior))
             point = {**best, **fit.values()}
             dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
         # identified only if the dead zone improves the fit clearly: by more than two standard
@@ -401,5 +423,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev) -> Non
                         est["bv"].value if "bv" in est else math.nan)
     if hold:
         warns.append(hold)
+    used = {n: prior[n][0] for n in fit.priors}
     return NonlinearResult(est, fit, signals, [lg.path for lg in logs], start, best, nsets,
-                           time.perf_counter() - t_start, warns)
+                           time.perf_counter() - t_start, warns, used)
+

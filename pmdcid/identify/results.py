@@ -69,6 +69,10 @@ class SimFitResult:
     sigma: list[dict[str, float]] = field(default_factory=list)  # per log: signal -> weight std
     #: how the covariance allowed for correlated residuals (None: white-residual formula)
     covariance: CovarianceInfo | None = None
+    #: per log: the state (i, omega, theta) it was simulated from (measured or fitted start)
+    initial: list = field(default_factory=list)
+    #: name -> (mean, std) of the Gaussian prior terms that entered the fit
+    priors: dict = field(default_factory=dict)
 
     def values(self) -> dict[str, float]:
         return {k: e.value for k, e in self.estimates.items()}

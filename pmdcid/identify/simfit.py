@@ -82,7 +82,9 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
                    bounds: dict[str, tuple[float, float]] | None = None,
                    sigma: list[dict[str, float]] | None = None, max_nfev: int = 200,
                    diff_step: float | dict[str, float] = 1e-3, nsub: int | None = None,
-                   cov_step: float = 1e-2, correlated: bool = True) -> SimFitResult:
+                   cov_step: float = 1e-2, correlated: bool = True,
+                   priors: dict[str, tuple[float, float]] | None = None,
+                   initial: bool = True) -> SimFitResult:
     """Fit ``free`` parameters of ``model`` by simulation error on ``logs``.
 
     Other parameters stay at the model's values (effects not in ``model.effects`` off).
@@ -92,6 +94,10 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     step of the central differences giving the covariance (standard errors, correlations).
     ``correlated``: the covariance allows for a residual correlated in time (block sandwich,
     :mod:`.covariance`); False gives the white-residual formula ``(J'J)^-1 redchi``.
+    ``priors``: name -> (mean, std) Gaussian terms from earlier stages (``(x - mean)/std`` rows
+    added to the residual; see docs/identification.md). ``initial``: each log starts from its
+    measured first samples (:mod:`.initial`), a log that starts turning has its starting speed
+    fitted too; False starts every log from rest.
     Returns a :class:`SimFitResult`; the model is not modified.
     """
     free = list(free)
@@ -104,12 +110,17 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         if not math.isfinite(v):
             raise FitError(f"no starting value for '{name}'")
         x0.append(v)
-    x0 = np.array(x0, float)
-    lo = np.array([_bounds(n, bounds)[0] for n in free])
-    hi = np.array([_bounds(n, bounds)[1] for n in free])
+    sig_list = sigma or []
+    starts = _initial_states(logs, sig_list, initial)
+    moving = [k for k, x in enumerate(starts) if x[1] != 0.0]
+    x0 = np.array(x0 + [starts[k][1] for k in moving], float)
+    lo = np.array([_bounds(n, bounds)[0] for n in free] + [-np.inf] * len(moving))
+    hi = np.array([_bounds(n, bounds)[1] for n in free] + [np.inf] * len(moving))
     x0 = np.clip(x0, lo, hi)
     scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
-    sig_list = sigma or []
+    npar = len(free)
+    prior_rows = [(j, *priors[n]) for j, n in enumerate(free)
+                  if priors and n in priors and priors[n][1] > 0 and math.isfinite(priors[n][1])]
     plan = []  # (log index, signal, measured, sigma)
     segments = []  # (log index, first row, end row) of each signal in the residual vector
     for k, log in enumerate(logs):
@@ -124,12 +135,19 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         raise FitError(f"no log carries any of the signals {', '.join(signals)} to fit")
     ndata = int(sum(np.isfinite(m).sum() for _, _, m, _ in plan))
 
+    def state(x):
+        out = [x0k.copy() for x0k in starts]
+        for j, k in enumerate(moving):
+            out[k][1] = x[npar + j]
+        return out
+
     def sims(x):
         out = []
+        xs = state(x)
         for k, log in enumerate(logs):
             vals = dict(base[k])
-            vals.update(dict(zip(free, x, strict=True)))
-            out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub))
+            vals.update(dict(zip(free, x[:npar], strict=True)))
+            out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k]))
         return out
 
     def resid(z):
@@ -139,10 +157,12 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         for k, s, meas, sd in plan:
             r = (ss[k].get(s) - meas) / sd
             parts.append(np.where(np.isfinite(r), r, 0.0))
+        if prior_rows:
+            parts.append(np.array([(x[j] - m) / sd for j, m, sd in prior_rows]))
         return np.concatenate(parts)
 
     if isinstance(diff_step, dict):
-        steps = np.array([float(diff_step.get(n, 1e-3)) for n in free])
+        steps = np.array([float(diff_step.get(n, 1e-3)) for n in free] + [1e-3] * len(moving))
     else:
         steps = float(diff_step)
     try:
@@ -152,8 +172,9 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     except ValueError as exc:
         raise FitError(f"simulation-error fit failed: {exc}") from None
     x = sol.x * scale
-    chisqr = float(np.sum(sol.fun**2))
-    stats = FitStats(ndata, len(free), chisqr, int(sol.nfev), bool(sol.success), str(sol.message))
+    nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them
+    chisqr = float(np.sum(sol.fun[:nd] ** 2))
+    stats = FitStats(ndata, len(x), chisqr, int(sol.nfev), bool(sol.success), str(sol.message))
     # covariance from the Jacobian at the solution, scaled by the reduced chi-square. The
     # solver's forward differences (diff_step) may not cross any switching event for a
     # parameter like dz (a zero column, hence a zero standard error): the covariance uses
@@ -161,19 +182,17 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     with blas_single_thread():
         Jm = envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale,
                                 cov_step) / scale[None, :]
-    info = None
     try:
-        cov = np.linalg.pinv(Jm.T @ Jm) * stats.redchi
-        if correlated:
-            cov, info = block_covariance(Jm, sol.fun, segments, cov)
+        cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated)
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = cov / np.outer(se, se)
     except np.linalg.LinAlgError:
-        se = np.full(len(free), math.nan)
-        corr = np.full((len(free), len(free)), math.nan)
+        info = None
+        se = np.full(len(x), math.nan)
+        corr = np.full((len(x), len(x)), math.nan)
     est = {n: Estimate(n, float(v), float(e), _unit(n))
-           for n, v, e in zip(free, x, se, strict=True)}
+           for n, v, e in zip(free, x[:npar], se[:npar], strict=True)}
     correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
               for i, a in enumerate(free)}
     with blas_single_thread():
@@ -183,7 +202,42 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     for k, s, meas, sd in plan:
         errs[k][s] = nrmse(final[k].get(s), meas)
         sig_out[k][s] = sd
-    return SimFitResult(est, stats, correl, errs, sig_out, info)
+    res = SimFitResult(est, stats, correl, errs, sig_out, info)
+    res.initial = state(x)
+    res.priors = {free[j]: (m, sd) for j, m, sd in prior_rows}
+    return res
+
+
+def _initial_states(logs, sig_list, initial: bool) -> list[np.ndarray]:
+    """Each log's starting state (:mod:`.initial`), or rest for every log."""
+    from pmdcid.identify.initial import initial_state
+
+    if not initial:
+        return [np.zeros(3) for _ in logs]
+    out = []
+    for k, log in enumerate(logs):
+        given = sig_list[k] if k < len(sig_list) else {}
+        out.append(initial_state(log, given.get("omega")))
+    return out
+
+
+def _covariance(Jm, fun, nd, segments, redchi, correlated):
+    """Parameter covariance: the data rows' (white or correlated-residual sandwich), combined
+    with the prior rows' information: ``(Hd + P)^-1 (Sd + P) (Hd + P)^-1`` where ``Sd`` is the
+    data score's covariance (``Hd cov_d Hd``) and ``P`` the priors' precision."""
+    Jd = Jm[:nd]
+    Hd = Jd.T @ Jd
+    cov = np.linalg.pinv(Hd) * redchi
+    info = None
+    if correlated:
+        cov, info = block_covariance(Jd, fun[:nd], segments, cov)
+    if nd == len(fun):
+        return cov, info
+    Jp = Jm[nd:]
+    P = Jp.T @ Jp
+    Sd = Hd @ cov @ Hd
+    Hinv = np.linalg.pinv(Hd + P)
+    return Hinv @ (Sd + P) @ Hinv, info
 
 
 def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:

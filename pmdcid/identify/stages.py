@@ -7,11 +7,14 @@ written in one atomic rename after the fit succeeded: a failed fit leaves it unt
 
 from __future__ import annotations
 
+import math
 import os
 
 from pmdcid.errors import LogError
 from pmdcid.io import read_logs
 from pmdcid.model import load_model, save_model
+from pmdcid.model.lumped import is_lumped, lumped_unit, mark_lumped, wants_lumped
+from pmdcid.simulate import logs_for
 
 
 def _load(paths, model_path, mapping):
@@ -21,14 +24,28 @@ def _load(paths, model_path, mapping):
                            model_path)
     model = load_model(model_path, must_exist=False)
     logs = read_logs(paths, mapping)
+    if wants_lumped(logs, model) and not is_lumped(model):
+        mark_lumped(model)
     return logs, model
 
 
 def _save(result, model, model_path):
     new = model.copy()
     result.apply(new)
+    if is_lumped(model):
+        per_volt(result)
+        mark_lumped(new)
     save_model(new, model_path)
     return result
+
+
+def per_volt(result) -> None:
+    """Relabel a result's estimates in per-volt units (a lumped model, :mod:`..model.lumped`)."""
+    for e in getattr(result, "estimates", {}).values():
+        e.unit = lumped_unit(e.unit)
+    note = "lumped model: per-volt parameters (no current, no datasheet); see the model file"
+    if note not in result.warnings:
+        result.warnings.insert(0, note)
 
 
 def run_fit_electrical(paths, model_path, mapping=None):
@@ -44,7 +61,23 @@ def run_fit_mechanical(paths, model_path, mapping=None, km=None):
     from pmdcid.identify.mechanical import fit_mechanical
 
     logs, model = _load(paths, model_path, mapping)
+    if is_lumped(model):
+        return _save(lumped_mechanical(logs, model, fit_mechanical), model, model_path)
     return _save(fit_mechanical(logs, model, km=km), model, model_path)
+
+
+def lumped_mechanical(logs, model, fit):
+    """fit-mechanical per volt: R = km = 1 and no electrical lag, so that b, bv, J come out
+    in V s/rad and V s^2/rad and bc in V (:mod:`pmdcid.model.lumped`)."""
+    work = model.copy()
+    work.set("R", 1.0)
+    work.set("L", 1e-9)
+    result = fit(logs, work, km=1.0)
+    result.km_from_option = False
+    if not result.joint:  # a dead time with no electrical lag is latency, not a breakaway
+        tb = result.estimates["T_break"]
+        result.estimates["T_break"] = type(tb)("T_break", math.nan, math.nan, tb.unit)
+    return result
 
 
 def run_fit_nonlinear(paths, model_path, mapping=None, **opts):
@@ -52,7 +85,9 @@ def run_fit_nonlinear(paths, model_path, mapping=None, **opts):
     from pmdcid.identify.nonlinear import fit_nonlinear
 
     logs, model = _load(paths, model_path, mapping)
-    return _save(fit_nonlinear(logs, model, **opts), model, model_path)
+    if is_lumped(model) and not opts.get("free"):
+        opts["free"] = ["J", "bv", "bc", "dz"]
+    return _save(fit_nonlinear(logs_for(logs, model), model, **opts), model, model_path)
 
 
 def run_fit_inverse_dynamics(paths, model_path, mapping=None, as_published=False, km=None):

@@ -48,6 +48,8 @@ class Log:
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     derived: set[str] = field(default_factory=set)
     cutoff_hz: float | None = None
+    #: the file's own time column [s], unchanged (``t`` starts at 0 on a uniform grid)
+    t_file: np.ndarray | None = None
 
     @property
     def dt(self) -> float:
@@ -267,13 +269,15 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
             f"{dtv.max():.3g} s ({100 * dev:.0f} % jitter); resample to a uniform grid first",
             p,
         )
+    t_file = t
     t = t[0] + med * np.arange(len(t))
     for canon in list(data):
         data[canon] = _fill_nans(canon, data[canon], p)
     for c in list(extra):
         if not np.isfinite(extra[c]).all():
             extra.pop(c)
-    log = Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra, cutoff_hz=mapping.cutoff_hz)
+    log = Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra, cutoff_hz=mapping.cutoff_hz,
+              t_file=t_file)
     from pmdcid.io.checks import check_log
 
     check_log(log)
@@ -295,6 +299,11 @@ def read_logs(paths, mapping: ColumnMap | None = None) -> list[Log]:
 WRITE_CHUNK = 200_000
 
 
+#: the time column keeps 15 significant digits: a time stamp (e.g. seconds since 1970 with
+#: milliseconds) is written back as it was read
+TIME_FORMAT = "%.15g"
+
+
 def write_csv(fh, t: np.ndarray, columns: dict[str, np.ndarray],
               meta: dict[str, str] | None = None, precision: int = 9) -> None:
     """Write CSV to the open text file ``fh``: ``# key: value`` comments, header, values.
@@ -308,7 +317,8 @@ def write_csv(fh, t: np.ndarray, columns: dict[str, np.ndarray],
     cols = [np.asarray(t, dtype=float), *(np.asarray(c, dtype=float) for c in columns.values())]
     for a in range(0, len(cols[0]), WRITE_CHUNK):
         arr = np.column_stack([c[a:a + WRITE_CHUNK] for c in cols])
-        np.savetxt(fh, arr, delimiter=",", fmt=f"%.{precision}g")
+        fmt = [TIME_FORMAT] + [f"%.{precision}g"] * (len(cols) - 1)
+        np.savetxt(fh, arr, delimiter=",", fmt=fmt)
 
 
 def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None,

@@ -11,7 +11,7 @@ import numpy as np
 from pmdcid.errors import LogError
 from pmdcid.model import Model
 from pmdcid.report.metrics import lag_step_for, signal_metrics, speed_threshold
-from pmdcid.simulate import SimResult, param_values, simulate_values
+from pmdcid.simulate import SimResult, input_is_torque, param_values, simulate_values
 
 #: signals compared, in display order, with their units
 SIGNALS = {"omega": "rad/s", "theta": "rad", "i": "A"}
@@ -39,11 +39,19 @@ def is_blocked(log) -> bool:
 
 
 def simulate_for(log, model: Model) -> SimResult:
-    """Simulate ``model`` from rest on the log's input; a blocked rotor is held still."""
-    torque = log.drive == "tau"
-    over = {"bc": BLOCKED_BC} if is_blocked(log) else None
+    """Simulate ``model`` on the log's input from the state its first samples measured
+    (:mod:`pmdcid.identify.initial`: rest unless it starts turning); a blocked rotor is held
+    still; a lumped model takes the voltage through the torque path."""
+    from pmdcid.identify.initial import initial_state
+
+    torque = input_is_torque(log, model)
+    blocked = is_blocked(log)
+    over = {"bc": BLOCKED_BC} if blocked else None
     vals = param_values(model, torque, over)
-    return simulate_values(log.t, log.u, vals, torque)
+    x0 = initial_state(log)
+    if blocked:
+        x0[1] = 0.0
+    return simulate_values(log.t, log.u, vals, torque, x0=x0)
 
 
 def compared_signals(log) -> list[str]:

@@ -13,10 +13,29 @@ import numpy as np
 
 from pmdcid.errors import ModelError
 from pmdcid.model import EFFECTS, Model
+from pmdcid.model.lumped import ELECTRICAL, is_lumped
 from pmdcid.model.params import BASE_PARAMS
 from pmdcid.simulate.cache import invalidate_if_stale
 
 invalidate_if_stale()  # before anything compiled is loaded from the cache
+
+
+def check_layout() -> None:
+    """Every parameter the registry declares (base and effects) has a slot: in the kernel's
+    vector (:data:`layout.NAMES`) or among the sensor parameters. A parameter missing from both
+    would be silently ignored by every simulation: an import-time error instead."""
+    from pmdcid.simulate import layout
+
+    slots = set(layout.NAMES) | set(layout.SENSOR_NAMES)
+    declared = set(BASE_PARAMS) - {"b"}  # b: the paper's lumped viscous, simulated as bv
+    declared |= {p.name for e in EFFECTS.values() for p in e.params}
+    missing = sorted(declared - slots)
+    if missing:
+        raise ImportError(f"parameters without a kernel slot: {', '.join(missing)} "
+                          "(add them to pmdcid/simulate/layout.py)")
+
+
+check_layout()
 
 from pmdcid.simulate.kernel import choose_substeps, run_kernel  # noqa: E402
 from pmdcid.simulate.layout import INDEX, NAMES, SENSOR_NAMES  # noqa: E402
@@ -56,12 +75,15 @@ def param_values(model: Model, torque_driven: bool = False,
     """Effective parameter values for simulation (SI), effects not in the model neutral.
 
     ``bv`` falls back to the paper's linear ``b`` when the nonlinear stage has not run yet.
-    For torque-driven logs R, L and km are not needed.
+    For torque-driven logs and lumped models R, L and km are not needed (a lumped model's
+    electrical parameters are ignored: its input is the voltage, taken as the torque input).
     """
+    lumped = is_lumped(model)
+    torque_driven = torque_driven or lumped
     vals = neutral_values()
     active = {p.name for e in model.effects for p in EFFECTS[e].params}
     for name, par in model.parameters.items():
-        if name in BASE_PARAMS or name in active:
+        if (name in BASE_PARAMS or name in active) and not (lumped and name in ELECTRICAL):
             vals[name] = par.value
     if "bv" not in model.parameters and "b" in model.parameters:
         vals["bv"] = model.parameters["b"].value
@@ -88,12 +110,14 @@ def param_vector(vals: dict[str, float]) -> np.ndarray:
 
 
 def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
-                    torque_driven: bool = False, nsub: int | None = None) -> SimResult:
-    """Simulate from rest with parameter values ``vals`` (see :func:`param_values`)."""
+                    torque_driven: bool = False, nsub: int | None = None,
+                    x0=None) -> SimResult:
+    """Simulate with parameter values ``vals`` (see :func:`param_values`) from ``x0`` =
+    (i [A], omega [rad/s], theta [rad]) at ``t[0]`` (default: rest)."""
     t = np.asarray(t, dtype=float)
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
-    x = run_kernel(u, dt, p, torque_driven, nsub)
+    x = run_kernel(u, dt, p, torque_driven, nsub, x0)
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}
     om, th = apply_sensors(t, x[:, 1], x[:, 2], sensor)
     i = np.full(len(t), np.nan) if torque_driven else x[:, 0]
@@ -101,19 +125,49 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
 
 
 def simulate(t: np.ndarray, u: np.ndarray, model: Model, torque_driven: bool = False,
-             nsub: int | None = None, overrides: dict[str, float] | None = None) -> SimResult:
-    """Simulate ``model`` from rest under input ``u`` (V, or N m if ``torque_driven``) at ``t``."""
+             nsub: int | None = None, overrides: dict[str, float] | None = None,
+             x0=None) -> SimResult:
+    """Simulate ``model`` under input ``u`` (V, or N m if ``torque_driven``; V for a lumped
+    model) at ``t``, from ``x0`` = (i, omega, theta) (default rest)."""
     vals = param_values(model, torque_driven, overrides)
-    return simulate_values(t, u, vals, torque_driven, nsub)
+    return simulate_values(t, u, vals, torque_driven, nsub, x0)
 
 
 def simulate_log(log, model: Model, nsub: int | None = None,
-                 overrides: dict[str, float] | None = None) -> SimResult:
-    """Simulate ``model`` on a :class:`~pmdcid.io.Log`'s input column."""
-    return simulate(log.t, log.u, model, log.drive == "tau", nsub, overrides)
+                 overrides: dict[str, float] | None = None, x0=None) -> SimResult:
+    """Simulate ``model`` on a :class:`~pmdcid.io.Log`'s input column (a lumped model takes
+    the voltage through the kernel's torque path, see :mod:`pmdcid.model.lumped`)."""
+    return simulate(log.t, log.u, model, input_is_torque(log, model), nsub, overrides, x0)
+
+
+def logs_for(logs, model: Model) -> list:
+    """The logs as the kernel sees them for ``model``: for a lumped model, each voltage log
+    becomes a view whose input column is ``tau`` (the voltage, in V); other logs unchanged."""
+    if not is_lumped(model):
+        return list(logs)
+    return [lumped_view(lg) for lg in logs]
+
+
+def lumped_view(log):
+    """A voltage log seen as torque-driven (same arrays, ``tau`` = ``v``), marked lumped."""
+    import dataclasses
+
+    if "v" not in log.data:
+        return log
+    data = {("tau" if k == "v" else k): a for k, a in log.data.items() if k != "tau"}
+    view = dataclasses.replace(log, data=data, meta={**log.meta, "lumped": "true"})
+    view.derived = set(log.derived)
+    return view
+
+
+def input_is_torque(log, model: Model) -> bool:
+    """True when the kernel takes the log's input as a torque: a ``tau`` log, or a voltage log
+    simulated by a lumped (per-volt) model."""
+    return log.drive == "tau" or is_lumped(model)
 
 
 __all__ = [
-    "INDEX", "NAMES", "SimResult", "choose_substeps", "neutral_values", "param_values",
-    "param_vector", "run_kernel", "simulate", "simulate_log", "simulate_values",
+    "INDEX", "NAMES", "SimResult", "choose_substeps", "input_is_torque", "logs_for",
+    "neutral_values", "param_values", "param_vector", "run_kernel", "simulate", "simulate_log",
+    "simulate_values",
 ]

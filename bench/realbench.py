@@ -1,0 +1,87 @@
+"""`make realbench`: every real rig in ../shared/data — fit on some logs, predict the others.
+
+For each rig: the held-out speed NRMSE (mean over held-out runs) of the paper's stage sequence
+and of ``identify``, against a linear first-order model with an input offset fitted on the same
+logs and the rig's repeatability floor (see bench/realdata.py). Target (issue "Real rigs"):
+each model <= max(linear / 2, 1.2 x floor) and never above the linear baseline.
+
+    python bench/realbench.py [--write docs/real-data.md] [--no-diagnose] [--rig NAME]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench import realdata  # noqa: E402
+
+BEGIN, END = "<!-- realbench:begin -->", "<!-- realbench:end -->"
+LABELS = ("paper", "identify")
+
+
+def run(args) -> list[dict]:
+    out = []
+    for rig in realdata.rigs():
+        if args.rig and rig.name != args.rig:
+            continue
+        t0 = time.perf_counter()
+        print(f"... {rig.name}", file=sys.stderr, flush=True)
+        models = {"paper": realdata.paper_sequence(rig),
+                  "identify": realdata.identify_rig(rig, diagnose=not args.no_diagnose)}
+        res = realdata.evaluate(rig, models)
+        res["mean"] = realdata.summarise(res, LABELS)
+        res["seconds"] = time.perf_counter() - t0
+        out.append(res)
+    return out
+
+
+def table(results) -> str:
+    lines = ["| rig | fitted on | held out | linear | floor | target | paper | identify |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        m = r["mean"]
+        ok = {k: ("" if m[k] <= max(m["target"], 0) and m[k] <= m["linear"] else " ✗")
+              for k in LABELS}
+        held = ", ".join(sorted({row["protocol"] for row in r["rows"]}))
+        lines.append(f"| {r['rig']} | {', '.join(r['fit'])} | {held} ({len(r['rows'])} runs) "
+                     f"| {m['linear']:.3f} | {m['floor']:.3f} | {m['target']:.3f} "
+                     f"| {m['paper']:.3f}{ok['paper']} | {m['identify']:.3f}{ok['identify']} |")
+    lines.append("")
+    lines.append("Per held-out run (speed NRMSE):")
+    lines.append("")
+    lines.append("| rig | log | linear | floor | paper | identify |")
+    lines.append("|---|---|---|---|---|---|")
+    for r in results:
+        for row in r["rows"]:
+            lines.append(f"| {r['rig']} | {row['log']} | {row['linear']:.3f} | "
+                         f"{row['floor']:.3f} | {row['paper']:.3f} | {row['identify']:.3f} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--write", type=Path, help="put the table into this markdown file")
+    ap.add_argument("--no-diagnose", action="store_true", help="identify without diagnose")
+    ap.add_argument("--rig", help="only this rig")
+    args = ap.parse_args(argv)
+    if not realdata.rigs():
+        print(f"no real data under {realdata.SHARED}: nothing to do", file=sys.stderr)
+        return 0
+    results = run(args)
+    text = table(results)
+    print(text)
+    for r in results:
+        print(f"{r['rig']}: {r['seconds']:.1f} s; why these logs: {r['why']}")
+    if args.write:
+        doc = args.write.read_text()
+        a, b = doc.index(BEGIN) + len(BEGIN), doc.index(END)
+        args.write.write_text(doc[:a] + "\n" + text + "\n" + doc[b:])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,41 @@
+"""``pmdcid identify LOG... -m MODEL [-o DIR] [--no-diagnose] [--km X]``: a whole rig."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from pmdcid.cli import main
+from pmdcid.cli.options import FiniteFloat, log_options, model_option
+
+
+@main.command("identify")
+@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=click.Path(dir_okay=False))
+@model_option()
+@click.option("-o", "--output", "out_dir", type=click.Path(), default=None, metavar="DIR",
+              help="Write the report (report.html, metrics.json, figures) into DIR.")
+@click.option("--no-diagnose", is_flag=True, help="Skip the effect search after the joint fit.")
+@click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
+              help="Torque constant [N m/A] (datasheet); default: km from MODEL.")
+@click.option("--no-prior", is_flag=True,
+              help="Later stages use their own logs alone (default: combined with what the "
+                   "earlier stages determined).")
+@log_options
+def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, mapping):
+    """A whole rig: sort the logs, run every stage that applies, a joint fit, diagnose, and
+    the report into DIR."""
+    from pmdcid.pipeline import run_identify
+
+    def progress(stage):
+        if sys.stderr.isatty():
+            click.echo(f"... {stage}", err=True)
+
+    res = run_identify(list(logs), model_path, out_dir, mapping, km=km,
+                       run_diagnose=not no_diagnose, priors=not no_prior, progress=progress)
+    click.echo(res.table())
+    for w in res.warnings:
+        click.echo(f"warning: {w}", err=True)
+    click.echo(f"updated {model_path}")
+    if res.report_dir:
+        click.echo(f"wrote {res.report_dir}/report.html")

@@ -1,0 +1,68 @@
+"""Each log's initial state: a log need not start at rest.
+
+A real log often starts with the rotor turning (closed-loop steps, a trimmed start, a previous
+run still coasting). Simulated from rest it is wrong for a whole mechanical time constant, and a
+fit then credits the start to friction, dead time or a "speed offset". The state at the first
+sample, x0 = (i [A], omega [rad/s], theta [rad]), is taken from the measured first samples:
+
+- theta: the first measured angle (an encoder's zero is arbitrary);
+- i: the first measured current (voltage-driven logs with a current sensor), else 0;
+- omega: the mean of the first few measured speeds; a start within noise of zero is exactly at
+  rest (the kernel's stick-slip test needs omega = 0 exactly), a start clearly turning is a
+  free parameter of the simulation-error fits (:func:`moving_start`), started there.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: samples averaged for the starting speed
+HEAD = 5
+#: a starting speed within this many standard errors of zero is a start at rest
+REST_SIGMAS = 4.0
+
+
+def _head(x: np.ndarray) -> np.ndarray:
+    x = np.asarray(x[:HEAD], float)
+    return x[np.isfinite(x)]
+
+
+def start_speed(log, sigma: float | None = None) -> float:
+    """Measured speed at the first sample [rad/s]: 0 when it is within noise of rest."""
+    if not log.has("omega"):
+        return 0.0
+    head = _head(log["omega"])
+    if head.size == 0:
+        return 0.0
+    w0 = float(np.mean(head))
+    if sigma is None:
+        from pmdcid.io.derive import noise_std
+
+        sigma = noise_std(np.asarray(log["omega"], float)[np.isfinite(log["omega"])])
+    sd = max(float(sigma) if math.isfinite(sigma) else 0.0, 0.0) / math.sqrt(head.size)
+    if "omega" in log.derived:
+        sd = max(sd, float(np.std(head)))
+    return w0 if abs(w0) > REST_SIGMAS * max(sd, 1e-12) else 0.0
+
+
+def initial_state(log, sigma_omega: float | None = None) -> np.ndarray:
+    """x0 = (i [A], omega [rad/s], theta [rad]) at the log's first sample (module docstring)."""
+    i0 = 0.0
+    if log.has("i") and log.drive == "v":
+        head = _head(log["i"])
+        i0 = float(head[0]) if head.size else 0.0
+    th0 = 0.0
+    if log.has("theta"):
+        head = _head(log["theta"])
+        th0 = float(head[0]) if head.size else 0.0
+    return np.array([i0, start_speed(log, sigma_omega), th0])
+
+
+def moving_start(x0: np.ndarray) -> bool:
+    """True when the log starts turning (its starting speed is then fitted)."""
+    return x0[1] != 0.0
+
+
+__all__ = ["initial_state", "moving_start", "start_speed"]

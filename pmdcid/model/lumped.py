@@ -1,0 +1,98 @@
+"""Lumped (per-volt) models: voltage and speed logged, no current sensor and no datasheet.
+
+From v -> omega alone only ratios are identifiable. Dividing the mechanical equation
+``J w' = (km/R)(v - ke w) - bv w - f(w)`` by km/R (the electrical lag L/R neglected, it is far
+below the mechanical one on every motor we know) gives
+
+    J' w' = v - bv' w - f'(w),   J' = J R/km [V s^2/rad], bv' = bv R/km + ke [V s/rad],
+                                  bc', dz', tau0' = (R/km) x torque [V]
+
+which is the kernel's torque-driven equation with the voltage as its input. A lumped model file
+says ``"lumped": true`` and carries these parameters with their per-volt units; every command
+that reads a model accepts it. :func:`to_si` converts it when km and R are known.
+
+Approximation stated: the hard dead zone acts on the applied voltage here (on the current in
+the SI model); both agree at standstill, where the dead zone matters.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pmdcid.errors import ModelError
+from pmdcid.model.params import Model, _unit_of
+
+KEY = "lumped"
+NOTE = ("per-volt parameters (voltage and speed only: no current, no datasheet): "
+        "J = J_SI R/km [V s^2/rad], bv = bv_SI R/km + ke [V s/rad], bc, dz, tau0 = R/km x "
+        "torque [V]; give km and R (fit-electrical, --km) to convert to SI")
+#: parameters that have no meaning in a lumped model (the electrical side is folded in)
+ELECTRICAL = ("R", "L", "km", "ke")
+
+
+def is_lumped(model: Model) -> bool:
+    """True for a per-volt model (``"lumped": true`` in the model file)."""
+    return bool(model.extra.get(KEY, False))
+
+
+def lumped_unit(si_unit: str) -> str:
+    """The per-volt unit of a parameter whose SI unit is ``si_unit`` (torque -> V,
+    inertia -> V s^2/rad)."""
+    return si_unit.replace("kg m^2", "V s^2/rad").replace("N m", "V")
+
+
+def mark_lumped(model: Model) -> None:
+    """Make ``model`` a lumped model: flag, note, and per-volt units on its parameters."""
+    model.extra[KEY] = True
+    model.extra["lumped_note"] = NOTE
+    for name, par in model.parameters.items():
+        par.unit = lumped_unit(_unit_of(name) or par.unit)
+
+
+def wants_lumped(logs, model: Model) -> bool:
+    """Whether a stage on ``logs`` must work per volt: the model is lumped already, or the logs
+    are voltage logs with no current anywhere and the model has no R (a datasheet km alone
+    does not give SI units: the torque per volt is km/R)."""
+    if is_lumped(model):
+        return True
+    volt = [lg for lg in logs if "v" in lg.data]
+    if not volt or any("i" in lg.data for lg in logs):
+        return False
+    return not model.has("R")
+
+
+def to_si(model: Model, km: float, R: float) -> Model:
+    """An SI copy of a lumped model, given km [N m/A] and R [ohm].
+
+    Torque-like parameters scale by km/R; J too; ``bv' = bv R/km + ke`` with ke = km (SI)
+    gives ``bv = (bv' - km) km/R``, and the back-EMF becomes an explicit effect. A bv' smaller
+    than km is impossible for that km and R (the motor would be faster than unloaded): refused.
+    """
+    if not (math.isfinite(km) and km > 0 and math.isfinite(R) and R > 0):
+        raise ModelError("converting a lumped model needs positive km and R", model.path)
+    g = km / R
+    out = model.copy()
+    out.extra.pop(KEY, None)
+    out.extra.pop("lumped_note", None)
+    for name, par in list(out.parameters.items()):
+        if name in ELECTRICAL:
+            continue
+        unit = _unit_of(name)
+        if "N m" in unit or "kg m^2" in unit:
+            par.value *= g
+            par.stderr *= g
+        par.unit = unit
+    bv_name = "bv" if out.has("bv") else "b"
+    if out.has(bv_name):
+        par = out.parameters[bv_name]
+        raw = model.parameters[bv_name].value
+        if raw <= km:
+            raise ModelError(f"the lumped {bv_name} = {raw:.4g} V s/rad is below km = {km:.4g}: "
+                             "this km and R cannot produce the logged speeds", model.path)
+        par.value = (raw - km) * g
+    out.set("ke", km, stage="lumped->SI (ke = km)")
+    out.add_effect("back_emf")
+    out.set("km", km, stage="datasheet")
+    if not out.has("R"):
+        out.set("R", R, stage="given")
+    return out

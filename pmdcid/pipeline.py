@@ -1,0 +1,270 @@
+"""``pmdcid identify``: a whole rig in one command.
+
+The logs are sorted (``# kind:`` metadata where present, else by content), the paper's stages run
+on the logs each applies to, every later stage combining its logs with what the earlier ones
+determined (:mod:`pmdcid.identify.priors`), then one joint simulation-error fit over every log
+that moves, then
+diagnose and the report. Each decision is printed with its reason.
+
+It sits above identify/, diagnose/ and report/ (it calls all three) and below cli/.
+
+Sorting by content (:func:`classify`):
+
+- rotor still (no speed or angle, or a speed within noise of zero) with a current flowing ->
+  ``blocked`` (fit-electrical);
+- an input with one change (a step, up or down), or a step and its return -> ``step``
+  (fit-mechanical);
+- an input that never changes -> ``unused`` (nothing to identify from);
+- anything else -> ``rich`` (fit-nonlinear: ramps, triangles, sines, chirps, staircases).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pmdcid.errors import FitError, PmdcidError
+from pmdcid.model import Model
+from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
+
+#: metadata kinds -> class
+KIND_META = {"blocked-rotor": "blocked", "blocked": "blocked", "free-speed-step": "step",
+             "step": "step", "triangle": "rich", "ramp": "rich", "rich": "rich"}
+#: a step log: one jump, or a jump and its return (a log cut after the input went back)
+STEP_CHANGES = 2
+
+
+@dataclass
+class LogPlan:
+    """What identify does with one log: its class and why."""
+
+    path: str
+    kind: str
+    why: str
+
+
+@dataclass
+class IdentifyResult:
+    """The model identify wrote, the per-log plan, each stage's result and what was skipped."""
+
+    model: Model
+    plan: list[LogPlan]
+    stages: list[tuple[str, object]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    diagnose: object = None
+    report_dir: str | None = None
+
+    def table(self) -> str:
+        lines = ["identify: what each log is used for", ""]
+        w = max([len(p.path) for p in self.plan] + [3])
+        w = min(w, 48)
+        for p in self.plan:
+            name = p.path if len(p.path) <= w else "..." + p.path[-(w - 3):]
+            lines.append(f"{name:<{w}}  {p.kind:<8} {p.why}")
+        for name, res in self.stages:
+            lines += ["", f"== {name}", res.table()]
+        if self.diagnose is not None:
+            lines += ["", "== diagnose", self.diagnose.table()]
+        lines += [""] + self.notes
+        return "\n".join(lines).rstrip()
+
+
+def input_changes(u: np.ndarray) -> int:
+    """Number of changes of a zero-order-held input [count]: sample-to-sample jumps above its
+    noise (5 robust std of the second difference; a commanded input has none). A ramp or a
+    sine changes at every sample; a noisy measured input that drifts slowly without a single
+    jump above its noise counts as changing at every sample too."""
+    from pmdcid.io.derive import noise_std
+
+    u = np.asarray(u, float)
+    u = u[np.isfinite(u)]
+    span = float(np.max(u) - np.min(u)) if u.size else 0.0
+    if not span > 0:
+        return 0
+    sd = noise_std(u) if u.size > 5 else 0.0
+    jumps = int(np.count_nonzero(np.abs(np.diff(u)) > max(5.0 * sd, 1e-9 * span)))
+    if jumps == 0 and span > 20.0 * sd:
+        return len(u) - 1
+    return jumps
+
+
+def _still(log) -> bool:
+    if not (log.has("omega") or log.has("theta")):
+        return True
+    if log.has("omega") and "omega" not in log.derived:
+        w = np.asarray(log["omega"], float)
+        from pmdcid.io.derive import noise_std
+
+        sd = noise_std(w[np.isfinite(w)])
+        return bool(np.nanmax(np.abs(w)) < 5 * max(sd, 1e-12))
+    return False
+
+
+def classify(log) -> LogPlan:
+    """The class of one log (module docstring) and the reason, in words."""
+    kind = (log.kind or "").strip().lower()
+    if kind in KIND_META:
+        return LogPlan(log.path, KIND_META[kind], f"'# kind: {kind}' in the file")
+    if log.has("i") and log.drive == "v" and _still(log):
+        return LogPlan(log.path, "blocked", "the rotor stays still while current flows")
+    n = input_changes(log.u)
+    if n == 0:
+        return LogPlan(log.path, "unused", "the input never changes: nothing to identify")
+    if _still(log):
+        return LogPlan(log.path, "unused", "the rotor never moves (and no current is logged)")
+    if n <= STEP_CHANGES:
+        return LogPlan(log.path, "step", "one step in the input" + (
+            " (and its return)" if n == 2 else ""))
+    return LogPlan(log.path, "rich", f"the input changes {n} times (ramp, sine, staircase...)")
+
+
+def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool = True,
+             priors: bool = True, progress=None) -> IdentifyResult:
+    """Identify a whole rig from ``logs`` starting from ``model`` (may be empty).
+
+    ``km`` [N m/A]: the datasheet torque constant. ``run_diagnose``: search the effect catalogue
+    on every log after the joint fit. ``priors``: later stages combine with earlier estimates.
+    ``progress(msg)``: called before each stage. Returns an :class:`IdentifyResult` (the model
+    given is not modified).
+    """
+    say = progress or (lambda msg: None)
+    work = model.copy()
+    if km is not None:
+        work.set("km", km, stage="datasheet")
+    plan = [classify(lg) for lg in logs]
+    res = IdentifyResult(work, plan)
+    groups = {k: [lg for lg, p in zip(logs, plan, strict=True) if p.kind == k]
+              for k in ("blocked", "step", "rich")}
+    if groups["blocked"]:
+        say("fit-electrical")
+        _stage(res, "fit-electrical", groups["blocked"], _electrical)
+    moving = groups["step"] + groups["rich"]
+    if not moving:
+        if not res.stages:
+            raise FitError("no log identifies anything: give logs where the input changes and "
+                           "the rotor moves (steps, ramps) or blocked-rotor current steps")
+        return res
+    if wants_lumped(moving, res.model) and not is_lumped(res.model):
+        mark_lumped(res.model)
+        res.notes.append("no current and no R: the model is lumped (per-volt parameters; "
+                         "see the model file's lumped_note)")
+    if groups["step"]:
+        say("fit-mechanical")
+        _stage(res, "fit-mechanical", groups["step"], _mechanical)
+    if groups["rich"] and groups["step"] and _has_mech(res.model):
+        say("fit-nonlinear")
+        _stage(res, "fit-nonlinear", groups["rich"], _nonlinear(priors))
+    say("joint fit")
+    _stage(res, "joint fit (all moving logs)", moving, _nonlinear(False))
+    if run_diagnose and any(name.startswith("joint") for name, _ in res.stages):
+        say("diagnose")
+        _diagnose(res, moving)
+    return res
+
+
+def _has_mech(model: Model) -> bool:
+    return model.has("J") and (model.has("bv") or model.has("b"))
+
+
+def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
+    """Run one stage; a stage that cannot use its logs is noted, the others go on."""
+    try:
+        out = fit(logs, res.model)
+    except PmdcidError as exc:
+        res.notes.append(f"{name}: skipped: {exc}")
+        return
+    new = res.model.copy()
+    out.apply(new)
+    if is_lumped(res.model):
+        from pmdcid.identify.stages import per_volt
+
+        per_volt(out)
+        mark_lumped(new)
+    res.model = new
+    res.stages.append((name, out))
+    res.warnings += [f"{name}: {w}" for w in getattr(out, "warnings", [])]
+
+
+def _electrical(logs, model):
+    from pmdcid.identify.electrical import fit_electrical
+
+    return fit_electrical(logs, model)
+
+
+def _mechanical(logs, model):
+    from pmdcid.identify.mechanical import fit_mechanical
+    from pmdcid.identify.stages import lumped_mechanical
+
+    if is_lumped(model):
+        return lumped_mechanical(logs, model, fit_mechanical)
+    if not model.has("km"):
+        raise FitError("fit-mechanical needs km: give --km (datasheet) or leave out the "
+                       "current to identify a lumped model")
+    return fit_mechanical(logs, model)
+
+
+def _nonlinear(priors: bool):
+    def run(logs, model):
+        from pmdcid.identify.nonlinear import fit_nonlinear
+        from pmdcid.simulate import logs_for
+
+        free = ["J", "bv", "bc", "dz"] if is_lumped(model) else None
+        return fit_nonlinear(logs_for(logs, model), model, free=free, priors=priors)
+
+    return run
+
+
+def _diagnose(res: IdentifyResult, logs) -> None:
+    from pmdcid.diagnose.loop import diagnose
+    from pmdcid.simulate import logs_for
+
+    try:
+        out = diagnose(logs_for(logs, res.model), res.model)
+    except PmdcidError as exc:
+        res.notes.append(f"diagnose: skipped: {exc}")
+        return
+    if is_lumped(res.model):
+        mark_lumped(out.model)
+    res.model = out.model
+    res.diagnose = out
+
+
+def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_diagnose=True,
+                 priors=True, progress=None) -> IdentifyResult:
+    """``pmdcid identify`` on files: read, identify, write MODEL atomically, then the report."""
+    import os
+
+    from pmdcid.errors import LogError
+    from pmdcid.io import read_logs
+    from pmdcid.model import load_model, save_model
+
+    for p in paths:
+        if os.path.exists(p) and os.path.exists(model_path) and os.path.samefile(p, model_path):
+            raise LogError(f"the model file would overwrite the input log {p}; choose another -m",
+                           model_path)
+    if out_dir is not None:
+        from pmdcid.report import check_out_dir
+
+        check_out_dir(out_dir)
+    model = load_model(model_path, must_exist=False)
+    logs = read_logs(paths, mapping)
+    res = identify(logs, model, km=km, run_diagnose=run_diagnose, priors=priors,
+                   progress=progress)
+    res.model.extra.setdefault("fits", {})["identify"] = {
+        "logs": {p.path: {"kind": p.kind, "why": p.why} for p in res.plan},
+        "stages": [name for name, _ in res.stages], "notes": res.notes}
+    save_model(res.model, model_path)
+    if out_dir is not None:
+        from pmdcid.report import make_report
+
+        summary = res.diagnose.summary if res.diagnose is not None else None
+        shown = [lg for lg, p in zip(logs, res.plan, strict=True) if p.kind != "unused"]
+        rep = make_report(shown, res.model, out_dir, summary=summary)
+        res.report_dir = rep.out_dir
+    return res
+
+
+__all__ = ["IdentifyResult", "LogPlan", "classify", "identify", "input_changes",
+           "run_identify"]
