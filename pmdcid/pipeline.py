@@ -20,6 +20,7 @@ Sorting by content (:func:`classify`):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -73,18 +74,21 @@ class IdentifyResult:
 
 def input_changes(u: np.ndarray) -> int:
     """Number of changes of a zero-order-held input [count]: sample-to-sample jumps above its
-    noise (5 robust std of the second difference; a commanded input has none). A ramp or a
+    noise (5 robust std of the first difference; a commanded input has none). A ramp or a
     sine changes at every sample; a noisy measured input that drifts slowly without a single
     jump above its noise counts as changing at every sample too."""
-    from pmdcid.io.derive import noise_std
-
     u = np.asarray(u, float)
     u = u[np.isfinite(u)]
     span = float(np.max(u) - np.min(u)) if u.size else 0.0
     if not span > 0:
         return 0
-    sd = noise_std(u) if u.size > 5 else 0.0
-    jumps = int(np.count_nonzero(np.abs(np.diff(u)) > max(5.0 * sd, 1e-9 * span)))
+    d = np.abs(np.diff(u))
+    moving = int(np.count_nonzero(d > 1e-9 * span))
+    if moving > 0.1 * len(d):
+        return moving  # changes at most samples: a ramp, sine, chirp (or a noisy input)
+    # robust scale of the sample-to-sample change (0 for a held, commanded input)
+    sd = 1.4826 * float(np.median(d)) / math.sqrt(2.0)
+    jumps = int(np.count_nonzero(d > max(5.0 * sd, 1e-9 * span)))
     if jumps == 0 and span > 20.0 * sd:
         return len(u) - 1
     return jumps

@@ -182,7 +182,9 @@ def test_identify_a_whole_rig_on_the_fixtures(tmp_path):
     r = CliRunner().invoke(main, ["identify", *paths, "-m", str(model), "--km", "0.0502",
                                   "--no-diagnose"])
     assert r.exit_code == 0, r.output
-    kinds = [ln.split()[1] for ln in r.output.splitlines() if ln.startswith(str(tmp_path))]
+    names = ("blocked_1.0V", "blocked_2.0V", "step_1.0V", "step_2.5V", "triangle")
+    kinds = [next(ln.split(f"{n}.csv")[1].split()[0] for ln in r.output.splitlines()
+                  if f"{n}.csv " in ln) for n in names]
     assert kinds == ["blocked", "blocked", "step", "step", "rich"]
     got = json.loads(model.read_text())["parameters"]
     for k, tol in (("R", 5e-3), ("L", 5e-3), ("J", 0.02), ("bv", 0.02), ("bc", 0.02)):

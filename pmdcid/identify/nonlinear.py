@@ -172,6 +172,8 @@ def _start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], se
     start: dict[str, float] = {}
     guessed: set[str] = set()
     tau_logs = [lg for lg in logs if lg.drive == "tau"]
+    if tau_logs and _earlier_mechanics(model):
+        tau_logs = []  # a lumped model from fit-mechanical: its J, bv are the better start
     if tau_logs:
         try:
             idm = fit_inverse_dynamics(tau_logs, model)
@@ -208,6 +210,13 @@ def _start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], se
         start["dz"] = float(tb) if isinstance(tb, (int, float)) and tb > 0 else start["bc"]
     start.setdefault("tau0", 0.0)
     return start, guessed
+
+
+def _earlier_mechanics(model: Model) -> bool:
+    """True when an earlier stage (not a start value) wrote J and bv (or b) into ``model``."""
+    def staged(n):
+        return model.has(n) and model.parameters[n].stage not in ("", "start")
+    return staged("J") and (staged("bv") or staged("b"))
 
 
 def _torque_scale(logs, vals) -> float:

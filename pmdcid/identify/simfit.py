@@ -158,21 +158,35 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             r = (ss[k].get(s) - meas) / sd
             parts.append(np.where(np.isfinite(r), r, 0.0))
         if prior_rows:
-            parts.append(np.array([(x[j] - m) / sd for j, m, sd in prior_rows]))
+            parts.append(np.array([weight[0] * (x[j] - m) / sd for j, m, sd in prior_rows]))
         return np.concatenate(parts)
 
     if isinstance(diff_step, dict):
         steps = np.array([float(diff_step.get(n, 1e-3)) for n in free] + [1e-3] * len(moving))
     else:
         steps = float(diff_step)
-    try:
-        with blas_single_thread():
-            sol = least_squares(resid, x0 / scale, bounds=(lo / scale, hi / scale), method="trf",
-                                diff_step=steps, max_nfev=max_nfev, x_scale="jac")
-    except ValueError as exc:
-        raise FitError(f"simulation-error fit failed: {exc}") from None
-    x = sol.x * scale
+    weight = [1.0]  # the prior rows' weight: the data's honest information (below)
+
+    def solve(z0):
+        try:
+            with blas_single_thread():
+                return least_squares(resid, z0, bounds=(lo / scale, hi / scale), method="trf",
+                                     diff_step=steps, max_nfev=max_nfev, x_scale="jac")
+        except ValueError as exc:
+            raise FitError(f"simulation-error fit failed: {exc}") from None
+
+    sol = solve(x0 / scale)
     nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them
+    if prior_rows:
+        # the data rows are weighted by the noise; when the model leaves a residual many times
+        # the noise, correlated in time, the logs carry far less information than that weight
+        # says: the priors are weighed against the data's honest information, the reduced
+        # chi-square times the correlated-residual inflation squared (docs/identification.md)
+        w = _data_discount(resid, sol, nd, segments, lo / scale, hi / scale, cov_step)
+        if w > 1.5:
+            weight[0] = w
+            sol = solve(sol.x)
+    x = sol.x * scale
     chisqr = float(np.sum(sol.fun[:nd] ** 2))
     stats = FitStats(ndata, len(x), chisqr, int(sol.nfev), bool(sol.success), str(sol.message))
     # covariance from the Jacobian at the solution, scaled by the reduced chi-square. The
@@ -183,7 +197,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         Jm = envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale,
                                 cov_step) / scale[None, :]
     try:
-        cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated)
+        cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = cov / np.outer(se, se)
@@ -221,10 +235,27 @@ def _initial_states(logs, sig_list, initial: bool) -> list[np.ndarray]:
     return out
 
 
-def _covariance(Jm, fun, nd, segments, redchi, correlated):
+def _data_discount(resid, sol, nd, segments, lo, hi, cov_step) -> float:
+    """sqrt(reduced chi-square) x the correlated-residual inflation of the data rows at ``sol``
+    (>= 1): by how much the noise weights overstate the logs' information."""
+    r = sol.fun[:nd]
+    redchi = float(np.sum(r**2)) / max(nd - len(sol.x), 1)
+    with blas_single_thread():
+        Jd = envelope_jacobian(resid, sol.x, sol.fun, lo, hi, cov_step)[:nd]
+    try:
+        white = np.linalg.pinv(Jd.T @ Jd) * redchi
+        _, info = block_covariance(Jd, r, segments, white)
+        infl = max(float(info.inflation), 1.0)
+    except np.linalg.LinAlgError:
+        infl = 1.0
+    return math.sqrt(max(redchi, 1.0)) * infl
+
+
+def _covariance(Jm, fun, nd, segments, redchi, correlated, weight=1.0):
     """Parameter covariance: the data rows' (white or correlated-residual sandwich), combined
-    with the prior rows' information: ``(Hd + P)^-1 (Sd + P) (Hd + P)^-1`` where ``Sd`` is the
-    data score's covariance (``Hd cov_d Hd``) and ``P`` the priors' precision."""
+    with the prior rows' information: ``(Hd + P)^-1 (Sd + w^2 P) (Hd + P)^-1`` where ``Sd`` is
+    the data score's covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision
+    and ``w`` their weight (the prior means' own variance, scaled like their rows)."""
     Jd = Jm[:nd]
     Hd = Jd.T @ Jd
     cov = np.linalg.pinv(Hd) * redchi
@@ -237,7 +268,7 @@ def _covariance(Jm, fun, nd, segments, redchi, correlated):
     P = Jp.T @ Jp
     Sd = Hd @ cov @ Hd
     Hinv = np.linalg.pinv(Hd + P)
-    return Hinv @ (Sd + P) @ Hinv, info
+    return Hinv @ (Sd + weight**2 * P) @ Hinv, info
 
 
 def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
