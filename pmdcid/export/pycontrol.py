@@ -9,6 +9,8 @@ kept as a delay line in the state (the outputs must be a function of the state).
 
 from __future__ import annotations
 
+import textwrap
+
 from pmdcid.export import MARKER, ExportSpec, fill, number, template
 
 
@@ -18,7 +20,8 @@ def render(spec: ExportSpec) -> str:
     return fill(template("pycontrol.py.tmpl"), {
         "MARKER": MARKER.capitalize(), "SOURCE": spec.source, "DRIVE": spec.drive,
         "INPUT": "tau" if spec.drive == "tau" else "v",
-        "NAMES": " ".join(f"{n!r}," for n in spec.values),
+        "NAMES": textwrap.fill(" ".join(f"{n!r}," for n in spec.values), 96,
+                               initial_indent="    ", subsequent_indent="    "),
         "PARAMS": params, "DELAY": number(spec.delay, "math.inf"),
         "OMEGA0": number(spec.omega0, "math.inf"),
     })
