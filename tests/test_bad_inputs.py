@@ -145,6 +145,7 @@ SIM = ["simulate", "step.csv", "-m", "model.json", "-o", "out.csv"]
 FE = ["fit-electrical", "blocked.csv", "-m", "model.json"]
 FM = ["fit-mechanical", "step.csv", "-m", "model.json"]
 FN = ["fit-nonlinear", "tri.csv", "-m", "model.json"]
+EXP = ["export", "-m", "model.json", "--to"]
 
 
 def _step_log(name, omega_scale=1.0, theta_scale=1.0, clip=None, v=1.5, onset=0.5, n=3000,
@@ -541,6 +542,23 @@ CASES: list[Case] = [
     C("demo-out-is-a-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt"], 1,
       r"^error: notes\.txt\b"),
     C("demo-out-in-proc", lambda d: None, ["demo", "-o", "/proc/pmdcid-demo"], 1, r"^error: /proc"),
+    # ---- export ----------------------------------------------------------------------------
+    C("export-model-missing", lambda d: None, EXP + ["c", "-o", "motor.c"], 1,
+      r"^error: model\.json: no such model file", subprocess=True),
+    C("export-model-lacks-km", model(drop=("km",)), EXP + ["python-control", "-o", "m.py"], 1,
+      r"^error: model\.json: model has R, L but lacks km"),
+    C("export-model-lacks-J", model(drop=("J",)), EXP + ["matlab", "-o", "motor.m"], 1,
+      r"^error: model\.json: model lacks J"),
+    C("export-over-a-log", combine(MODEL, STEP), EXP + ["c", "-o", "step.csv"], 1,
+      r"^error: step\.csv: exists and was not written by pmdcid export; use --force"),
+    C("export-header-over-a-log", combine(MODEL, fixture("paper/step_1.5V.csv", "motor.h")),
+      EXP + ["c", "-o", "motor.c"], 1, r"^error: motor\.h: exists and was not written"),
+    C("export-over-the-model", MODEL, EXP + ["python-control", "-o", "model.json", "--force"], 1,
+      r"^error: model\.json: output would overwrite the model file"),
+    C("export-matlab-bad-name", MODEL, EXP + ["matlab", "-o", "my-motor.m"], 1,
+      r"^error: my-motor\.m: a MATLAB function file must be NAME\.m"),
+    C("usage-export-unknown-format", MODEL, EXP + ["fortran", "-o", "m.f"], 2,
+      r"'fortran' is not one of", subprocess=True),
     # ---- usage errors (click) --------------------------------------------------------------
     C("usage-no-model", STEP, ["simulate", "step.csv", "-o", "out.csv"], 2,
       r"Missing option '-m'"),

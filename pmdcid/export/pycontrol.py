@@ -1,0 +1,27 @@
+"""``export --to python-control``: a Python module whose ``make_system(dt)`` returns a
+discrete-time ``control.NonlinearIOSystem`` stepping the kernel's exact model.
+
+The module is self-contained (numpy, and python-control for ``make_system``): the discretisation
+is computed at ``make_system`` time for the dt given, by a pure-Python port of the kernel's
+``expm_small``; the step is a line-by-line port of the kernel's inner loop. A sensor delay is
+kept as a delay line in the state (the outputs must be a function of the state).
+"""
+
+from __future__ import annotations
+
+import textwrap
+
+from pmdcid.export import MARKER, ExportSpec, fill, number, template
+
+
+def render(spec: ExportSpec) -> str:
+    """Source text of the generated module."""
+    params = "\n".join(f"    {n!r}: {number(v, 'math.inf')}," for n, v in spec.values.items())
+    return fill(template("pycontrol.py.tmpl"), {
+        "MARKER": MARKER.capitalize(), "SOURCE": spec.source, "DRIVE": spec.drive,
+        "INPUT": "tau" if spec.drive == "tau" else "v",
+        "NAMES": textwrap.fill(" ".join(f"{n!r}," for n in spec.values), 96,
+                               initial_indent="    ", subsequent_indent="    "),
+        "PARAMS": params, "DELAY": number(spec.delay, "math.inf"),
+        "OMEGA0": number(spec.omega0, "math.inf"),
+    })

@@ -1,0 +1,71 @@
+"""Shared by the export tests: models with effects on, inputs from the fixtures, the reference."""
+
+from pathlib import Path
+
+import numpy as np
+
+from pmdcid.io import read_log
+from pmdcid.model import save_model
+from pmdcid.simulate import simulate
+from pmdcid.synth import PAPER, truth_model
+
+FIX = Path(__file__).resolve().parents[1] / "fixtures" / "paper"
+
+#: paper's motor with back-EMF, Stribeck and both sensor effects (delay of 2.5 samples at 1 ms)
+EFFECTS = ["back_emf", "stribeck", "sensor_delay", "speed_offset"]
+EXTRA = {"ke": 0.0502, "fs": 0.003, "ws": 0.5, "delay": 0.0025, "omega0": 0.01}
+#: every other catalogue effect on as well
+ALL_EFFECTS = EFFECTS + ["quadratic_drag", "torque_offset", "cogging", "voltage_saturation",
+                         "brush_drop", "viscous_asymmetry"]
+ALL_EXTRA = dict(EXTRA, bq=2e-4, tau0=5e-4, ca=1e-3, cn=6.0, cphi=0.3, vmax=1.8, vb=0.1,
+                 dbv=3e-3)
+
+
+def write_model(path, kind="v", every_effect=False):
+    """A model file: 'v' (voltage), 'tau' (no R, L, km) or 'lumped' (per-volt, lumped: true)."""
+    vals = dict(PAPER, **(ALL_EXTRA if every_effect else EXTRA))
+    effects = ALL_EFFECTS if every_effect else EFFECTS
+    if kind != "v":
+        for n in ("R", "L", "km", "ke", "vmax", "vb"):
+            vals.pop(n, None)
+        effects = [e for e in effects if e not in ("back_emf", "voltage_saturation",
+                                                    "brush_drop")]
+    m = truth_model(vals, effects)
+    if kind == "lumped":
+        m.extra["lumped"] = True
+    save_model(m, path)
+    return m
+
+
+def inputs(kind="v"):
+    """(name, t, u) pairs: the triangle's first 30 s every 4th sample (4 ms: two internal steps,
+    stick-slip at the reversal) and the 1.5 V step. Torque inputs scaled by km/R."""
+    tri = read_log(FIX / "triangle.csv")
+    n = int(np.searchsorted(tri.t, 30.0))
+    step = read_log(FIX / "step_1.5V.csv")
+    out = [("triangle", tri.t[:n:4], tri.u[:n:4]), ("step", step.t, step.u)]
+    if kind == "tau":
+        out = [(name, t, u * PAPER["km"] / PAPER["R"]) for name, t, u in out]
+    return out
+
+
+def reference(t, u, model, kind):
+    """What pmdcid simulate predicts: (i, omega, theta) as the sensors read them."""
+    sim = simulate(t, u, model, torque_driven=kind != "v")
+    return np.column_stack([sim.i, sim.omega, sim.theta])
+
+
+def rel_error(y, ref):
+    """max |y - ref| / max |ref| per column; NaN columns must be NaN in both (then 0)."""
+    out = []
+    for k in range(ref.shape[1]):
+        if np.isnan(ref[:, k]).all():
+            assert np.isnan(y[:, k]).all()
+            out.append(0.0)
+        else:
+            out.append(float(np.max(np.abs(y[:, k] - ref[:, k])) / np.max(np.abs(ref[:, k]))))
+    return out
+
+
+def dt_of(t):
+    return float((t[-1] - t[0]) / (len(t) - 1))

@@ -1,0 +1,129 @@
+"""`pmdcid export --to python-control`, and the command's errors (exit 1 one line, exit 2)."""
+
+import importlib.util
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from export_util import dt_of, inputs, reference, rel_error, write_model
+
+from pmdcid.cli import main
+from pmdcid.export import drive_of
+from pmdcid.model import Model
+
+control = pytest.importorskip("control", reason="python-control (the 'export' extra) not installed")
+
+
+def load_module(path):
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def export(tmp_path, kind, fmt="python-control", name="motor_model.py", every_effect=False):
+    model = write_model(tmp_path / "m.json", kind, every_effect)
+    out = tmp_path / name
+    res = CliRunner().invoke(main, ["export", "-m", str(tmp_path / "m.json"), "--to", fmt,
+                                    "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    return model, out
+
+
+@pytest.mark.parametrize("kind,every", [("v", False), ("v", True), ("tau", False),
+                                        ("lumped", False)])
+def test_python_control_matches_simulate(tmp_path, kind, every):
+    model, out = export(tmp_path, kind, every_effect=every)
+    mod = load_module(out)
+    for name, t, u in inputs(kind):
+        sys = mod.make_system(dt_of(t))
+        assert sys.isdtime() and sys.input_labels == ["tau" if kind == "tau" else "v"]
+        assert sys.output_labels == ["i", "omega", "theta"]
+        res = control.input_output_response(sys, t - t[0], u)
+        ref = reference(t, u, model, kind)
+        assert np.ptp(ref[:, 1]) > 0.1  # the rotor moves (and sticks at the triangle's reversal)
+        err = rel_error(res.outputs.T, ref)
+        assert max(err) < 1e-9, (name, err)
+
+
+def test_python_control_delay_line_in_state(tmp_path):
+    _, out = export(tmp_path, "v")
+    sys = load_module(out).make_system(1e-3)
+    # 2.5 ms at 1 ms: the speed and angle of the last 3 samples are states
+    assert sys.nstates == 3 + 2 * 3
+
+
+def test_drive_of():
+    assert drive_of(Model(extra={"lumped": True})) == "lumped"
+    m = Model()
+    m.set("J", 1e-3)
+    assert drive_of(m) == "tau"
+    for n in ("R", "L", "km"):
+        m.set(n, 1.0)
+    assert drive_of(m) == "v"
+
+
+def run(args):
+    return CliRunner().invoke(main, ["export"] + args)
+
+
+def one_line_error(res):
+    assert res.exit_code == 1, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "Traceback" not in res.output
+    return lines[0]
+
+
+def test_unknown_format_is_a_usage_error(tmp_path):
+    write_model(tmp_path / "m.json")
+    res = run(["-m", str(tmp_path / "m.json"), "--to", "fortran", "-o", str(tmp_path / "x")])
+    assert res.exit_code == 2 and "fortran" in res.output
+
+
+def test_model_lacking_parameters(tmp_path):
+    (tmp_path / "m.json").write_text(json.dumps({"parameters": {"R": 2.0, "L": 0.01}}))
+    msg = one_line_error(run(["-m", str(tmp_path / "m.json"), "--to", "c",
+                              "-o", str(tmp_path / "x.c")]))
+    assert "km" in msg
+    (tmp_path / "m.json").write_text(json.dumps({"parameters": {"bc": 0.1}}))
+    assert "J" in one_line_error(run(["-m", str(tmp_path / "m.json"), "--to", "python-control",
+                                      "-o", str(tmp_path / "x.py")]))
+    assert not (tmp_path / "x.py").exists() and not (tmp_path / "x.c").exists()
+
+
+@pytest.mark.parametrize("fmt,name,other", [("python-control", "out.py", None),
+                                            ("c", "out.c", "out.h"),
+                                            ("matlab", "out.m", "run_out.m")])
+def test_does_not_overwrite_foreign_files(tmp_path, fmt, name, other):
+    write_model(tmp_path / "model.json")
+    for victim in [name] + ([other] if other else []):
+        for f in tmp_path.glob("*out*"):
+            f.unlink()
+        (tmp_path / victim).write_text("t,v\n0,1\n")  # e.g. a log
+        args = ["-m", str(tmp_path / "model.json"), "--to", fmt, "-o", str(tmp_path / name)]
+        assert "--force" in one_line_error(run(args))
+        assert (tmp_path / victim).read_text() == "t,v\n0,1\n"
+        assert run(args + ["--force"]).exit_code == 0
+        assert run(args).exit_code == 0  # what it wrote itself it may overwrite
+    model_bytes = (tmp_path / "model.json").read_bytes()
+    msg = one_line_error(run(["-m", str(tmp_path / "model.json"), "--to", fmt, "-o",
+                              str(tmp_path / "model.json"), "--force"]))
+    assert "model" in msg and (tmp_path / "model.json").read_bytes() == model_bytes
+
+
+def test_bad_output_names(tmp_path):
+    write_model(tmp_path / "m.json")
+    m = str(tmp_path / "m.json")
+    assert "NAME.m" in one_line_error(run(["-m", m, "--to", "matlab", "-o",
+                                           str(tmp_path / "2motor.m")]))
+    assert "source" in one_line_error(run(["-m", m, "--to", "c", "-o", str(tmp_path / "x.h")]))
+    assert "folder" in one_line_error(run(["-m", m, "--to", "c", "-o",
+                                           str(tmp_path / "no" / "x.c")]))
+
+
+def test_cli_formats_are_the_library_formats():
+    from pmdcid.cli import cmd_export
+    from pmdcid.export import FORMATS
+
+    assert cmd_export.FORMATS == FORMATS
