@@ -1,0 +1,126 @@
+"""diagnose's parts alone: which logs are held out, the repeatability floor, the one rule set
+with its reasons, failed and degenerate refits, and the residual's shape in physical terms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from ident_util import as_log
+
+from pmdcid.diagnose.candidates import Candidate
+from pmdcid.diagnose.folds import holdout_plan, protocol_key, repeat_groups, repeatability
+from pmdcid.diagnose.loop import accept
+from pmdcid.diagnose.rules import Rules, at_bound, failed_refit, judge
+from pmdcid.diagnose.shape import _angle_shape, _speed_shape, _time_shape
+
+
+def _run_log(name, u, w, t0=0.0, dt=1e-3):
+    t = t0 + np.arange(len(u)) * dt
+    return as_log(name, t, {"v": u, "omega": w})
+
+
+@pytest.mark.parametrize("path,key", [("a/step_3.csv", "step"), ("step_6V_2.csv", "step_6V"),
+                                      ("triangle.csv", "triangle"), ("step_1.0V", "step_1.0V")])
+def test_protocol_key(path, key):
+    assert protocol_key(path) == key
+
+
+def test_repeats_are_held_out_whole_and_single_logs_split():
+    rng = np.random.default_rng(1)
+    u = np.where(np.arange(3000) > 500, 12.0, 0.0)
+    logs = [_run_log(f"step_{k}.csv", u, rng.normal(size=3000)) for k in range(1, 4)]
+    logs.append(_run_log("step_4.csv", 0.5 * u, rng.normal(size=3000)))  # another amplitude
+    logs.append(_run_log("sine.csv", np.sin(np.arange(3000) / 100), rng.normal(size=3000)))
+    assert repeat_groups(logs) == [[0, 1, 2]]
+    assert holdout_plan(logs) == ["fit", "fit", "held", "split", "split"]
+
+
+def test_repeats_with_trimmed_starts_align_on_time():
+    """A run whose first samples were cut keeps its time stamps: still a repeat."""
+    t = np.arange(4000) * 1e-3
+    u = np.where(t > 1.0, 12.0, 0.0)
+    a = as_log("sine_1.csv", t, {"v": u, "omega": u})
+    b = as_log("sine_2.csv", t[150:], {"v": u[150:], "omega": u[150:]})
+    assert repeat_groups([a, b]) == [[0, 1]]
+
+
+def test_repeatability_floor_round_trip():
+    """Runs = one response + independent noise sigma: each run against the mean of the other
+    (n - 1) differs by sigma sqrt(1 + 1/(n - 1)); the floor is that over the run's std."""
+    rng = np.random.default_rng(2)
+    n, sigma = 4, 0.5
+    t = np.arange(20000) * 1e-3
+    u = np.sign(np.sin(2 * np.pi * 0.5 * t))
+    w = 10 * np.sin(2 * np.pi * 0.5 * t)
+    logs = [as_log(f"sq_{k}.csv", t, {"v": u, "omega": w + rng.normal(0, sigma, len(t))})
+            for k in range(n)]
+    (fl,) = repeatability(logs)
+    expect = sigma * math.sqrt(1 + 1 / (n - 1)) / math.sqrt(np.var(w) + sigma**2)
+    assert fl.value == pytest.approx(expect, rel=0.03)
+
+
+def _cand(name, **kw):
+    base = {"delta_bic": -500.0, "heldout": -200.0, "z": 20.0, "gain_fit": 0.2,
+            "gain_held": 0.2, "status": "refitted", "chi2_fit": 1000.0}
+    base.update(kw)
+    c = Candidate(name, 1, 1.0, base.pop("delta_bic"), True)
+    for k, v in base.items():
+        setattr(c, k, v)
+    return c
+
+
+@pytest.mark.parametrize("kw,words", [
+    ({"delta_bic": -5.0}, "ΔBIC -5.0 ≥ -10"),
+    ({"heldout": 3.0}, "held-out Δ +3.0 ≥ -10"),
+    ({"z": 0.9}, "size 0.9 standard errors < 5"),
+    ({"gain_held": 0.003}, "held-out gain 0.3 % < 1.0 %"),
+    ({"rise": 0.12, "rise_log": "step_6.csv"}, "step_6.csv rises 12.0 % > 5.0 %"),
+])
+def test_every_refusal_names_its_rule_and_number(kw, words):
+    ok, why = judge(_cand("x", **kw), Rules())
+    assert not ok and words in why, why
+
+
+def test_failed_and_degenerate_refits_are_never_counted():
+    good = _cand("good", delta_bic=-50.0, chi2_fit=900.0)
+    failed = _cand("failed", delta_bic=-9000.0, status="refit failed", chi2_fit=800.0,
+                   reason="refit failed")
+    bound = _cand("bound", delta_bic=-8000.0, status="degenerate", chi2_fit=700.0)
+    twin_a = _cand("twin_a", delta_bic=-7000.0, chi2_fit=600.0)
+    twin_b = _cand("twin_b", delta_bic=-7000.0, chi2_fit=600.0)
+    best = accept([good, failed, bound, twin_a, twin_b], Rules())
+    assert best is good and good.chosen and good.reason.startswith("chosen")
+    assert failed.reason == "refit failed" and not failed.chosen
+    assert "identical to twin_a" in twin_b.reason and "identical to twin_b" in twin_a.reason
+    assert twin_a.status == twin_b.status == "degenerate"
+
+
+def test_refit_failure_and_bounds():
+    assert failed_refit(101.0, 100.0) and not failed_refit(99.0, 100.0)
+    assert at_bound(1000.0, 0.0, 1000.0) == "upper"
+    assert at_bound(1e-6, 1e-6, 1e6) == "lower"
+    assert at_bound(500.0, 0.0, 1000.0) is None
+    assert at_bound(0.0, 0.0, 1.0) is None  # a zero bound is the neutral value, not a wall
+
+
+def test_shapes_in_physical_terms():
+    rng = np.random.default_rng(3)
+    dt = 1e-3
+    t = np.arange(60000) * dt
+    w = 50 * np.sin(2 * np.pi * 0.1 * t)
+    noise = rng.normal(0, 0.05, len(t))
+    # friction flattening with speed: the error grows with |omega|, signed by the direction
+    sp = _speed_shape(0.01 * w * np.abs(w) / 50 + noise, w)
+    assert sp and "grows with |ω|" in sp["description"] and "friction" in sp["description"]
+    # a 47 Hz line in time
+    fr = _time_shape(0.3 * np.sin(2 * np.pi * 47 * t) + noise, dt, t[-1])
+    assert fr and fr["frequency_hz"] == pytest.approx(47, rel=0.01)
+    # cogging: 6 per revolution of the angle
+    theta = np.cumsum(w) * dt
+    an = _angle_shape(0.3 * np.sin(6 * theta) + noise, w, dt)
+    assert an and an["per_revolution"] == 6 and "cogging" in an["description"]
+    # white noise has no shape
+    assert _speed_shape(noise, w) is None and _time_shape(noise, dt, t[-1]) is None
+    assert _angle_shape(noise, w, dt) is None
