@@ -124,3 +124,48 @@ def test_shapes_in_physical_terms():
     # white noise has no shape
     assert _speed_shape(noise, w) is None and _time_shape(noise, dt, t[-1]) is None
     assert _angle_shape(noise, w, dt) is None
+
+
+class _Fit:
+    def __init__(self, values, chi2):
+        self.values, self.chi2 = values, {"fit": chi2}
+
+
+class _FakeRun:
+    """Refits whose fit-part chi-square is a known function of the start: the guess's own
+    start lands above the model it extends; only a start with the effect 3x larger is good."""
+
+    def __init__(self, good_from):
+        self.good_from = good_from
+        self.starts = []
+
+    def _fo(self, start):
+        self.starts.append(dict(start))
+        return _Fit(start, 50.0 if start.get("tau0", 0.0) >= self.good_from else 120.0)
+
+    def robust_fit(self, start, free, part="fit"):
+        return self._fo(start)
+
+    def fit(self, start, free, part="fit"):
+        return self._fo(start)
+
+
+def test_failed_refit_is_retried_from_other_starts():
+    from pmdcid.diagnose.candidates import refit_starts
+    from pmdcid.diagnose.signatures import Screen
+
+    cur = _Fit({"J": 1.0, "tau0": 0.0}, 100.0)
+    scr = Screen("torque_offset", 1.0, start={"tau0": 1.0})
+    run = _FakeRun(good_from=2.0)
+    best, n = refit_starts(run, scr, cur, ["tau0"])
+    # guess, effect at neutral, then guess x0.3 and x3: the last one is the good refit
+    assert [s["tau0"] for s in run.starts] == [1.0, 0.0, 0.3, 3.0] and n == 4
+    assert best.chi2["fit"] == 50.0
+    # when the first starts already improve on the model, no retry
+    run = _FakeRun(good_from=1.0)
+    best, n = refit_starts(run, scr, cur, ["tau0"])
+    assert n == 2 and best.chi2["fit"] == 50.0
+    # all starts worse than the model: the best failed one comes back, for the row to flag
+    run = _FakeRun(good_from=100.0)
+    best, n = refit_starts(run, scr, cur, ["tau0"])
+    assert n == 4 and failed_refit(best.chi2["fit"], cur.chi2["fit"])
