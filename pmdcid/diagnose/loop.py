@@ -141,17 +141,20 @@ class Run:
         return (worst, where) if where else (None, None)
 
     def at_floor(self, fo: FitOutcome) -> float | None:
-        """The repeatability floor when every log repeats a protocol and the fit ``fo`` already
-        predicts their speed within it (mean NRMSE), else None (a log without repeats may still
-        hold structure to chase)."""
-        fl = floor_of(self.floors)
+        """The pooled repeatability floor when every log repeats a protocol and the fit ``fo``
+        predicts each protocol's runs within that protocol's floor (mean speed NRMSE), else
+        None (a log without repeats, or a protocol above its floor, may still hold structure
+        to chase)."""
         paths = {p for f in self.floors for p in f.logs}
-        if fl is None or any(log.path not in paths for log in self.problem.logs):
+        if not self.floors or any(log.path not in paths for log in self.problem.logs):
             return None
         tab = error_table(self.problem, self.problem.simulate_all(fo.values))
-        errs = [r["omega"] for log, r in zip(self.problem.logs, tab, strict=True)
-                if log.path in paths and "omega" in r]
-        return fl if errs and float(np.mean(errs)) <= fl else None
+        err = {log.path: r.get("omega", math.nan)
+               for log, r in zip(self.problem.logs, tab, strict=True)}
+        for f in self.floors:
+            if not float(np.mean([err[p] for p in f.logs])) <= f.value:
+                return None
+        return floor_of(self.floors)
 
 
 def baseline(run: Run) -> FitOutcome:
