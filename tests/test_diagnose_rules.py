@@ -169,3 +169,73 @@ def test_failed_refit_is_retried_from_other_starts():
     run = _FakeRun(good_from=100.0)
     best, n = refit_starts(run, scr, cur, ["tau0"])
     assert n == 4 and failed_refit(best.chi2["fit"], cur.chi2["fit"])
+
+
+def _torque_log(truth, rng, seconds=20.0, name="tau.csv"):
+    from pmdcid.io import Log
+    from pmdcid.synth import PAPER_NOISE, synth_log, triangle
+
+    t = np.arange(int(seconds * 1000)) / 1000.0
+    tau = 0.04 * triangle(t, 1.0, 10.0) + 0.01 * np.sin(2 * np.pi * 0.7 * t)
+    cols, _ = synth_log(t, tau, truth, PAPER_NOISE, rng, torque_driven=True)
+    return Log(path=name, t=t, data=cols)
+
+
+def _truth(**extra):
+    from pmdcid.simulate import neutral_values
+    from pmdcid.synth import PAPER
+
+    return {**neutral_values(), **PAPER, "dz": 0.0, **extra}
+
+
+@pytest.mark.parametrize("tau0,kept", [(0.0, False), (2e-3, True)])
+def test_final_model_keeps_only_what_it_supports(tau0, kept):
+    """An effect handed to the final step is kept only when the final fit on all the data puts
+    it at least 5 standard errors from neutral; otherwise it is removed with a note giving its
+    size, and the rest refitted."""
+    from pmdcid.diagnose.final import finalise
+    from pmdcid.diagnose.loop import Run, baseline
+    from pmdcid.diagnose.problem import Problem
+    from pmdcid.model import Model
+
+    truth = _truth(tau0=tau0)
+    log = _torque_log(truth, np.random.default_rng(41))
+    model = Model()
+    for k in ("J", "bv", "bc"):
+        model.set(k, truth[k])
+    problem = Problem([log], plan=["split"])
+    run = Run(problem, model, Rules(), 40)
+    cur = baseline(run)
+    added, notes = ["torque_offset"], []
+    final, free = finalise(run, cur, added, notes, [])
+    assert (added == ["torque_offset"]) is kept, notes
+    if kept:
+        assert final.values["tau0"] == pytest.approx(tau0, rel=0.1)
+    else:
+        assert "tau0" not in free
+        assert any(n.startswith("torque_offset removed:") and "< 5" in n for n in notes), notes
+
+
+def test_drift_is_compared_only_where_it_can_show():
+    """A step's plateau is never compared with its transient; a periodic input's two parts
+    are; repeats are compared run against run."""
+    from pmdcid.diagnose.folds import holdout_plan
+    from pmdcid.diagnose.problem import Problem
+    from pmdcid.diagnose.residuals import drift_problem
+
+    rng = np.random.default_rng(5)
+    t = np.arange(6000) / 1000.0
+    u = np.where(t > 0.5, 2.0, 0.0)
+    w = 100 * (1 - np.exp(-np.clip(t - 0.5, 0, None) / 0.3)) + rng.normal(0, 0.1, len(t))
+    step = as_log("step.csv", t, {"v": u, "omega": w})
+    tri = as_log("tri.csv", t, {"v": np.sin(2 * np.pi * t), "omega": 50 * np.sin(2 * np.pi * t)})
+    assert drift_problem(Problem([step], plan=["split"])) is None
+    dp = drift_problem(Problem([step, tri], plan=["split", "split"]))
+    assert [lg.path for lg in dp.logs] == ["tri.csv"]
+    runs = [as_log(f"step_{k}.csv", t, {"v": u, "omega": w}) for k in (1, 2, 3)]
+    # a log with no repeat (its own split: a step) stays out
+    assert holdout_plan(runs + [step]) == ["fit", "fit", "fit", "held"]  # "step" repeats too
+    other = as_log("other.csv", t, {"v": 2 * u, "omega": 2 * w})
+    dp = drift_problem(Problem(runs + [other], plan=holdout_plan(runs + [other])))
+    assert [lg.path for lg in dp.logs] == ["step_1.csv", "step_2.csv", "step_3.csv"]
+    assert dp.plan == ["fit", "fit", "held"]
