@@ -1,16 +1,20 @@
-"""The diagnose loop: screen the catalogue, refit the strongest, keep what holds out, repeat.
+"""The diagnose loop, in named steps: baseline, screen, evaluate, accept, finalise, summarise.
 
-1. Simulate the model on every log; refit the base parameters the logs inform (J, bv, bc, dz from
-   moving logs; R from currents) on the fit part of each log, so that the comparison is fair.
-2. Screen every catalogue effect not in the model by regressing the residual on its simulated
-   signature (:mod:`pmdcid.diagnose.signatures`).
-3. Refit the strongest few by simulation error (own parameters and the base parameters they
-   interact with) on the fit part. Keep the best only if its BIC drops decisively
-   (``delta_bic < bic_threshold``) AND the fit improves the held-out part of the logs, never
-   used to fit it, by a decisive likelihood ratio (``heldout < heldout_threshold``).
-4. Repeat until no effect passes; refit the result on all the data (values, standard errors).
-5. ``unexplained``: the final residual of some current or speed signal is still clearly not white
-   (std over 1.5 noise levels and Ljung-Box p < 1e-6).
+1. *baseline*: refit the base parameters the logs inform (J, bv, bc, dz from moving logs; R, L
+   from currents) on the fit part (:mod:`pmdcid.diagnose.folds`: a repeat of a protocol held out
+   whole, a log without repeats split in time), so that the comparison is fair.
+2. *screen*: regress the residual on every missing effect's simulated signature
+   (:mod:`pmdcid.diagnose.signatures`).
+3. *evaluate* the strongest few: refit from several starts (:mod:`pmdcid.diagnose.candidates`);
+   a failed or degenerate refit is flagged, never counted.
+4. *accept* (:mod:`pmdcid.diagnose.rules`, the one rule set): the passing candidate with the
+   lowest ΔBIC; every row says which rule refused it. Repeat until none passes, or the model
+   predicts the repeated logs within their repeatability floor.
+5. *finalise* (:mod:`pmdcid.diagnose.final`): refit on all the data, prune, polish; an effect
+   that fails its size rule in the final model is removed and the rest refitted.
+6. *summarise*: errors before and after (all logs, and the logs held out whole), and when the
+   residual is still clearly not white (``unexplained``), its shape in physical terms
+   (:mod:`pmdcid.diagnose.shape`) and drift notes where drift can show.
 """
 
 from __future__ import annotations
@@ -21,20 +25,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
+from pmdcid.diagnose.final import finalise
+from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import (
     context,
     drift_notes,
+    drift_problem,
     error_table,
     pooled,
     typical_scales,
     whiteness,
 )
+from pmdcid.diagnose.rules import Rules, judge, same_rows
+from pmdcid.diagnose.shape import residual_shapes
 from pmdcid.diagnose.signatures import Screen, Screener
-from pmdcid.diagnose.starts import grid_start, profile_best, profile_stderr
+from pmdcid.diagnose.starts import grid_start, profile_best
 from pmdcid.errors import ModelError
-from pmdcid.identify.nonlinear import masked_upper
-from pmdcid.identify.results import Estimate
 from pmdcid.identify.simfit import blas_single_thread
 from pmdcid.model import EFFECTS, Model
 from pmdcid.simulate import param_values
@@ -45,36 +53,6 @@ MECHANICAL_BASE = ("J", "bv", "bc", "dz")
 ELECTRICAL_BASE = ("R", "L")
 #: friction start (fraction of the torque scale) tried when the model has none
 NUDGE = 0.2
-
-
-@dataclass
-class Candidate:
-    """What diagnose found about one effect in one round."""
-
-    effect: str
-    round: int
-    screen_gain: float
-    delta_bic: float
-    refit: bool = False
-    heldout: float | None = None  # held-out n log(chi2 ratio); < 0 means better
-    omega_nrmse: float | None = None
-    chosen: bool = False
-    values: dict[str, float] = field(default_factory=dict)
-    z: float | None = None  # the effect's size in standard errors
-    gain_fit: float | None = None  # relative chi-square drop, fit part
-    gain_held: float | None = None  # relative chi-square drop, held-out part
-    outcome: FitOutcome | None = None
-
-    def to_json(self) -> dict:
-        def num(x):
-            return float(x) if x is not None and math.isfinite(x) else None
-
-        return {"effect": self.effect, "delta_bic": num(self.delta_bic),
-                "omega_nrmse": num(self.omega_nrmse), "refit": self.refit,
-                "heldout_delta": num(self.heldout), "screen_gain": num(self.screen_gain),
-                "round": self.round, "chosen": self.chosen, "size_sigmas": num(self.z),
-                "chi2_drop_fit": num(self.gain_fit), "chi2_drop_heldout": num(self.gain_held),
-                "parameters": {k: num(v) for k, v in self.values.items()}}
 
 
 @dataclass
@@ -111,263 +89,264 @@ def _free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[s
     return [p for p in dict.fromkeys(out) if math.isfinite(vals.get(p, math.nan))]
 
 
-def effect_z(eff, fo: FitOutcome) -> float:
-    """Size of an effect in standard errors: its first parameter's distance from neutral."""
-    spec = eff.params[0]
-    est = fo.estimates.get(spec.name)
-    if est is None:
-        return math.inf
-    if not math.isfinite(spec.neutral):
-        return math.inf
-    d = abs(est.value - spec.neutral)
-    return d / est.stderr if est.stderr > 0 else (math.inf if d > 0 else 0.0)
 
 
-def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
-                    rel: float = 1e-3) -> float | None:
-    """Upper end [N m] of the dead zones that fit as well as the fit ``fo`` does, or None.
+class Run:
+    """One diagnose run's shared state: the problem, the start, the rules, the refits."""
 
-    A dead zone below the breakaway torque never acts on a rotor that turns only while the
-    torque exceeds it: every dz from 0 up to some level fits equally (within two standard errors,
-    4 x the reduced chi-square, or ``rel`` of the chi-square). Returns that level when dz = 0 is
-    among them (the dead zone is not identified), None when the data see the dead zone.
-    """
-    v = fo.values
-    c = fo.chi2["all"]
-    thr = max(4.0 * max(c / max(problem.count("all") - len(fo.estimates), 1), 1.0), rel * c)
-    top = 1.5 * max(v.get("bc", 0.0) + max(v.get("fs", 0.0), 0.0), v.get("dz", 0.0), 1e-300)
-    dzs = np.linspace(0.0, top, n)
-    cost = np.array([problem.chi2({**v, "dz": d})["all"] for d in dzs])
-    if cost[0] - c > thr:
+    def __init__(self, problem: Problem, model: Model, rules: Rules, max_nfev: int):
+        self.problem = problem
+        self.model = model
+        self.rules = rules
+        self.max_nfev = max_nfev
+        torque_only = all(log.drive == "tau" for log in problem.logs)
+        self.vals0 = param_values(model, torque_driven=torque_only)
+        self.base_free = _free_base(problem, self.vals0, model)
+        self.ctx0 = context(problem, self.vals0, problem.simulate_all(self.vals0))
+        self.typ = typical_scales(self.ctx0)
+        self.limits = {k: v for e in EFFECTS.values() if e.limits
+                       for k, v in e.limits(self.ctx0).items()}
+        self.floors = repeatability(problem.logs)
+        self.held_ref: list[dict[str, float]] | None = None
+
+    def fit(self, start, free, part="fit", nfev=None) -> FitOutcome:
+        return self.problem.fit(start, free, part, nfev or self.max_nfev, self.typ, self.limits)
+
+    def robust_fit(self, start, free, part="fit", nfev=None) -> FitOutcome:
+        """Grid start over the friction, local fit, then a profile polish of bc and dz (the cost
+        is piecewise flat in them) and a refit when the polish found a clearly better point."""
+        problem = self.problem
+        fo = self.fit(grid_start(problem, start, free, self.ctx0.torque_scale, part), free,
+                      part, nfev)
+        pol = profile_best(problem, fo.values, free, part)
+        thr = 4.0 * max(fo.chi2[part] / max(problem.count(part), 1), 1.0)
+        if problem.chi2(pol)[part] < fo.chi2[part] - thr:
+            fo = self.fit(pol, free, part, nfev)
+        return fo
+
+    def heldout_rise(self, table, ref_vals) -> tuple[float | None, str | None]:
+        """Largest relative rise of the speed NRMSE of a log held out whole (``table``: the
+        candidate's per-log errors) over the reference ``ref_vals``; (None, None) when no log
+        is held out whole."""
+        held = self.problem.held_logs
+        if not held:
+            return None, None
+        ref = error_table(self.problem, self.problem.simulate_all(ref_vals))
+        worst, where = -math.inf, None
+        for k in held:
+            a, b = table[k].get("omega"), ref[k].get("omega")
+            if a is not None and b and math.isfinite(a) and math.isfinite(b):
+                if a / b - 1.0 > worst:
+                    worst, where = a / b - 1.0, self.problem.logs[k].path
+        return (worst, where) if where else (None, None)
+
+    def at_floor(self, fo: FitOutcome) -> float | None:
+        """The pooled repeatability floor when every log repeats a protocol and the fit ``fo``
+        predicts each protocol's runs within that protocol's floor (mean speed NRMSE), else
+        None (a log without repeats, or a protocol above its floor, may still hold structure
+        to chase)."""
+        paths = {p for f in self.floors for p in f.logs}
+        if not self.floors or any(log.path not in paths for log in self.problem.logs):
+            return None
+        tab = error_table(self.problem, self.problem.simulate_all(fo.values))
+        err = {log.path: r.get("omega", math.nan)
+               for log, r in zip(self.problem.logs, tab, strict=True)}
+        for f in self.floors:
+            if not float(np.mean([err[p] for p in f.logs])) <= f.value:
+                return None
+        return floor_of(self.floors)
+
+
+def baseline(run: Run) -> FitOutcome:
+    """The base parameters refitted on the fit part, from the model and (a model without
+    friction) from some friction, the better kept: the fair reference for every candidate."""
+    cur = run.robust_fit(run.vals0, run.base_free)
+    friction = [p for p in ("bc", "dz") if p in run.base_free]
+    if friction and all(run.vals0[p] < 0.01 * run.ctx0.torque_scale for p in friction):
+        nudge = {p: NUDGE * run.ctx0.torque_scale for p in friction}
+        alt = run.fit({**run.vals0, **nudge}, run.base_free)
+        if alt.chi2["fit"] < cur.chi2["fit"]:
+            cur = alt
+    return cur
+
+
+def screen(run: Run, cur: FitOutcome, pool: list[str]) -> list[Screen]:
+    """Every effect of ``pool`` screened against the residual of ``cur``."""
+    sims = run.problem.simulate_all(cur.values)
+    scr = Screener(run.problem, cur.values, context(run.problem, cur.values, sims), run.base_free)
+    return [scr.screen(EFFECTS[e]) for e in pool]
+
+
+def _screen_reason(s: Screen, ranked: list[Screen], refit_top: int) -> str:
+    if not s.start:
+        return "screen: the residual does not point at it (no starting guess)"
+    if not s.approx_delta_bic < 0:
+        return f"screen: approximate ΔBIC {s.approx_delta_bic:+.1f} ≥ 0"
+    return f"screen: not among the {refit_top} largest screening gains"
+
+
+def accept(cands: list[Candidate], rules: Rules) -> Candidate | None:
+    """The one rule set: flag identical rows, judge every counted candidate, choose the
+    passing one with the lowest ΔBIC; every row's ``reason`` says why."""
+    counted = [c for c in cands if c.counted]
+    for name, other in same_rows(counted).items():
+        c = next(x for x in counted if x.effect == name)
+        c.status, c.reason = "degenerate", f"degenerate: identical to {other}'s row; not counted"
+    passing = []
+    for c in cands:
+        if c.counted:
+            ok, c.reason = judge(c, rules)
+            if ok:
+                passing.append(c)
+    if not passing:
         return None
-    return masked_upper(dzs, cost, thr)
+    best = min(passing, key=lambda c: c.delta_bic)
+    best.chosen = True
+    best.reason = "chosen: " + best.reason + (
+        f" (lowest ΔBIC of {len(passing)} passing)" if len(passing) > 1 else "")
+    for c in passing:
+        if c is not best:
+            c.reason += f"; {best.effect} dropped the ΔBIC more ({best.delta_bic:+.0f})"
+    return best
 
 
-def _gain(before: float, after: float, n: int) -> float:
-    """Share of the chi-square in excess of the noise (n samples) that a refit removed.
-
-    On a model that misses something large (real logs) this is the relative chi-square drop;
-    where the residual is mostly noise, a real effect removes most of the small excess. The
-    excess is taken as at least 5 % of the chi-square (noise levels are estimates).
-    """
-    return (before - after) / max(before - n, 0.05 * before, 1e-300)
-
-
-def _fits_as_well(problem: Problem, fo: FitOutcome, change: dict[str, float]) -> bool:
-    """True when ``change`` applied to the fit ``fo`` raises the chi-square (all data) by at
-    most two standard errors (4 x the reduced chi-square)."""
-    c = fo.chi2["all"]
-    thr = 4.0 * max(c / max(problem.count("all") - len(fo.estimates), 1), 1.0)
-    return problem.chi2({**fo.values, **change})["all"] - c <= thr
-
-
-def _weakest(problem: Problem, fo: FitOutcome, added: list[str], base_free: list[str],
-             fit, bic_threshold: float) -> tuple[str, FitOutcome] | None:
-    """Backward check of several added effects: each is removed in turn and the rest refitted;
-    returns (the effect whose removal costs least, the refit without it) when that cost is not
-    decisive (ΔBIC of the removal, all data, below -``bic_threshold``), else None."""
-    if len(added) < 2:
-        return None
-    n = problem.count("all")
-    worst = None
-    for e in added:
-        rest = base_free + [p for a in added if a != e for p in _effect_free(a)]
-        off = {p.name: p.neutral for p in EFFECTS[e].params}
-        without = fit({**fo.values, **off}, rest, "all")
-        d = n * math.log(max(without.chi2["all"], 1e-300) / max(fo.chi2["all"], 1e-300))
-        d -= len(_effect_free(e)) * math.log(max(n, 2))
-        if worst is None or d < worst[2]:
-            worst = (e, without, d)
-    return (worst[0], worst[1]) if worst[2] < -bic_threshold else None
-
-
-def _effect_free(name: str) -> list[str]:
-    eff = EFFECTS[name]
-    return [p for p in eff.param_names if p not in eff.held]
+def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_rounds: int,
+           notes: list[str]):
+    """Rounds of screen, refit the strongest, accept; returns (fit, added, every row seen,
+    every refit in order)."""
+    added: list[str] = []
+    seen: dict[str, Candidate] = {}
+    history: list[Candidate] = []
+    cur_free = list(run.base_free)
+    for rnd in range(1, max_rounds + 1):
+        fl = run.at_floor(cur)
+        if fl is not None:
+            notes.append(f"the model predicts the repeated logs within their repeatability floor "
+                         f"(speed NRMSE {fl:.3g}): structure below it is not chased")
+            break
+        if not pool:
+            break
+        screens = screen(run, cur, pool)
+        ranked = sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
+                        key=lambda s: -s.gain)[:refit_top]
+        for s in screens:
+            seen[s.effect] = Candidate(s.effect, rnd, s.gain, s.approx_delta_bic,
+                                       reason=_screen_reason(s, ranked, refit_top))
+        rebase = None  # a better point of the current model met while refitting a candidate
+        cands = []
+        for s in ranked:
+            c, ref = evaluate(run, s, cur, effect_free(s.effect) + cur_free, rnd)
+            seen[s.effect] = c
+            history.append(c)
+            cands.append(c)
+            if ref["values"] is not cur.values and (rebase is None
+                                                    or ref["chi2"]["fit"] < rebase[1]["fit"]):
+                rebase = (ref["values"], ref["chi2"])
+        best = accept(cands, run.rules)
+        if best is None:
+            if rebase is not None and rebase[1]["fit"] < (1 - run.rules.min_gain) * cur.chi2["fit"]:
+                # no effect, but the current model fits clearly better elsewhere: move there
+                # and screen again
+                better = run.fit(rebase[0], cur_free)
+                if better.chi2["fit"] < cur.chi2["fit"]:
+                    cur = better
+                    continue
+            break
+        added.append(best.effect)
+        pool.remove(best.effect)
+        cur_free = run.base_free + [p for e in added for p in effect_free(e)]
+        cur = run.robust_fit(best.outcome.values, cur_free, nfev=4 * run.max_nfev)
+    return cur, added, seen, history
 
 
 def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
              split: float = 0.6, max_samples: int = 20000, refit_top: int = 3,
              bic_threshold: float = -10.0, heldout_threshold: float = -10.0,
              max_nfev: int = 40, max_rounds: int = 4, min_z: float = 5.0,
-             min_gain: float = 0.01) -> DiagnoseResult:
+             min_gain: float = 0.01, max_rise: float = 0.05) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
     ``effects`` restricts the catalogue searched (default: all not already in the model).
     The input model is not modified.
     """
+    rules = Rules(bic_threshold, heldout_threshold, min_z, min_gain, max_rise)
     with blas_single_thread():
-        return _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
-                         heldout_threshold, max_nfev, max_rounds, min_z, min_gain)
+        return _diagnose(logs, model, effects, split, max_samples, refit_top, rules,
+                         max_nfev, max_rounds)
 
 
-def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
-              heldout_threshold, max_nfev, max_rounds, min_z, min_gain) -> DiagnoseResult:
+def _pool(problem: Problem, model: Model, effects) -> list[str]:
     if effects is not None:
         unknown = [e for e in effects if e not in EFFECTS]
         if unknown:
             raise ModelError(f"unknown effect(s) {', '.join(unknown)} "
                              f"(known: {', '.join(EFFECTS)})")
-    problem = Problem(logs, split, max_samples)
-    torque_only = all(log.drive == "tau" for log in problem.logs)
-    vals0 = param_values(model, torque_driven=torque_only)
-    before = error_table(problem, problem.simulate_all(vals0))
-    base_free = _free_base(problem, vals0, model)
-    ctx0 = context(problem, vals0, problem.simulate_all(vals0))
-    typ = typical_scales(ctx0)
-
-    limits = {k: v for e in EFFECTS.values() if e.limits for k, v in e.limits(ctx0).items()}
-
-    def fit(start, free, part="fit", nfev=max_nfev):
-        return problem.fit(start, free, part, nfev, typ, limits)
-
-    tscale = ctx0.torque_scale
-
-    def robust_fit(start, free, part="fit", nfev=max_nfev):
-        """Grid start over the friction, local fit, then a profile polish of bc and dz (the cost
-        is piecewise flat in them) and a refit when the polish found a clearly better point."""
-        fo = fit(grid_start(problem, start, free, tscale, part), free, part, nfev)
-        pol = profile_best(problem, fo.values, free, part)
-        thr = 4.0 * max(fo.chi2[part] / max(problem.count(part), 1), 1.0)
-        if problem.chi2(pol)[part] < fo.chi2[part] - thr:
-            fo = fit(pol, free, part, nfev)
-        return fo
-
-    cur = robust_fit(vals0, base_free)
-    friction = [p for p in ("bc", "dz") if p in base_free]
-    if friction and all(vals0[p] < 0.01 * ctx0.torque_scale for p in friction):
-        # a model without friction: also try from some, keep the better polish
-        alt = fit({**vals0, **{p: NUDGE * ctx0.torque_scale for p in friction}}, base_free)
-        if alt.chi2["fit"] < cur.chi2["fit"]:
-            cur = alt
-    n_fit, n_held = problem.count("fit"), problem.count("held")
-    pool = [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)
+    return [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)
             and all(problem.measures(s) for s in EFFECTS[e].requires)]
-    added: list[str] = []
+
+
+def _diagnose(logs, model, effects, split, max_samples, refit_top, rules, max_nfev,
+              max_rounds) -> DiagnoseResult:
+    problem = Problem(logs, split, max_samples, holdout_plan(logs))
+    pool = _pool(problem, model, effects)
+    run = Run(problem, model, rules, max_nfev)
     notes: list[str] = []
-    seen: dict[str, Candidate] = {}
-    history: list[Candidate] = []  # every refit, in order
-    cur_free = list(base_free)
-    for rnd in range(1, max_rounds + 1):
-        if not pool:
-            break
-        sims = problem.simulate_all(cur.values)
-        scr = Screener(problem, cur.values, context(problem, cur.values, sims), base_free)
-        screens: list[Screen] = [scr.screen(EFFECTS[e]) for e in pool]
-        for s in screens:
-            seen[s.effect] = Candidate(s.effect, rnd, s.gain, s.approx_delta_bic)
-        ranked = sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
-                        key=lambda s: -s.gain)[:refit_top]
-        passing = []
-        rebase = None  # a better point of the current model met while refitting a candidate
-        for s in ranked:
-            eff = EFFECTS[s.effect]
-            free = _effect_free(s.effect) + cur_free
-            fo = robust_fit({**cur.values, **s.start}, free)
-            # ablation: the refit's values with the effect switched off. A refit may also move
-            # the base parameters to a better point that the current model could reach without
-            # the effect (the cost is only piecewise smooth): the effect is credited only with
-            # what it adds over the better of that point and the current fit.
-            off = {**fo.values, **{p.name: p.neutral for p in eff.params}}
-            abl = problem.chi2(off)
-            ref = cur.chi2
-            if abl["fit"] < cur.chi2["fit"]:
-                ref = abl
-                if rebase is None or abl["fit"] < rebase[1]["fit"]:
-                    rebase = (off, abl)
-            k = len(_effect_free(s.effect))
-            dbic = n_fit * math.log(max(fo.chi2["fit"], 1e-300) / max(ref["fit"], 1e-300))
-            dbic += k * math.log(max(n_fit, 2))
-            held = (n_held * math.log(max(fo.chi2["held"], 1e-300) / max(ref["held"], 1e-300))
-                    if n_held else None)
-            om = pooled(error_table(problem, problem.simulate_all(fo.values)))["omega_nrmse"]
-            c = Candidate(s.effect, rnd, s.gain, dbic, True, held, om,
-                          values={p: fo.values[p] for p in eff.param_names}, outcome=fo)
-            seen[s.effect] = c
-            history.append(c)
-            c.z = effect_z(eff, fo)
-            c.gain_fit = _gain(ref["fit"], fo.chi2["fit"], n_fit)
-            c.gain_held = _gain(ref["held"], fo.chi2["held"], n_held) if n_held else 1.0
-            if (dbic < bic_threshold and (held is None or held < heldout_threshold)
-                    and c.z >= min_z and min(c.gain_fit, c.gain_held) >= min_gain):
-                passing.append(c)
-        if not passing:
-            if rebase is not None and rebase[1]["fit"] < (1 - min_gain) * cur.chi2["fit"]:
-                # no effect, but the current model fits clearly better elsewhere: move there
-                # and screen again
-                better = fit(rebase[0], cur_free)
-                if better.chi2["fit"] < cur.chi2["fit"]:
-                    cur = better
-                    continue
-            break
-        best = min(passing, key=lambda c: c.delta_bic)
-        best.chosen = True
-        added.append(best.effect)
-        pool.remove(best.effect)
-        cur_free = base_free + [p for e in added for p in _effect_free(e)]
-        cur = robust_fit(best.outcome.values, cur_free, nfev=4 * max_nfev)
+    base = baseline(run)
+    cur, added, seen, history = search(run, base, pool, refit_top, max_rounds, notes)
     new = model.copy()
+    final = None
     if added:
-        free = base_free + [p for e in added for p in _effect_free(e)]
-        final = robust_fit(cur.values, free, "all")
-        weak = _weakest(problem, final, added, base_free, fit, bic_threshold)
-        while weak is not None:
-            # an effect that the final fit no longer needs (another one took its part) goes
-            added.remove(weak[0])
-            final = weak[1]
-            notes.append(f"{weak[0]} dropped: with the other added effects it no longer "
-                         "improves the fit decisively")
-            for c in history:
-                if c.effect == weak[0]:
-                    c.chosen = False
-            free = base_free + [p for e in added for p in _effect_free(e)]
-            weak = _weakest(problem, final, added, base_free, fit, bic_threshold)
-        upper = dead_zone_range(problem, final) if "dz" in free else None
-        if upper is not None:
-            # its refit value and standard error would mean nothing: written as the interval's
-            # midpoint +- its uniform std, as fit-nonlinear does, the others refitted with it
-            free = [p for p in free if p != "dz"]
-            final = fit({**final.values, "dz": 0.5 * upper}, free, "all")
-            final.estimates["dz"] = Estimate("dz", 0.5 * upper, upper / math.sqrt(12.0), "N m")
-            notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
-                         f"to {upper:.3g} N m fits equally (below the breakaway torque); written "
-                         "as the interval's midpoint +- its uniform std")
-        elif "dz" in free and _fits_as_well(problem, final, {"dz": vals0["dz"]}):
-            # the dead zone shows only at a few switching instants: when the model's own dz (from
-            # fit-nonlinear's slow reversals) fits these logs as well, these logs do not move it
-            free = [p for p in free if p != "dz"]
-            final = fit({**final.values, "dz": vals0["dz"]}, free, "all")
-            notes.append("dz kept from the model: it fits these logs as well as a refitted one")
+        final, free = finalise(run, cur, added, notes, history)
     if added:
-        for name in ("bc", "dz"):
-            est = final.estimates.get(name)
-            if est is not None and name in free:
-                se = profile_stderr(problem, final.values, name, final.stats.redchi)
-                if math.isfinite(se) and not se <= est.stderr:
-                    final.estimates[name] = Estimate(name, est.value, se, est.unit)
-        # the refits' errors assume white residuals; on real data the residual is correlated
-        hac, info = problem.correlated_stderr(final.values, list(final.estimates))
-        for name, se in hac.items():
-            est = final.estimates[name]
-            if math.isfinite(se) and se > est.stderr and name in free:
-                final.estimates[name] = Estimate(name, est.value, se, est.unit)
-        if info is not None and info.inflation > 1.5:
-            notes.append(info.describe())
-        for e in added:
-            new.add_effect(e)
-            for p in EFFECTS[e].held:
-                new.set(p, final.values[p], stage=STAGE)
-        for name, est in final.estimates.items():
-            new.set(name, est.value, est.stderr, est.unit, stage=STAGE)
+        write_model(new, final, free, added)
         final_vals = final.values
-        after = error_table(problem, problem.simulate_all(final_vals))
     else:
         final_vals = cur.values
-        after = before
+    return summarise(run, new, base, final_vals, added, seen, history, notes)
+
+
+def write_model(new: Model, final: FitOutcome, free: list[str], added: list[str]) -> None:
+    """The added effects and every refitted estimate into ``new``."""
+    for e in added:
+        new.add_effect(e)
+        for p in EFFECTS[e].held:
+            new.set(p, final.values[p], stage=STAGE)
+    for name, est in final.estimates.items():
+        new.set(name, est.value, est.stderr, est.unit, stage=STAGE)
+
+
+def heldout_errors(run: Run, base: FitOutcome, final_vals: dict[str, float],
+                   added: list[str]) -> list[dict]:
+    """Speed (and current) NRMSE of every log held out whole: the base refitted on the fit part
+    against the final effects refitted on the fit part (neither saw these logs)."""
+    held = run.problem.held_logs
+    if not held:
+        return []
+    after_vals = base.values
+    if added:
+        after_vals = run.fit(final_vals, run.base_free + [p for e in added
+                                                          for p in effect_free(e)]).values
+    b = error_table(run.problem, run.problem.simulate_all(base.values))
+    a = error_table(run.problem, run.problem.simulate_all(after_vals))
+    return [{"log": run.problem.logs[k].path, "before": b[k], "after": a[k]} for k in held]
+
+
+def summarise(run: Run, new: Model, base: FitOutcome, final_vals: dict[str, float],
+              added: list[str], seen: dict[str, Candidate], history: list[Candidate],
+              notes: list[str]) -> DiagnoseResult:
+    """The summary (CONTRACT.md's keys and more), the residual's shape when unexplained."""
+    problem = run.problem
+    before = error_table(problem, problem.simulate_all(run.vals0))
+    after = error_table(problem, problem.simulate_all(final_vals)) if added else before
     white = whiteness(problem, problem.simulate_all(final_vals))
     unexplained = any(w.structured for w in white)
+    shapes: list[dict] = []
     if unexplained:
-        notes.extend(drift_notes(problem, final_vals, max_nfev))
+        dp = drift_problem(problem)
+        if dp is not None:
+            notes.extend(drift_notes(dp, final_vals, run.max_nfev))
+        shapes = residual_shapes(problem, problem.simulate_all(final_vals),
+                                 floor_of(run.floors), pooled(after)["omega_nrmse"])
     cands = sorted(seen.values(), key=lambda c: (not c.chosen, c.delta_bic))
     new.extra.setdefault("fits", {})[STAGE] = {
         "logs": [log.path for log in problem.logs], "added": list(added)}
@@ -377,7 +356,12 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         "before": pooled(before),
         "after": pooled(after),
         "unexplained": bool(unexplained),
+        "residual_shape": shapes,
         "notes": notes,
+        "holdout": [{"log": log.path, "part": p} for log, p in zip(problem.logs, problem.plan,
+                                                                    strict=True)],
+        "heldout": heldout_errors(run, base, final_vals, added),
+        "repeatability": [f.to_json() for f in run.floors],
         "logs": [{"path": log.path, "before": b, "after": a}
                  for log, b, a in zip(problem.logs, before, after, strict=True)],
         "whiteness": [{"log": problem.logs[w.log].path, "signal": w.signal,

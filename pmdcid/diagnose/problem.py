@@ -4,8 +4,10 @@ Every log is simulated from rest on its own input with the shared kernel (blocke
 the rotor held). A *channel* is one measured signal of one log (current ``i`` of a voltage-driven
 log, speed ``omega``, angle ``theta``), compared at a strided subset of its samples (at most
 ``max_samples`` per channel: the kernel still runs at full rate), weighted by the signal's noise
-level. Each log is split in time: the first ``split`` of it is *fit* data, the rest *held-out*
-data, never used to fit, on which diagnose checks that an effect's gain is real.
+level. Which data are fitted and which held out is a per-log *plan*
+(:func:`pmdcid.diagnose.folds.holdout_plan`): a repeat of a protocol is held out or fitted whole,
+a log without a repeat is split in time (its first ``split`` fitted, the rest held out). Held-out
+data are never used to fit: on them diagnose checks that an effect's gain is real.
 """
 
 from __future__ import annotations
@@ -127,9 +129,11 @@ def simulate_cached(cache: _Discretizations, t: np.ndarray, u: np.ndarray,
 class Problem:
     """Simulate and compare a parameter set on all logs; refit chosen parameters."""
 
-    def __init__(self, logs: Sequence, split: float = 0.6, max_samples: int = 20000):
+    def __init__(self, logs: Sequence, split: float = 0.6, max_samples: int = 20000,
+                 plan: Sequence[str] | None = None):
         self.logs = list(logs)
         self.split = split
+        self.plan = list(plan) if plan is not None else ["split"] * len(self.logs)
         self.channels: list[Channel] = []
         for k, log in enumerate(self.logs):
             torque = log.drive == "tau"
@@ -144,7 +148,7 @@ class Problem:
                     measured.append("omega")
             stride = max(1, int(math.ceil(log.n / max_samples)))
             idx = np.arange(0, log.n, stride)
-            fit = log.t[idx] < log.t[0] + split * log.duration
+            fit = self.fit_mask(k)[idx]
             for s in measured:
                 x = np.asarray(log[s], float)
                 fc = log_cutoff(log) if s == "omega" and s in log.derived else None
@@ -159,6 +163,19 @@ class Problem:
             raise LogError("no log carries current, speed or angle to compare the model with")
         self.blocked = [is_blocked(log) for log in self.logs]
         self._cache = _Discretizations()
+
+    def fit_mask(self, k: int) -> np.ndarray:
+        """Samples of log ``k`` (full rate) that are fitted: all, none, or its first part."""
+        log = self.logs[k]
+        plan = self.plan[k]
+        if plan in ("fit", "held"):
+            return np.full(log.n, plan == "fit")
+        return log.t < log.t[0] + self.split * log.duration
+
+    @property
+    def held_logs(self) -> list[int]:
+        """Logs held out whole."""
+        return [k for k, p in enumerate(self.plan) if p == "held"]
 
     def simulate(self, vals: dict[str, float], k: int) -> SimResult:
         log = self.logs[k]

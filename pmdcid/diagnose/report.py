@@ -24,6 +24,8 @@ def format_table(res) -> str:
         lines.append(f"{c.effect:<20} {c.round:>5} {_f(c.screen_gain, '.4g'):>12} "
                      f"{_f(c.delta_bic, '.1f'):>12} {_f(c.heldout, '.1f'):>10} "
                      f"{_f(c.omega_nrmse):>12}  {'yes' if c.chosen else ''}")
+        if c.reason:
+            lines.append(f"{'':<20}   {c.reason}")
     s = res.summary
     lines.append("")
     lines.append("added: " + (", ".join(s["added"]) if s["added"] else "nothing"))
@@ -39,8 +41,13 @@ def format_table(res) -> str:
         lines.append(f"  {e}: " + "; ".join(pars))
     for note in s.get("notes", []):
         lines.append(f"note: {note}")
+    for f in s.get("repeatability", []):
+        lines.append(f"repeatability floor of {f['protocol']} ({len(f['logs'])} runs): speed "
+                     f"NRMSE {_f(f['floor'])} (each run against the mean of the others)")
     if s["unexplained"]:
         lines.append("unexplained: the residual still has structure no catalogue effect explains")
+        for sh in s.get("residual_shape", []):
+            lines.append(f"  residual shape: {sh['description']}")
     lines.append("")
     lines.append("NRMSE before -> after (RMS error / std of the measurement)")
     lines.append(f"{'log':<28} {'i':>17} {'omega':>17} {'theta':>17}")
@@ -52,4 +59,10 @@ def format_table(res) -> str:
     cells = [f"{_f(pb.get(f'{sig}_nrmse'))} -> {_f(pa.get(f'{sig}_nrmse'))}"
              for sig in ("i", "omega", "theta")]
     lines.append(f"{'mean':<28} " + " ".join(f"{c:>17}" for c in cells))
+    if s.get("heldout"):
+        lines.append("")
+        lines.append("logs held out whole (base and effects refitted without them): omega NRMSE")
+        for h in s["heldout"]:
+            lines.append(f"{_short(h['log']):<28} {_f(h['before'].get('omega'))} -> "
+                         f"{_f(h['after'].get('omega'))}")
     return "\n".join(lines)

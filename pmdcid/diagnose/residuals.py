@@ -93,7 +93,7 @@ def context(problem: Problem, vals: dict[str, float], sims: list[SimResult]) -> 
     """The effects' view of the residual (fit part only; held-out samples NaN)."""
     logs = []
     for k, log in enumerate(problem.logs):
-        fit = log.t < log.t[0] + problem.split * log.duration
+        fit = problem.fit_mask(k)
         resid = {}
         for s in ("i", "omega", "theta"):
             if log.has(s) and not (s == "i" and log.drive == "tau"):
@@ -134,7 +134,8 @@ def typical_scales(ctx: ResidualContext) -> dict[str, float]:
     return {n: by_unit.get(sp.unit, 1.0) for n, sp in specs.items()}
 
 
-__all__ = ["Whiteness", "context", "error_table", "ljung_box", "pooled", "typical_scales",
+__all__ = ["Whiteness", "context", "drift_notes", "drift_problem", "error_table", "ljung_box",
+           "pooled", "typical_scales",
            "whiteness"]
 
 
@@ -161,14 +162,50 @@ def drift_notes(problem: Problem, vals: dict[str, float], max_nfev: int = 40) ->
     # var(a - b) = var_all * (N/N_fit + N/N_held): each part has a share of the evidence
     scale = math.sqrt(n_all / problem.count("fit") + n_all / problem.count("held"))
     notes = []
+    parts = ("the earlier repeats and the last one" if problem.held_logs
+             else "the first part of the logs and the rest")
     for name in free:
         a, b = first.values[name], last.values[name]
         sd = se.get(name, math.nan) * scale
         rel = (b - a) / a if a else math.nan
         if abs(rel) >= DRIFT_REL and math.isfinite(sd) and sd > 0 and abs(b - a) / sd >= DRIFT_Z:
-            notes.append(f"{name} differs by {100 * rel:+.0f} % between the first part of the "
-                         f"logs and the rest ({abs(b - a) / sd:.1f} standard errors): it may "
+            notes.append(f"{name} differs by {100 * rel:+.0f} % between {parts} "
+                         f"({abs(b - a) / sd:.1f} standard errors): it may "
                          "drift over time (warm-up, wear), which no catalogue effect represents "
                          "and a time-invariant effect may imitate; fit parts of the log "
                          "separately to see it")
     return notes
+
+
+#: two parts of a log have similar excitation when the std of the input and of the measured
+#: speed, and the mean |speed|, agree within this factor
+SIMILAR = 1.5
+
+
+def _similar(a: np.ndarray, b: np.ndarray) -> bool:
+    sa, sb = float(np.std(a)), float(np.std(b))
+    ma, mb = float(np.mean(np.abs(a))), float(np.mean(np.abs(b)))
+    return all(x > 0 and y > 0 and max(x / y, y / x) <= SIMILAR
+               for x, y in ((sa, sb), (ma, mb)))
+
+
+def drift_problem(problem: Problem) -> Problem | None:
+    """The data on which drift can show, as a problem whose fit and held-out parts are
+    comparable: the repeats of a protocol (runs at different times), else the logs split in time
+    whose two parts have similar excitation (a periodic input; never a step's transient against
+    its plateau). None when there are none."""
+    if problem.held_logs:
+        keep = [k for k, p in enumerate(problem.plan) if p in ("fit", "held")]
+    else:
+        keep = []
+        for k, log in enumerate(problem.logs):
+            if problem.blocked[k] or not log.has("omega"):
+                continue
+            m = problem.fit_mask(k)
+            w, u = np.asarray(log["omega"], float), np.asarray(log.u, float)
+            if m.any() and (~m).any() and _similar(w[m], w[~m]) and _similar(u[m], u[~m]):
+                keep.append(k)
+    if not keep:
+        return None
+    return Problem([problem.logs[k] for k in keep], problem.split,
+                   plan=[problem.plan[k] for k in keep])

@@ -1,0 +1,170 @@
+"""One candidate effect: its refit from several starts, its evidence, and why it was (not) kept.
+
+A candidate's refit cannot fail silently: it starts from the screen's guess (after a grid over
+the friction) and from the current model with the effect at its neutral value, and keeps the
+better. A refit still above the model it extends (higher fit-part chi-square) is retried from the
+guess scaled down and up; if every start fails, the row says ``refit failed`` and is never
+counted as evidence against the effect.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+
+from pmdcid.diagnose.problem import FitOutcome, bounds_of
+from pmdcid.diagnose.residuals import error_table, pooled
+from pmdcid.diagnose.rules import at_bound, failed_refit
+from pmdcid.model import EFFECTS
+
+#: factors applied to the guess's effect parameters when the first starts fail
+RETRY_FACTORS = (0.3, 3.0)
+
+
+@dataclass
+class Candidate:
+    """What diagnose found about one effect in one round."""
+
+    effect: str
+    round: int
+    screen_gain: float
+    delta_bic: float
+    refit: bool = False
+    heldout: float | None = None  # held-out n log(chi2 ratio); < 0 means better
+    omega_nrmse: float | None = None
+    chosen: bool = False
+    values: dict[str, float] = field(default_factory=dict)
+    z: float | None = None  # the effect's size in standard errors
+    gain_fit: float | None = None  # relative chi-square drop, fit part
+    gain_held: float | None = None  # relative chi-square drop, held-out part
+    outcome: FitOutcome | None = None
+    #: "not refitted", "refitted", "refit failed", "degenerate"
+    status: str = "not refitted"
+    reason: str = ""
+    chi2_fit: float | None = None
+    rise: float | None = None  # largest relative rise of a held-out log's speed NRMSE
+    rise_log: str | None = None
+    starts: int = 0
+
+    @property
+    def counted(self) -> bool:
+        return self.status == "refitted"
+
+    def to_json(self) -> dict:
+        def num(x):
+            return float(x) if x is not None and math.isfinite(x) else None
+
+        return {"effect": self.effect, "delta_bic": num(self.delta_bic),
+                "omega_nrmse": num(self.omega_nrmse), "refit": self.refit,
+                "status": self.status, "reason": self.reason,
+                "heldout_delta": num(self.heldout), "screen_gain": num(self.screen_gain),
+                "round": self.round, "chosen": self.chosen, "size_sigmas": num(self.z),
+                "chi2_drop_fit": num(self.gain_fit), "chi2_drop_heldout": num(self.gain_held),
+                "heldout_log_rise": num(self.rise), "starts": self.starts,
+                "parameters": {k: num(v) for k, v in self.values.items()}}
+
+
+def effect_free(name: str) -> list[str]:
+    """The parameters of an effect a refit moves (all but those its guess sets and holds)."""
+    eff = EFFECTS[name]
+    return [p for p in eff.param_names if p not in eff.held]
+
+
+def effect_z(eff, fo: FitOutcome) -> float:
+    """Size of an effect in standard errors: its first parameter's distance from neutral."""
+    spec = eff.params[0]
+    est = fo.estimates.get(spec.name)
+    if est is None:
+        return math.inf
+    if not math.isfinite(spec.neutral):
+        return math.inf
+    d = abs(est.value - spec.neutral)
+    return d / est.stderr if est.stderr > 0 else (math.inf if d > 0 else 0.0)
+
+
+def gain(before: float, after: float, n: int) -> float:
+    """Share of the chi-square in excess of the noise (n samples) that a refit removed.
+
+    On a model that misses something large (real logs) this is the relative chi-square drop;
+    where the residual is mostly noise, a real effect removes most of the small excess. The
+    excess is taken as at least 5 % of the chi-square (noise levels are estimates).
+    """
+    return (before - after) / max(before - n, 0.05 * before, 1e-300)
+
+
+def _neutral(name: str) -> dict[str, float]:
+    return {p.name: p.neutral for p in EFFECTS[name].params}
+
+
+def refit_starts(run, screen, cur: FitOutcome, free: list[str]) -> tuple[FitOutcome, int]:
+    """The best refit of ``free`` (fit part) over the starts; returns it and the starts used."""
+    name = screen.effect
+    tries = [run.robust_fit({**cur.values, **screen.start}, free)]
+    off = _neutral(name)
+    if all(math.isfinite(v) for v in off.values()):
+        held = {p: screen.start[p] for p in EFFECTS[name].held if p in screen.start}
+        tries.append(run.fit({**cur.values, **off, **held}, free))
+    best = min(tries, key=lambda f: f.chi2["fit"])
+    if failed_refit(best.chi2["fit"], cur.chi2["fit"]):
+        own = set(effect_free(name))
+        for f in RETRY_FACTORS:
+            start = {k: (v * f if k in own else v) for k, v in screen.start.items()}
+            tries.append(run.fit({**cur.values, **start}, free))
+        best = min(tries, key=lambda f: f.chi2["fit"])
+    return best, len(tries)
+
+
+def degenerate(name: str, fo: FitOutcome, limits: dict) -> str | None:
+    """Why the refit of effect ``name`` is degenerate (a parameter at a bound), or None."""
+    for p in effect_free(name):
+        lo, hi = bounds_of(p)
+        if p in limits:
+            lo, hi = max(lo, limits[p][0]), min(hi, limits[p][1])
+        side = at_bound(fo.values[p], lo, hi)
+        if side:
+            return f"degenerate: {p} = {fo.values[p]:.4g} at its {side} bound"
+    return None
+
+
+def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[Candidate, dict]:
+    """Refit one screened effect and measure its evidence against the better of the current
+    model and the refit's own values with the effect switched off (the refit may also have
+    moved the base parameters to a better point the model could reach without the effect).
+
+    Returns the candidate and that reference point's (values, chi-squares)."""
+    name = screen.effect
+    eff = EFFECTS[name]
+    fo, starts = refit_starts(run, screen, cur, free)
+    off = {**fo.values, **_neutral(name)}
+    abl = run.problem.chi2(off)
+    ref_vals, ref = (off, abl) if abl["fit"] < cur.chi2["fit"] else (cur.values, cur.chi2)
+    n_fit, n_held = run.problem.count("fit"), run.problem.count("held")
+    k = len(effect_free(name))
+    dbic = n_fit * math.log(max(fo.chi2["fit"], 1e-300) / max(ref["fit"], 1e-300))
+    dbic += k * math.log(max(n_fit, 2))
+    held = (n_held * math.log(max(fo.chi2["held"], 1e-300) / max(ref["held"], 1e-300))
+            if n_held else None)
+    table = error_table(run.problem, run.problem.simulate_all(fo.values))
+    c = Candidate(name, rnd, screen.gain, dbic, True, held, pooled(table)["omega_nrmse"],
+                  values={p: fo.values[p] for p in eff.param_names}, outcome=fo,
+                  status="refitted", chi2_fit=fo.chi2["fit"], starts=starts)
+    c.z = effect_z(eff, fo)
+    c.gain_fit = gain(ref["fit"], fo.chi2["fit"], n_fit)
+    c.gain_held = gain(ref["held"], fo.chi2["held"], n_held) if n_held else 1.0
+    c.rise, c.rise_log = run.heldout_rise(table, ref_vals)
+    if c.rise_log:
+        c.rise_log = os.path.basename(c.rise_log)
+    if failed_refit(fo.chi2["fit"], cur.chi2["fit"]):
+        c.status = "refit failed"
+        c.reason = (f"refit failed: fit-part chi-square {fo.chi2['fit']:.6g} above the model it "
+                    f"extends ({cur.chi2['fit']:.6g}) from all {starts} starts; not evidence "
+                    "against the effect")
+    else:
+        why = degenerate(name, fo, run.limits)
+        if why:
+            c.status, c.reason = "degenerate", why + "; not counted"
+    return c, {"values": ref_vals, "chi2": ref}
+
+
+__all__ = ["Candidate", "effect_free", "effect_z", "evaluate", "gain", "refit_starts"]

@@ -1,0 +1,169 @@
+"""diagnose's last steps on all the data: prune what the final model does not support, polish.
+
+*Prune*: the added effects are refitted together on all the data; an effect whose removal costs
+no decisive ΔBIC (backward elimination), or whose size in the final model is under ``min_z``
+standard errors (allowing for a correlated residual), is removed and the rest refitted, until
+every kept effect passes its rules in the model that is written.
+
+*Polish*: the dead zone when the data cannot see it, profile and correlated-residual standard
+errors of the switching parameters.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pmdcid.diagnose.candidates import effect_free, effect_z
+from pmdcid.diagnose.problem import FitOutcome, Problem
+from pmdcid.diagnose.starts import profile_stderr
+from pmdcid.identify.nonlinear import masked_upper
+from pmdcid.identify.results import Estimate
+from pmdcid.model import EFFECTS
+
+
+def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
+                    rel: float = 1e-3) -> float | None:
+    """Upper end [N m] of the dead zones that fit as well as the fit ``fo`` does, or None.
+
+    A dead zone below the breakaway torque never acts on a rotor that turns only while the
+    torque exceeds it: every dz from 0 up to some level fits equally (within two standard errors,
+    4 x the reduced chi-square, or ``rel`` of the chi-square). Returns that level when dz = 0 is
+    among them (the dead zone is not identified), None when the data see the dead zone.
+    """
+    v = fo.values
+    c = fo.chi2["all"]
+    thr = max(4.0 * max(c / max(problem.count("all") - len(fo.estimates), 1), 1.0), rel * c)
+    top = 1.5 * max(v.get("bc", 0.0) + max(v.get("fs", 0.0), 0.0), v.get("dz", 0.0), 1e-300)
+    dzs = np.linspace(0.0, top, n)
+    cost = np.array([problem.chi2({**v, "dz": d})["all"] for d in dzs])
+    if cost[0] - c > thr:
+        return None
+    return masked_upper(dzs, cost, thr)
+
+
+def _fits_as_well(problem: Problem, fo: FitOutcome, change: dict[str, float]) -> bool:
+    """True when ``change`` applied to the fit ``fo`` raises the chi-square (all data) by at
+    most two standard errors (4 x the reduced chi-square)."""
+    c = fo.chi2["all"]
+    thr = 4.0 * max(c / max(problem.count("all") - len(fo.estimates), 1), 1.0)
+    return problem.chi2({**fo.values, **change})["all"] - c <= thr
+
+
+def _weakest(problem: Problem, fo: FitOutcome, added: list[str], base_free: list[str],
+             fit, bic_threshold: float) -> tuple[str, FitOutcome] | None:
+    """Backward check of several added effects: each is removed in turn and the rest refitted;
+    returns (the effect whose removal costs least, the refit without it) when that cost is not
+    decisive (ΔBIC of the removal, all data, below -``bic_threshold``), else None."""
+    if len(added) < 2:
+        return None
+    n = problem.count("all")
+    worst = None
+    for e in added:
+        rest = base_free + [p for a in added if a != e for p in effect_free(a)]
+        off = {p.name: p.neutral for p in EFFECTS[e].params}
+        without = fit({**fo.values, **off}, rest, "all")
+        d = n * math.log(max(without.chi2["all"], 1e-300) / max(fo.chi2["all"], 1e-300))
+        d -= len(effect_free(e)) * math.log(max(n, 2))
+        if worst is None or d < worst[2]:
+            worst = (e, without, d)
+    return (worst[0], worst[1]) if worst[2] < -bic_threshold else None
+
+
+
+
+def _unchoose(history, name: str) -> None:
+    for c in history:
+        if c.effect == name:
+            c.chosen = False
+
+
+def prune(run, final: FitOutcome, added: list[str], notes: list[str],
+          history) -> FitOutcome:
+    """Backward elimination on all the data (``added`` is updated in place)."""
+    weak = _weakest(run.problem, final, added, run.base_free, run.fit, run.rules.bic)
+    while weak is not None:
+        # an effect that the final fit no longer needs (another one took its part) goes
+        added.remove(weak[0])
+        final = weak[1]
+        notes.append(f"{weak[0]} dropped: with the other added effects it no longer "
+                     "improves the fit decisively")
+        _unchoose(history, weak[0])
+        weak = _weakest(run.problem, final, added, run.base_free, run.fit, run.rules.bic)
+    return final
+
+
+def free_of(run, added: list[str]) -> list[str]:
+    return run.base_free + [p for e in added for p in effect_free(e)]
+
+
+def settle_dead_zone(run, final: FitOutcome, free: list[str],
+                     notes: list[str]) -> tuple[FitOutcome, list[str]]:
+    """The dead zone when these logs cannot see it: the interval's midpoint (not identified) or
+    the model's own value (fits as well); returns the fit and the parameters still free."""
+    problem = run.problem
+    if "dz" not in free:
+        return final, free
+    upper = dead_zone_range(problem, final)
+    if upper is not None:
+        # its refit value and standard error would mean nothing: written as the interval's
+        # midpoint +- its uniform std, as fit-nonlinear does, the others refitted with it
+        free = [p for p in free if p != "dz"]
+        final = run.fit({**final.values, "dz": 0.5 * upper}, free, "all")
+        final.estimates["dz"] = Estimate("dz", 0.5 * upper, upper / math.sqrt(12.0), "N m")
+        notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
+                     f"to {upper:.3g} N m fits equally (below the breakaway torque); written "
+                     "as the interval's midpoint +- its uniform std")
+    elif _fits_as_well(problem, final, {"dz": run.vals0["dz"]}):
+        # the dead zone shows only at a few switching instants: when the model's own dz (from
+        # fit-nonlinear's slow reversals) fits these logs as well, these logs do not move it
+        free = [p for p in free if p != "dz"]
+        final = run.fit({**final.values, "dz": run.vals0["dz"]}, free, "all")
+        notes.append("dz kept from the model: it fits these logs as well as a refitted one")
+    return final, free
+
+
+def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> None:
+    """Standard errors the data support: the profile's for the switching parameters (the
+    Jacobian sees nothing between events) and the correlated-residual (HAC) ones, whichever is
+    larger (``final.estimates`` updated in place)."""
+    problem = run.problem
+    for name in ("bc", "dz"):
+        est = final.estimates.get(name)
+        if est is not None and name in free:
+            se = profile_stderr(problem, final.values, name, final.stats.redchi)
+            if math.isfinite(se) and not se <= est.stderr:
+                final.estimates[name] = Estimate(name, est.value, se, est.unit)
+    # the refits' errors assume white residuals; on real data the residual is correlated
+    hac, info = problem.correlated_stderr(final.values, list(final.estimates))
+    for name, se in hac.items():
+        est = final.estimates[name]
+        if math.isfinite(se) and se > est.stderr and name in free:
+            final.estimates[name] = Estimate(name, est.value, se, est.unit)
+    if info is not None and info.inflation > 1.5:
+        notes.append(info.describe())
+
+
+def finalise(run, cur: FitOutcome, added: list[str], notes: list[str], history):
+    """Refit the added effects on all data, prune, polish, and remove (then refit without) any
+    effect under ``min_z`` standard errors in the polished model, until all pass. Returns the
+    final fit and its free parameters (``added`` updated in place)."""
+    final = run.robust_fit(cur.values, free_of(run, added), "all")
+    while True:
+        final = prune(run, final, added, notes, history)
+        final, free = settle_dead_zone(run, final, free_of(run, added), notes)
+        info: list[str] = []
+        honest_errors(run, final, free, info)
+        sizes = {e: effect_z(EFFECTS[e], final) for e in added}
+        weak = [e for e in added if not sizes[e] >= run.rules.min_z]
+        if not weak:
+            notes.extend(info)
+            return final, free
+        e = min(weak, key=lambda a: sizes[a])
+        added.remove(e)
+        _unchoose(history, e)
+        notes.append(f"{e} removed: {sizes[e]:.2g} standard errors in the final model (all "
+                     f"data, correlated residual allowed for) < {run.rules.min_z:g}")
+        off = {p.name: p.neutral for p in EFFECTS[e].params}
+        final = run.fit({**final.values, **off}, free_of(run, added), "all")
