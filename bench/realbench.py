@@ -30,11 +30,16 @@ def run(args) -> list[dict]:
             continue
         t0 = time.perf_counter()
         print(f"... {rig.name}", file=sys.stderr, flush=True)
-        models = {"paper": realdata.paper_sequence(rig),
-                  "identify": realdata.identify_rig(rig, diagnose=not args.no_diagnose)}
+        try:
+            models = {"paper": realdata.paper_sequence(rig),
+                      "identify": realdata.identify_rig(rig, diagnose=not args.no_diagnose)}
+        except Exception as exc:  # a rig the tool cannot identify is a finding, not a crash
+            print(f"{rig.name}: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+            continue
         res = realdata.evaluate(rig, models)
         res["mean"] = realdata.summarise(res, LABELS)
         res["seconds"] = time.perf_counter() - t0
+        print(table([res]).split("\n\n")[0], file=sys.stderr, flush=True)
         out.append(res)
     return out
 

@@ -21,6 +21,7 @@ from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError, LogError
 from pmdcid.identify.covariance import CovarianceInfo, block_covariance
+from pmdcid.identify.initial import initial_state
 from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import envelope_jacobian, noise_level
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
@@ -113,14 +114,15 @@ class _Discretizations:
 
 
 def simulate_cached(cache: _Discretizations, t: np.ndarray, u: np.ndarray,
-                    vals: dict[str, float], torque: bool) -> SimResult:
-    """:func:`pmdcid.simulate.simulate_values` (from rest) with cached discretisations."""
+                    vals: dict[str, float], torque: bool, x0=None) -> SimResult:
+    """:func:`pmdcid.simulate.simulate_values` (from ``x0``, default rest) with cached
+    discretisations."""
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
     nsub = min(choose_substeps(dt, p), MAX_SUBSTEPS)
     phi, gam = cache.get(p, dt / nsub, torque)
     x = _run(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p), phi, gam,
-             int(nsub), bool(torque), np.zeros(3))
+             int(nsub), bool(torque), np.zeros(3) if x0 is None else np.asarray(x0, float))
     om, th = apply_sensors(t, x[:, 1], x[:, 2], {n: vals.get(n, 0.0) for n in SENSOR_NAMES})
     i = np.full(len(t), np.nan) if torque else x[:, 0]
     return SimResult(t, i, om, th, x[:, 1], x[:, 2])
@@ -162,6 +164,10 @@ class Problem:
         if not self.channels:
             raise LogError("no log carries current, speed or angle to compare the model with")
         self.blocked = [is_blocked(log) for log in self.logs]
+        # each log from the state its first samples measured (a log that starts turning is
+        # never credited to an effect); a blocked rotor from rest
+        self.x0 = [np.zeros(3) if b else initial_state(log)
+                   for log, b in zip(self.logs, self.blocked, strict=True)]
         self._cache = _Discretizations()
 
     def fit_mask(self, k: int) -> np.ndarray:
@@ -181,7 +187,8 @@ class Problem:
         log = self.logs[k]
         if self.blocked[k]:
             vals = {**vals, "bc": BLOCKED}
-        return simulate_cached(self._cache, log.t, log.u, vals, log.drive == "tau")
+        return simulate_cached(self._cache, log.t, log.u, vals, log.drive == "tau",
+                               self.x0[k])
 
     def simulate_all(self, vals: dict[str, float]) -> list[SimResult]:
         return [self.simulate(vals, k) for k in range(len(self.logs))]
