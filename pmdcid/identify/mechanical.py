@@ -26,11 +26,12 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import format_estimates
+from pmdcid.identify.freerun import noise_std
 from pmdcid.identify.steps import (
-    find_step,
+    StepInfo,
+    find_steps,
     fit_first_order,
     lsq,
-    residual_std,
     strejc,
     two_lag,
 )
@@ -39,9 +40,9 @@ from pmdcid.model import Model
 STAGE = "fit-mechanical"
 #: a step whose steady speed is within this many noise std of zero did not move the rotor
 MOVE_SIGMAS = 8.0
-#: the response's time constant plus dead time must be under this fraction of the log after
-#: the step (else the steady speed, hence bv and bc, is extrapolated)
-SETTLE_FRACTION = 0.25
+#: a plateau must last this many time constants (plus dead time) for its steady speed to be
+#: read rather than extrapolated (5 % left at 3)
+SETTLE_TAUS = 3.0
 
 
 def paper_mechanical(kmot: float, tau_mot: float, km: float, r: float) -> tuple[float, float]:
@@ -109,6 +110,13 @@ class MechStep:
     dead_time: float = math.nan
     beta: float = math.nan
     strejc_order: int = 0
+    level: float = math.nan  # input level of the plateau [V]
+    t0: float = math.nan  # time of the step [s]
+    from_rest: bool = True
+    omega0: float = math.nan  # speed at the step instant [rad/s]
+    note: str = ""  # why a step is not used
+    chisqr: float = 0.0
+    ndata: int = 0
 
 
 @dataclass
@@ -129,27 +137,31 @@ class MechanicalResult:
             model.set("km", e.value, math.nan, e.unit, stage="datasheet")
         for name in ("b", "bv", "bc", "J"):
             e = self.estimates.get(name)
-            if e is not None and e.vary:
+            if e is not None and e.vary and math.isfinite(e.value):
                 model.set(name, e.value, e.stderr, e.unit, stage=STAGE)
         fits = model.extra.setdefault("fits", {})
         fits[STAGE] = {
-            "logs": [s.path for s in self.steps],
+            "logs": list(dict.fromkeys(s.path for s in self.steps)),
             "Kmot": self.estimates["Kmot"].value, "tau_mot": self.estimates["tau_mot"].value,
             "breakaway_torque": _finite(self.estimates["T_break"].value),
-            "skipped": [s.path for s in self.steps if not s.moved],
+            "skipped": [f"{s.path} at {s.t0:.4g} s" for s in self.steps if not s.moved],
         }
 
     def table(self) -> str:
         lines = ["fit-mechanical: free-speed steps", ""]
-        lines.append(f"{'log':<26} {'V':>5} {'Kmot':>8} {'tau_mot':>8} {'b paper':>9} "
-                     f"{'w_ss':>8} {'tau_m':>8} {'dead ms':>7}")
+        lines.append(f"{'log':<22} {'t0 s':>6} {'V':>5} {'from':>5} {'Kmot':>8} {'tau_mot':>8} "
+                     f"{'b paper':>9} {'w_ss':>8} {'tau_m':>8} {'dead ms':>7}")
         for s in self.steps:
-            name = s.path if len(s.path) <= 26 else "..." + s.path[-23:]
+            name = s.path if len(s.path) <= 22 else "..." + s.path[-19:]
+            name = f"{name:<22} {s.t0:6.4g}"
             if not s.moved:
-                lines.append(f"{name:<26} {s.amplitude:5.3g}  did not move (below the dead "
-                             "zone / breakaway): skipped")
+                why = {"did not move": "did not move (below the dead zone / breakaway)",
+                       "coasts to rest": "decays to rest",
+                       }.get(s.note, s.note or "did not move")
+                lines.append(f"{name} {s.level:5.3g}  {why}: not used")
                 continue
-            lines.append(f"{name:<26} {s.amplitude:5.3g} {s.kmot:8.4g} {s.tau_mot:8.4g} "
+            lines.append(f"{name} {s.level:5.3g} {'rest' if s.from_rest else 'moving':>5} "
+                         f"{s.kmot:8.4g} {s.tau_mot:8.4g} "
                          f"{s.b:9.4g} {s.omega_ss:8.4g} {s.tau_m:8.4g} "
                          f"{1e3 * s.dead_time:7.3g}")
         lines.append("")
@@ -175,7 +187,7 @@ def _finite(x):
     return x if math.isfinite(x) else None
 
 
-def _second_order(t, w, step, tau_e, st, sigma):
+def _second_order(t, w, step, tau_e, st, sigma, breakaway=True):
     s = t - step.t0
     dt = float(t[1] - t[0])
     span = float(t[-1] - step.t0)
@@ -183,8 +195,11 @@ def _second_order(t, w, step, tau_e, st, sigma):
     names = ("y0", "wss", "tau_m", "d", "beta")
     x0 = [st.initial, st.final - st.initial, tau0, min(st.tu, 0.5 * tau0)
           if math.isfinite(st.tu) else 0.0, 0.9]
-    lo = np.array([-np.inf, -np.inf, 1.01 * tau_e + 0.05 * dt, 0.0, 0.0])
+    lo = np.array([-np.inf, -np.inf, 1.01 * tau_e + 0.05 * dt, 0.0, 0.0 if breakaway else
+                   1.0 - 1e-9])
     hi = np.array([np.inf, np.inf, 10 * span, 0.5 * span, 1.0])
+    if not breakaway:  # a moving rotor does not break free: the current's lag alone
+        x0[4] = 1.0
 
     def resid(x):
         y0, wss, tm, d, beta = x
@@ -193,8 +208,66 @@ def _second_order(t, w, step, tau_e, st, sigma):
     return lsq(resid, x0, lo, hi, names)
 
 
+def _speed_noise(w: np.ndarray) -> float:
+    """Speed noise std [rad/s]: sample-to-sample scatter, at least an encoder quantum's."""
+    d = np.abs(np.diff(w))
+    q = float(np.min(d[d > 0])) if np.any(d > 0) else 0.0
+    return max(noise_std(w), q / math.sqrt(12.0), 1e-6 * float(np.max(np.abs(w))), 1e-12)
+
+
+def _window(log, step, pre=5):
+    """(t, omega, step) of one step's interval: a few samples before the onset (the speed at
+    the step instant) to the end of its plateau; the step re-indexed into the window."""
+    a = max(step.prev_start, step.onset - pre)
+    e = step.end if step.end is not None else log.n
+    w = np.asarray(log["omega"], float)
+    st = StepInfo(step.onset - a, step.t0, step.before, step.after, e - a, 0)
+    return log.t[a:e], w[a:e], st
+
+
+def _fit_step(log, step, tau_e, km, R, sig, warns):
+    """One step (from rest or from a moving start): first-order and second-order fits; returns
+    (MechStep, (time from onset, speed change, torque, noise) for the joint fit or None)."""
+    t, w, st_w = _window(log, step)
+    where = f"{log.path} (step to {step.after:.3g} V at t = {step.t0:.4g} s)"
+    ms = MechStep(log.path, step.amplitude, False, level=step.after, t0=step.t0)
+    st = strejc(t, w, st_w)
+    w0, w_end = st.initial, st.final
+    ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= 1e-9 * abs(step.after)
+    if abs(w_end) <= MOVE_SIGMAS * sig:
+        ms.note = "did not move" if ms.from_rest else "coasts to rest"
+        warns.append(f"{where}: " + ("does not move the rotor (below the dead zone / breakaway "
+                                     "torque)" if ms.from_rest else "the plateau is at rest: a "
+                                     "decay that Coulomb friction may end early") + ": reported, "
+                     "not fitted")
+        return ms, None
+    cf1 = fit_first_order(t, w, st_w, st)
+    plateau = float(t[-1] - step.t0)
+    if not plateau >= SETTLE_TAUS * (cf1["tau"] + cf1["d"]):
+        ms.note = "plateau too short"
+        warns.append(f"{where}: the input holds {plateau:.3g} s, under {SETTLE_TAUS:g} time "
+                     f"constants ({cf1['tau']:.3g} s): the speed does not settle; the step is "
+                     "refused (not used)")
+        return ms, None
+    ms.moved, ms.strejc_order = True, st.order
+    ms.omega0, ms.tau_mot = cf1["y0"], cf1["tau"]
+    # the paper's Kmot: steady speed per volt of the plateau (from rest: omega_ss/dV)
+    ms.kmot = (cf1["y0"] + cf1["dy"]) / step.after
+    ms.b, ms.J_paper = paper_mechanical(ms.kmot, ms.tau_mot, km, R)
+    cf2 = _second_order(t, w, st_w, tau_e, st, sig, breakaway=ms.from_rest)
+    ms.omega_ss, ms.omega_ss_se = cf2["y0"] + cf2["wss"], math.hypot(cf2.se("wss"),
+                                                                       cf2.se("y0"))
+    ms.tau_m, ms.tau_m_se = cf2["tau_m"], cf2.se("tau_m")
+    ms.dead_time, ms.beta = cf2["d"], cf2["beta"]
+    ms.chisqr, ms.ndata = cf2.sigma**2 * max(cf2.ndata - 5, 1), cf2.ndata
+    if not ms.from_rest:
+        return ms, None
+    return ms, (t - step.t0, w - cf2["y0"], km * step.after / R, sig)
+
+
 def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalResult:
-    """Fit the free-speed step logs (``t``, ``v``, ``omega``; one step from rest each).
+    """Fit the free-speed step logs (``t``, ``v``, ``omega``; one or more steps each, from rest
+    or from a moving start: :func:`~pmdcid.identify.steps.find_steps`).
 
     Needs R and L in ``model`` (fit-electrical) and km from ``km`` [N m/A] or the model.
     Raises :class:`~pmdcid.errors.ModelError` when they are missing, :class:`FitError` when no
@@ -213,51 +286,27 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
     tau_e = L / R
     warns: list[str] = []
     steps: list[MechStep] = []
-    data: list[tuple] = []  # moving steps: (time from onset, speed, torque amplitude, noise)
-    ndata, chisqr = 0, 0.0
+    data: list[tuple] = []  # steps from rest: (time from onset, speed, torque amplitude, noise)
     for log in logs:
         log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
-        step = find_step(log.t, log.u, log.path)
-        w = np.asarray(log["omega"], float)
-        sig = residual_std(log.t, w, step)
-        if not math.isfinite(sig) or sig <= 0:
-            sig = max(1e-6 * float(np.max(np.abs(w))), 1e-12)
-        st = strejc(log.t, w, step)
-        tail_speed = st.final - st.initial
-        ms = MechStep(log.path, step.amplitude, abs(tail_speed) > MOVE_SIGMAS * sig)
-        steps.append(ms)
-        if not ms.moved:
-            warns.append(f"{log.path}: a {step.amplitude:.3g} V step does not move the rotor "
-                         "(below the dead zone / breakaway torque): reported, not fitted")
-            continue
-        if abs(step.before) > 1e-9 * abs(step.amplitude) and abs(np.median(
-                w[: step.onset])) > MOVE_SIGMAS * sig:
-            warns.append(f"{log.path}: the rotor is not at rest before the step: the fits "
-                         "assume a start from rest")
-        ms.strejc_order = st.order
-        cf1 = fit_first_order(log.t, w, step, st)
-        ms.kmot = cf1["dy"] / step.amplitude
-        ms.tau_mot = cf1["tau"]
-        ms.b, ms.J_paper = paper_mechanical(ms.kmot, ms.tau_mot, km, R)
-        after = float(log.t[-1] - step.t0)
-        if not (cf1["tau"] + cf1["d"] < SETTLE_FRACTION * after):
-            raise FitError(f"the log ends {after:.3g} s after the step, before the speed settles "
-                           f"(time constant about {cf1['tau']:.3g} s): record at least "
-                           f"{(cf1['tau'] + cf1['d']) / SETTLE_FRACTION:.2g} s after the step",
-                           log.path)
-        cf2 = _second_order(log.t, w, step, tau_e, st, sig)
-        ms.omega_ss, ms.omega_ss_se = cf2["wss"], cf2.se("wss")
-        ms.tau_m, ms.tau_m_se = cf2["tau_m"], cf2.se("tau_m")
-        ms.dead_time, ms.beta = cf2["d"], cf2["beta"]
-        ndata += cf2.ndata
-        chisqr += cf2.sigma**2 * max(cf2.ndata - 5, 1)
-        data.append((log.t - step.t0, w - cf2["y0"], km * step.amplitude / R, sig))
+        sig = _speed_noise(np.asarray(log["omega"], float))
+        for step in find_steps(log.t, log.u, log.path):
+            ms, d = _fit_step(log, step, tau_e, km, R, sig, warns)
+            steps.append(ms)
+            if d is not None:
+                data.append(d)
     moving = [s for s in steps if s.moved]
     if not moving:
-        raise FitError("no step moves the rotor: fit-mechanical needs steps above the dead "
-                       "zone (larger voltages)", ", ".join(lg.path for lg in logs))
+        short = [s for s in steps if s.note == "plateau too short"]
+        raise FitError("no usable step: " + ("the input is not held long enough for the speed "
+                                             "to settle (record longer plateaus)" if short else
+                                             "no step moves the rotor: fit-mechanical needs "
+                                             "steps above the dead zone (larger voltages)"),
+                       ", ".join(lg.path for lg in logs))
+    ndata = sum(s.ndata for s in moving)
+    chisqr = sum(s.chisqr for s in moving)
     res = _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns)
-    if len({round(abs(s.amplitude), 9) for s in moving}) >= 2:
+    if len({round(abs(s.amplitude), 9) for s in moving if s.from_rest}) >= 2:
         _joint(res, data, tau_e)
         b, bv = res.estimates["b"].value, res.estimates["bv"].value
         if b > 1.02 * bv:
@@ -312,8 +361,14 @@ def _joint(res: MechanicalResult, data, tau_e) -> None:
 
 
 def _mean_se(x: np.ndarray, se: np.ndarray | None = None) -> tuple[float, float]:
-    """Mean and its standard error (scatter-based; inverse-variance weighted if ``se``)."""
+    """Mean and its standard error (scatter-based; inverse-variance weighted if ``se``);
+    non-finite values are left out (NaN when none is left)."""
     x = np.asarray(x, float)
+    ok = np.isfinite(x)
+    if not ok.any():
+        return math.nan, math.nan
+    x = x[ok]
+    se = None if se is None else np.asarray(se, float)[ok]
     if se is not None and np.all(np.isfinite(se)) and np.all(se > 0):
         w = 1.0 / np.asarray(se) ** 2
         m = float(np.sum(w * x) / np.sum(w))
@@ -329,12 +384,11 @@ def _mean_se(x: np.ndarray, se: np.ndarray | None = None) -> tuple[float, float]
 def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
     kmot, kmot_se = _mean_se(np.array([s.kmot for s in moving]))
     tmot, tmot_se = _mean_se(np.array([s.tau_mot for s in moving]))
-    b_arr = np.array([s.b for s in moving])
-    b, b_se = _mean_se(b_arr)
+    b, b_se = _mean_se(np.array([s.b for s in moving]))
     jp, jp_se = _mean_se(np.array([s.J_paper for s in moving]))
     tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]), np.array([s.tau_m_se
                                                                          for s in moving]))
-    v = np.array([s.amplitude for s in moving])
+    v = np.array([s.level for s in moving])
     w = np.array([s.omega_ss for s in moving])
     w_se = np.array([s.omega_ss_se for s in moving])
     est = {"km": Estimate("km", km, math.nan, "N m/A", vary=False),
@@ -368,8 +422,10 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
     J = tm * bv
     J_se = J * math.hypot(tm_se / tm, bv_se / bv if bv else 0.0)
     est["J"] = Estimate("J", J, J_se, "kg m^2")
-    tb = [km * abs(s.amplitude) / R * -math.expm1(-s.dead_time / tau_e) for s in moving]
-    est["T_break"] = Estimate("T_break", float(np.median(tb)),
+    # the breakaway torque from the delays of steps from rest only (a moving rotor has none)
+    tb = [km * abs(s.amplitude) / R * -math.expm1(-s.dead_time / tau_e) for s in moving
+          if s.from_rest]
+    est["T_break"] = Estimate("T_break", float(np.median(tb)) if tb else math.nan,
                               float(np.std(tb, ddof=1) / math.sqrt(len(tb)))
                               if len(tb) > 1 else math.nan, "N m")
     stats = FitStats(ndata, 5 * len(moving), chisqr)
