@@ -1,7 +1,8 @@
 """fit-mechanical: free-speed voltage steps -> Kmot, tau_mot -> b, J (paper section III-B), and
 better: bv, bc from the affine steady-state line across amplitudes.
 
-Per step (the speed omega [rad/s] after a voltage step dV [V] from rest):
+Per step (the speed omega [rad/s] after a voltage step dV [V]; several steps per log, up or down,
+from rest or from a moving start, each up to the next change of input: :mod:`.mechsteps`):
 
 - the paper's first-order model ``omega = Kmot dV (1 - exp(-(t - t0 - d)/tau_mot))`` (Strejc start,
   least-squares refinement), and its formulas b = km/(Kmot R), J = tau_mot b (eqs. 13-14);
@@ -10,48 +11,36 @@ Per step (the speed omega [rad/s] after a voltage step dV [V] from rest):
   ``omega_ss (1 + a e^(-s/tau_e) - (1 + a) e^(-s/tau_m))``, a = beta tau_e/(tau_m - tau_e); beta < 1
   when the rotor breaks free after the current has partly risen (dead zone above Coulomb).
 
-Across amplitudes the steady speed is affine in voltage (Coulomb friction):
+Across plateaus (every plateau where the rotor turns) the steady speed is affine in voltage
+(Coulomb friction):
 ``omega_ss = (km/(R bv)) V - bc/bv``. The line's slope gives bv, its intercept bc, and
-J = tau_m bv. The paper's b lumps Coulomb friction into the viscous term (b > bv, and b depends on
+J = tau_m bv. The joint exact refinement (:func:`speed_from_rest`) uses the steps from rest only.
+The paper's b lumps Coulomb friction into the viscous term (b > bv, and b depends on
 the amplitude): it is reported and written as ``b``, but fit-nonlinear starts from bv, bc, J.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-exported
+    MOVE_SIGMAS,
+    SETTLE_TAUS,
+    MechStep,
+    fit_step,
+    paper_mechanical,
+    speed_noise,
+)
 from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import format_estimates
-from pmdcid.identify.freerun import noise_std
-from pmdcid.identify.steps import (
-    StepInfo,
-    find_steps,
-    fit_first_order,
-    lsq,
-    strejc,
-    two_lag,
-)
+from pmdcid.identify.steps import despike, find_steps, lsq
 from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
-#: a step whose steady speed is within this many noise std of zero did not move the rotor
-MOVE_SIGMAS = 8.0
-#: a plateau must last this many time constants (plus dead time) for its steady speed to be
-#: read rather than extrapolated (5 % left at 3)
-SETTLE_TAUS = 3.0
-
-
-def paper_mechanical(kmot: float, tau_mot: float, km: float, r: float) -> tuple[float, float]:
-    """The paper's eqs. (13)-(14): b = km/(Kmot R) [N m s/rad], J = tau_mot b [kg m^2].
-
-    Kmot [rad/s per V], tau_mot [s], km [N m/A], R [ohm].
-    """
-    b = km / (kmot * r)
-    return b, tau_mot * b
 
 
 def speed_from_rest(s, torque, J, bv, bc, t_break, tau_e):
@@ -90,33 +79,6 @@ def steady_line(v: np.ndarray, w: np.ndarray, w_se: np.ndarray):
     s2 = max(float(resid @ resid) / dof, 1.0) if len(y) > 2 else 1.0
     cov = np.linalg.inv(A.T @ A) * s2
     return float(coef[0]), float(coef[1]), cov
-
-
-@dataclass
-class MechStep:
-    """One step: amplitude [V], moved?, first-order (paper) and second-order fits."""
-
-    path: str
-    amplitude: float
-    moved: bool
-    kmot: float = math.nan
-    tau_mot: float = math.nan
-    b: float = math.nan
-    J_paper: float = math.nan
-    omega_ss: float = math.nan
-    omega_ss_se: float = math.nan
-    tau_m: float = math.nan
-    tau_m_se: float = math.nan
-    dead_time: float = math.nan
-    beta: float = math.nan
-    strejc_order: int = 0
-    level: float = math.nan  # input level of the plateau [V]
-    t0: float = math.nan  # time of the step [s]
-    from_rest: bool = True
-    omega0: float = math.nan  # speed at the step instant [rad/s]
-    note: str = ""  # why a step is not used
-    chisqr: float = 0.0
-    ndata: int = 0
 
 
 @dataclass
@@ -187,84 +149,6 @@ def _finite(x):
     return x if math.isfinite(x) else None
 
 
-def _second_order(t, w, step, tau_e, st, sigma, breakaway=True):
-    s = t - step.t0
-    dt = float(t[1] - t[0])
-    span = float(t[-1] - step.t0)
-    tau0 = max(st.tau - tau_e, 2 * tau_e) if math.isfinite(st.tau) else 0.1 * span
-    names = ("y0", "wss", "tau_m", "d", "beta")
-    x0 = [st.initial, st.final - st.initial, tau0, min(st.tu, 0.5 * tau0)
-          if math.isfinite(st.tu) else 0.0, 0.9]
-    lo = np.array([-np.inf, -np.inf, 1.01 * tau_e + 0.05 * dt, 0.0, 0.0 if breakaway else
-                   1.0 - 1e-9])
-    hi = np.array([np.inf, np.inf, 10 * span, 0.5 * span, 1.0])
-    if not breakaway:  # a moving rotor does not break free: the current's lag alone
-        x0[4] = 1.0
-
-    def resid(x):
-        y0, wss, tm, d, beta = x
-        return (y0 + wss * np.where(s > d, two_lag(s - d, tm, tau_e, beta), 0.0) - w) / sigma
-
-    return lsq(resid, x0, lo, hi, names)
-
-
-def _speed_noise(w: np.ndarray) -> float:
-    """Speed noise std [rad/s]: sample-to-sample scatter, at least an encoder quantum's."""
-    d = np.abs(np.diff(w))
-    q = float(np.min(d[d > 0])) if np.any(d > 0) else 0.0
-    return max(noise_std(w), q / math.sqrt(12.0), 1e-6 * float(np.max(np.abs(w))), 1e-12)
-
-
-def _window(log, step, pre=5):
-    """(t, omega, step) of one step's interval: a few samples before the onset (the speed at
-    the step instant) to the end of its plateau; the step re-indexed into the window."""
-    a = max(step.prev_start, step.onset - pre)
-    e = step.end if step.end is not None else log.n
-    w = np.asarray(log["omega"], float)
-    st = StepInfo(step.onset - a, step.t0, step.before, step.after, e - a, 0)
-    return log.t[a:e], w[a:e], st
-
-
-def _fit_step(log, step, tau_e, km, R, sig, warns):
-    """One step (from rest or from a moving start): first-order and second-order fits; returns
-    (MechStep, (time from onset, speed change, torque, noise) for the joint fit or None)."""
-    t, w, st_w = _window(log, step)
-    where = f"{log.path} (step to {step.after:.3g} V at t = {step.t0:.4g} s)"
-    ms = MechStep(log.path, step.amplitude, False, level=step.after, t0=step.t0)
-    st = strejc(t, w, st_w)
-    w0, w_end = st.initial, st.final
-    ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= 1e-9 * abs(step.after)
-    if abs(w_end) <= MOVE_SIGMAS * sig:
-        ms.note = "did not move" if ms.from_rest else "coasts to rest"
-        warns.append(f"{where}: " + ("does not move the rotor (below the dead zone / breakaway "
-                                     "torque)" if ms.from_rest else "the plateau is at rest: a "
-                                     "decay that Coulomb friction may end early") + ": reported, "
-                     "not fitted")
-        return ms, None
-    cf1 = fit_first_order(t, w, st_w, st)
-    plateau = float(t[-1] - step.t0)
-    if not plateau >= SETTLE_TAUS * (cf1["tau"] + cf1["d"]):
-        ms.note = "plateau too short"
-        warns.append(f"{where}: the input holds {plateau:.3g} s, under {SETTLE_TAUS:g} time "
-                     f"constants ({cf1['tau']:.3g} s): the speed does not settle; the step is "
-                     "refused (not used)")
-        return ms, None
-    ms.moved, ms.strejc_order = True, st.order
-    ms.omega0, ms.tau_mot = cf1["y0"], cf1["tau"]
-    # the paper's Kmot: steady speed per volt of the plateau (from rest: omega_ss/dV)
-    ms.kmot = (cf1["y0"] + cf1["dy"]) / step.after
-    ms.b, ms.J_paper = paper_mechanical(ms.kmot, ms.tau_mot, km, R)
-    cf2 = _second_order(t, w, st_w, tau_e, st, sig, breakaway=ms.from_rest)
-    ms.omega_ss, ms.omega_ss_se = cf2["y0"] + cf2["wss"], math.hypot(cf2.se("wss"),
-                                                                       cf2.se("y0"))
-    ms.tau_m, ms.tau_m_se = cf2["tau_m"], cf2.se("tau_m")
-    ms.dead_time, ms.beta = cf2["d"], cf2["beta"]
-    ms.chisqr, ms.ndata = cf2.sigma**2 * max(cf2.ndata - 5, 1), cf2.ndata
-    if not ms.from_rest:
-        return ms, None
-    return ms, (t - step.t0, w - cf2["y0"], km * step.after / R, sig)
-
-
 def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalResult:
     """Fit the free-speed step logs (``t``, ``v``, ``omega``; one or more steps each, from rest
     or from a moving start: :func:`~pmdcid.identify.steps.find_steps`).
@@ -289,9 +173,16 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
     data: list[tuple] = []  # steps from rest: (time from onset, speed, torque amplitude, noise)
     for log in logs:
         log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
-        sig = _speed_noise(np.asarray(log["omega"], float))
+        w, bad = despike(log["omega"])
+        if len(bad):
+            k = int(bad[np.argmax(np.abs(np.asarray(log["omega"])[bad] - w[bad]))])
+            warns.append(f"{log.path}: {len(bad)} isolated speed spike(s) (e.g. "
+                         f"{log['omega'][k]:.4g} rad/s at t = {log.t[k]:.4g} s) replaced by "
+                         "the median of their neighbours")
+            log = replace(log, data={**log.data, "omega": w})
+        sig = speed_noise(w)
         for step in find_steps(log.t, log.u, log.path):
-            ms, d = _fit_step(log, step, tau_e, km, R, sig, warns)
+            ms, d = fit_step(log, step, tau_e, km, R, sig, warns)
             steps.append(ms)
             if d is not None:
                 data.append(d)

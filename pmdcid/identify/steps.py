@@ -295,13 +295,37 @@ def fit_first_order(t: np.ndarray, y: np.ndarray, step: StepInfo, st: StrejcResu
     tau0 = st.tau if math.isfinite(st.tau) and st.tau > 0 else 0.1 * (t[-1] - step.t0)
     dy0 = st.final - st.initial
     names = ("y0", "dy", "tau", "d")
-    x0 = [st.initial, dy0, tau0, min(st.tu, tau0) if dead_time and math.isfinite(st.tu) else 0]
     span = float(t[-1] - step.t0)
     lo = np.array([-np.inf, -np.inf, 0.05 * dt, 0.0])
     hi = np.array([np.inf, np.inf, 10 * span, 0.5 * span if dead_time else 1e-12 * dt])
-    if not dead_time:
-        x0[3] = 0.0
-    return lsq(lambda x: first_order(s, *x) - y, x0, lo, hi, names)
+    # two starts for the dead time (Strejc's tangent, capped at half the time constant, and 0):
+    # on a quantised or rippled speed the tangent can be far off, and the cost has side minima
+    d_starts = {0.0}
+    if dead_time and math.isfinite(st.tu):
+        d_starts.add(min(st.tu, 0.5 * tau0))
+    fits = [lsq(lambda x: first_order(s, *x) - y, [st.initial, dy0, tau0, d0], lo, hi, names)
+            for d0 in sorted(d_starts)]
+    return min(fits, key=lambda cf: cf.sigma)
+
+
+def despike(y: np.ndarray, sigmas: float = 20.0) -> tuple[np.ndarray, np.ndarray]:
+    """Isolated spikes (a sample far from the median of its 5 neighbours: a counter wrap, a
+    serial glitch) replaced by that median. Returns (cleaned copy, indices replaced). A spike is
+    more than ``sigmas`` robust std of the signal's deviation from its running median, and more
+    than a fifth of the signal's range away from it (a step edge is not a spike)."""
+    from scipy.signal import medfilt
+
+    y = np.asarray(y, float)
+    if len(y) < 5:
+        return y.copy(), np.zeros(0, int)
+    med = medfilt(y, 5)
+    dev = y - med
+    sd = 1.4826 * float(np.median(np.abs(dev)))
+    rng = float(np.percentile(med, 99) - np.percentile(med, 1))
+    bad = np.nonzero(np.abs(dev) > max(sigmas * sd, 0.2 * rng, 1e-300))[0]
+    out = y.copy()
+    out[bad] = med[bad]
+    return out, bad
 
 
 def residual_std(t, y, step: StepInfo) -> float:
