@@ -203,3 +203,17 @@ def test_find_steps_up_and_down_and_refuses_ramps(rng):
     for wave in (3 * t, np.sin(6 * t)):
         with pytest.raises(FitError, match="no step found"):
             find_steps(t, wave)
+
+
+def test_back_emf_in_the_model_is_taken_out_of_bv(rng, paper_values):
+    """A model with back_emf (e.g. from fit-electrical on free-running logs): the steady speed is
+    (km V/R - bc)/(bv + km ke/R), so the line's damping minus km ke/R is bv. Light viscous
+    friction: the back-EMF's damping is a fifth of the total."""
+    vals = {**paper_values, "bv": 0.004, "ke": paper_values["km"]}
+    m = _electrical(vals)
+    m.set("ke", vals["ke"], stage="fit-electrical")
+    m.add_effect("back_emf")
+    res = fit_mechanical(step_logs(vals, rng, amplitudes=(1.0, 1.5, 2.0, 2.5)), m)
+    for k in ("bv", "bc", "J"):
+        assert res.estimates[k].value == pytest.approx(vals[k], rel=0.03), k
+    assert any("back-EMF" in w for w in res.warnings)

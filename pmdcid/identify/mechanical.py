@@ -196,8 +196,14 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
                        ", ".join(lg.path for lg in logs))
     ndata = sum(s.ndata for s in moving)
     chisqr = sum(s.chisqr for s in moving)
-    res = _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns)
-    if len({round(abs(s.amplitude), 9) for s in moving if s.from_rest}) >= 2:
+    ke = model.value("ke") if "back_emf" in model.effects and model.has("ke") else 0.0
+    b_emf = km * ke / R
+    res = _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf)
+    if b_emf > 0:
+        res.warnings.append(f"the model has back-EMF (ke = {ke:.4g} V s/rad): its damping km ke/R "
+                            f"= {b_emf:.3g} N m s/rad is taken out of the steady-speed line's to "
+                            "give bv; the joint refinement from rest (no back-EMF) is skipped")
+    elif len({round(abs(s.amplitude), 9) for s in moving if s.from_rest}) >= 2:
         _joint(res, data, tau_e)
         b, bv = res.estimates["b"].value, res.estimates["bv"].value
         if b > 1.02 * bv:
@@ -272,7 +278,9 @@ def _mean_se(x: np.ndarray, se: np.ndarray | None = None) -> tuple[float, float]
                                if len(x) > 1 else math.nan)
 
 
-def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
+def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=0.0):
+    """Means over steps, the steady-speed line, J. ``b_emf`` = km ke/R [N m s/rad]: the damping
+    the back-EMF adds (model effect back_emf), taken out of the line's damping to give bv."""
     kmot, kmot_se = _mean_se(np.array([s.kmot for s in moving]))
     tmot, tmot_se = _mean_se(np.array([s.tau_mot for s in moving]))
     b, b_se = _mean_se(np.array([s.b for s in moving]))
@@ -292,11 +300,12 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
         if a <= 0:
             raise FitError("steady speed does not grow with voltage across the steps: check the "
                            "sign and scale of the speed column")
-        bv = km / (R * a)
-        bv_se = bv * math.sqrt(cov[0, 0]) / a
-        bc = -c * bv
-        # d(bc) = -bv dc - c d(bv); d(bv) = -bv/a da
-        g = np.array([c * bv / a, -bv])
+        d_eff = km / (R * a)  # total damping: viscous plus back-EMF's km ke/R
+        bv = d_eff - b_emf
+        bv_se = d_eff * math.sqrt(cov[0, 0]) / a
+        bc = -c * d_eff
+        # d(bc) = -d_eff dc - c d(d_eff); d(d_eff) = -d_eff/a da
+        g = np.array([c * d_eff / a, -d_eff])
         bc_se = math.sqrt(max(float(g @ cov @ g), 0.0))
         if bc < 0:
             warns.append(f"the steady-speed line gives a negative Coulomb friction bc = {bc:.3g} "
@@ -307,11 +316,15 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
     else:
         warns.append("all steps have the same amplitude: Coulomb friction cannot be separated "
                      "from viscous; bv = b (paper) and bc = 0 are written")
-        est["bv"] = Estimate("bv", b, b_se, "N m s/rad")
+        d_eff, bv, bv_se = b, b - b_emf, b_se
+        est["bv"] = Estimate("bv", bv, b_se, "N m s/rad")
         est["bc"] = Estimate("bc", 0.0, math.nan, "N m")
-        bv, bv_se = b, b_se
-    J = tm * bv
-    J_se = J * math.hypot(tm_se / tm, bv_se / bv if bv else 0.0)
+    if bv < 0:
+        warns.append(f"the back-EMF damping km ke/R = {b_emf:.3g} N m s/rad exceeds the steps' "
+                     f"total damping {d_eff:.3g}: km, ke or R is off; bv set to 0")
+        est["bv"] = Estimate("bv", 0.0, bv_se, "N m s/rad")
+    J = tm * d_eff
+    J_se = J * math.hypot(tm_se / tm, bv_se / d_eff if d_eff else 0.0)
     est["J"] = Estimate("J", J, J_se, "kg m^2")
     # the breakaway torque from the delays of steps from rest only (a moving rotor has none)
     tb = [km * abs(s.amplitude) / R * -math.expm1(-s.dead_time / tau_e) for s in moving
