@@ -186,6 +186,7 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
             steps.append(ms)
             if d is not None:
                 data.append(d)
+    _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:
         short = [s for s in steps if s.note == "plateau too short"]
@@ -211,6 +212,17 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
                                 "N m s/rad: Coulomb friction is lumped into b (it varies with "
                                 "the step amplitude)")
     return res
+
+
+def _still_warnings(steps, warns) -> None:
+    """One warning per kind of step left out because the rotor is at rest on its plateau."""
+    for note, what in (("did not move", "below the dead zone / breakaway torque: the input does "
+                        "not move the rotor"),
+                       ("coasts to rest", "the plateau is at rest after a decay (Coulomb "
+                        "friction may end a decay early: not a first-order response)")):
+        where = [f"{s.path} at {s.t0:.4g} s ({s.level:.3g} V)" for s in steps if s.note == note]
+        if where:
+            warns.append(f"{what}: {'; '.join(where)}: reported, not fitted")
 
 
 def _joint(res: MechanicalResult, data, tau_e) -> None:

@@ -111,10 +111,6 @@ def fit_step(log, step, tau_e, km, R, sig, warns):
     ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= 1e-9 * abs(step.after)
     if abs(w_end) <= MOVE_SIGMAS * sig:
         ms.note = "did not move" if ms.from_rest else "coasts to rest"
-        warns.append(f"{where}: " + ("does not move the rotor (below the dead zone / breakaway "
-                                     "torque)" if ms.from_rest else "the plateau is at rest: a "
-                                     "decay that Coulomb friction may end early") + ": reported, "
-                     "not fitted")
         return ms, None
     cf1 = fit_first_order(t, w, st_w, st)
     plateau = float(t[-1] - step.t0)
