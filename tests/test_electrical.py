@@ -151,3 +151,20 @@ def test_blocked_rotor_log_with_a_still_speed_column_keeps_the_step_fit(rng, pap
     res = fit_electrical(logs, Model())
     assert "ke" not in res.estimates
     assert res.estimates["R"].value == pytest.approx(PAPER["R"], rel=5e-3)
+
+
+def test_blocked_step_that_returns_to_zero_is_fitted_up_to_its_end(rng, paper_values):
+    """Blocked-rotor steps back to 0 V for the last 0.1 s: each log's step is fitted up to the
+    change (before: 'no step found')."""
+    logs = blocked_logs(paper_values, rng, seconds=0.4)
+    t = logs[0].t
+    for lg, a in zip(logs, (0.5, 1.0, 1.5, 2.0, 2.5), strict=True):
+        from pmdcid.synth import PAPER_NOISE, synth_log
+
+        u = np.where((t >= 0.05) & (t < 0.3), a, 0.0)
+        cols, _ = synth_log(t, u, paper_values, PAPER_NOISE, rng, blocked=True)
+        lg.data.update(cols)
+    res = fit_electrical(logs, Model())
+    assert res.estimates["R"].value == pytest.approx(PAPER["R"], rel=5e-3)
+    assert res.estimates["L"].value == pytest.approx(PAPER["L"], rel=5e-3)
+    assert sum("2 steps" in w for w in res.warnings) == 5

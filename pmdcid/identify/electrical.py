@@ -14,7 +14,7 @@ is a brush drop (c = -vb/R) or a current-sensor offset, and is reported, not ave
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -24,7 +24,7 @@ from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import format_estimates
 from pmdcid.identify.steps import (
     StepInfo,
-    find_step,
+    find_steps,
     first_order,
     fit_first_order,
     lsq,
@@ -130,8 +130,8 @@ def classify(log) -> str:
     log.require("v", "i", purpose="fit-electrical (voltage and armature current)")
     if log.has("omega"):
         return "free" if rotor_turns(log["omega"]) else "blocked"
-    step = find_step(log.t, log.u, log.path)
-    turns, peak, final = loaded_current(log["i"], step.onset)
+    step = find_steps(log.t, log.u, log.path)[0]
+    turns, peak, final = loaded_current(log["i"][:step.end], step.onset)
     if turns:
         raise FitError(f"the rotor turns (the current rises by {peak:.3g} A after the step, then "
                        f"falls to {final:.3g} A, as a motor speeding up does) and the log has no "
@@ -155,9 +155,15 @@ def fit_electrical(logs, model: Model | None = None):
     if "free" in kinds:
         return fit_free_running(logs, model)
     warns: list[str] = []
-    reps, steps = [], []
+    reps, steps, used = [], [], []
     for log in logs:
-        step = find_step(log.t, log.u, log.path)
+        found = find_steps(log.t, log.u, log.path)
+        step = found[0]
+        if len(found) > 1 or step.end < log.n:  # the first step, up to the next change
+            if len(found) > 1:
+                warns.append(f"{log.path}: {len(found)} steps in the input: the first (to "
+                             f"{step.after:.3g} V at t = {step.t0:.4g} s) is used")
+            log = _head(log, step.end)
         rep, _ = _fit_one(log, step)
         after = float(log.t[-1] - step.t0)
         if not (rep.tau + rep.dead_time < SETTLE_FRACTION * after):
@@ -173,7 +179,13 @@ def fit_electrical(logs, model: Model | None = None):
                          "identifiable from this log (sample faster)")
         reps.append(rep)
         steps.append(step)
-    return _joint(logs, steps, reps, warns)
+        used.append(log)
+    return _joint(used, steps, reps, warns)
+
+
+def _head(log, end: int):
+    """The log's first ``end`` samples (a step's plateau ends where the input changes again)."""
+    return replace(log, t=log.t[:end], data={k: v[:end] for k, v in log.data.items()})
 
 
 def _joint(logs, steps, reps, warns) -> ElectricalResult:
