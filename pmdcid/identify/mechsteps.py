@@ -108,7 +108,8 @@ def fit_step(log, step, tau_e, km, R, sig, warns):
     ms = MechStep(log.path, step.amplitude, False, level=step.after, t0=step.t0)
     st = strejc(t, w, st_w)
     w0, w_end = st.initial, st.final
-    ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= 1e-9 * abs(step.after)
+    # from rest: the rotor still and the input 0 before (within 2 % of the level: input noise)
+    ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= 0.02 * abs(step.after)
     if abs(w_end) <= MOVE_SIGMAS * sig:
         ms.note = "did not move" if ms.from_rest else "coasts to rest"
         return ms, None
