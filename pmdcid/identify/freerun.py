@@ -150,7 +150,7 @@ def _rows(log) -> tuple[np.ndarray, np.ndarray]:
     return X, i[1:]
 
 
-def _simulated_current(A, th, starts, ends, y) -> np.ndarray:
+def _simulated_current(A, th, starts, ends) -> np.ndarray:
     """i[k] simulated by the fitted difference equation from each log's voltage and speed
     (free of the current sensor's noise): the instrument for the regressor i[k]."""
     from scipy.signal import lfilter
@@ -164,6 +164,53 @@ def _simulated_current(A, th, starts, ends, y) -> np.ndarray:
         xs, _ = lfilter([1.0], [1.0, -a], drive[s0:e0 - 1], zi=[a * i0])
         out[s0] = i0
         out[s0 + 1:e0] = xs
+    return out
+
+
+def _iv_regression(parts):
+    """Least squares, then refined instrumental variables, on the stacked rows of every log
+    (one offset column per log). Returns (theta, HAC covariance, residual, CovarianceInfo)."""
+    X = np.concatenate([x for x, _ in parts])
+    y = np.concatenate([t for _, t in parts])
+    ends = np.cumsum([len(t) for _, t in parts])
+    starts = ends - np.array([len(t) for _, t in parts])
+    ind = np.zeros((len(y), len(parts)))
+    for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        ind[a:b, k] = 1.0
+    A = np.column_stack([X, ind])
+    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
+    th = np.linalg.lstsq(A / scale, y, rcond=None)[0] / scale
+    Z = A
+    for _ in range(IV_ITERATIONS):  # refined instrumental variables: the model's own current
+        if not 0 < th[0] < 1:
+            break
+        Z = A.copy()
+        Z[:, 0] = _simulated_current(A, th, starts, ends)
+        th = np.linalg.solve((Z / scale).T @ (A / scale), (Z / scale).T @ y) / scale
+    r = A @ th - y
+    s2 = float(r @ r) / max(len(y) - A.shape[1], 1)
+    segs = [(k, int(a), int(b)) for k, (a, b) in enumerate(zip(starts, ends, strict=True))]
+    ZZ = Z.T @ Z
+    cov_z, info = block_covariance(Z, r, segs, np.linalg.pinv(ZZ) * s2)
+    M = np.linalg.pinv(Z.T @ A) @ ZZ  # IV sandwich: (Z'A)^-1 S (A'Z)^-1
+    return th, M @ cov_z @ M.T, r, info
+
+
+def _offsets(logs, th, cov, warns) -> dict[str, Estimate]:
+    """Each log's voltage offset v0 = b/g [V] (brush drop or current-sensor offset) with its
+    standard error; a significant one (3 std errors, over 1 % of the log's largest |v|) warned."""
+    g = th[1]
+    out = {}
+    for k, lg in enumerate(logs):
+        b = th[4 + k]
+        grad = np.zeros(len(th))
+        grad[1], grad[4 + k] = -b / g**2, 1.0 / g
+        v0, v0_se = b / g, math.sqrt(max(float(grad @ cov @ grad), 0.0))
+        out[lg.path] = Estimate(f"v0[{lg.path}]", v0, v0_se, "V")
+        if abs(v0) > OFFSET_SIGMAS * v0_se and abs(v0) > 0.01 * float(np.max(np.abs(lg["v"]))):
+            warns.append(f"{lg.path}: the current implies a voltage offset of {v0:.3g} ± "
+                         f"{v0_se:.2g} V (a brush drop or a current-sensor offset; fitted "
+                         "separately, not folded into R)")
     return out
 
 
@@ -201,34 +248,7 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
         raise FitError("free-running logs at different sample periods ("
                        + ", ".join(f"{d * 1e3:.4g} ms" for d in sorted(set(dts))) + "): fit "
                        "each rate separately", ", ".join(lg.path for lg in logs))
-    parts = [_rows(lg) for lg in logs]
-    n_log = len(logs)
-    X = np.concatenate([x for x, _ in parts])
-    y = np.concatenate([t for _, t in parts])
-    ind = np.zeros((len(y), n_log))
-    ends = np.cumsum([len(t) for _, t in parts])
-    starts = ends - np.array([len(t) for _, t in parts])
-    for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
-        ind[a:b, k] = 1.0
-    A = np.column_stack([X, ind])
-    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
-    th = np.linalg.lstsq(A / scale, y, rcond=None)[0] / scale
-    Z = A
-    for _ in range(IV_ITERATIONS):  # refined instrumental variables: the model's own current
-        if not 0 < th[0] < 1:
-            break
-        Z = A.copy()
-        Z[:, 0] = _simulated_current(A, th, starts, ends, y)
-        th = np.linalg.solve((Z / scale).T @ (A / scale), (Z / scale).T @ y) / scale
-    r = A @ th - y
-    dof = max(len(y) - A.shape[1], 1)
-    s2 = float(r @ r) / dof
-    segs = [(k, int(a), int(b)) for k, (a, b) in enumerate(zip(starts, ends, strict=True))]
-    ZA_inv = np.linalg.pinv(Z.T @ A)
-    ZZ = Z.T @ Z
-    cov_z, info = block_covariance(Z, r, segs, np.linalg.pinv(ZZ) * s2)
-    M = ZA_inv @ ZZ
-    cov = M @ cov_z @ M.T
+    th, cov, r, info = _iv_regression([_rows(lg) for lg in logs])
     names = ", ".join(lg.path for lg in logs)
     a, g = th[0], th[1]
     if not (g > 0 and math.isfinite(g)) or not a < 1:
@@ -278,22 +298,11 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
                         ("an upper bound is written (± 100 %)" if bound else
                          "the fitted value is written with its standard error"))
                      + ": sample faster, or use a blocked-rotor log, to identify L")
-    offsets = {}
-    for k, lg in enumerate(logs):
-        b = th[4 + k]
-        gb = np.zeros(len(th))
-        gb[1], gb[4 + k] = -b / g**2, 1.0 / g
-        v0 = b / g
-        v0_se = math.sqrt(max(float(gb @ cov @ gb), 0.0))
-        offsets[lg.path] = Estimate(f"v0[{lg.path}]", v0, v0_se, "V")
-        if abs(v0) > OFFSET_SIGMAS * v0_se and abs(v0) > 0.01 * float(np.max(np.abs(lg["v"]))):
-            warns.append(f"{lg.path}: the current implies a voltage offset of {v0:.3g} ± "
-                         f"{v0_se:.2g} V (a brush drop or a current-sensor offset; fitted "
-                         "separately, not folded into R)")
+    offsets = _offsets(logs, th, cov, warns)
     est = {"R": Estimate("R", float(R), float(se[0]), "ohm"),
            "L": Estimate("L", float(L), float(L_se), "H"),
            "ke": Estimate("ke", float(ke), float(se[2]), "V s/rad"),
            "tau_e": Estimate("tau_e", float(tau), float(tau_se), "s")}
-    stats = FitStats(len(y), A.shape[1], float(r @ r), 0, True)
+    stats = FitStats(len(r), len(th), float(r @ r), 0, True)
     return FreeRunResult(est, offsets, [lg.path for lg in logs], stats, dt, resolved, bound,
                          bool(ke_ok), warns, info.describe())
