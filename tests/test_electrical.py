@@ -74,3 +74,97 @@ def test_no_step_is_an_error(rng):
     log = as_log("flat.csv", t, {"v": np.ones(1000), "i": rng.normal(0.4, 1e-3, 1000)})
     with pytest.raises(FitError, match="flat.csv: no step"):
         fit_electrical([log], Model())
+
+
+# ---- free-running logs: v = R i + L di/dt + ke omega, no blocked rotor ----------------------
+
+def _free_truth(rng, bv=1e-3):
+    """The paper motor's R, L, km (ke = km, SI) moved by up to 25 %, turning freely (light
+    viscous friction, as an unloaded motor: back-EMF then carries most of the voltage)."""
+    vals = perturbed_truth(rng)
+    vals.update(bv=bv, bc=0.0, dz=0.0, ke=vals["km"] * rng.uniform(0.8, 1.2))
+    return vals
+
+
+def _free_logs(vals, rng, rate, seconds=10.0, hold=0.5, speed=True, n=2):
+    from pmdcid.synth import PAPER_NOISE, staircase, synth_log
+
+    t = np.arange(int(seconds * rate)) / rate
+    out = []
+    for k in range(n):
+        cols, _ = synth_log(t, staircase(t, 6.0, hold, rng), vals, PAPER_NOISE, rng)
+        if not speed:
+            cols = {c: cols[c] for c in ("v", "i")}
+        out.append(as_log(f"free_{k}.csv", t, cols))
+    return out
+
+
+@pytest.mark.parametrize("seed", [31, 32])
+def test_free_running_round_trip_r_l_ke(seed):
+    rng = np.random.default_rng(seed)
+    vals = _free_truth(rng)
+    res = fit_electrical(_free_logs(vals, rng, rate=1000.0), Model())
+    est = res.estimates
+    assert est["R"].value == pytest.approx(vals["R"], rel=0.02)
+    assert est["ke"].value == pytest.approx(vals["ke"], rel=0.02)
+    assert est["L"].value == pytest.approx(vals["L"], rel=0.05)
+    assert res.l_resolved and not any("not resolved" in w for w in res.warnings)
+    for k in ("R", "ke", "L"):  # honest standard errors
+        assert abs(est[k].value - vals[k]) < 5 * est[k].stderr, k
+    m = Model()
+    res.apply(m)
+    assert m.effects == ["back_emf"]
+    assert {m.parameters[k].stage for k in ("R", "L", "ke")} == {"fit-electrical"}
+    assert m.parameters["ke"].unit == "V s/rad"
+
+
+def test_free_running_too_slow_says_l_not_resolved(rng):
+    vals = _free_truth(rng)
+    # 50 Hz: L/R (4-12 ms) is under one sample period of 20 ms
+    res = fit_electrical(_free_logs(vals, rng, rate=50.0, seconds=30.0), Model())
+    assert res.estimates["R"].value == pytest.approx(vals["R"], rel=0.02)
+    assert res.estimates["ke"].value == pytest.approx(vals["ke"], rel=0.02)
+    assert not res.l_resolved
+    assert any("L is not resolved" in w for w in res.warnings)
+    assert "L not resolved" in res.table()
+    m = Model()
+    m.set("L", 0.02, 1e-4, stage="bench")
+    res.apply(m)
+    assert m.value("L") == 0.02 and m.parameters["L"].stage == "bench"  # the earlier L kept
+
+
+def test_free_running_without_speed_is_refused(rng):
+    vals = _free_truth(rng)
+    t = np.arange(3000) / 1000.0
+    from pmdcid.synth import PAPER_NOISE, step, synth_log
+
+    cols, _ = synth_log(t, step(t, 2.0, 0.5), vals, PAPER_NOISE, rng)
+    log = as_log("running.csv", t, {"v": cols["v"], "i": cols["i"]})
+    with pytest.raises(FitError, match="running.csv: the rotor turns .* no speed"):
+        fit_electrical([log], Model())
+
+
+def test_blocked_rotor_log_with_a_still_speed_column_keeps_the_step_fit(rng, paper_values):
+    logs = blocked_logs(paper_values, rng)
+    for lg in logs:  # a speed sensor reading a still rotor: noise around an offset
+        lg.data["omega"] = 0.3 + rng.normal(0, 4e-3, lg.n)
+    res = fit_electrical(logs, Model())
+    assert "ke" not in res.estimates
+    assert res.estimates["R"].value == pytest.approx(PAPER["R"], rel=5e-3)
+
+
+def test_blocked_step_that_returns_to_zero_is_fitted_up_to_its_end(rng, paper_values):
+    """Blocked-rotor steps back to 0 V for the last 0.1 s: each log's step is fitted up to the
+    change (before: 'no step found')."""
+    logs = blocked_logs(paper_values, rng, seconds=0.4)
+    t = logs[0].t
+    for lg, a in zip(logs, (0.5, 1.0, 1.5, 2.0, 2.5), strict=True):
+        from pmdcid.synth import PAPER_NOISE, synth_log
+
+        u = np.where((t >= 0.05) & (t < 0.3), a, 0.0)
+        cols, _ = synth_log(t, u, paper_values, PAPER_NOISE, rng, blocked=True)
+        lg.data.update(cols)
+    res = fit_electrical(logs, Model())
+    assert res.estimates["R"].value == pytest.approx(PAPER["R"], rel=5e-3)
+    assert res.estimates["L"].value == pytest.approx(PAPER["L"], rel=5e-3)
+    assert sum("2 steps" in w for w in res.warnings) == 5

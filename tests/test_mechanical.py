@@ -125,3 +125,95 @@ def test_fixture_steps_sampled_at_100_hz():
     for k in ("J", "bv", "bc"):
         assert res.estimates[k].value == pytest.approx(truth[k], rel=0.01), k
     assert not [w for w in res.warnings if "times their noise" in w], res.warnings
+
+
+# ---- steps from a moving start, several steps per log, steps that end early -----------------
+
+def _log_from(vals, rng, t, u, first=0, name="steps.csv"):
+    from ident_util import as_log
+
+    from pmdcid.synth import PAPER_NOISE, synth_log
+
+    cols, _ = synth_log(t, u, vals, PAPER_NOISE, rng)
+    return as_log(name, t[first:], {c: v[first:] for c, v in cols.items()})
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_moving_start_and_a_step_that_ends_early(seed):
+    """A linear motor (no Coulomb, no dead zone) logged from 0.2 s into a 1 V plateau (speed
+    not 0 at the first sample, still rising), stepped to 2.5 V at 0.3 s, back to 0 V for the
+    last half second. Kmot and tau within 2 % of km/(R bv) and J/bv; no breakaway torque and
+    no dead time invented from the moving start; the final 0 V plateau is reported, not used."""
+    rng = np.random.default_rng(seed)
+    vals = {**perturbed_truth(rng), "bc": 0.0, "dz": 0.0}
+    t = np.arange(3200) / 1000.0
+    u = np.where(t < 0.3, 1.0, np.where(t < 2.7, 2.5, 0.0))
+    log = _log_from(vals, rng, t, u, first=200)
+    assert log["omega"][0] > 0.3 * vals["km"] / (vals["R"] * vals["bv"])
+    res = fit_mechanical([log], _electrical(vals))
+    kmot, tau = vals["km"] / (vals["R"] * vals["bv"]), vals["J"] / vals["bv"]
+    up, down = res.steps
+    assert not up.from_rest and up.moved and not down.moved
+    assert res.estimates["Kmot"].value == pytest.approx(kmot, rel=0.02)
+    assert res.estimates["tau_mot"].value == pytest.approx(tau, rel=0.02)
+    assert up.tau_m == pytest.approx(tau, rel=0.02)
+    assert res.estimates["J"].value == pytest.approx(vals["J"], rel=0.02)
+    assert up.dead_time < 2e-3
+    assert math.isnan(res.estimates["T_break"].value)
+    assert any("0 V" in w and "not fitted" in w for w in res.warnings)
+
+
+def test_step_from_rest_that_returns_to_zero(rng, paper_values):
+    """0 -> 2 V at 0.5 s, back to 0 V for the last half second (Coulomb friction and dead zone
+    of the paper motor): the step is found and fitted as if the log ended at 2.5 s."""
+    t = np.arange(3000) / 1000.0
+    u = np.where((t >= 0.5) & (t < 2.5), 2.0, 0.0)
+    res = fit_mechanical([_log_from(paper_values, rng, t, u)], _electrical(paper_values))
+    v = paper_values
+    w_ss = (v["km"] * 2.0 / v["R"] - v["bc"]) / v["bv"]
+    s = res.steps[0]
+    assert s.from_rest and s.moved
+    assert s.kmot == pytest.approx(w_ss / 2.0, rel=0.02)
+    assert s.tau_m == pytest.approx(v["J"] / v["bv"], rel=0.02)
+
+
+def test_staircase_of_moving_starts_gives_the_steady_line(rng, paper_values):
+    """One log, 0 -> 1 -> 2.5 -> 1.5 -> 2 V plateaus of 0.8 s: every moving plateau on the
+    steady-state line: bv, bc within 3 %, J within 2 %."""
+    t = np.arange(4000) / 1000.0
+    u = np.select([t < 0.2, t < 1.0, t < 1.8, t < 2.6, t < 3.4], [0.0, 1.0, 2.5, 1.5, 2.0], 0.5)
+    res = fit_mechanical([_log_from(paper_values, rng, t, u)], _electrical(paper_values))
+    assert sum(s.moved for s in res.steps) == 5
+    assert [s.from_rest for s in res.steps if s.moved] == [True, False, False, False, False]
+    for k, tol in (("bv", 0.03), ("bc", 0.03), ("J", 0.02)):
+        assert res.estimates[k].value == pytest.approx(paper_values[k], rel=tol), k
+
+
+def test_find_steps_up_and_down_and_refuses_ramps(rng):
+    from pmdcid.errors import FitError
+    from pmdcid.identify.steps import find_steps
+
+    t = np.arange(2000) * 1e-3
+    u = np.select([t < 0.3, t < 1.1, t < 1.5], [0.0, 1.5, -0.5], 0.0) + rng.normal(0, 0.01, 2000)
+    u[-1] = 3.0  # a one-sample glitch at the end is no step
+    st = find_steps(t, u)
+    assert [s.onset for s in st] == [300, 1100, 1500]
+    assert [round(s.after, 1) for s in st] == [1.5, -0.5, 0.0]
+    assert st[1].end == 1500 and st[1].prev_start == 300
+    for wave in (3 * t, np.sin(6 * t)):
+        with pytest.raises(FitError, match="no step found"):
+            find_steps(t, wave)
+
+
+def test_back_emf_in_the_model_is_taken_out_of_bv(rng, paper_values):
+    """A model with back_emf (e.g. from fit-electrical on free-running logs): the steady speed is
+    (km V/R - bc)/(bv + km ke/R), so the line's damping minus km ke/R is bv. Light viscous
+    friction: the back-EMF's damping is a fifth of the total."""
+    vals = {**paper_values, "bv": 0.004, "ke": paper_values["km"]}
+    m = _electrical(vals)
+    m.set("ke", vals["ke"], stage="fit-electrical")
+    m.add_effect("back_emf")
+    res = fit_mechanical(step_logs(vals, rng, amplitudes=(1.0, 1.5, 2.0, 2.5)), m)
+    for k in ("bv", "bc", "J"):
+        assert res.estimates[k].value == pytest.approx(vals[k], rel=0.03), k
+    assert any("back-EMF" in w for w in res.warnings)

@@ -14,16 +14,17 @@ is a brush drop (c = -vb/R) or a current-sensor offset, and is reported, not ave
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.identify.freerun import fit_free_running, loaded_current, rotor_turns
 from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import format_estimates
 from pmdcid.identify.steps import (
     StepInfo,
-    find_step,
+    find_steps,
     first_order,
     fit_first_order,
     lsq,
@@ -120,25 +121,49 @@ def _fit_one(log, step: StepInfo) -> tuple[StepReport, object]:
     return rep, cf
 
 
-def fit_electrical(logs, model: Model | None = None) -> ElectricalResult:
-    """Fit R [ohm] and L [H] jointly to blocked-rotor logs (each: ``t``, ``v``, ``i``, one step).
+def classify(log) -> str:
+    """'free' when the rotor turns in ``log`` (its speed moves), else 'blocked'.
 
-    ``model`` is not needed (nor changed); it is accepted for the common stage signature.
-    Raises :class:`FitError` when no log holds a usable step.
+    A log without a speed whose current overshoots and falls back after the step, as a motor
+    speeding up does, cannot give R, L (back-EMF unknown): :class:`FitError`, one line.
+    """
+    log.require("v", "i", purpose="fit-electrical (voltage and armature current)")
+    if log.has("omega"):
+        return "free" if rotor_turns(log["omega"]) else "blocked"
+    step = find_steps(log.t, log.u, log.path)[0]
+    turns, peak, final = loaded_current(log["i"][:step.end], step.onset)
+    if turns:
+        raise FitError(f"the rotor turns (the current rises by {peak:.3g} A after the step, then "
+                       f"falls to {final:.3g} A, as a motor speeding up does) and the log has no "
+                       "speed: give a speed or angle column (free-running fit) or a "
+                       "blocked-rotor log", log.path)
+    return "blocked"
+
+
+def fit_electrical(logs, model: Model | None = None):
+    """Fit R [ohm] and L [H] (and ke [V s/rad] when the rotor turns) to logs with ``v``, ``i``.
+
+    Blocked-rotor logs (one step each, rotor still): :class:`ElectricalResult` by the Strejc and
+    first-order fit. When any log shows the rotor turning (a speed that moves), every log goes
+    into the free-running regression of :mod:`.freerun` (:class:`FreeRunResult`; a blocked log
+    enters it with zero speed). ``model`` is read only for an earlier L (kept when the free-running
+    logs do not resolve L). Raises :class:`FitError` when no log holds what the stage needs.
     """
     if not logs:
-        raise FitError("fit-electrical needs at least one blocked-rotor log")
+        raise FitError("fit-electrical needs at least one blocked-rotor or free-running log")
+    kinds = [classify(log) for log in logs]
+    if "free" in kinds:
+        return fit_free_running(logs, model)
     warns: list[str] = []
-    reps, steps = [], []
+    reps, steps, used = [], [], []
     for log in logs:
-        log.require("v", "i", purpose="fit-electrical (blocked-rotor voltage step and current)")
-        step = find_step(log.t, log.u, log.path)
-        if log.has("omega") and "omega" not in log.derived:
-            om = np.asarray(log["omega"], float)
-            noise = residual_std(log.t, om, step)
-            if abs(float(np.median(om[-max(3, log.n // 10):]))) > 10 * max(noise, 1e-12):
-                warns.append(f"{log.path}: the rotor turns: not a blocked-rotor log; back-EMF "
-                             "will bias R and L")
+        found = find_steps(log.t, log.u, log.path)
+        step = found[0]
+        if len(found) > 1 or step.end < log.n:  # the first step, up to the next change
+            if len(found) > 1:
+                warns.append(f"{log.path}: {len(found)} steps in the input: the first (to "
+                             f"{step.after:.3g} V at t = {step.t0:.4g} s) is used")
+            log = _head(log, step.end)
         rep, _ = _fit_one(log, step)
         after = float(log.t[-1] - step.t0)
         if not (rep.tau + rep.dead_time < SETTLE_FRACTION * after):
@@ -154,7 +179,13 @@ def fit_electrical(logs, model: Model | None = None) -> ElectricalResult:
                          "identifiable from this log (sample faster)")
         reps.append(rep)
         steps.append(step)
-    return _joint(logs, steps, reps, warns)
+        used.append(log)
+    return _joint(used, steps, reps, warns)
+
+
+def _head(log, end: int):
+    """The log's first ``end`` samples (a step's plateau ends where the input changes again)."""
+    return replace(log, t=log.t[:end], data={k: v[:end] for k, v in log.data.items()})
 
 
 def _joint(logs, steps, reps, warns) -> ElectricalResult:

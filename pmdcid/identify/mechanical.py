@@ -1,7 +1,8 @@
 """fit-mechanical: free-speed voltage steps -> Kmot, tau_mot -> b, J (paper section III-B), and
 better: bv, bc from the affine steady-state line across amplitudes.
 
-Per step (the speed omega [rad/s] after a voltage step dV [V] from rest):
+Per step (the speed omega [rad/s] after a voltage step dV [V]; several steps per log, up or down,
+from rest or from a moving start, each up to the next change of input: :mod:`.mechsteps`):
 
 - the paper's first-order model ``omega = Kmot dV (1 - exp(-(t - t0 - d)/tau_mot))`` (Strejc start,
   least-squares refinement), and its formulas b = km/(Kmot R), J = tau_mot b (eqs. 13-14);
@@ -10,47 +11,36 @@ Per step (the speed omega [rad/s] after a voltage step dV [V] from rest):
   ``omega_ss (1 + a e^(-s/tau_e) - (1 + a) e^(-s/tau_m))``, a = beta tau_e/(tau_m - tau_e); beta < 1
   when the rotor breaks free after the current has partly risen (dead zone above Coulomb).
 
-Across amplitudes the steady speed is affine in voltage (Coulomb friction):
+Across plateaus (every plateau where the rotor turns) the steady speed is affine in voltage
+(Coulomb friction):
 ``omega_ss = (km/(R bv)) V - bc/bv``. The line's slope gives bv, its intercept bc, and
-J = tau_m bv. The paper's b lumps Coulomb friction into the viscous term (b > bv, and b depends on
+J = tau_m bv. The joint exact refinement (:func:`speed_from_rest`) uses the steps from rest only.
+The paper's b lumps Coulomb friction into the viscous term (b > bv, and b depends on
 the amplitude): it is reported and written as ``b``, but fit-nonlinear starts from bv, bc, J.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-exported
+    MOVE_SIGMAS,
+    SETTLE_TAUS,
+    MechStep,
+    fit_step,
+    paper_mechanical,
+    speed_noise,
+)
 from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import format_estimates
-from pmdcid.identify.steps import (
-    find_step,
-    fit_first_order,
-    lsq,
-    residual_std,
-    strejc,
-    two_lag,
-)
+from pmdcid.identify.steps import despike, find_steps, lsq
 from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
-#: a step whose steady speed is within this many noise std of zero did not move the rotor
-MOVE_SIGMAS = 8.0
-#: the response's time constant plus dead time must be under this fraction of the log after
-#: the step (else the steady speed, hence bv and bc, is extrapolated)
-SETTLE_FRACTION = 0.25
-
-
-def paper_mechanical(kmot: float, tau_mot: float, km: float, r: float) -> tuple[float, float]:
-    """The paper's eqs. (13)-(14): b = km/(Kmot R) [N m s/rad], J = tau_mot b [kg m^2].
-
-    Kmot [rad/s per V], tau_mot [s], km [N m/A], R [ohm].
-    """
-    b = km / (kmot * r)
-    return b, tau_mot * b
 
 
 def speed_from_rest(s, torque, J, bv, bc, t_break, tau_e):
@@ -92,26 +82,6 @@ def steady_line(v: np.ndarray, w: np.ndarray, w_se: np.ndarray):
 
 
 @dataclass
-class MechStep:
-    """One step: amplitude [V], moved?, first-order (paper) and second-order fits."""
-
-    path: str
-    amplitude: float
-    moved: bool
-    kmot: float = math.nan
-    tau_mot: float = math.nan
-    b: float = math.nan
-    J_paper: float = math.nan
-    omega_ss: float = math.nan
-    omega_ss_se: float = math.nan
-    tau_m: float = math.nan
-    tau_m_se: float = math.nan
-    dead_time: float = math.nan
-    beta: float = math.nan
-    strejc_order: int = 0
-
-
-@dataclass
 class MechanicalResult:
     """b (paper), bv, bc, J with standard errors; the paper's Kmot, tau_mot; per-step fits."""
 
@@ -129,27 +99,31 @@ class MechanicalResult:
             model.set("km", e.value, math.nan, e.unit, stage="datasheet")
         for name in ("b", "bv", "bc", "J"):
             e = self.estimates.get(name)
-            if e is not None and e.vary:
+            if e is not None and e.vary and math.isfinite(e.value):
                 model.set(name, e.value, e.stderr, e.unit, stage=STAGE)
         fits = model.extra.setdefault("fits", {})
         fits[STAGE] = {
-            "logs": [s.path for s in self.steps],
+            "logs": list(dict.fromkeys(s.path for s in self.steps)),
             "Kmot": self.estimates["Kmot"].value, "tau_mot": self.estimates["tau_mot"].value,
             "breakaway_torque": _finite(self.estimates["T_break"].value),
-            "skipped": [s.path for s in self.steps if not s.moved],
+            "skipped": [f"{s.path} at {s.t0:.4g} s" for s in self.steps if not s.moved],
         }
 
     def table(self) -> str:
         lines = ["fit-mechanical: free-speed steps", ""]
-        lines.append(f"{'log':<26} {'V':>5} {'Kmot':>8} {'tau_mot':>8} {'b paper':>9} "
-                     f"{'w_ss':>8} {'tau_m':>8} {'dead ms':>7}")
+        lines.append(f"{'log':<22} {'t0 s':>6} {'V':>5} {'from':>5} {'Kmot':>8} {'tau_mot':>8} "
+                     f"{'b paper':>9} {'w_ss':>8} {'tau_m':>8} {'dead ms':>7}")
         for s in self.steps:
-            name = s.path if len(s.path) <= 26 else "..." + s.path[-23:]
+            name = s.path if len(s.path) <= 22 else "..." + s.path[-19:]
+            name = f"{name:<22} {s.t0:6.4g}"
             if not s.moved:
-                lines.append(f"{name:<26} {s.amplitude:5.3g}  did not move (below the dead "
-                             "zone / breakaway): skipped")
+                why = {"did not move": "did not move (below the dead zone / breakaway)",
+                       "coasts to rest": "decays to rest",
+                       }.get(s.note, s.note or "did not move")
+                lines.append(f"{name} {s.level:5.3g}  {why}: not used")
                 continue
-            lines.append(f"{name:<26} {s.amplitude:5.3g} {s.kmot:8.4g} {s.tau_mot:8.4g} "
+            lines.append(f"{name} {s.level:5.3g} {'rest' if s.from_rest else 'moving':>5} "
+                         f"{s.kmot:8.4g} {s.tau_mot:8.4g} "
                          f"{s.b:9.4g} {s.omega_ss:8.4g} {s.tau_m:8.4g} "
                          f"{1e3 * s.dead_time:7.3g}")
         lines.append("")
@@ -175,26 +149,9 @@ def _finite(x):
     return x if math.isfinite(x) else None
 
 
-def _second_order(t, w, step, tau_e, st, sigma):
-    s = t - step.t0
-    dt = float(t[1] - t[0])
-    span = float(t[-1] - step.t0)
-    tau0 = max(st.tau - tau_e, 2 * tau_e) if math.isfinite(st.tau) else 0.1 * span
-    names = ("y0", "wss", "tau_m", "d", "beta")
-    x0 = [st.initial, st.final - st.initial, tau0, min(st.tu, 0.5 * tau0)
-          if math.isfinite(st.tu) else 0.0, 0.9]
-    lo = np.array([-np.inf, -np.inf, 1.01 * tau_e + 0.05 * dt, 0.0, 0.0])
-    hi = np.array([np.inf, np.inf, 10 * span, 0.5 * span, 1.0])
-
-    def resid(x):
-        y0, wss, tm, d, beta = x
-        return (y0 + wss * np.where(s > d, two_lag(s - d, tm, tau_e, beta), 0.0) - w) / sigma
-
-    return lsq(resid, x0, lo, hi, names)
-
-
 def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalResult:
-    """Fit the free-speed step logs (``t``, ``v``, ``omega``; one step from rest each).
+    """Fit the free-speed step logs (``t``, ``v``, ``omega``; one or more steps each, from rest
+    or from a moving start: :func:`~pmdcid.identify.steps.find_steps`).
 
     Needs R and L in ``model`` (fit-electrical) and km from ``km`` [N m/A] or the model.
     Raises :class:`~pmdcid.errors.ModelError` when they are missing, :class:`FitError` when no
@@ -213,51 +170,41 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
     tau_e = L / R
     warns: list[str] = []
     steps: list[MechStep] = []
-    data: list[tuple] = []  # moving steps: (time from onset, speed, torque amplitude, noise)
-    ndata, chisqr = 0, 0.0
+    data: list[tuple] = []  # steps from rest: (time from onset, speed, torque amplitude, noise)
     for log in logs:
         log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
-        step = find_step(log.t, log.u, log.path)
-        w = np.asarray(log["omega"], float)
-        sig = residual_std(log.t, w, step)
-        if not math.isfinite(sig) or sig <= 0:
-            sig = max(1e-6 * float(np.max(np.abs(w))), 1e-12)
-        st = strejc(log.t, w, step)
-        tail_speed = st.final - st.initial
-        ms = MechStep(log.path, step.amplitude, abs(tail_speed) > MOVE_SIGMAS * sig)
-        steps.append(ms)
-        if not ms.moved:
-            warns.append(f"{log.path}: a {step.amplitude:.3g} V step does not move the rotor "
-                         "(below the dead zone / breakaway torque): reported, not fitted")
-            continue
-        if abs(step.before) > 1e-9 * abs(step.amplitude) and abs(np.median(
-                w[: step.onset])) > MOVE_SIGMAS * sig:
-            warns.append(f"{log.path}: the rotor is not at rest before the step: the fits "
-                         "assume a start from rest")
-        ms.strejc_order = st.order
-        cf1 = fit_first_order(log.t, w, step, st)
-        ms.kmot = cf1["dy"] / step.amplitude
-        ms.tau_mot = cf1["tau"]
-        ms.b, ms.J_paper = paper_mechanical(ms.kmot, ms.tau_mot, km, R)
-        after = float(log.t[-1] - step.t0)
-        if not (cf1["tau"] + cf1["d"] < SETTLE_FRACTION * after):
-            raise FitError(f"the log ends {after:.3g} s after the step, before the speed settles "
-                           f"(time constant about {cf1['tau']:.3g} s): record at least "
-                           f"{(cf1['tau'] + cf1['d']) / SETTLE_FRACTION:.2g} s after the step",
-                           log.path)
-        cf2 = _second_order(log.t, w, step, tau_e, st, sig)
-        ms.omega_ss, ms.omega_ss_se = cf2["wss"], cf2.se("wss")
-        ms.tau_m, ms.tau_m_se = cf2["tau_m"], cf2.se("tau_m")
-        ms.dead_time, ms.beta = cf2["d"], cf2["beta"]
-        ndata += cf2.ndata
-        chisqr += cf2.sigma**2 * max(cf2.ndata - 5, 1)
-        data.append((log.t - step.t0, w - cf2["y0"], km * step.amplitude / R, sig))
+        w, bad = despike(log["omega"])
+        if len(bad):
+            k = int(bad[np.argmax(np.abs(np.asarray(log["omega"])[bad] - w[bad]))])
+            warns.append(f"{log.path}: {len(bad)} isolated speed spike(s) (e.g. "
+                         f"{log['omega'][k]:.4g} rad/s at t = {log.t[k]:.4g} s) replaced by "
+                         "the median of their neighbours")
+            log = replace(log, data={**log.data, "omega": w})
+        sig = speed_noise(w)
+        for step in find_steps(log.t, log.u, log.path):
+            ms, d = fit_step(log, step, tau_e, km, R, sig, warns)
+            steps.append(ms)
+            if d is not None:
+                data.append(d)
+    _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:
-        raise FitError("no step moves the rotor: fit-mechanical needs steps above the dead "
-                       "zone (larger voltages)", ", ".join(lg.path for lg in logs))
-    res = _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns)
-    if len({round(abs(s.amplitude), 9) for s in moving}) >= 2:
+        short = [s for s in steps if s.note == "plateau too short"]
+        raise FitError("no usable step: " + ("the input is not held long enough for the speed "
+                                             "to settle (record longer plateaus)" if short else
+                                             "no step moves the rotor: fit-mechanical needs "
+                                             "steps above the dead zone (larger voltages)"),
+                       ", ".join(lg.path for lg in logs))
+    ndata = sum(s.ndata for s in moving)
+    chisqr = sum(s.chisqr for s in moving)
+    ke = model.value("ke") if "back_emf" in model.effects and model.has("ke") else 0.0
+    b_emf = km * ke / R
+    res = _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf)
+    if b_emf > 0:
+        res.warnings.append(f"the model has back-EMF (ke = {ke:.4g} V s/rad): its damping km ke/R "
+                            f"= {b_emf:.3g} N m s/rad is taken out of the steady-speed line's to "
+                            "give bv; the joint refinement from rest (no back-EMF) is skipped")
+    elif len({round(abs(s.amplitude), 9) for s in moving if s.from_rest}) >= 2:
         _joint(res, data, tau_e)
         b, bv = res.estimates["b"].value, res.estimates["bv"].value
         if b > 1.02 * bv:
@@ -265,6 +212,17 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
                                 "N m s/rad: Coulomb friction is lumped into b (it varies with "
                                 "the step amplitude)")
     return res
+
+
+def _still_warnings(steps, warns) -> None:
+    """One warning per kind of step left out because the rotor is at rest on its plateau."""
+    for note, what in (("did not move", "below the dead zone / breakaway torque: the input does "
+                        "not move the rotor"),
+                       ("coasts to rest", "the plateau is at rest after a decay (Coulomb "
+                        "friction may end a decay early: not a first-order response)")):
+        where = [f"{s.path} at {s.t0:.4g} s ({s.level:.3g} V)" for s in steps if s.note == note]
+        if where:
+            warns.append(f"{what}: {'; '.join(where)}: reported, not fitted")
 
 
 def _joint(res: MechanicalResult, data, tau_e) -> None:
@@ -312,8 +270,14 @@ def _joint(res: MechanicalResult, data, tau_e) -> None:
 
 
 def _mean_se(x: np.ndarray, se: np.ndarray | None = None) -> tuple[float, float]:
-    """Mean and its standard error (scatter-based; inverse-variance weighted if ``se``)."""
+    """Mean and its standard error (scatter-based; inverse-variance weighted if ``se``);
+    non-finite values are left out (NaN when none is left)."""
     x = np.asarray(x, float)
+    ok = np.isfinite(x)
+    if not ok.any():
+        return math.nan, math.nan
+    x = x[ok]
+    se = None if se is None else np.asarray(se, float)[ok]
     if se is not None and np.all(np.isfinite(se)) and np.all(se > 0):
         w = 1.0 / np.asarray(se) ** 2
         m = float(np.sum(w * x) / np.sum(w))
@@ -326,15 +290,16 @@ def _mean_se(x: np.ndarray, se: np.ndarray | None = None) -> tuple[float, float]
                                if len(x) > 1 else math.nan)
 
 
-def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
+def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=0.0):
+    """Means over steps, the steady-speed line, J. ``b_emf`` = km ke/R [N m s/rad]: the damping
+    the back-EMF adds (model effect back_emf), taken out of the line's damping to give bv."""
     kmot, kmot_se = _mean_se(np.array([s.kmot for s in moving]))
     tmot, tmot_se = _mean_se(np.array([s.tau_mot for s in moving]))
-    b_arr = np.array([s.b for s in moving])
-    b, b_se = _mean_se(b_arr)
+    b, b_se = _mean_se(np.array([s.b for s in moving]))
     jp, jp_se = _mean_se(np.array([s.J_paper for s in moving]))
     tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]), np.array([s.tau_m_se
                                                                          for s in moving]))
-    v = np.array([s.amplitude for s in moving])
+    v = np.array([s.level for s in moving])
     w = np.array([s.omega_ss for s in moving])
     w_se = np.array([s.omega_ss_se for s in moving])
     est = {"km": Estimate("km", km, math.nan, "N m/A", vary=False),
@@ -347,11 +312,12 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
         if a <= 0:
             raise FitError("steady speed does not grow with voltage across the steps: check the "
                            "sign and scale of the speed column")
-        bv = km / (R * a)
-        bv_se = bv * math.sqrt(cov[0, 0]) / a
-        bc = -c * bv
-        # d(bc) = -bv dc - c d(bv); d(bv) = -bv/a da
-        g = np.array([c * bv / a, -bv])
+        d_eff = km / (R * a)  # total damping: viscous plus back-EMF's km ke/R
+        bv = d_eff - b_emf
+        bv_se = d_eff * math.sqrt(cov[0, 0]) / a
+        bc = -c * d_eff
+        # d(bc) = -d_eff dc - c d(d_eff); d(d_eff) = -d_eff/a da
+        g = np.array([c * d_eff / a, -d_eff])
         bc_se = math.sqrt(max(float(g @ cov @ g), 0.0))
         if bc < 0:
             warns.append(f"the steady-speed line gives a negative Coulomb friction bc = {bc:.3g} "
@@ -362,14 +328,20 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns):
     else:
         warns.append("all steps have the same amplitude: Coulomb friction cannot be separated "
                      "from viscous; bv = b (paper) and bc = 0 are written")
-        est["bv"] = Estimate("bv", b, b_se, "N m s/rad")
+        d_eff, bv, bv_se = b, b - b_emf, b_se
+        est["bv"] = Estimate("bv", bv, b_se, "N m s/rad")
         est["bc"] = Estimate("bc", 0.0, math.nan, "N m")
-        bv, bv_se = b, b_se
-    J = tm * bv
-    J_se = J * math.hypot(tm_se / tm, bv_se / bv if bv else 0.0)
+    if bv < 0:
+        warns.append(f"the back-EMF damping km ke/R = {b_emf:.3g} N m s/rad exceeds the steps' "
+                     f"total damping {d_eff:.3g}: km, ke or R is off; bv set to 0")
+        est["bv"] = Estimate("bv", 0.0, bv_se, "N m s/rad")
+    J = tm * d_eff
+    J_se = J * math.hypot(tm_se / tm, bv_se / d_eff if d_eff else 0.0)
     est["J"] = Estimate("J", J, J_se, "kg m^2")
-    tb = [km * abs(s.amplitude) / R * -math.expm1(-s.dead_time / tau_e) for s in moving]
-    est["T_break"] = Estimate("T_break", float(np.median(tb)),
+    # the breakaway torque from the delays of steps from rest only (a moving rotor has none)
+    tb = [km * abs(s.amplitude) / R * -math.expm1(-s.dead_time / tau_e) for s in moving
+          if s.from_rest]
+    est["T_break"] = Estimate("T_break", float(np.median(tb)) if tb else math.nan,
                               float(np.std(tb, ddof=1) / math.sqrt(len(tb)))
                               if len(tb) > 1 else math.nan, "N m")
     stats = FitStats(ndata, 5 * len(moving), chisqr)

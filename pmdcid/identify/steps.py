@@ -33,6 +33,10 @@ class StepInfo:
     t0: float
     before: float
     after: float
+    #: end of the plateau (exclusive sample index; None: the log's end) and the first sample of
+    #: the interval before the step (its previous plateau)
+    end: int | None = None
+    prev_start: int = 0
 
     @property
     def amplitude(self) -> float:
@@ -66,6 +70,75 @@ def find_step(t: np.ndarray, u: np.ndarray, path: str | None = None) -> StepInfo
                        "some samples at rest before the step")
     before = float(np.median(u[:k]))
     return StepInfo(k, float(t[k]), before, after)
+
+
+#: a plateau shorter than this many samples is a glitch, not a step
+MIN_PLATEAU_SAMPLES = 10
+#: an input change larger than this many noise std of the input's sample-to-sample differences
+CHANGE_SIGMAS = 8.0
+
+
+def _input_noise(u: np.ndarray) -> float:
+    d = np.diff(u)
+    return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
+
+
+def _segments(u: np.ndarray, thr: float) -> list[tuple[int, int, int]]:
+    """(transition start, plateau start, plateau end) of every interval between input changes;
+    consecutive changing samples (a ramped edge) form one transition."""
+    ch = np.nonzero(np.abs(np.diff(u)) > thr)[0] + 1  # u[k] differs from u[k-1]
+    out, start, k = [], 0, 0
+    bounds = []
+    while k < len(ch):
+        j = k
+        while j + 1 < len(ch) and ch[j + 1] - ch[j] <= 2:
+            j += 1
+        bounds.append((int(ch[k]), int(ch[j])))
+        k = j + 1
+    prev = 0
+    for a, b in bounds:
+        out.append((start, prev, a))
+        start, prev = a, b
+    out.append((start, prev, len(u)))
+    return out
+
+
+def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None) -> list[StepInfo]:
+    """Every step in input ``u`` (e.g. V): an interval of constant input after a change, up to
+    the next change (up or down, several per log; a last plateau of a few samples is a glitch).
+
+    Onset: the first sample of the transition past half-way between the levels (for a
+    zero-order-held input, the sample of the jump). Raises :class:`FitError` when the input holds
+    no plateau after a clear change (constant, noisy, or varying all the time: ramps, sines).
+    """
+    u = np.asarray(u, float)
+    n = len(u)
+    if n < 10:
+        raise FitError(f"{path}: too short ({n} samples) to hold a step response")
+    sig = _input_noise(u)
+    thr = max(CHANGE_SIGMAS * sig, 1e-9 * max(float(np.max(np.abs(u))), 1e-300))
+    segs = _segments(u, thr)
+    levels = [float(np.median(u[b:e])) if e > b else float(u[a]) for a, b, e in segs]
+    steps = []
+    for j in range(1, len(segs)):
+        a, b, e = segs[j]
+        lev, before = levels[j], levels[j - 1]
+        du = lev - before
+        plateau = u[b:e]
+        if e - b < MIN_PLATEAU_SAMPLES or abs(du) <= max(thr, 5 * sig):
+            continue
+        spread = float(np.percentile(plateau, 97.5) - np.percentile(plateau, 2.5))
+        if spread > 0.1 * abs(du) + 6 * sig:
+            continue  # not constant: a ramp or a wave between the changes
+        mid = 0.5 * (before + lev)
+        sg = 1.0 if du > 0 else -1.0
+        k = a + int(np.argmax(sg * (u[a:b + 1] - mid) > 0))
+        steps.append(StepInfo(k, float(t[k]), before, lev, e, segs[j - 1][0]))
+    if not steps:
+        raise FitError(f"{path or 'log'}: no step found in the input (it is constant, noisy or "
+                       "never held after a change); the stage needs intervals of constant "
+                       "input after a change")
+    return steps
 
 
 @dataclass
@@ -222,13 +295,37 @@ def fit_first_order(t: np.ndarray, y: np.ndarray, step: StepInfo, st: StrejcResu
     tau0 = st.tau if math.isfinite(st.tau) and st.tau > 0 else 0.1 * (t[-1] - step.t0)
     dy0 = st.final - st.initial
     names = ("y0", "dy", "tau", "d")
-    x0 = [st.initial, dy0, tau0, min(st.tu, tau0) if dead_time and math.isfinite(st.tu) else 0]
     span = float(t[-1] - step.t0)
     lo = np.array([-np.inf, -np.inf, 0.05 * dt, 0.0])
     hi = np.array([np.inf, np.inf, 10 * span, 0.5 * span if dead_time else 1e-12 * dt])
-    if not dead_time:
-        x0[3] = 0.0
-    return lsq(lambda x: first_order(s, *x) - y, x0, lo, hi, names)
+    # two starts for the dead time (Strejc's tangent, capped at half the time constant, and 0):
+    # on a quantised or rippled speed the tangent can be far off, and the cost has side minima
+    d_starts = {0.0}
+    if dead_time and math.isfinite(st.tu):
+        d_starts.add(min(st.tu, 0.5 * tau0))
+    fits = [lsq(lambda x: first_order(s, *x) - y, [st.initial, dy0, tau0, d0], lo, hi, names)
+            for d0 in sorted(d_starts)]
+    return min(fits, key=lambda cf: cf.sigma)
+
+
+def despike(y: np.ndarray, sigmas: float = 20.0) -> tuple[np.ndarray, np.ndarray]:
+    """Isolated spikes (a sample far from the median of its 5 neighbours: a counter wrap, a
+    serial glitch) replaced by that median. Returns (cleaned copy, indices replaced). A spike is
+    more than ``sigmas`` robust std of the signal's deviation from its running median, and more
+    than a fifth of the signal's range away from it (a step edge is not a spike)."""
+    from scipy.signal import medfilt
+
+    y = np.asarray(y, float)
+    if len(y) < 5:
+        return y.copy(), np.zeros(0, int)
+    med = medfilt(y, 5)
+    dev = y - med
+    sd = 1.4826 * float(np.median(np.abs(dev)))
+    rng = float(np.percentile(med, 99) - np.percentile(med, 1))
+    bad = np.nonzero(np.abs(dev) > max(sigmas * sd, 0.2 * rng, 1e-300))[0]
+    out = y.copy()
+    out[bad] = med[bad]
+    return out, bad
 
 
 def residual_std(t, y, step: StepInfo) -> float:

@@ -1,0 +1,308 @@
+"""fit-electrical on free-running logs: R [ohm], L [H] and ke [V s/rad] without a blocked rotor.
+
+With the rotor turning the armature obeys ``v = R i + L di/dt + ke omega``. Differentiating a
+sampled current amplifies its noise and, at the sample rates of real rigs (L/R of a small motor is
+0.5-5 ms, logs at 0.1-2 kHz), blurs the very transient that carries L. Instead the equation is
+discretised exactly: over one sample period dt with the voltage held (zero-order hold, as the
+contract says a log's ``v`` is) and the speed varying linearly between samples,
+
+    i[k+1] = a i[k] + g v[k] + c0 omega[k] + c1 omega[k+1] + b_log,
+    a = exp(-dt R/L),  g = (1 - a)/R,  c0 + c1 = -(1 - a) ke/R,
+
+linear in (a, g, c0, c1, b) and solved by ordinary least squares over every sample of every log
+(one offset ``b`` per log: a current-sensor offset or a brush drop, v0 = b/g volts). Then
+R = (1 - a)/g, ke = -(c0 + c1)/g, L = -R dt/ln(a). The split c0/c1 is left free, so a speed that is
+a window average (encoder counts per sample) rather than an instantaneous value costs nothing.
+When L/R is below about two sample periods, a is near 0 and L is not resolved: R and ke still are
+(they set the quasi-static current), and the result says so.
+
+Standard errors: the sandwich covariance of :mod:`.covariance` (the residual is correlated when the
+speed sensor or the model is imperfect), propagated to R, L, ke by finite differences.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pmdcid.errors import FitError
+from pmdcid.identify.covariance import block_covariance
+from pmdcid.identify.results import Estimate, FitStats
+from pmdcid.identify.simfit import format_estimates
+from pmdcid.model import Model
+
+STAGE = "fit-electrical"
+#: L/R below this many sample periods: L is not resolved by the sampling
+MIN_TAU_SAMPLES = 2.0
+#: ... or when its relative standard error exceeds this
+MAX_L_REL_SE = 0.25
+#: the speed moves by more than this many noise std: the rotor turns
+TURN_SIGMAS = 10.0
+#: a current that overshoots its settled value by this fraction behaves like a loaded motor
+OVERSHOOT = 0.10
+#: refinements of the instrumental-variable estimate (the noise on the regressor i[k] biases
+#: plain least squares: the current is nearly a static function of voltage and speed, so the
+#: little that is left to tell a = exp(-dt R/L) is of the order of the sensor noise)
+IV_ITERATIONS = 3
+#: a voltage offset beyond this many standard errors is reported
+OFFSET_SIGMAS = 3.0
+
+
+def noise_std(x: np.ndarray) -> float:
+    """Robust white-noise std of a signal from its first differences (MAD), same unit as x."""
+    d = np.diff(np.asarray(x, float))
+    if len(d) < 3:
+        return 0.0
+    return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
+
+
+def rotor_turns(omega: np.ndarray) -> bool:
+    """Whether a speed record [rad/s] shows the rotor turning: its spread (5th to 95th
+    percentile) exceeds :data:`TURN_SIGMAS` noise std (an offset alone is not motion)."""
+    om = np.asarray(omega, float)
+    spread = float(np.percentile(om, 95) - np.percentile(om, 5))
+    return spread > TURN_SIGMAS * noise_std(om) and spread > 0.0
+
+
+def loaded_current(i: np.ndarray, onset: int) -> tuple[bool, float, float]:
+    """Whether the current [A] after a step at sample ``onset`` overshoots its settled value as a
+    motor speeding up does (back-EMF), not as an RL circuit (monotone). Returns (turns?, peak
+    change, settled change) [A]."""
+    i = np.asarray(i, float)
+    base = float(np.median(i[:onset]))
+    after = i[onset:] - base
+    w = max(1, min(len(after) // 50, 25))
+    sm = np.convolve(after, np.ones(w) / w, mode="valid")
+    final = float(np.median(after[-max(3, len(after) // 10):]))
+    sg = math.copysign(1.0, final) if final else 1.0
+    peak = float(np.max(sg * sm)) * sg
+    noise = noise_std(i) / math.sqrt(w)
+    over = abs(peak) - abs(final)
+    return over > max(OVERSHOOT * abs(final), 8 * noise), peak, final
+
+
+@dataclass
+class FreeRunResult:
+    """R, L, ke (and tau_e, per-log voltage offsets) from free-running logs; warnings."""
+
+    estimates: dict[str, Estimate]
+    offsets: dict[str, Estimate]
+    paths: list[str]
+    stats: FitStats
+    dt: float
+    l_resolved: bool
+    l_bound: bool = False  # L is an upper bound (a not above 0)
+    ke_resolved: bool = True
+    warnings: list[str] = field(default_factory=list)
+    covariance_note: str = ""
+
+    def apply(self, model: Model) -> None:
+        """Write R, ke (effect ``back_emf``) and L when resolved (or when the model has no L
+        yet, as the honest value or bound with its warning); other parameters are kept."""
+        e = self.estimates["R"]
+        model.set("R", e.value, e.stderr, e.unit, stage=STAGE)
+        if self.ke_resolved:
+            e = self.estimates["ke"]
+            model.set("ke", e.value, e.stderr, e.unit, stage=STAGE)
+            model.add_effect("back_emf")
+        e = self.estimates["L"]
+        keep_l = not self.l_resolved and model.has("L")
+        if not keep_l:
+            model.set("L", e.value, e.stderr, e.unit, stage=STAGE)
+        fits = model.extra.setdefault("fits", {})
+        fits[STAGE] = {
+            "logs": list(self.paths), "method": "free-running (exact discrete-time regression)",
+            "tau_e": self.estimates["tau_e"].value, "L_resolved": self.l_resolved,
+            "L_kept_from_model": keep_l,
+            "voltage_offsets_V": {k: v.value for k, v in self.offsets.items()},
+            "ndata": self.stats.ndata, "redchi": self.stats.redchi,
+        }
+
+    def table(self) -> str:
+        lines = ["fit-electrical: free-running logs (v = R i + L di/dt + ke omega, exact "
+                 "discrete-time regression)", ""]
+        lines += format_estimates([self.estimates[k] for k in ("R", "L", "ke", "tau_e")])
+        if not self.l_resolved:
+            lines.append(f"L not resolved: L/R is under {MIN_TAU_SAMPLES:g} sample periods "
+                         f"({self.dt * 1e3:.3g} ms) or loosely determined; "
+                         + ("upper bound shown" if self.l_bound else "value shown as fitted"))
+        lines.append("")
+        lines.append("voltage offset per log (brush drop or current-sensor offset, V):")
+        for p, e in self.offsets.items():
+            name = p if len(p) <= 40 else "..." + p[-37:]
+            se = f" ± {e.stderr:.2g}" if math.isfinite(e.stderr) else ""
+            lines.append(f"  {name:<40} {e.value:9.4g}{se}")
+        lines.append(f"residual std {math.sqrt(self.stats.redchi):.3g} A "
+                     f"({self.stats.ndata} samples)")
+        if self.covariance_note:
+            lines.append(self.covariance_note)
+        return "\n".join(lines)
+
+
+def _rows(log) -> tuple[np.ndarray, np.ndarray]:
+    """Regressors [i[k], v[k], w[k], w[k+1]] and target i[k+1] of one log."""
+    i = np.asarray(log["i"], float)
+    v = np.asarray(log["v"], float)
+    w = np.asarray(log["omega"], float) if log.has("omega") else np.zeros(len(i))
+    X = np.column_stack([i[:-1], v[:-1], w[:-1], w[1:]])
+    return X, i[1:]
+
+
+def _simulated_current(A, th, starts, ends) -> np.ndarray:
+    """i[k] simulated by the fitted difference equation from each log's voltage and speed
+    (free of the current sensor's noise): the instrument for the regressor i[k]."""
+    from scipy.signal import lfilter
+
+    a = th[0]
+    drive = A[:, 1:] @ th[1:]
+    out = np.empty(len(A))
+    for s0, e0 in zip(starts, ends, strict=True):
+        i0 = A[s0, 0]
+        # x[k] = i[k]: x[0] = i0, x[k+1] = a x[k] + drive[k]
+        xs, _ = lfilter([1.0], [1.0, -a], drive[s0:e0 - 1], zi=[a * i0])
+        out[s0] = i0
+        out[s0 + 1:e0] = xs
+    return out
+
+
+def _iv_regression(parts):
+    """Least squares, then refined instrumental variables, on the stacked rows of every log
+    (one offset column per log). Returns (theta, HAC covariance, residual, CovarianceInfo)."""
+    X = np.concatenate([x for x, _ in parts])
+    y = np.concatenate([t for _, t in parts])
+    ends = np.cumsum([len(t) for _, t in parts])
+    starts = ends - np.array([len(t) for _, t in parts])
+    ind = np.zeros((len(y), len(parts)))
+    for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        ind[a:b, k] = 1.0
+    A = np.column_stack([X, ind])
+    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
+    th = np.linalg.lstsq(A / scale, y, rcond=None)[0] / scale
+    Z = A
+    for _ in range(IV_ITERATIONS):  # refined instrumental variables: the model's own current
+        if not 0 < th[0] < 1:
+            break
+        Z = A.copy()
+        Z[:, 0] = _simulated_current(A, th, starts, ends)
+        th = np.linalg.solve((Z / scale).T @ (A / scale), (Z / scale).T @ y) / scale
+    r = A @ th - y
+    s2 = float(r @ r) / max(len(y) - A.shape[1], 1)
+    segs = [(k, int(a), int(b)) for k, (a, b) in enumerate(zip(starts, ends, strict=True))]
+    ZZ = Z.T @ Z
+    cov_z, info = block_covariance(Z, r, segs, np.linalg.pinv(ZZ) * s2)
+    M = np.linalg.pinv(Z.T @ A) @ ZZ  # IV sandwich: (Z'A)^-1 S (A'Z)^-1
+    return th, M @ cov_z @ M.T, r, info
+
+
+def _offsets(logs, th, cov, warns) -> dict[str, Estimate]:
+    """Each log's voltage offset v0 = b/g [V] (brush drop or current-sensor offset) with its
+    standard error; a significant one (3 std errors, over 1 % of the log's largest |v|) warned."""
+    g = th[1]
+    out = {}
+    for k, lg in enumerate(logs):
+        b = th[4 + k]
+        grad = np.zeros(len(th))
+        grad[1], grad[4 + k] = -b / g**2, 1.0 / g
+        v0, v0_se = b / g, math.sqrt(max(float(grad @ cov @ grad), 0.0))
+        out[lg.path] = Estimate(f"v0[{lg.path}]", v0, v0_se, "V")
+        if abs(v0) > OFFSET_SIGMAS * v0_se and abs(v0) > 0.01 * float(np.max(np.abs(lg["v"]))):
+            warns.append(f"{lg.path}: the current implies a voltage offset of {v0:.3g} ± "
+                         f"{v0_se:.2g} V (a brush drop or a current-sensor offset; fitted "
+                         "separately, not folded into R)")
+    return out
+
+
+def _physical(th: np.ndarray, dt: float) -> np.ndarray:
+    """(a, g, c0, c1) -> (R [ohm], tau_e [s], ke [V s/rad]); tau_e NaN when a is not in (0, 1)."""
+    a, g, c0, c1 = th[:4]
+    r = (1 - a) / g
+    tau = -dt / math.log(a) if 0 < a < 1 else math.nan
+    return np.array([r, tau, -(c0 + c1) / g])
+
+
+def _propagate(th, cov, dt):
+    """Values and covariance of (R, tau_e, ke) by central differences (delta method)."""
+    f0 = _physical(th, dt)
+    p = len(th)
+    Jf = np.zeros((3, p))
+    for k in range(4):
+        h = max(1e-6 * abs(th[k]), 1e-3 * math.sqrt(max(cov[k, k], 0.0)), 1e-15)
+        hp, hm = th.copy(), th.copy()
+        hp[k] += h
+        hm[k] -= h
+        Jf[:, k] = (_physical(hp, dt) - _physical(hm, dt)) / (2 * h)
+    return f0, Jf @ cov @ Jf.T
+
+
+def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
+    """Fit R, L, ke to logs with ``t``, ``v``, ``i`` and (where the rotor turns) ``omega``.
+
+    All logs must share one sample period. Raises :class:`FitError` when the logs do not
+    separate R from ke (the voltage and the speed do not vary independently enough).
+    """
+    dts = np.array([lg.dt for lg in logs])
+    dt = float(np.median(dts))
+    if np.any(np.abs(dts - dt) > 1e-6 * dt):
+        raise FitError("free-running logs at different sample periods ("
+                       + ", ".join(f"{d * 1e3:.4g} ms" for d in sorted(set(dts))) + "): fit "
+                       "each rate separately", ", ".join(lg.path for lg in logs))
+    th, cov, r, info = _iv_regression([_rows(lg) for lg in logs])
+    names = ", ".join(lg.path for lg in logs)
+    a, g = th[0], th[1]
+    if not (g > 0 and math.isfinite(g)) or not a < 1:
+        raise FitError("the free-running regression gives a non-positive conductance: check the "
+                       "sign of the current column against the voltage (map it with -c "
+                       "i=SRC*-1), or the logs do not excite the armature (constant voltage)",
+                       names)
+    vals, pcov = _propagate(th, cov, dt)
+    se = np.sqrt(np.clip(np.diag(pcov), 0, None))
+    R, tau, ke = vals
+    warns: list[str] = []
+    if not (math.isfinite(se[0]) and se[0] < 0.5 * R):
+        raise FitError(f"R is not determined by these logs (R = {R:.3g} ± {se[0]:.2g} ohm): the "
+                       "voltage must vary (steps, a ramp) while the current is logged", names)
+    a_se = math.sqrt(max(cov[0, 0], 0.0))
+    bound = not math.isfinite(tau)
+    if bound:  # a <= 0: only an upper bound on tau_e from a's upper confidence limit
+        a_hi = min(max(a, 0.0) + 2 * a_se, 1 - 1e-12)
+        tau = -dt / math.log(a_hi) if a_hi > 0 else dt / math.log(1e12)
+        tau_se = tau
+    else:
+        tau_se = float(se[1])
+    resolved = bool(not bound and tau >= MIN_TAU_SAMPLES * dt and tau_se < MAX_L_REL_SE * tau)
+    L = tau * R
+    L_se = L if bound else L * math.hypot(tau_se / tau, se[0] / R)
+    turning = [lg.path for lg in logs if lg.has("omega") and rotor_turns(lg["omega"])]
+    warns.append(f"{', '.join(turning)}: the rotor turns: fitted as free-running (v = R i + "
+                 "L di/dt + ke omega), not as a blocked rotor")
+    ke_ok = abs(ke) >= 2 * se[2]
+    if not ke_ok:
+        warns.append(f"the back-EMF constant is not resolved (ke = {ke:.3g} ± {se[2]:.2g} V "
+                     "s/rad): the speed varies too little against the voltage, or the current "
+                     "does not see it; ke and the back_emf effect are not written")
+    elif ke < 0:
+        raise FitError(f"the back-EMF constant comes out negative (ke = {ke:.3g} ± {se[2]:.2g} "
+                       "V s/rad): the speed and current columns have opposite sign conventions "
+                       "(map one with -c omega=SRC*-1)", names)
+    if not resolved:
+        what = (f"L/R is under {tau * 1e3:.3g} ms (upper bound)" if bound else
+                f"L/R = {tau * 1e3:.3g} ± {tau_se * 1e3:.2g} ms")
+        had = model is not None and model.has("L")
+        warns.append(f"L is not resolved by these logs: {what}, against a sample period of "
+                     f"{dt * 1e3:.3g} ms (needs L/R >= {MIN_TAU_SAMPLES:g} periods, known to "
+                     f"{MAX_L_REL_SE:.0%}: below that the value rests on the sub-sample timing "
+                     "of the drive and the current sensor); "
+                     + ("the model's L is kept" if had else
+                        ("an upper bound is written (± 100 %)" if bound else
+                         "the fitted value is written with its standard error"))
+                     + ": sample faster, or use a blocked-rotor log, to identify L")
+    offsets = _offsets(logs, th, cov, warns)
+    est = {"R": Estimate("R", float(R), float(se[0]), "ohm"),
+           "L": Estimate("L", float(L), float(L_se), "H"),
+           "ke": Estimate("ke", float(ke), float(se[2]), "V s/rad"),
+           "tau_e": Estimate("tau_e", float(tau), float(tau_se), "s")}
+    stats = FitStats(len(r), len(th), float(r @ r), 0, True)
+    return FreeRunResult(est, offsets, [lg.path for lg in logs], stats, dt, resolved, bound,
+                         bool(ke_ok), warns, info.describe())

@@ -1,0 +1,137 @@
+"""fit-mechanical, one step at a time: the paper's first-order fit and the second-order fit with
+the electrical lag held, from rest or from a moving start (:func:`fit_step`).
+
+A step (:func:`~pmdcid.identify.steps.find_steps`) is an interval of constant voltage after a
+change, up to the next change. Its response is fitted from the speed at the step instant,
+``omega(t) = omega_inf + (omega0 - omega_inf) exp(-(t - t0 - d)/tau)`` (first order; exact for
+a first-order plant whatever came before), not from rest: a log that starts turning, or a step
+down, is not mistaken for a breakaway and a dead time. Only a step from rest (rotor still, input
+0 before) can show a breakaway (beta < 1 in :func:`~pmdcid.identify.steps.two_lag`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pmdcid.identify.freerun import noise_std
+from pmdcid.identify.steps import StepInfo, fit_first_order, lsq, strejc, two_lag
+
+#: a step whose steady speed is within this many noise std of zero did not move the rotor
+MOVE_SIGMAS = 8.0
+#: a plateau must last this many time constants (plus dead time) for its steady speed to be
+#: read rather than extrapolated (5 % left at 3)
+SETTLE_TAUS = 3.0
+
+
+def paper_mechanical(kmot: float, tau_mot: float, km: float, r: float) -> tuple[float, float]:
+    """The paper's eqs. (13)-(14): b = km/(Kmot R) [N m s/rad], J = tau_mot b [kg m^2].
+
+    Kmot [rad/s per V], tau_mot [s], km [N m/A], R [ohm].
+    """
+    b = km / (kmot * r)
+    return b, tau_mot * b
+
+
+@dataclass
+class MechStep:
+    """One step: amplitude [V], moved?, first-order (paper) and second-order fits."""
+
+    path: str
+    amplitude: float
+    moved: bool
+    kmot: float = math.nan
+    tau_mot: float = math.nan
+    b: float = math.nan
+    J_paper: float = math.nan
+    omega_ss: float = math.nan
+    omega_ss_se: float = math.nan
+    tau_m: float = math.nan
+    tau_m_se: float = math.nan
+    dead_time: float = math.nan
+    beta: float = math.nan
+    strejc_order: int = 0
+    level: float = math.nan  # input level of the plateau [V]
+    t0: float = math.nan  # time of the step [s]
+    from_rest: bool = True
+    omega0: float = math.nan  # speed at the step instant [rad/s]
+    note: str = ""  # why a step is not used
+    chisqr: float = 0.0
+    ndata: int = 0
+
+
+def _second_order(t, w, step, tau_e, st, sigma, breakaway=True):
+    s = t - step.t0
+    dt = float(t[1] - t[0])
+    span = float(t[-1] - step.t0)
+    tau0 = max(st.tau - tau_e, 2 * tau_e) if math.isfinite(st.tau) else 0.1 * span
+    names = ("y0", "wss", "tau_m", "d", "beta")
+    x0 = [st.initial, st.final - st.initial, tau0, min(st.tu, 0.5 * tau0)
+          if math.isfinite(st.tu) else 0.0, 0.9]
+    lo = np.array([-np.inf, -np.inf, 1.01 * tau_e + 0.05 * dt, 0.0, 0.0 if breakaway else
+                   1.0 - 1e-9])
+    hi = np.array([np.inf, np.inf, 10 * span, 0.5 * span, 1.0])
+    if not breakaway:  # a moving rotor does not break free: the current's lag alone
+        x0[4] = 1.0
+
+    def resid(x):
+        y0, wss, tm, d, beta = x
+        return (y0 + wss * np.where(s > d, two_lag(s - d, tm, tau_e, beta), 0.0) - w) / sigma
+
+    return lsq(resid, x0, lo, hi, names)
+
+
+def speed_noise(w: np.ndarray) -> float:
+    """Speed noise std [rad/s]: sample-to-sample scatter, at least an encoder quantum's."""
+    d = np.abs(np.diff(w))
+    q = float(np.min(d[d > 0])) if np.any(d > 0) else 0.0
+    return max(noise_std(w), q / math.sqrt(12.0), 1e-6 * float(np.max(np.abs(w))), 1e-12)
+
+
+def window(log, step, pre=5):
+    """(t, omega, step) of one step's interval: a few samples before the onset (the speed at
+    the step instant) to the end of its plateau; the step re-indexed into the window."""
+    a = max(step.prev_start, step.onset - pre)
+    e = step.end if step.end is not None else log.n
+    w = np.asarray(log["omega"], float)
+    st = StepInfo(step.onset - a, step.t0, step.before, step.after, e - a, 0)
+    return log.t[a:e], w[a:e], st
+
+
+def fit_step(log, step, tau_e, km, R, sig, warns):
+    """One step (from rest or from a moving start): first-order and second-order fits; returns
+    (MechStep, (time from onset, speed change, torque, noise) for the joint fit or None)."""
+    t, w, st_w = window(log, step)
+    where = f"{log.path} (step to {step.after:.3g} V at t = {step.t0:.4g} s)"
+    ms = MechStep(log.path, step.amplitude, False, level=step.after, t0=step.t0)
+    st = strejc(t, w, st_w)
+    w0, w_end = st.initial, st.final
+    # from rest: the rotor still and the input 0 before (within 2 % of the level: input noise)
+    ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= 0.02 * abs(step.after)
+    if abs(w_end) <= MOVE_SIGMAS * sig:
+        ms.note = "did not move" if ms.from_rest else "coasts to rest"
+        return ms, None
+    cf1 = fit_first_order(t, w, st_w, st)
+    plateau = float(t[-1] - step.t0)
+    if not plateau >= SETTLE_TAUS * (cf1["tau"] + cf1["d"]):
+        ms.note = "plateau too short"
+        warns.append(f"{where}: the input holds {plateau:.3g} s, under {SETTLE_TAUS:g} time "
+                     f"constants ({cf1['tau']:.3g} s): the speed does not settle; the step is "
+                     "refused (not used)")
+        return ms, None
+    ms.moved, ms.strejc_order = True, st.order
+    ms.omega0, ms.tau_mot = cf1["y0"], cf1["tau"]
+    # the paper's Kmot: steady speed per volt of the plateau (from rest: omega_ss/dV)
+    ms.kmot = (cf1["y0"] + cf1["dy"]) / step.after
+    ms.b, ms.J_paper = paper_mechanical(ms.kmot, ms.tau_mot, km, R)
+    cf2 = _second_order(t, w, st_w, tau_e, st, sig, breakaway=ms.from_rest)
+    ms.omega_ss, ms.omega_ss_se = cf2["y0"] + cf2["wss"], math.hypot(cf2.se("wss"),
+                                                                       cf2.se("y0"))
+    ms.tau_m, ms.tau_m_se = cf2["tau_m"], cf2.se("tau_m")
+    ms.dead_time, ms.beta = cf2["d"], cf2["beta"]
+    ms.chisqr, ms.ndata = cf2.sigma**2 * max(cf2.ndata - 5, 1), cf2.ndata
+    if not ms.from_rest:
+        return ms, None
+    return ms, (t - step.t0, w - cf2["y0"], km * step.after / R, sig)
