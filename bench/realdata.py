@@ -109,6 +109,13 @@ def fit_linear(logs) -> np.ndarray:
 
     sol = least_squares(resid, x0, x_scale=[abs(K0) or 1.0, 0.05, 0.1 * np.max(np.abs(u))],
                         bounds=([-np.inf, 1e-5, -np.inf], [np.inf, 100.0, np.inf]))
+    # the offset helps a one-sided input and can hurt a bipolar one: without it too, and the
+    # better of the two on the fit logs (never chosen by the held-out logs)
+    plain = least_squares(lambda x: resid([x[0], x[1], 0.0]), x0[:2],
+                          x_scale=[abs(K0) or 1.0, 0.05],
+                          bounds=([-np.inf, 1e-5], [np.inf, 100.0]))
+    if 2 * plain.cost < 2 * sol.cost:
+        return np.array([plain.x[0], plain.x[1], 0.0])
     return sol.x
 
 
@@ -179,7 +186,10 @@ def evaluate(rig: Rig, models: dict) -> dict:
 def summarise(result: dict, labels) -> dict:
     """Means over the held-out runs and the target max(linear/2, 1.2 floor)."""
     rows = result["rows"]
-    mean = {k: float(np.nanmean([r[k] for r in rows])) for k in ["linear", "floor", *labels]}
+    mean = {}
+    for k in ["linear", "floor", *labels]:
+        vals = [r[k] for r in rows if math.isfinite(r[k])]
+        mean[k] = float(np.mean(vals)) if vals else math.nan
     floor = mean["floor"] if math.isfinite(mean["floor"]) else 0.0
     mean["target"] = max(0.5 * mean["linear"], 1.2 * floor)
     return mean

@@ -7,9 +7,11 @@ sample, x0 = (i [A], omega [rad/s], theta [rad]), is taken from the measured fir
 
 - theta: the first measured angle (an encoder's zero is arbitrary);
 - i: the first measured current (voltage-driven logs with a current sensor), else 0;
-- omega: the mean of the first few measured speeds; a start within noise of zero is exactly at
-  rest (the kernel's stick-slip test needs omega = 0 exactly), a start clearly turning is a
-  free parameter of the simulation-error fits (:func:`moving_start`), started there.
+- omega: the mean of the first few measured speeds; a start within noise of zero, or under 10 %
+  of the log's speed range, is exactly at rest (the kernel's stick-slip test needs omega = 0
+  exactly), and so is a constant reading while nothing drives the rotor (a sensor bias: an
+  undriven rotor that turns slows down); a start clearly turning is a free parameter of the
+  simulation-error fits (:func:`moving_start`), started there.
 """
 
 from __future__ import annotations
@@ -22,6 +24,10 @@ import numpy as np
 HEAD = 5
 #: a starting speed within this many standard errors of zero is a start at rest
 REST_SIGMAS = 4.0
+#: ... and so is one under this fraction of the log's speed range (99th percentile of |omega|):
+#: it decays within one time constant and is not worth a parameter, and a speed derived from
+#: the angle is least reliable at the log's edge (EMPS starts at 8 mm/s, 6.5 % of its range)
+MOVING_FRACTION = 0.10
 
 
 def _head(x: np.ndarray) -> np.ndarray:
@@ -44,7 +50,29 @@ def start_speed(log, sigma: float | None = None) -> float:
     sd = max(float(sigma) if math.isfinite(sigma) else 0.0, 0.0) / math.sqrt(head.size)
     if "omega" in log.derived:
         sd = max(sd, float(np.std(head)))
-    return w0 if abs(w0) > REST_SIGMAS * max(sd, 1e-12) else 0.0
+    w = np.asarray(log["omega"], float)
+    top = float(np.nanpercentile(np.abs(w), 99)) if w.size else 0.0
+    if abs(w0) <= max(REST_SIGMAS * max(sd, 1e-12), MOVING_FRACTION * top):
+        return 0.0
+    if _undriven_and_flat(log, w, sd):
+        return 0.0  # a constant reading with no drive is a sensor bias, not motion
+    return w0
+
+
+def _undriven_and_flat(log, w: np.ndarray, sd: float) -> bool:
+    """No drive at the start (|u| under 1 % of its peak) and a speed that does not change over
+    the first window: an undriven rotor that turns must slow down (friction), so the reading is
+    a bias on the sensor."""
+    u = np.asarray(log.u, float)
+    peak = float(np.nanmax(np.abs(u))) if u.size else 0.0
+    if peak > 0 and np.nanmax(np.abs(u[:HEAD])) > 0.01 * peak:
+        return False
+    n = min(max(4 * HEAD, len(w) // 20), 400, len(w))
+    a, b = w[:HEAD], w[n - HEAD:n]
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    if not (a.size and b.size):
+        return False
+    return abs(float(np.mean(b)) - float(np.mean(a))) <= 3.0 * max(sd, 1e-12) * math.sqrt(2.0)
 
 
 def initial_state(log, sigma_omega: float | None = None) -> np.ndarray:
