@@ -71,5 +71,6 @@ def _register() -> None:
 
 
 #: command modules, each registering its command(s) on ``main`` at import
-COMMAND_MODULES = ["cmd_simulate", "cmd_fit", "cmd_report", "cmd_demo", "cmd_diagnose"]
+COMMAND_MODULES = ["cmd_simulate", "cmd_fit", "cmd_report", "cmd_demo", "cmd_diagnose",
+                   "cmd_plan"]
 _register()
