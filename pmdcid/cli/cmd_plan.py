@@ -61,6 +61,10 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
                         speed_max=speed_max if speed_max is not None else math.inf,
                         rate=rate, budget=budget, noise_omega=noise_omega, noise_i=noise_i,
                         taumax=taumax is not None)
+    from pmdcid.plan.output import check_out_dir
+
+    if out_dir:
+        check_out_dir(out_dir)
     if check:
         _check(logs, model_path, settings, out_dir, mapping)
         return

@@ -34,7 +34,7 @@ DEFAULT_UMAX_BREAKAWAY = 3.0
 class Settings:
     """Plan options: input limit ``umax`` (V or N m; None: default), ``speed_max`` [rad/s],
     ``rate`` [Hz], ``budget`` [s], noise std ``noise_omega`` [rad/s] and ``noise_i`` [A]
-    (None: default)."""
+    (None: default), ``taumax`` when the limit is a torque, ``effects`` for the effect table."""
 
     umax: float | None = None
     speed_max: float = math.inf
@@ -43,6 +43,7 @@ class Settings:
     noise_omega: float | None = None
     noise_i: float | None = None
     taumax: bool = False
+    effects: bool = True  # also the catalogue-effect table
 
 
 @dataclass
@@ -197,22 +198,34 @@ def optimal_shares(rate_F: list[np.ndarray], F0, budget: float, values: np.ndarr
     Rs = [R * np.outer(scale, scale) for R in rate_F]  # information on relative changes
     G0 = (F0 * np.outer(scale, scale)) if not np.isscalar(F0) else 0.0
 
-    def cost(z):
+    def rel_var(z):
         w = np.exp(z - z.max())
-        w = budget * w / w.sum()
-        G = G0 + sum(wk * R for wk, R in zip(w, Rs, strict=True))
-        var = fi.stderr(G)[targets] ** 2
-        top = float(np.max(var)) if len(var) else 0.0
-        if not (top > 0 and math.isfinite(top)):
-            return 1e300
-        return top * float(np.mean((var / top) ** POWER)) ** (1.0 / POWER)
+        G = G0 + sum(wk * R for wk, R in zip(budget * w / w.sum(), Rs, strict=True))
+        d = np.sqrt(np.clip(np.diag(G), 1e-300, None))
+        try:
+            var = np.diag(np.linalg.inv(G / np.outer(d, d))) / d**2
+        except np.linalg.LinAlgError:
+            return None
+        var = var[targets]
+        return var if np.all(var > 0) and np.all(np.isfinite(var)) else None
 
+    def cost(z, ref=1.0):
+        var = rel_var(z)
+        if var is None or not len(var):
+            return 1e300
+        top = float(np.max(var))
+        return top * float(np.mean((var / top) ** POWER)) ** (1.0 / POWER) / ref
+
+    ref = min(cost(np.zeros(m)), 1e300)
+    ref = ref if 0 < ref < 1e300 else 1.0
     best = None
-    for z0 in [np.zeros(m)] + [np.where(np.arange(m) == k, 2.0, 0.0) for k in range(m)]:
-        res = minimize(cost, z0, method="Nelder-Mead",
-                       options={"xatol": 1e-3, "fatol": 1e-6, "maxiter": 400 * m})
+    z0 = np.zeros(m)
+    for _ in range(2):  # from equal shares, then restarted where it stopped (a fresh simplex)
+        res = minimize(cost, z0, args=(ref,), method="Nelder-Mead",
+                       options={"xatol": 1e-2, "fatol": 1e-4, "maxiter": 200 * m})
         if best is None or res.fun < best.fun:
             best = res
+        z0 = best.x
     w = np.exp(best.x - best.x.max())
     return budget * w / w.sum()
 
@@ -283,7 +296,8 @@ def plan_for_model(model: Model, settings: Settings) -> Plan:
     plan = Plan(profiles, drive, names, {n: vals[n] for n in names},
                 {n: float(s) for n, s in zip(names, se, strict=True)}, noise, umax,
                 umax_default, settings.speed_max, sens=sens)
-    plan.effects = effect_table(profiles, sens, F, vals, names, drive, noise, scales, model)
+    if settings.effects:
+        plan.effects = effect_table(profiles, sens, F, vals, names, drive, noise, scales, model)
     if plan.seconds > settings.budget + 1e-6:
         plan.notes.append(f"the budget of {settings.budget:g} s is shorter than one unit of each "
                           f"profile: the plan takes {plan.seconds:.1f} s")

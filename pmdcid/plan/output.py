@@ -97,11 +97,20 @@ def plan_markdown(plan: Plan, command: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
+def check_out_dir(folder: str | os.PathLike) -> None:
+    """Refuse (before any work) an output folder that is a file or lies under one."""
+    p = Path(folder).absolute()
+    for q in [p, *p.parents]:
+        if q.exists():
+            if not q.is_dir():
+                raise LogError("is a file, not a folder: choose another -o", str(folder))
+            return
+
+
 def write_plan(plan: Plan, folder: str | os.PathLike, command: str = "") -> list[str]:
     """Write the profiles, plan.json and plan.md into ``folder`` (created). Returns the paths."""
     d = Path(folder)
-    if d.exists() and not d.is_dir():
-        raise LogError("exists and is not a folder: choose another -o", str(d))
+    check_out_dir(d)
     d.mkdir(parents=True, exist_ok=True)
     written = []
     for p in plan.profiles:
@@ -116,4 +125,4 @@ def write_plan(plan: Plan, folder: str | os.PathLike, command: str = "") -> list
     return written + [str(d / "plan.json"), str(d / "plan.md")]
 
 
-__all__ = ["plan_json", "plan_markdown", "write_plan"]
+__all__ = ["check_out_dir", "plan_json", "plan_markdown", "write_plan"]

@@ -156,7 +156,7 @@ def repeat(u: np.ndarray, n: int) -> np.ndarray:
 def make(name: str, kind: str, u: np.ndarray, rate: float, blocked: bool = False,
          seconds: float | None = None) -> Profile:
     """A :class:`Profile` of ``seconds`` [s] (default one unit) of ``u`` repeated at ``rate``."""
-    n = len(u) if seconds is None else max(int(round(seconds * rate)), 2)
+    n = len(u) if seconds is None else max(int(seconds * rate + 1e-9), 2)
     uu = repeat(u, n)
     return Profile(name, kind, np.arange(n) / rate, uu, blocked, n / len(u))
 
