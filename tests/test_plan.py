@@ -144,3 +144,18 @@ def test_lumped_model_plans_on_the_torque_path_with_a_voltage_column(tmp_path):
     assert set(plan["predicted_stderr"]) == set(MECH)
     assert all(read_log(out / p["file"]).has("v") for p in plan["profiles"])
     assert all(math.isfinite(v) for v in plan["predicted_stderr"].values())
+
+
+def test_noise_defaults_to_what_the_model_fits_recorded():
+    from pmdcid.plan.design import default_noise, recorded_noise
+
+    m = truth_model(PAPER)
+    assert recorded_noise(m) == {}
+    m.extra["fits"] = {"fit-nonlinear": {"sigma": [{"omega": 0.01}, {"omega": 0.03}]},
+                       "fit-electrical": {"sigma": [{"i": 0.002}]}}
+    rec = recorded_noise(m)
+    assert rec == {"omega": pytest.approx(0.02), "i": pytest.approx(0.002)}
+    assert default_noise(Settings(), 10.0, 1.0, rec) == {"omega": 0.02, "i": 0.002}
+    assert default_noise(Settings(noise_omega=0.5), 10.0, 1.0, rec)["omega"] == 0.5
+    assert default_noise(Settings(), 10.0, 1.0, {}) == {"omega": pytest.approx(0.1),
+                                                        "i": pytest.approx(0.01)}

@@ -230,10 +230,26 @@ def optimal_shares(rate_F: list[np.ndarray], F0, budget: float, values: np.ndarr
     return budget * w / w.sum()
 
 
-def default_noise(settings: Settings, peak_speed: float, peak_current: float) -> dict[str, float]:
-    """Noise std per signal: the options, else 1 % of the plan's top speed and current."""
-    w = settings.noise_omega if settings.noise_omega else NOISE_FRACTION * max(peak_speed, 1e-9)
-    i = settings.noise_i if settings.noise_i else NOISE_FRACTION * max(peak_current, 1e-12)
+def recorded_noise(model: Model) -> dict[str, float]:
+    """Noise std per signal a model file records from its fits (``fits.<stage>.sigma``: per log,
+    signal -> std), the median over logs; empty when it records none."""
+    out: dict[str, list[float]] = {}
+    for fit in (model.extra.get("fits") or {}).values():
+        sig = fit.get("sigma") if isinstance(fit, dict) else None
+        for per_log in sig if isinstance(sig, list) else []:
+            for s, v in (per_log.items() if isinstance(per_log, dict) else []):
+                if s in ("omega", "i") and isinstance(v, (int, float)) and v > 0:
+                    out.setdefault(s, []).append(float(v))
+    return {s: float(np.median(v)) for s, v in out.items()}
+
+
+def default_noise(settings: Settings, peak_speed: float, peak_current: float,
+                  recorded: dict[str, float] | None = None) -> dict[str, float]:
+    """Noise std per signal: the options, else what the model's fits recorded, else 1 % of the
+    plan's top speed and current."""
+    rec = recorded or {}
+    w = settings.noise_omega or rec.get("omega") or NOISE_FRACTION * max(peak_speed, 1e-9)
+    i = settings.noise_i or rec.get("i") or NOISE_FRACTION * max(peak_current, 1e-12)
     return {"omega": w, "i": i}
 
 
@@ -279,7 +295,7 @@ def plan_for_model(model: Model, settings: Settings) -> Plan:
     sims = [fi.simulate_profile(np.arange(len(u)) / rate, u, vals, drive, b) for _, u, b in cands]
     peak_w = max(float(np.max(np.abs(s.omega))) for s in sims)
     peak_i = (max(float(np.nanmax(np.abs(s.i))) for s in sims) if drive.electrical else 0.0)
-    noise = default_noise(settings, peak_w, peak_i)
+    noise = default_noise(settings, peak_w, peak_i, recorded_noise(model))
     scales = parameter_scales(vals, drive, max(peak_w, 1e-6))
     values = np.array([vals[n] for n in names])
     targets = values != 0
