@@ -62,8 +62,8 @@ class CheckResult:
             if fx.get("kind"):
                 done = ("" if fx["reaches"] else
                         f" (still {100 * fx['relative_after']:.2g} % within the budget)")
-                out.append(f"{n}: record {fx['seconds']:.0f} s of {fx['kind']} "
-                           f"({pr.PURPOSES[fx['kind']]}){done}")
+                out.append(f"{n}: record {fx['seconds']:.0f} s of {fx['kind']} up to "
+                           f"{fx['amplitude']:.3g} ({pr.PURPOSES[fx['kind']]}){done}")
             else:
                 out.append(f"{n}: no candidate profile helps: {fx.get('why', '')}")
         if not self.poor():
@@ -139,13 +139,14 @@ def fixes(poor, F, logs, vals, names, drive, scales, noises, settings: Settings)
         t = np.arange(len(u)) / rate
         sigs = tuple(s for s in fi.signals_of(b, drive) if s in noise)
         sens = fi.sensitivities(t, u, vals, names, drive, b, scales, sigs)
-        unit.append((kind, fi.information(sens, noise), len(u) / rate))
+        unit.append((kind, fi.information(sens, noise), len(u) / rate,
+                     float(np.max(np.abs(u)))))
     out = {}
     values = np.array([vals[n] for n in names])
     for name in poor:
         j = names.index(name)
         best = None
-        for kind, Fu, s in unit:
+        for kind, Fu, s, amp in unit:
             k, G = 0, F.copy()
             while (k + 1) * s <= settings.budget:
                 k += 1
@@ -157,8 +158,8 @@ def fixes(poor, F, logs, vals, names, drive, scales, noises, settings: Settings)
             rel = float(fi.relative(fi.stderr(G), values)[j])
             key = (rel > POOR, k * s if rel <= POOR else rel)
             if best is None or key < best[0]:
-                best = (key, {"kind": kind, "seconds": k * s, "relative_after": rel,
-                              "reaches": rel <= POOR})
+                best = (key, {"kind": kind, "seconds": k * s, "amplitude": amp,
+                              "relative_after": rel, "reaches": rel <= POOR})
         out[name] = best[1] if best else {"why": "the budget is shorter than one profile unit"}
     return out
 

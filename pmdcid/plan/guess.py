@@ -8,6 +8,8 @@ experiment.
 
 from __future__ import annotations
 
+import math
+
 from pmdcid.plan import fisher as fi
 from pmdcid.plan import profiles as pr
 from pmdcid.plan.design import Plan, Settings
@@ -41,6 +43,9 @@ def guess_plan(settings: Settings) -> Plan:
     profiles.append(pr.make(f"{len(profiles) + 1:02d}_ramp", "ramp", u, rate))
     notes = ["no model: nothing is predicted. Record these, fit a first model "
              "(fit-electrical, fit-mechanical, fit-nonlinear) and run plan -m MODEL"]
+    if math.isfinite(settings.speed_max):
+        notes.append("--speed-max cannot be checked without a model: the inputs are fractions "
+                     "of the limit (at most 50 %); watch the speed on the first run")
     return Plan(profiles, drive, [], {}, {}, {}, umax, False, settings.speed_max, notes=notes,
                 guess=True)
 
