@@ -6,9 +6,10 @@ Run from the repository root (a few minutes on 2 cores: 20 fits of two minutes o
 
 1. Plans for the paper's motor (fixtures/paper/truth.json values, pmdcid.synth.PAPER) within
    +-2.5 V, the paper fixtures' sensor noise (speed 4 mrad/s, current 4 mA), ``--budget`` s.
-2. Records the plan ``--seeds`` times in simulation (noise from default_rng(seed)), fits J, bv,
-   bc, dz by simulation error each time (pmdcid.plan.montecarlo) and prints each parameter's
-   realised RMS error and standard deviation beside the predicted standard error.
+2. Records the plan ``--seeds`` times in simulation (noise from default_rng(seed)), fits R, L
+   from the currents then J, bv, bc, dz from the speeds by simulation error each time
+   (pmdcid.plan.montecarlo) and prints each parameter's realised RMS error and standard
+   deviation beside the predicted standard error.
 3. Computes the paper's protocol (five blocked-rotor steps, five speed steps 0.5..2.5 V, a 120 s
    +-2 V triangle: 136.5 s) and a plan of the same 136.5 s with the same Fisher machinery.
 4. Writes docs/plan_montecarlo.png (estimates against the predicted +-1 and +-2 standard errors)
@@ -44,7 +45,7 @@ def monte_carlo_table(budget: float, seeds: int):
     print(f"{seeds} simulated recordings fitted in {time.perf_counter() - t0:.0f} s\n")
     print(f"{'param':<6} {'predicted':>10} {'RMS error':>10} {'std dev':>10} {'RMS/pred':>9}")
     z = {}
-    for n in MECH:
+    for n in plan.names:
         se = plan.stderr[n]
         err = est[n] - PAPER[n]
         rms = float(np.sqrt(np.mean(err**2)))
@@ -81,12 +82,13 @@ def figure_montecarlo(z, path):
     fig = Figure(figsize=(7, 3.2))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(111)
-    for k, n in enumerate(MECH):
+    names = list(z)
+    for k, n in enumerate(names):
         ax.plot(np.full(len(z[n]), k) + np.linspace(-0.15, 0.15, len(z[n])), z[n], "o", ms=4)
     for s, style in ((1, "--"), (2, ":")):
         ax.axhline(s, color="grey", ls=style)
         ax.axhline(-s, color="grey", ls=style)
-    ax.set_xticks(range(len(MECH)), MECH)
+    ax.set_xticks(range(len(names)), names)
     ax.set_ylabel("(estimate - truth) / predicted stderr")
     ax.set_title("Monte Carlo fits of the plan against its predicted standard errors")
     fig.tight_layout()

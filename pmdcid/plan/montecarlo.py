@@ -1,10 +1,13 @@
 """Monte Carlo check of a plan: record its profiles in simulation with noise, fit, compare.
 
 Each run simulates every free-rotor profile of the plan at the true values with white noise of
-the plan's levels (a ``numpy.random.Generator`` passed in), fits J, bv, bc, dz by simulation
-error with the tool's engine (:func:`pmdcid.identify.simfit.fit_simulation`, the steps of
-fit-nonlinear's local stage; R, L, km held) from a start off the truth, and returns the
-estimates. Their spread over runs is the realised standard error the prediction must match.
+the plan's levels (a ``numpy.random.Generator`` passed in) and fits it as the pipeline does, by
+simulation error with the tool's engine (:func:`pmdcid.identify.simfit.fit_simulation`): R and
+L from the currents (the blocked-rotor step's and the free profiles': without back-EMF the
+current does not depend on the motion), then J, bv, bc, dz from the speeds with R, L held at
+their estimates and km at its value (fit-nonlinear's finite-difference steps), each from a start
+off the truth. The spread of the estimates over runs is the realised standard error the
+prediction (R, L's uncertainty included) must match.
 
 The fit runs the kernel with internal steps of 50 us (:func:`pmdcid.plan.fisher.internal_steps`,
 as the prediction does); the recording :data:`RECORD_FINER` times finer, so that the fit cannot
@@ -27,23 +30,23 @@ from pmdcid.plan.design import Plan
 from pmdcid.simulate import simulate_values
 
 #: parameters fitted, and the factor the fit starts off by
-FITTED = ("J", "bv", "bc", "dz")
-START_OFF = {"J": 1.05, "bv": 0.95, "bc": 1.1, "dz": 0.9}
+FITTED = ("J", "bv", "bc", "dz")  # after R, L
+START_OFF = {"J": 1.05, "bv": 0.95, "bc": 1.1, "dz": 0.9, "R": 1.02, "L": 0.98}
 #: the recording's internal kernel step is this many times finer than the fit's
 RECORD_FINER = 5
 
 
 def recorded_logs(plan: Plan, vals: dict[str, float], rng: np.random.Generator,
                   nsub: int | None = None) -> list[Log]:
-    """The plan's free-rotor profiles as noisy logs (omega, and i for a voltage drive)."""
+    """The plan's profiles as noisy logs: omega (free rotor), and i for a voltage drive."""
     logs = []
     nsub = nsub or RECORD_FINER * fi.internal_steps(plan.profiles[-1].t)
     for p in plan.profiles:
-        if p.blocked:
-            continue
-        sim = simulate_values(p.t, p.u, vals, plan.drive.torque_path, nsub)
-        data = {plan.drive.column: p.u.copy(),
-                "omega": sim.omega + rng.normal(0.0, plan.noise["omega"], len(p.t))}
+        v = {**vals, "bc": fi.BLOCKED_BC} if p.blocked else vals
+        sim = simulate_values(p.t, p.u, v, plan.drive.torque_path, nsub)
+        data = {plan.drive.column: p.u.copy()}
+        if not p.blocked:
+            data["omega"] = sim.omega + rng.normal(0.0, plan.noise["omega"], len(p.t))
         if plan.drive.electrical:
             data["i"] = sim.i + rng.normal(0.0, plan.noise["i"], len(p.t))
         logs.append(Log(f"{p.name}.csv", p.t.copy(), data, {"kind": p.kind}))
@@ -59,12 +62,26 @@ def fit_once(plan: Plan, model: Model, rng: np.random.Generator,
     vals = fi.model_values(model, plan.drive)
     nsub = nsub or fi.internal_steps(plan.profiles[-1].t)
     logs = recorded_logs(plan, vals, rng, RECORD_FINER * nsub)
+    out: dict[str, float] = {}
+    work = model.copy()
+    elec = [n for n in ("R", "L") if n in plan.names]
+    if elec:
+        # the current's simulation is exact at any internal step (linear, no back-EMF): 1
+        res = fit_simulation(logs, work, elec, signals=("i",),
+                             start={n: vals[n] * START_OFF[n] for n in elec},
+                             sigma=[{"i": plan.noise["i"]}] * len(logs), nsub=1,
+                             correlated=False)
+        out.update(res.values())
+        for n in elec:
+            work.set(n, out[n])
     free = [n for n in FITTED if n in plan.names]
-    start = {n: vals[n] * START_OFF[n] for n in free}
-    sigma = [{"omega": plan.noise["omega"]}] * len(logs)
-    res = fit_simulation(logs, model, free, signals=("omega",), start=start, sigma=sigma,
+    moving = [lg for lg in logs if lg.has("omega")]
+    res = fit_simulation(moving, work, free, signals=("omega",),
+                         start={n: vals[n] * START_OFF[n] for n in free},
+                         sigma=[{"omega": plan.noise["omega"]}] * len(moving),
                          diff_step=DIFF_STEP, nsub=nsub, correlated=False)
-    return res.values()
+    out.update(res.values())
+    return out
 
 
 def monte_carlo(plan: Plan, model: Model, seeds, nsub: int | None = None) -> dict[str, np.ndarray]:
