@@ -89,7 +89,7 @@ def test_monte_carlo_spread_matches_prediction(paper_model):
 
 def test_plan_beats_the_paper_protocol_in_the_same_time():
     """Paper motor, paper noise, same 136.5 s: the plan's worst relative stderr among J, bv,
-    bc, dz is far below the paper protocol's (2.96x measured; docs/plan.md)."""
+    bc, dz is far below the paper protocol's (3.03x measured; docs/plan.md)."""
     model = truth_model(PAPER)
     prof = paper_profiles()
     seconds = protocol_seconds(prof)

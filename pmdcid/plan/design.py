@@ -148,85 +148,116 @@ def profile_sens(t, u, blocked, vals, names, drive, scales, signals=None):
     return fi.sensitivities(t, u, vals, names, drive, blocked, scales, signals)
 
 
-#: a profile gets at least this many units, or none: a part of a cycle does not carry the
-#: information of a whole one (half a triangle visits one direction only)
-MIN_UNITS = 1.0
-
-
 def allocate(unit_F: list[np.ndarray], unit_s: list[float], budget: float, values: np.ndarray,
              targets: np.ndarray, fixed: list[bool]) -> list[float]:
     """Seconds of each profile for ``budget`` seconds.
 
     ``fixed`` profiles get one unit; the rest of the budget is shared out in the proportions
-    minimising the worst relative standard error (:func:`optimal_shares`), profiles given less
-    than :data:`MIN_UNITS` of their unit dropped and their time shared among the others.
+    minimising the worst relative standard error (:func:`optimal_shares`). A profile given less
+    than one unit (a part of a cycle does not carry a whole one's information: half a triangle
+    visits one direction only) is, one at a time, either dropped or given exactly one unit,
+    whichever leaves the lower worst relative standard error once the rest is shared again.
     """
-    free = [k for k in range(len(unit_F)) if not fixed[k]]
     seconds = [unit_s[k] if fixed[k] else 0.0 for k in range(len(unit_F))]
     left = max(budget - sum(seconds), 0.0)
-    F0 = sum(unit_F[k] for k in range(len(unit_F)) if fixed[k])
-    rate_F = [unit_F[k] / unit_s[k] for k in free]
-    shares = optimal_shares(rate_F, F0, left, values, targets)
-    keep = [shares[j] >= MIN_UNITS * unit_s[k] for j, k in enumerate(free)]
-    if free and not any(keep):  # too short a budget: the one profile that helps most, whole
-        j = int(np.argmax(shares))
-        seconds[free[j]] = unit_s[free[j]]
-        return seconds
-    if any(keep):
-        shares = optimal_shares([r for r, k in zip(rate_F, keep, strict=True) if k], F0, left,
-                                values, targets)
-        for j, k in enumerate([k for k, kp in zip(free, keep, strict=True) if kp]):
-            seconds[k] = float(shares[j])
+    F0 = sum((unit_F[k] for k in range(len(unit_F)) if fixed[k]),
+             np.zeros_like(unit_F[0]))
+    kept = [k for k in range(len(unit_F)) if not fixed[k]]
+
+    def solve(ks, F, room):
+        w = optimal_shares([unit_F[k] / unit_s[k] for k in ks], F, room, values, targets)
+        G = F + sum((wk * unit_F[k] / unit_s[k] for wk, k in zip(w, ks, strict=True)),
+                    np.zeros_like(F))
+        return w, worst_relative(G, values, targets)
+
+    kept = [k for k in kept if unit_s[k] <= left + 1e-9]  # a whole unit must fit
+    shares, _ = solve(kept, F0, left) if kept else (np.zeros(0), math.inf)
+    while kept:
+        short = [(shares[j] / unit_s[k], k) for j, k in enumerate(kept)
+                 if shares[j] < unit_s[k] * (1.0 - 1e-9)]
+        if not short:
+            break
+        options = []
+        for _, k in sorted(short)[:3]:  # the three furthest below one unit
+            rest = [i for i in kept if i != k]
+            w, obj = solve(rest, F0, left) if rest else (np.zeros(0), math.inf)
+            options.append((obj, k, False, w))
+            if unit_s[k] <= left:
+                w, obj = solve(rest, F0 + unit_F[k], left - unit_s[k]) if rest else \
+                    (np.zeros(0), worst_relative(F0 + unit_F[k], values, targets))
+                options.append((obj, k, True, w))
+        obj, k, whole, shares = min(options, key=lambda o: o[0])
+        kept.remove(k)
+        if whole:
+            seconds[k] = unit_s[k]
+            left -= unit_s[k]
+            F0 = F0 + unit_F[k]
+            if any(unit_s[i] > left + 1e-9 for i in kept):
+                kept = [i for i in kept if unit_s[i] <= left + 1e-9]
+                shares, _ = solve(kept, F0, left) if kept else (np.zeros(0), math.inf)
+    for j, k in enumerate(kept):
+        seconds[k] = float(shares[j])
+    if not any(seconds[k] for k in range(len(unit_F)) if not fixed[k]):
+        best = min((k for k in range(len(unit_F)) if not fixed[k]),
+                   key=lambda k: worst_relative(F0 + unit_F[k], values, targets))
+        seconds[best] = unit_s[best]  # too short a budget: the one unit that helps most
     return seconds
 
 
 #: the smooth stand-in for the largest relative variance: its power mean of this order
 POWER = 16
+#: ridge added to the relative information (a fraction of its mean diagonal) while optimising,
+#: so that a share of 0 leaves it invertible
+RIDGE = 1e-9
 
 
 def optimal_shares(rate_F: list[np.ndarray], F0, budget: float, values: np.ndarray,
                    targets: np.ndarray) -> np.ndarray:
     """Seconds of each profile (information per second ``rate_F``) summing to ``budget`` that
-    minimise the worst relative variance among ``targets`` (a power mean of high order as a
-    smooth stand-in; convex in the shares). ``F0``: information recorded anyway."""
+    minimise the worst relative variance among ``targets``.
+
+    The worst is smoothed as the power mean of order :data:`POWER` of the relative variances,
+    a convex function of the shares; minimised by SLSQP on the simplex with its exact gradient
+    (d var_i / d w_k = -(G^-1 R_k G^-1)_ii). ``F0``: information recorded anyway.
+    """
     from scipy.optimize import minimize
 
     m = len(rate_F)
     if m == 0 or budget <= 0:
         return np.zeros(m)
     scale = np.where(values != 0, np.abs(values), 1.0)
-    Rs = [R * np.outer(scale, scale) for R in rate_F]  # information on relative changes
-    G0 = (F0 * np.outer(scale, scale)) if not np.isscalar(F0) else 0.0
+    S = np.outer(scale, scale)
+    Rs = [budget * R * S for R in rate_F]  # information on relative changes, whole budget
+    G0 = F0 * S if not np.isscalar(F0) else np.zeros_like(Rs[0])
+    ridge = RIDGE * float(np.mean(np.diagonal(sum(Rs)))) * np.eye(len(values))
+    idx = np.flatnonzero(targets)
+    n = len(idx)
 
-    def rel_var(z):
-        w = np.exp(z - z.max())
-        G = G0 + sum(wk * R for wk, R in zip(budget * w / w.sum(), Rs, strict=True))
-        d = np.sqrt(np.clip(np.diag(G), 1e-300, None))
-        try:
-            var = np.diag(np.linalg.inv(G / np.outer(d, d))) / d**2
-        except np.linalg.LinAlgError:
-            return None
-        var = var[targets]
-        return var if np.all(var > 0) and np.all(np.isfinite(var)) else None
-
-    def cost(z, ref=1.0):
-        var = rel_var(z)
-        if var is None or not len(var):
-            return 1e300
+    def fun(w):
+        Gi = np.linalg.inv(G0 + ridge + sum(wk * R for wk, R in zip(w, Rs, strict=True)))
+        var = np.diag(Gi)[idx]
         top = float(np.max(var))
-        return top * float(np.mean((var / top) ** POWER)) ** (1.0 / POWER) / ref
+        mean = float(np.mean((var / top) ** POWER))
+        f = top * mean ** (1.0 / POWER)
+        dvar = (var / top) ** (POWER - 1) * mean ** (1.0 / POWER - 1.0) / n
+        grad = np.array([-float(np.sum(dvar * np.einsum("ij,jk,ki->i", Gi[idx], R, Gi[:, idx])))
+                         for R in Rs])
+        return f, grad
 
-    ref = min(cost(np.zeros(m)), 1e300)
-    ref = ref if 0 < ref < 1e300 else 1.0
-    best = None
-    z0 = np.zeros(m)
-    for _ in range(2):  # from equal shares, then restarted where it stopped (a fresh simplex)
-        res = minimize(cost, z0, args=(ref,), method="Nelder-Mead",
-                       options={"xatol": 1e-2, "fatol": 1e-4, "maxiter": 200 * m})
-        if best is None or res.fun < best.fun:
-            best = res
-        z0 = best.x
-    w = np.exp(best.x - best.x.max())
+    f0 = fun(np.full(m, 1.0 / m))[0]
+
+    def scaled(w):
+        f, g = fun(w)
+        return f / f0, g / f0
+
+    res = minimize(scaled, np.full(m, 1.0 / m), jac=True, method="SLSQP",
+                   bounds=[(0.0, 1.0)] * m,
+                   constraints=[{"type": "eq", "fun": lambda w: np.sum(w) - 1.0,
+                                 "jac": lambda w: np.ones(m)}],
+                   options={"maxiter": 200, "ftol": 1e-10})
+    w = np.clip(res.x, 0.0, None)
+    if not (np.all(np.isfinite(w)) and w.sum() > 0) or scaled(w / w.sum())[0] > 1.0:
+        w = np.full(m, 1.0 / m)
     return budget * w / w.sum()
 
 
