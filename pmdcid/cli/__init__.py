@@ -72,5 +72,5 @@ def _register() -> None:
 
 #: command modules, each registering its command(s) on ``main`` at import
 COMMAND_MODULES = ["cmd_simulate", "cmd_fit", "cmd_report", "cmd_demo", "cmd_diagnose",
-                   "cmd_identify", "cmd_export"]
+                   "cmd_identify", "cmd_export", "cmd_plan"]
 _register()

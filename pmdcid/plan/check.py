@@ -1,0 +1,167 @@
+"""``pmdcid plan --check``: what logs a user already has leave poorly determined, and the fix.
+
+The logs' own inputs are simulated with the model and the Fisher information computed as for a
+plan (:mod:`.fisher`), each signal weighted by the noise measured on the log itself (robust,
+from its second difference). A parameter whose predicted relative standard error exceeds
+:data:`POOR` is poorly determined; for each such parameter the candidate profile whose added
+recording lowers its standard error the most is named, with the time it needs to bring it under
+the threshold (within the budget).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pmdcid.errors import LogError, ModelError
+from pmdcid.model import Model
+from pmdcid.plan import fisher as fi
+from pmdcid.plan import profiles as pr
+from pmdcid.plan.design import Settings, candidates, parameter_scales
+
+#: relative standard error above which a parameter is poorly determined
+POOR = 0.25
+
+
+@dataclass
+class CheckResult:
+    """Per parameter: value, predicted stderr, relative; and the fixes of the poor ones."""
+
+    names: list[str]
+    values: dict[str, float]
+    stderr: dict[str, float]
+    fixes: dict[str, dict] = field(default_factory=dict)
+    paths: list[str] = field(default_factory=list)
+
+    def relative(self) -> dict[str, float]:
+        return {n: (self.stderr[n] / abs(self.values[n]) if self.values[n] else math.inf)
+                for n in self.names}
+
+    def poor(self) -> list[str]:
+        return [n for n, r in self.relative().items() if not r <= POOR]
+
+    def as_dict(self) -> dict:
+        rel = self.relative()
+        fin = (lambda x: float(x) if math.isfinite(x) else None)  # noqa: E731
+        return {"logs": self.paths, "threshold": POOR,
+                "parameters": {n: {"value": self.values[n], "stderr": fin(self.stderr[n]),
+                                   "relative": fin(rel[n]), "poor": n in self.poor(),
+                                   "fix": self.fixes.get(n)} for n in self.names}}
+
+    def lines(self) -> list[str]:
+        rel = self.relative()
+        out = [f"{'parameter':<10} {'value':>12} {'stderr':>11} {'relative':>9}"]
+        for n in self.names:
+            se = f"{self.stderr[n]:.3g}" if math.isfinite(self.stderr[n]) else "free"
+            r = f"{100 * rel[n]:.2g} %" if math.isfinite(rel[n]) else "-"
+            flag = "  poorly determined" if n in self.poor() else ""
+            out.append(f"{n:<10} {self.values[n]:12.5g} {se:>11} {r:>9}{flag}")
+        for n, fx in self.fixes.items():
+            if fx.get("kind"):
+                done = ("" if fx["reaches"] else
+                        f" (still {100 * fx['relative_after']:.2g} % within the budget)")
+                out.append(f"{n}: record {fx['seconds']:.0f} s of {fx['kind']} up to "
+                           f"{fx['amplitude']:.3g} ({pr.PURPOSES[fx['kind']]}){done}")
+            else:
+                out.append(f"{n}: no candidate profile helps: {fx.get('why', '')}")
+        if not self.poor():
+            out.append(f"every parameter is determined within {100 * POOR:.0f} %")
+        return out
+
+
+def _log_drive(logs, model: Model) -> fi.Drive:
+    drive = fi.drive_of(model)
+    kinds = {lg.drive for lg in logs}
+    if len(kinds) > 1:
+        raise LogError("logs mix voltage (v) and torque (tau) inputs: check them separately",
+                       logs[0].path)
+    if kinds == {"tau"} and drive.column == "v":
+        return fi.Drive("tau", True)
+    if kinds == {"v"} and drive.column == "tau":
+        raise ModelError("the logs are voltage-driven but the model has no R, L, km (and is "
+                         "not marked lumped)", model.path)
+    return drive
+
+
+def _log_signals(log, drive: fi.Drive, blocked: bool) -> tuple[str, ...]:
+    sig = () if blocked or not log.has("omega") else ("omega",)
+    return sig + (("i",) if drive.electrical and log.has("i") else ())
+
+
+def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
+    """Predicted standard errors from ``logs`` (their inputs, their noise) at ``model``."""
+    from pmdcid.diagnose.problem import is_blocked
+    from pmdcid.identify.simfit import noise_level
+
+    drive = _log_drive(logs, model)
+    vals = fi.model_values(model, drive)
+    names = fi.identified(model, drive)
+    speed = max([float(np.max(np.abs(lg["omega"]))) for lg in logs if lg.has("omega")]
+                + [1e-6])
+    scales = parameter_scales(vals, drive, speed)
+    F = np.zeros((len(names), len(names)))
+    noises = []
+    for lg in logs:
+        blocked = is_blocked(lg)
+        sigs = _log_signals(lg, drive, blocked)
+        if not sigs:
+            continue
+        noise = {s: noise_level(lg[s]) for s in sigs}
+        noises.append(noise)
+        sens = fi.sensitivities(lg.t, lg.u, vals, names, drive, blocked, scales, sigs)
+        F += fi.information(sens, noise)
+    if not noises:
+        raise LogError("no log measures the speed (omega) or the current (i): nothing to check",
+                       logs[0].path)
+    se = fi.stderr(F)
+    res = CheckResult(names, {n: vals[n] for n in names},
+                      {n: float(s) for n, s in zip(names, se, strict=True)},
+                      paths=[str(lg.path) for lg in logs])
+    poor = res.poor()
+    if poor:
+        res.fixes = fixes(poor, F, logs, vals, names, drive, scales, noises, settings)
+    return res
+
+
+def fixes(poor, F, logs, vals, names, drive, scales, noises, settings: Settings) -> dict:
+    """For each poor parameter: the candidate profile (and seconds) that fixes it best."""
+    umax = settings.umax or max(float(np.max(np.abs(lg.u))) for lg in logs)
+    rate = settings.rate or 1.0 / min(lg.dt for lg in logs)
+    noise = {s: float(np.median([n[s] for n in noises if s in n]))
+             for s in ("omega", "i") if any(s in n for n in noises)}
+    if "omega" not in noise:
+        noise["omega"] = 0.01 * max(abs(vals.get("bv", 1.0)), 1e-9)
+    cands = candidates(vals, drive, umax, settings.speed_max, rate, "R" in names)
+    unit = []
+    for kind, u, b in cands:
+        t = np.arange(len(u)) / rate
+        sigs = tuple(s for s in fi.signals_of(b, drive) if s in noise)
+        sens = fi.sensitivities(t, u, vals, names, drive, b, scales, sigs)
+        unit.append((kind, fi.information(sens, noise), len(u) / rate,
+                     float(np.max(np.abs(u)))))
+    out = {}
+    values = np.array([vals[n] for n in names])
+    for name in poor:
+        j = names.index(name)
+        best = None
+        for kind, Fu, s, amp in unit:
+            k, G = 0, F.copy()
+            while (k + 1) * s <= settings.budget:
+                k += 1
+                G = G + Fu
+                if fi.relative(fi.stderr(G), values)[j] <= POOR:
+                    break
+            if k == 0:
+                continue
+            rel = float(fi.relative(fi.stderr(G), values)[j])
+            key = (rel > POOR, k * s if rel <= POOR else rel)
+            if best is None or key < best[0]:
+                best = (key, {"kind": kind, "seconds": k * s, "amplitude": amp,
+                              "relative_after": rel, "reaches": rel <= POOR})
+        out[name] = best[1] if best else {"why": "the budget is shorter than one profile unit"}
+    return out
+
+
+__all__ = ["POOR", "CheckResult", "check_logs"]
