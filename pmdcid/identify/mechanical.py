@@ -149,7 +149,8 @@ def _finite(x):
     return x if math.isfinite(x) else None
 
 
-def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalResult:
+def fit_mechanical(logs, model: Model, km: float | None = None, *,
+                   joint: bool = True) -> MechanicalResult:
     """Fit the free-speed step logs (``t``, ``v``, ``omega``; one or more steps each, from rest
     or from a moving start: :func:`~pmdcid.identify.steps.find_steps`).
 
@@ -204,7 +205,7 @@ def fit_mechanical(logs, model: Model, km: float | None = None) -> MechanicalRes
         res.warnings.append(f"the model has back-EMF (ke = {ke:.4g} V s/rad): its damping km ke/R "
                             f"= {b_emf:.3g} N m s/rad is taken out of the steady-speed line's to "
                             "give bv; the joint refinement from rest (no back-EMF) is skipped")
-    elif len({round(abs(s.amplitude), 9) for s in moving if s.from_rest}) >= 2:
+    elif joint and len({round(abs(s.amplitude), 9) for s in moving if s.from_rest}) >= 2:
         _joint(res, data, tau_e)
         b, bv = res.estimates["b"].value, res.estimates["bv"].value
         if b > 1.02 * bv:

@@ -107,6 +107,7 @@ class NonlinearResult:
         fits[STAGE] = {
             "logs": self.paths, "signals": list(self.signals),
             "nrmse": self.nrmse, "redchi": self.stats.redchi, "ndata": self.stats.ndata,
+            "sigma": self.fit.sigma,
             "bc_dz_correlation": r if math.isfinite(r) else None,
             "covariance": self.fit.covariance.as_dict() if self.fit.covariance else None,
             "priors": {n: {"from": s, "value": self.fit.priors[n][0],
