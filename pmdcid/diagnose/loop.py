@@ -34,9 +34,10 @@ from pmdcid.diagnose.signatures import Screen, Screener
 from pmdcid.diagnose.starts import grid_start, profile_best, profile_stderr
 from pmdcid.errors import ModelError
 from pmdcid.identify.nonlinear import masked_upper
-from pmdcid.identify.results import Estimate
+from pmdcid.identify.results import Estimate, ResultProtocol
 from pmdcid.identify.simfit import blas_single_thread
 from pmdcid.model import EFFECTS, Model
+from pmdcid.model.params import copy_model_into
 from pmdcid.simulate import param_values
 
 STAGE = "diagnose"
@@ -78,7 +79,7 @@ class Candidate:
 
 
 @dataclass
-class DiagnoseResult:
+class DiagnoseResult(ResultProtocol):
     """The new model, the summary (CONTRACT.md), per-log errors and the candidates."""
 
     model: Model
@@ -93,6 +94,14 @@ class DiagnoseResult:
         from pmdcid.diagnose.report import format_table
 
         return format_table(self)
+
+    def rows(self) -> list[tuple[str, float, float, str]]:
+        """The new model's parameters."""
+        return self.model.rows()
+
+    def apply(self, model: Model) -> None:
+        """Make ``model`` the diagnosed model: its parameters, effects and records."""
+        copy_model_into(self.model, model)
 
 
 def _free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[str]:
@@ -190,19 +199,22 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
              split: float = 0.6, max_samples: int = 20000, refit_top: int = 3,
              bic_threshold: float = -10.0, heldout_threshold: float = -10.0,
              max_nfev: int = 40, max_rounds: int = 4, min_z: float = 5.0,
-             min_gain: float = 0.01) -> DiagnoseResult:
+             min_gain: float = 0.01, progress=None) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
     ``effects`` restricts the catalogue searched (default: all not already in the model).
-    The input model is not modified.
+    The input model is not modified. ``progress(msg)`` is called as each round starts and
+    before each candidate's refit.
     """
     with blas_single_thread():
         return _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
-                         heldout_threshold, max_nfev, max_rounds, min_z, min_gain)
+                         heldout_threshold, max_nfev, max_rounds, min_z, min_gain,
+                         progress or (lambda msg: None))
 
 
 def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold,
-              heldout_threshold, max_nfev, max_rounds, min_z, min_gain) -> DiagnoseResult:
+              heldout_threshold, max_nfev, max_rounds, min_z, min_gain,
+              say) -> DiagnoseResult:
     if effects is not None:
         unknown = [e for e in effects if e not in EFFECTS]
         if unknown:
@@ -251,6 +263,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
     for rnd in range(1, max_rounds + 1):
         if not pool:
             break
+        say(f"diagnose round {rnd}: screening {len(pool)} effect(s)")
         sims = problem.simulate_all(cur.values)
         scr = Screener(problem, cur.values, context(problem, cur.values, sims), base_free)
         screens: list[Screen] = [scr.screen(EFFECTS[e]) for e in pool]
@@ -262,6 +275,7 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, bic_threshold
         rebase = None  # a better point of the current model met while refitting a candidate
         for s in ranked:
             eff = EFFECTS[s.effect]
+            say(f"diagnose round {rnd}: refitting with {s.effect}")
             free = _effect_free(s.effect) + cur_free
             fo = robust_fit({**cur.values, **s.start}, free)
             # ablation: the refit's values with the effect switched off. A refit may also move

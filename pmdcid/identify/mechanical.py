@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.identify.results import Estimate, FitStats
+from pmdcid.identify.results import Estimate, FitStats, ResultProtocol
 from pmdcid.identify.simfit import format_estimates
 from pmdcid.identify.steps import (
     find_step,
@@ -112,7 +112,7 @@ class MechStep:
 
 
 @dataclass
-class MechanicalResult:
+class MechanicalResult(ResultProtocol):
     """b (paper), bv, bc, J with standard errors; the paper's Kmot, tau_mot; per-step fits."""
 
     estimates: dict[str, Estimate]
@@ -138,6 +138,7 @@ class MechanicalResult:
             "breakaway_torque": _finite(self.estimates["T_break"].value),
             "skipped": [s.path for s in self.steps if not s.moved],
         }
+        self._keep_lumped(model)
 
     def table(self) -> str:
         lines = ["fit-mechanical: free-speed steps", ""]
