@@ -217,11 +217,9 @@ def _mechanical(logs, model):
 
 def _nonlinear(priors: bool):
     def run(logs, model):
-        from pmdcid.identify.nonlinear import fit_nonlinear
-        from pmdcid.simulate import logs_for
+        from pmdcid.identify.stages import stage_nonlinear
 
-        free = ["J", "bv", "bc", "dz"] if is_lumped(model) else None
-        return fit_nonlinear(logs_for(logs, model), model, free=free, priors=priors)
+        return stage_nonlinear(logs, model, priors=priors)
 
     return run
 

@@ -220,3 +220,15 @@ def test_api_doc_examples_run(tmp_path, monkeypatch):
     for k in ("R", "J", "bv", "bc"):  # the example identifies the fixture's motor
         assert motor.value(k) == pytest.approx(truth.value(k), rel=0.02)
     assert math.isfinite(ns["fit"].estimates["J"].stderr)
+
+
+def test_diagnose_reports_progress_and_applies():
+    seen = []
+    res = pmdcid.diagnose(PAPER_DIR / "step_2.0V.csv", _truth(), effects="stribeck",
+                          progress=seen.append)
+    assert seen and seen[0] == "diagnose round 1: screening 1 effect(s)"
+    assert res.summary["added"] == []  # the fixture's motor has no Stribeck friction
+    target = pmdcid.Model()
+    res.apply(target)
+    pd.testing.assert_frame_equal(target.to_pandas(), res.to_pandas())
+    assert set(res.to_dict()["parameters"]) >= {"R", "L", "km", "J", "bv", "bc", "dz"}
