@@ -26,8 +26,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError, PmdcidError
+from pmdcid.identify.results import ResultProtocol
 from pmdcid.model import Model
 from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
+from pmdcid.model.params import copy_model_into
 
 #: metadata kinds -> class
 KIND_META = {"blocked-rotor": "blocked", "blocked": "blocked", "free-speed-step": "step",
@@ -46,7 +48,7 @@ class LogPlan:
 
 
 @dataclass
-class IdentifyResult:
+class IdentifyResult(ResultProtocol):
     """The model identify wrote, the per-log plan, each stage's result and what was skipped."""
 
     model: Model
@@ -70,6 +72,14 @@ class IdentifyResult:
             lines += ["", "== diagnose", self.diagnose.table()]
         lines += [""] + self.notes
         return "\n".join(lines).rstrip()
+
+    def rows(self) -> list[tuple[str, float, float, str]]:
+        """The identified model's parameters."""
+        return self.model.rows()
+
+    def apply(self, model: Model) -> None:
+        """Make ``model`` the identified model: its parameters, effects and records."""
+        copy_model_into(self.model, model)
 
 
 def input_changes(u: np.ndarray) -> int:
@@ -164,7 +174,7 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
     _stage(res, "joint fit (all moving logs)", moving, _nonlinear(False))
     if run_diagnose and any(name.startswith("joint") for name, _ in res.stages):
         say("diagnose")
-        _diagnose(res, moving)
+        _diagnose(res, moving, say)
     return res
 
 
@@ -211,21 +221,19 @@ def _mechanical(logs, model):
 
 def _nonlinear(priors: bool):
     def run(logs, model):
-        from pmdcid.identify.nonlinear import fit_nonlinear
-        from pmdcid.simulate import logs_for
+        from pmdcid.identify.stages import stage_nonlinear
 
-        free = ["J", "bv", "bc", "dz"] if is_lumped(model) else None
-        return fit_nonlinear(logs_for(logs, model), model, free=free, priors=priors)
+        return stage_nonlinear(logs, model, priors=priors)
 
     return run
 
 
-def _diagnose(res: IdentifyResult, logs) -> None:
+def _diagnose(res: IdentifyResult, logs, say=None) -> None:
     from pmdcid.diagnose.loop import diagnose
     from pmdcid.simulate import logs_for
 
     try:
-        out = diagnose(logs_for(logs, res.model), res.model)
+        out = diagnose(logs_for(logs, res.model), res.model, progress=say)
     except PmdcidError as exc:
         res.notes.append(f"diagnose: skipped: {exc}")
         return
@@ -265,7 +273,7 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
 
         summary = res.diagnose.summary if res.diagnose is not None else None
         shown = [lg for lg, p in zip(logs, res.plan, strict=True) if p.kind != "unused"]
-        rep = make_report(shown, res.model, out_dir, summary=summary)
+        rep = make_report(shown, res.model, out_dir, summary=summary, progress=progress)
         res.report_dir = rep.out_dir
     return res
 

@@ -29,8 +29,10 @@ def diagnose_cmd(logs, model_path, out_path, summary_path, effects, mapping):
     if unknown:
         raise click.BadParameter(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})",
                                  param_hint="'--effect'")
+    from pmdcid.progress import stage_lines
+
     res = run_diagnose(list(logs), model_path, out_path, summary_path, mapping,
-                       effects=list(effects) or None)
+                       effects=list(effects) or None, progress=stage_lines())
     click.echo(res.table())
     click.echo(f"wrote {out_path}")
     if summary_path:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-
 import click
 
 from pmdcid.cli import main
@@ -26,13 +24,11 @@ def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, mapping):
     """A whole rig: sort the logs, run every stage that applies, a joint fit, diagnose, and
     the report into DIR."""
     from pmdcid.pipeline import run_identify
-
-    def progress(stage):
-        if sys.stderr.isatty():
-            click.echo(f"... {stage}", err=True)
+    from pmdcid.progress import stage_lines
 
     res = run_identify(list(logs), model_path, out_dir, mapping, km=km,
-                       run_diagnose=not no_diagnose, priors=not no_prior, progress=progress)
+                       run_diagnose=not no_diagnose, priors=not no_prior,
+                       progress=stage_lines())
     click.echo(res.table())
     for w in res.warnings:
         click.echo(f"warning: {w}", err=True)

@@ -26,6 +26,19 @@ def _clean(obj):
     return obj
 
 
+def diagnose_logs(logs, model, effects=None, **opts):
+    """Diagnose ``model`` on ``logs`` as the command does: a lumped model's logs seen as
+    torque-driven (:func:`~pmdcid.simulate.logs_for`), the new model lumped too."""
+    from pmdcid.diagnose.loop import diagnose
+    from pmdcid.model.lumped import is_lumped, mark_lumped
+    from pmdcid.simulate import logs_for
+
+    res = diagnose(logs_for(logs, model), model, effects=effects, **opts)
+    if is_lumped(model):
+        mark_lumped(res.model)
+    return res
+
+
 def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, effects=None,
                  **opts):
     """Diagnose ``model_path`` on the logs ``paths``; write ``out_path`` (and the summary).
@@ -34,12 +47,9 @@ def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, e
     only rewritten when ``out_path`` is the same file. Both writes are atomic, after the whole
     analysis succeeded.
     """
-    from pmdcid.diagnose.loop import diagnose
     from pmdcid.io import read_logs
     from pmdcid.io.logs import atomic_write_text
     from pmdcid.model import load_model, save_model
-    from pmdcid.model.lumped import is_lumped, mark_lumped
-    from pmdcid.simulate import logs_for
 
     for p in paths:
         if _same(p, out_path):
@@ -52,14 +62,11 @@ def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, e
         raise ModelError("the summary would overwrite a model file; choose another --summary",
                          summary_path)
     model = load_model(model_path)
-    logs = logs_for(read_logs(paths, mapping), model)
-    res = diagnose(logs, model, effects=effects, **opts)
-    if is_lumped(model):
-        mark_lumped(res.model)
+    res = diagnose_logs(read_logs(paths, mapping), model, effects=effects, **opts)
     save_model(res.model, out_path)
     if summary_path:
         atomic_write_text(summary_path, json.dumps(_clean(res.summary), indent=2) + "\n")
     return res
 
 
-__all__ = ["run_diagnose"]
+__all__ = ["diagnose_logs", "run_diagnose"]

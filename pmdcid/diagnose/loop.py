@@ -43,8 +43,10 @@ from pmdcid.diagnose.shape import residual_shapes
 from pmdcid.diagnose.signatures import Screen, Screener
 from pmdcid.diagnose.starts import grid_start, profile_best
 from pmdcid.errors import ModelError
+from pmdcid.identify.results import ResultProtocol
 from pmdcid.identify.simfit import blas_single_thread
 from pmdcid.model import EFFECTS, Model
+from pmdcid.model.params import copy_model_into
 from pmdcid.simulate import param_values
 
 STAGE = "diagnose"
@@ -56,7 +58,7 @@ NUDGE = 0.2
 
 
 @dataclass
-class DiagnoseResult:
+class DiagnoseResult(ResultProtocol):
     """The new model, the summary (CONTRACT.md), per-log errors and the candidates."""
 
     model: Model
@@ -71,6 +73,14 @@ class DiagnoseResult:
         from pmdcid.diagnose.report import format_table
 
         return format_table(self)
+
+    def rows(self) -> list[tuple[str, float, float, str]]:
+        """The new model's parameters."""
+        return self.model.rows()
+
+    def apply(self, model: Model) -> None:
+        """Make ``model`` the diagnosed model: its parameters, effects and records."""
+        copy_model_into(self.model, model)
 
 
 def _free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[str]:
@@ -263,16 +273,18 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
              split: float = 0.6, max_samples: int = 20000, refit_top: int = 3,
              bic_threshold: float = -10.0, heldout_threshold: float = -10.0,
              max_nfev: int = 40, max_rounds: int = 4, min_z: float = 5.0,
-             min_gain: float = 0.01, max_rise: float = 0.05) -> DiagnoseResult:
+             min_gain: float = 0.01, max_rise: float = 0.05,
+             progress=None) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
     ``effects`` restricts the catalogue searched (default: all not already in the model).
-    The input model is not modified.
+    The input model is not modified. ``progress(msg)`` is called as each round starts and
+    before each candidate's refit.
     """
     rules = Rules(bic_threshold, heldout_threshold, min_z, min_gain, max_rise)
     with blas_single_thread():
         return _diagnose(logs, model, effects, split, max_samples, refit_top, rules,
-                         max_nfev, max_rounds)
+                         max_nfev, max_rounds, progress or (lambda msg: None))
 
 
 def _pool(problem: Problem, model: Model, effects) -> list[str]:
@@ -286,16 +298,19 @@ def _pool(problem: Problem, model: Model, effects) -> list[str]:
 
 
 def _diagnose(logs, model, effects, split, max_samples, refit_top, rules, max_nfev,
-              max_rounds) -> DiagnoseResult:
+              max_rounds, say) -> DiagnoseResult:
     problem = Problem(logs, split, max_samples, holdout_plan(logs))
     pool = _pool(problem, model, effects)
     run = Run(problem, model, rules, max_nfev)
     notes: list[str] = []
+    say("diagnose: baseline refit")
     base = baseline(run)
+    say("diagnose: screening the catalogue")
     cur, added, seen, history = search(run, base, pool, refit_top, max_rounds, notes)
     new = model.copy()
     final = None
     if added:
+        say("diagnose: final refit")
         final, free = finalise(run, cur, added, notes, history)
     if added:
         write_model(new, final, free, added)

@@ -20,7 +20,7 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.identify.freerun import fit_free_running, loaded_current, rotor_turns
-from pmdcid.identify.results import Estimate, FitStats
+from pmdcid.identify.results import Estimate, FitStats, ResultProtocol
 from pmdcid.identify.simfit import format_estimates
 from pmdcid.identify.steps import (
     StepInfo,
@@ -68,7 +68,7 @@ class StepReport:
 
 
 @dataclass
-class ElectricalResult:
+class ElectricalResult(ResultProtocol):
     """R, L (and tau_e, the line's intercept) with standard errors; per-log fits; warnings."""
 
     estimates: dict[str, Estimate]
@@ -89,6 +89,7 @@ class ElectricalResult:
             "intercept_stderr_A": _finite(self.estimates["i0"].stderr),
             "ndata": self.stats.ndata, "redchi": self.stats.redchi,
         }
+        self._keep_lumped(model)
 
     def table(self) -> str:
         lines = ["fit-electrical: blocked-rotor steps (Strejc, then least squares)", ""]

@@ -26,7 +26,7 @@ from scipy.ndimage import maximum_filter1d
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
-from pmdcid.identify.results import Estimate
+from pmdcid.identify.results import Estimate, ResultProtocol
 from pmdcid.io.derive import check_cutoff, choose_cutoff, log_cutoff, log_kinematics, lowpass
 from pmdcid.model import Model
 from pmdcid.model.params import BASE_PARAMS
@@ -48,7 +48,7 @@ def _units() -> dict[str, str]:
 
 
 @dataclass
-class InverseDynamicsResult:
+class InverseDynamicsResult(ResultProtocol):
     """Estimates J [kg m^2], bv [N m s/rad], bc [N m], tau0 [N m] (kg, N s/m, N, N for a linear
     axis), with standard errors; the relative torque error [%] of the regression; warnings."""
 

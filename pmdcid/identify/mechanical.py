@@ -35,7 +35,7 @@ from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-expo
     paper_mechanical,
     speed_noise,
 )
-from pmdcid.identify.results import Estimate, FitStats
+from pmdcid.identify.results import Estimate, FitStats, ResultProtocol
 from pmdcid.identify.simfit import format_estimates
 from pmdcid.identify.steps import despike, find_steps, lsq
 from pmdcid.model import Model
@@ -82,7 +82,7 @@ def steady_line(v: np.ndarray, w: np.ndarray, w_se: np.ndarray):
 
 
 @dataclass
-class MechanicalResult:
+class MechanicalResult(ResultProtocol):
     """b (paper), bv, bc, J with standard errors; the paper's Kmot, tau_mot; per-step fits."""
 
     estimates: dict[str, Estimate]
@@ -108,6 +108,7 @@ class MechanicalResult:
             "breakaway_torque": _finite(self.estimates["T_break"].value),
             "skipped": [f"{s.path} at {s.t0:.4g} s" for s in self.steps if not s.moved],
         }
+        self._keep_lumped(model)
 
     def table(self) -> str:
         lines = ["fit-mechanical: free-speed steps", ""]

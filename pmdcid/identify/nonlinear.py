@@ -30,7 +30,7 @@ from pmdcid.errors import FitError, ModelError
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
 from pmdcid.identify.priors import prior_terms, stage_priors
-from pmdcid.identify.results import Estimate, SimFitResult
+from pmdcid.identify.results import Estimate, ResultProtocol, SimFitResult
 from pmdcid.identify.simfit import (
     blas_single_thread,
     fit_simulation,
@@ -66,7 +66,7 @@ REFINE_RANGE = 10.0
 
 
 @dataclass
-class NonlinearResult:
+class NonlinearResult(ResultProtocol):
     """J, bv, bc, dz (and tau0) with standard errors, correlations, per-log NRMSE, warnings."""
 
     estimates: dict[str, Estimate]
@@ -114,6 +114,7 @@ class NonlinearResult:
                            "stderr": self.fit.priors[n][1]}
                        for n, s in self.prior_from.items() if n in self.fit.priors},
         }
+        self._keep_lumped(model)
 
     def table(self) -> str:
         lines = [f"fit-nonlinear: simulation error on {', '.join(self.signals)} "

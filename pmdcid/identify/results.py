@@ -1,4 +1,10 @@
-"""Typed fit results: value, standard error, unit and fit statistics (not tuples)."""
+"""Typed fit results: value, standard error, unit and fit statistics (not tuples).
+
+Every result (the stages' results, ``identify``'s and ``diagnose``'s) follows one protocol,
+:class:`ResultProtocol`: ``str()`` is its table, ``_repr_html_()`` shows it in a notebook,
+``to_dict()``/``to_pandas()`` give its parameters (value, stderr, unit), ``apply(model)`` writes
+them into a model.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +14,59 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.identify.covariance import CovarianceInfo
+
+
+class ResultProtocol:
+    """The common face of fit results (a mixin). A class provides ``table()`` and
+    ``apply(model)``, and either ``estimates`` (name -> :class:`Estimate`) or its own
+    :meth:`rows`; the rest follows."""
+
+    def rows(self) -> list[tuple[str, float, float, str]]:
+        """(name, value, stderr, unit) of each estimated parameter."""
+        return [(e.name, e.value, e.stderr, e.unit)
+                for e in getattr(self, "estimates", {}).values()]
+
+    def __str__(self) -> str:
+        return self.table()
+
+    def _repr_html_(self) -> str:
+        from pmdcid.model.tables import html_table
+
+        return html_table(self.rows(), type(self).__name__, self.table())
+
+    def to_dict(self) -> dict:
+        """Parameters (name -> value, stderr, unit), warnings, fit statistics, the table."""
+        from pmdcid.model.tables import rows_dict
+
+        out = {"result": type(self).__name__, "parameters": rows_dict(self.rows()),
+               "warnings": list(getattr(self, "warnings", []))}
+        stats = getattr(self, "stats", None)
+        if isinstance(stats, FitStats):
+            out["stats"] = {"ndata": stats.ndata, "nvarys": stats.nvarys,
+                            "chisqr": stats.chisqr, "redchi": stats.redchi,
+                            "aic": stats.aic, "bic": stats.bic}
+        out["table"] = self.table()
+        return out
+
+    def to_pandas(self):
+        """A DataFrame with columns parameter, value, stderr, unit."""
+        from pmdcid.model.tables import rows_frame
+
+        return rows_frame(self.rows())
+
+    def table(self) -> str:  # pragma: no cover - every result defines its own
+        raise NotImplementedError
+
+    def apply(self, model) -> None:  # pragma: no cover - every result defines its own
+        raise NotImplementedError
+
+    def _keep_lumped(self, model) -> None:
+        """After apply: a result fitted per volt (``per_volt`` marked it) makes ``model``
+        lumped too, so that its per-volt values are never read as SI."""
+        if getattr(self, "lumped", False):
+            from pmdcid.model.lumped import mark_lumped
+
+            mark_lumped(model)
 
 
 @dataclass

@@ -24,25 +24,38 @@ def _load(paths, model_path, mapping):
                            model_path)
     model = load_model(model_path, must_exist=False)
     logs = read_logs(paths, mapping)
+    return logs, lumped_if_wanted(logs, model)
+
+
+def lumped_if_wanted(logs, model):
+    """``model``, marked lumped (in place) when ``logs`` can only identify a per-volt model
+    (:func:`~pmdcid.model.lumped.wants_lumped`)."""
     if wants_lumped(logs, model) and not is_lumped(model):
         mark_lumped(model)
-    return logs, model
+    return model
 
 
-def _save(result, model, model_path):
+def updated(result, model):
+    """A copy of ``model`` with ``result`` applied (per volt for a lumped model)."""
     new = model.copy()
     result.apply(new)
     if is_lumped(model):
         per_volt(result)
         mark_lumped(new)
-    save_model(new, model_path)
+    return new
+
+
+def _save(result, model, model_path):
+    save_model(updated(result, model), model_path)
     return result
 
 
 def per_volt(result) -> None:
-    """Relabel a result's estimates in per-volt units (a lumped model, :mod:`..model.lumped`)."""
+    """Relabel a result's estimates in per-volt units (a lumped model, :mod:`..model.lumped`);
+    its ``apply`` then marks the model it writes into as lumped."""
     for e in getattr(result, "estimates", {}).values():
         e.unit = lumped_unit(e.unit)
+    result.lumped = True
     note = "lumped model: per-volt parameters (no current, no datasheet); see the model file"
     if note not in result.warnings:
         result.warnings.insert(0, note)
@@ -56,14 +69,29 @@ def run_fit_electrical(paths, model_path, mapping=None):
     return _save(fit_electrical(logs, model), model, model_path)
 
 
-def run_fit_mechanical(paths, model_path, mapping=None, km=None):
-    """``pmdcid fit-mechanical``: b, bv, bc, J from free-speed step logs into ``model_path``."""
+def stage_mechanical(logs, model, km=None):
+    """fit-mechanical as the command runs it: per volt for a lumped model, else with ``km``."""
     from pmdcid.identify.mechanical import fit_mechanical
 
-    logs, model = _load(paths, model_path, mapping)
     if is_lumped(model):
-        return _save(lumped_mechanical(logs, model, fit_mechanical), model, model_path)
-    return _save(fit_mechanical(logs, model, km=km), model, model_path)
+        return lumped_mechanical(logs, model, fit_mechanical)
+    return fit_mechanical(logs, model, km=km)
+
+
+def stage_nonlinear(logs, model, **opts):
+    """fit-nonlinear as the command runs it: a lumped model's logs seen as torque-driven
+    (:func:`~pmdcid.simulate.logs_for`), J, bv, bc, dz free unless ``free`` says otherwise."""
+    from pmdcid.identify.nonlinear import fit_nonlinear
+
+    if is_lumped(model) and not opts.get("free"):
+        opts["free"] = ["J", "bv", "bc", "dz"]
+    return fit_nonlinear(logs_for(logs, model), model, **opts)
+
+
+def run_fit_mechanical(paths, model_path, mapping=None, km=None):
+    """``pmdcid fit-mechanical``: b, bv, bc, J from free-speed step logs into ``model_path``."""
+    logs, model = _load(paths, model_path, mapping)
+    return _save(stage_mechanical(logs, model, km), model, model_path)
 
 
 def lumped_mechanical(logs, model, fit):
@@ -84,12 +112,8 @@ def lumped_mechanical(logs, model, fit):
 
 def run_fit_nonlinear(paths, model_path, mapping=None, **opts):
     """``pmdcid fit-nonlinear``: J, bv, bc, dz (tau0) by simulation error into ``model_path``."""
-    from pmdcid.identify.nonlinear import fit_nonlinear
-
     logs, model = _load(paths, model_path, mapping)
-    if is_lumped(model) and not opts.get("free"):
-        opts["free"] = ["J", "bv", "bc", "dz"]
-    return _save(fit_nonlinear(logs_for(logs, model), model, **opts), model, model_path)
+    return _save(stage_nonlinear(logs, model, **opts), model, model_path)
 
 
 def run_fit_inverse_dynamics(paths, model_path, mapping=None, as_published=False, km=None):

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pmdcid.errors import LogError, warn
+from pmdcid.errors import LogError
 from pmdcid.io.mapping import ColumnMap
 
 CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
@@ -102,6 +102,34 @@ class Log:
     def kind(self) -> str | None:
         return self.meta.get("kind")
 
+    @classmethod
+    def from_csv(cls, path, *, columns=None, map_file=None, cutoff_hz=None) -> Log:
+        """Read a CSV log as ``pmdcid`` commands do. ``columns``: mappings as a dict
+        ``{"omega": "speed*rpm"}`` or a list of ``"omega=speed*rpm"`` (the ``-c`` option),
+        ``map_file``: a mapping file (``--map``), ``cutoff_hz`` (``--cutoff``)."""
+        from pmdcid.io.build import as_mapping
+
+        return read_log(path, as_mapping(columns, map_file, cutoff_hz))
+
+    @classmethod
+    def from_dataframe(cls, df, *, columns=None, name: str = "dataframe", cutoff_hz=None,
+                       meta: dict | None = None) -> Log:
+        """A log from a pandas DataFrame, mapped and checked exactly as a CSV file is."""
+        from pmdcid.io.build import as_mapping, log_from_frame
+
+        return log_from_frame(df, as_mapping(columns, None, cutoff_hz), name, meta)
+
+    @classmethod
+    def from_arrays(cls, t, *, v=None, tau=None, i=None, omega=None, theta=None,
+                    name: str = "arrays", cutoff_hz=None, meta: dict | None = None) -> Log:
+        """A log from SI arrays: ``t`` [s], ``v`` [V] or ``tau`` [N m], ``i`` [A], ``omega``
+        [rad/s], ``theta`` [rad]; checked as a CSV file is (uniform time, finite values, speed
+        derived from the angle or the reverse)."""
+        from pmdcid.io.build import log_from_arrays
+
+        return log_from_arrays(t, name, cutoff_hz, meta, v=v, tau=tau, i=i, omega=omega,
+                               theta=theta)
+
 
 def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
     """Metadata from leading ``#`` lines and the number of such lines."""
@@ -121,33 +149,6 @@ def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
         else:
             break
     return meta, n
-
-
-def _fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
-    bad = ~np.isfinite(x)
-    if not bad.any():
-        return x
-    if np.isinf(x).any():
-        row = int(np.flatnonzero(np.isinf(x))[0])
-        raise LogError(f"column '{name}' holds an infinite value (data row {row + 1}): "
-                       "fix or remove that row", path)
-    nbad = int(bad.sum())
-    frac = nbad / len(x)
-    # longest run of NaN
-    edges = np.diff(np.concatenate(([0], bad.view(np.int8), [0])))
-    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
-    first = int(np.flatnonzero(bad)[0])
-    if frac > NAN_MAX_FRACTION or runs.max() > NAN_MAX_RUN or bad.all():
-        raise LogError(
-            f"column '{name}' has {nbad} missing/NaN values (first at data row {first + 1}, "
-            f"longest gap {int(runs.max())} samples): too many to fill; clean or cut the log",
-            path,
-        )
-    good = np.flatnonzero(~bad)
-    x = x.copy()
-    x[bad] = np.interp(np.flatnonzero(bad), good, x[good])
-    warn(f"column '{name}': filled {nbad} NaN value(s) by linear interpolation", path)
-    return x
 
 
 def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
@@ -193,99 +194,11 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     df.columns = cols
     if len(df) == 0:
         raise LogError("has a header but no data rows: was the recording saved?", p)
+    from pmdcid.io.build import frame_columns, validated_log
+
     mapping = mapping or ColumnMap()
-    # which source column feeds each canonical column
-    sources: dict[str, tuple[str, float, float]] = {}
-    for c in CANONICAL:
-        if c in cols:
-            sources[c] = (c, 1.0, 0.0)
-    for canon, spec in mapping.specs.items():
-        if spec.source not in cols:
-            raise LogError(
-                f"column mapping {canon}={spec.source}: no column '{spec.source}' "
-                f"(columns are {', '.join(cols)})",
-                p,
-            )
-        sources[canon] = (spec.source, spec.scale, spec.offset)
-    if "t" not in sources:
-        seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar")]
-        sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
-        if sep:
-            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}); pmdcid reads "
-                           "comma-separated CSV with '.' decimals: convert the file first", p)
-        raise LogError(
-            f"has no time column 't' (columns are {', '.join(cols)}; map one with -c t=SOURCE)", p
-        )
-    used_sources = {s for s, _, _ in sources.values()}
-    data: dict[str, np.ndarray] = {}
-    for canon, (src, scale, offset) in sources.items():
-        col = pd.to_numeric(df[src], errors="coerce").to_numpy(dtype=float)
-        raw = df[src]
-        if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
-            notnum = np.isnan(col) & raw.notna().to_numpy() & (
-                raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
-            ).to_numpy()
-            if notnum.any():
-                row = int(np.flatnonzero(notnum)[0])
-                raise LogError(
-                    f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
-                    f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
-                    "that row (or map another column)",
-                    p,
-                )
-        data[canon] = col * scale + offset
-    extra = {}
-    for c in cols:
-        if c not in used_sources:
-            x = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
-            if np.isfinite(x).any():
-                extra[c] = x
-    t = data.pop("t")
-    if not np.isfinite(t).all():
-        row = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise LogError(f"time column has a missing or non-finite value (data row {row + 1}): "
-                       "fix or remove that row", p)
-    if len(t) < 3:
-        raise LogError(f"has only {len(t)} data row(s): too short to use (at least 3)", p)
-    dtv = np.diff(t)
-    if (dtv <= 0).any():
-        row = int(np.flatnonzero(dtv <= 0)[0])
-        what = "stands still" if dtv[row] == 0 else "goes back"
-        raise LogError(
-            f"time {what} at data row {row + 2} (t={t[row + 1]:g} s): time must increase", p
-        )
-    med = float(np.median(dtv))
-    dev = float(np.max(np.abs(dtv - med)) / med)
-    if dev > JITTER_TOL:
-        gaps = np.flatnonzero(dtv > 1.5 * med)
-        if len(gaps) and np.all(np.abs(np.delete(dtv, gaps) - med) <= JITTER_TOL * med):
-            k = int(gaps[0])
-            raise LogError(
-                f"samples missing: {len(gaps)} gap(s), the first of {dtv[k]:.3g} s after data "
-                f"row {k + 1} (t={t[k]:g} s) where the period is {med:.3g} s; cut the log there "
-                "or resample it to a uniform grid", p)
-        raise LogError(
-            f"irregular sampling: the sample period varies from {dtv.min():.3g} to "
-            f"{dtv.max():.3g} s ({100 * dev:.0f} % jitter); resample to a uniform grid first",
-            p,
-        )
-    t_file = t
-    t = t[0] + med * np.arange(len(t))
-    for canon in list(data):
-        data[canon] = _fill_nans(canon, data[canon], p)
-    for c in list(extra):
-        if not np.isfinite(extra[c]).all():
-            extra.pop(c)
-    log = Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra, cutoff_hz=mapping.cutoff_hz,
-              t_file=t_file)
-    from pmdcid.io.checks import check_log
-
-    check_log(log)
-    if ("omega" in data) != ("theta" in data):
-        from pmdcid.io.derive import derive_missing
-
-        derive_missing(log, mapping.cutoff_hz)
-    return log
+    data, extra = frame_columns(df, mapping, p)
+    return validated_log(p, data, extra, meta, mapping.cutoff_hz)
 
 
 def read_logs(paths, mapping: ColumnMap | None = None) -> list[Log]:

@@ -111,6 +111,49 @@ class Model:
         return Model({k: Parameter(**vars(v)) for k, v in self.parameters.items()},
                      list(self.effects), json.loads(json.dumps(self.extra)), self.path)
 
+    @classmethod
+    def load(cls, path: str | os.PathLike, must_exist: bool = True) -> Model:
+        """Read a model file (see :func:`load_model`)."""
+        return load_model(path, must_exist)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write this model to ``path`` atomically (see :func:`save_model`)."""
+        save_model(self, path)
+
+    def to_si(self, *, km: float, R: float) -> Model:
+        """An SI copy of a lumped (per-volt) model given km [N m/A] and R [ohm]
+        (:func:`pmdcid.model.lumped.to_si`); raises ModelError for a model that is not lumped."""
+        from pmdcid.model.lumped import is_lumped, to_si
+
+        if not is_lumped(self):
+            raise ModelError("to_si: the model is not lumped (its parameters are SI already)",
+                             self.path)
+        return to_si(self, km, R)
+
+    def rows(self) -> list[tuple[str, float, float, str]]:
+        """(name, value, stderr, unit) of every parameter."""
+        return [(n, p.value, p.stderr, p.unit) for n, p in self.parameters.items()]
+
+    def __str__(self) -> str:
+        from pmdcid.model.tables import text_table
+
+        head = [f"effects: {', '.join(self.effects)}"] if self.effects else []
+        if self.extra.get("lumped"):
+            head.append("lumped model: per-volt parameters")
+        return "\n".join([text_table(self.rows()), *head])
+
+    def _repr_html_(self) -> str:
+        from pmdcid.model.tables import html_table
+
+        cap = "model" + (f" (effects: {', '.join(self.effects)})" if self.effects else "")
+        return html_table(self.rows(), cap)
+
+    def to_pandas(self):
+        """A DataFrame of parameter, value, stderr, unit."""
+        from pmdcid.model.tables import rows_frame
+
+        return rows_frame(self.rows())
+
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             "parameters": {k: v.to_json() for k, v in self.parameters.items()},
@@ -119,6 +162,13 @@ class Model:
         out.update(self.extra)
         out.setdefault("format", FORMAT_VERSION)
         return out
+
+
+def copy_model_into(src: Model, dst: Model) -> None:
+    """Replace ``dst``'s parameters, effects and extra keys by copies of ``src``'s (in place;
+    ``dst.path`` is kept)."""
+    new = src.copy()
+    dst.parameters, dst.effects, dst.extra = new.parameters, new.effects, new.extra
 
 
 def _unit_of(name: str) -> str:

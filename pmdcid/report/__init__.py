@@ -127,12 +127,13 @@ def _before_after(logs, names, model: Model, before_model: Model | None) -> dict
 
 
 def make_report(logs, model: Model, out_dir, summary: dict | None = None,
-                before_model: Model | None = None) -> ReportResult:
+                before_model: Model | None = None, progress=None) -> ReportResult:
     """Compare ``model`` with every log and write the report into ``out_dir`` (see module doc).
 
     ``summary`` is a diagnose summary (CONTRACT.md) shown on the page; without it a
     ``diagnose`` record in ``model.extra`` is used. When the model carries effects (or
     ``before_model`` is given) the page shows the error before and after them.
+    ``progress(msg)`` is called before each log's simulation and before the figures.
     """
     from pmdcid import __version__
     from pmdcid.report import figures, html
@@ -143,11 +144,16 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
         raise LogError("no log files given")
     check_out_dir(out_dir)
     names = unique_names(logs)
-    cmps = [compare_log(log, model, name) for log, name in zip(logs, names, strict=True)]
+    say = progress or (lambda msg: None)
+    cmps = []
+    for k, (log, name) in enumerate(zip(logs, names, strict=True)):
+        say(f"report: simulating {name} ({k + 1}/{len(logs)})")
+        cmps.append(compare_log(log, model, name))
     if summary is None:
         rec = model.extra.get("diagnose") or model.extra.get("fits", {}).get("diagnose")
         summary = rec if isinstance(rec, dict) and "added" in rec else None
     figs: dict[str, bytes] = {}
+    say("report: figures")
     for c in cmps:
         c.metrics["figures"] = [f"{c.name}_overlay.png", f"{c.name}_residual.png"]
         figs[c.metrics["figures"][0]] = figures.overlay_figure(c)
@@ -204,3 +210,7 @@ def model_errors_from(cmps) -> list[dict]:
 
 
 __all__ = ["ReportResult", "check_out_dir", "load_summary", "make_report"]
+
+from pmdcid._callable import make_callable  # noqa: E402
+
+make_callable(__name__)  # pmdcid.report(...) calls pmdcid.api.report

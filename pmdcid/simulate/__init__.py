@@ -60,6 +60,13 @@ class SimResult:
     def get(self, name: str) -> np.ndarray:
         return getattr(self, name)
 
+    def to_pandas(self):
+        """A DataFrame of t [s], i [A], omega [rad/s], theta [rad] (as the sensors read them)."""
+        import pandas as pd
+
+        return pd.DataFrame({"t": self.t, "i": self.i, "omega": self.omega,
+                             "theta": self.theta})
+
 
 def neutral_values() -> dict[str, float]:
     """Every kernel and sensor parameter at the value that switches its effect off."""
@@ -171,3 +178,7 @@ __all__ = [
     "neutral_values", "param_values", "param_vector", "run_kernel", "simulate", "simulate_log",
     "simulate_values",
 ]
+
+from pmdcid._callable import make_callable  # noqa: E402
+
+make_callable(__name__)  # pmdcid.simulate(...) calls pmdcid.api.simulate

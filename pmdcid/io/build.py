@@ -1,0 +1,202 @@
+"""Building a validated :class:`~pmdcid.io.logs.Log` from columns: the one set of checks.
+
+Every way into a log goes through here: :func:`~pmdcid.io.logs.read_log` (CSV files, the CLI),
+``Log.from_dataframe`` and ``Log.from_arrays`` (the library). :func:`frame_columns` applies a
+column mapping (units, renames) to a table; :func:`validated_log` checks the time column (finite,
+increasing, uniform within :data:`~pmdcid.io.logs.JITTER_TOL`), fills short NaN gaps, runs the
+plausibility checks (:mod:`pmdcid.io.checks`) and derives speed from angle or the reverse
+(:mod:`pmdcid.io.derive`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pmdcid.errors import LogError, warn
+from pmdcid.io.logs import CANONICAL, JITTER_TOL, NAN_MAX_FRACTION, NAN_MAX_RUN, Log
+from pmdcid.io.mapping import ColumnMap, parse_mapping
+
+
+def as_mapping(columns=None, map_file=None, cutoff_hz: float | None = None) -> ColumnMap:
+    """A :class:`ColumnMap` from the library's ways of giving one: a ``ColumnMap``, a dict
+    ``{"omega": "speed*rpm"}``, a list of ``"omega=speed*rpm"`` items or one such string, plus
+    an optional mapping file (its entries overridden by ``columns``) and a cut-off [Hz]."""
+    if isinstance(columns, ColumnMap):
+        base = parse_mapping((), map_file) if map_file is not None else ColumnMap()
+        out = base.merged(columns)
+    else:
+        if isinstance(columns, dict):
+            items = [f"{k}={v}" for k, v in columns.items()]
+        elif isinstance(columns, str):
+            items = [columns]
+        else:
+            items = list(columns or ())
+        out = parse_mapping(items, map_file)
+    if cutoff_hz is not None:
+        out.cutoff_hz = float(cutoff_hz)
+    return out
+
+
+def frame_columns(df, mapping: ColumnMap, path: str):
+    """Canonical SI columns (name -> float array) and the other numeric columns of ``df``.
+
+    A canonical column comes from the column of that name or from ``mapping``; raises
+    :class:`LogError` naming the column for a missing source, a text cell, or no time column.
+    """
+    import pandas as pd
+
+    cols = [str(c) for c in df.columns]
+    sources: dict[str, tuple[str, float, float]] = {c: (c, 1.0, 0.0) for c in CANONICAL
+                                                    if c in cols}
+    for canon, spec in mapping.specs.items():
+        if spec.source not in cols:
+            raise LogError(f"column mapping {canon}={spec.source}: no column '{spec.source}' "
+                           f"(columns are {', '.join(cols)})", path)
+        sources[canon] = (spec.source, spec.scale, spec.offset)
+    if "t" not in sources:
+        seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar")]
+        sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
+        if sep:
+            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}); pmdcid reads "
+                           "comma-separated CSV with '.' decimals: convert the file first", path)
+        raise LogError(f"has no time column 't' (columns are {', '.join(cols)}; map one with "
+                       "-c t=SOURCE)", path)
+    data: dict[str, np.ndarray] = {}
+    for canon, (src, scale, offset) in sources.items():
+        raw = df[src]
+        col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+        if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
+            blank = raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"])
+            notnum = np.isnan(col) & raw.notna().to_numpy() & ~blank.to_numpy()
+            if notnum.any():
+                row = int(np.flatnonzero(notnum)[0])
+                raise LogError(f"column '{src}' holds non-numeric value "
+                               f"{str(raw.iloc[row])[:30]!r} (data row {row + 1}): numbers "
+                               "only, with '.' decimals; fix or remove that row (or map another "
+                               "column)", path)
+        data[canon] = col * scale + offset
+    used = {s for s, _, _ in sources.values()}
+    extra = {}
+    for c in cols:
+        if c not in used:
+            x = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
+            if np.isfinite(x).any():
+                extra[c] = x
+    return data, extra
+
+
+def fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
+    """``x`` with short NaN gaps interpolated (a warning); too many, or an inf: LogError."""
+    bad = ~np.isfinite(x)
+    if not bad.any():
+        return x
+    if np.isinf(x).any():
+        row = int(np.flatnonzero(np.isinf(x))[0])
+        raise LogError(f"column '{name}' holds an infinite value (data row {row + 1}): "
+                       "fix or remove that row", path)
+    nbad = int(bad.sum())
+    edges = np.diff(np.concatenate(([0], bad.view(np.int8), [0])))
+    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+    first = int(np.flatnonzero(bad)[0])
+    if nbad / len(x) > NAN_MAX_FRACTION or runs.max() > NAN_MAX_RUN or bad.all():
+        raise LogError(
+            f"column '{name}' has {nbad} missing/NaN values (first at data row {first + 1}, "
+            f"longest gap {int(runs.max())} samples): too many to fill; clean or cut the log",
+            path)
+    good = np.flatnonzero(~bad)
+    x = x.copy()
+    x[bad] = np.interp(np.flatnonzero(bad), good, x[good])
+    warn(f"column '{name}': filled {nbad} NaN value(s) by linear interpolation", path)
+    return x
+
+
+def check_time(t: np.ndarray, path: str) -> float:
+    """The sample period [s] of a time column that is finite, increasing and uniform."""
+    if not np.isfinite(t).all():
+        row = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise LogError(f"time column has a missing or non-finite value (data row {row + 1}): "
+                       "fix or remove that row", path)
+    if len(t) < 3:
+        raise LogError(f"has only {len(t)} data row(s): too short to use (at least 3)", path)
+    dtv = np.diff(t)
+    if (dtv <= 0).any():
+        row = int(np.flatnonzero(dtv <= 0)[0])
+        what = "stands still" if dtv[row] == 0 else "goes back"
+        raise LogError(f"time {what} at data row {row + 2} (t={t[row + 1]:g} s): time must "
+                       "increase", path)
+    med = float(np.median(dtv))
+    dev = float(np.max(np.abs(dtv - med)) / med)
+    if dev > JITTER_TOL:
+        gaps = np.flatnonzero(dtv > 1.5 * med)
+        if len(gaps) and np.all(np.abs(np.delete(dtv, gaps) - med) <= JITTER_TOL * med):
+            k = int(gaps[0])
+            raise LogError(
+                f"samples missing: {len(gaps)} gap(s), the first of {dtv[k]:.3g} s after data "
+                f"row {k + 1} (t={t[k]:g} s) where the period is {med:.3g} s; cut the log there "
+                "or resample it to a uniform grid", path)
+        raise LogError(
+            f"irregular sampling: the sample period varies from {dtv.min():.3g} to "
+            f"{dtv.max():.3g} s ({100 * dev:.0f} % jitter); resample to a uniform grid first",
+            path)
+    return med
+
+
+def validated_log(path: str, data: dict[str, np.ndarray], extra: dict | None = None,
+                  meta: dict | None = None, cutoff_hz: float | None = None) -> Log:
+    """The checked :class:`Log` of canonical SI columns ``data`` (``t`` [s] among them).
+
+    The time column is checked (:func:`check_time`) and put on its uniform grid from 0 (the
+    original kept as ``t_file``); NaN gaps are filled (:func:`fill_nans`); the plausibility
+    checks run; speed is derived from the angle, or the angle from the speed, when one is missing.
+    """
+    data = {k: np.asarray(v, dtype=float) for k, v in data.items()}
+    t = data.pop("t")
+    med = check_time(t, path)
+    t_file = t
+    t = t[0] + med * np.arange(len(t))
+    t = t - t[0]
+    for canon in list(data):
+        data[canon] = fill_nans(canon, data[canon], path)
+    extra = {c: x for c, x in (extra or {}).items() if np.isfinite(x).all()}
+    log = Log(path=path, t=t, data=data, meta=dict(meta or {}), extra=extra,
+              cutoff_hz=cutoff_hz, t_file=t_file)
+    from pmdcid.io.checks import check_log
+
+    check_log(log)
+    if ("omega" in data) != ("theta" in data):
+        from pmdcid.io.derive import derive_missing
+
+        derive_missing(log, cutoff_hz)
+    return log
+
+
+def log_from_frame(df, mapping: ColumnMap | None = None, path: str = "<dataframe>",
+                   meta: dict | None = None) -> Log:
+    """A checked :class:`Log` from a pandas DataFrame (columns mapped as for a CSV file)."""
+    mapping = mapping or ColumnMap()
+    cols = [" ".join(str(c).splitlines()).strip() for c in df.columns]
+    dups = sorted({c for c in cols if cols.count(c) > 1})
+    if dups:
+        raise LogError(f"names column(s) {', '.join(dups)} more than once: rename one", path)
+    if len(df) == 0:
+        raise LogError("has no data rows", path)
+    df = df.set_axis(cols, axis=1)
+    data, extra = frame_columns(df, mapping, path)
+    return validated_log(path, data, extra, meta, mapping.cutoff_hz)
+
+
+def log_from_arrays(t, name: str = "<arrays>", cutoff_hz: float | None = None,
+                    meta: dict | None = None, **columns) -> Log:
+    """A checked :class:`Log` from 1-D arrays in SI units (``t`` [s], ``v`` [V], ...)."""
+    data = {"t": np.asarray(t, dtype=float)}
+    for k, v in columns.items():
+        if v is not None:
+            data[k] = np.asarray(v, dtype=float)
+    for k, a in data.items():
+        if a.ndim != 1 or len(a) != len(data["t"]):
+            raise LogError(f"column '{k}' must be a 1-D array as long as t ({len(data['t'])} "
+                           f"samples); it has shape {a.shape}", name)
+    if len(data) == 1:
+        raise LogError("needs an input ('v' [V] or 'tau' [N m]) and a measurement besides t",
+                       name)
+    return validated_log(name, data, None, meta, cutoff_hz)
