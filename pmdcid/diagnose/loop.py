@@ -109,6 +109,7 @@ class Run:
         self.model = model
         self.rules = rules
         self.max_nfev = max_nfev
+        self.say = lambda msg: None  # progress: told each round and refit
         torque_only = all(log.drive == "tau" for log in problem.logs)
         self.vals0 = param_values(model, torque_driven=torque_only)
         self.base_free = _free_base(problem, self.vals0, model)
@@ -236,6 +237,7 @@ def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_round
             break
         if not pool:
             break
+        run.say(f"diagnose round {rnd}: screening {len(pool)} effect(s)")
         screens = screen(run, cur, pool)
         ranked = sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
                         key=lambda s: -s.gain)[:refit_top]
@@ -245,6 +247,7 @@ def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_round
         rebase = None  # a better point of the current model met while refitting a candidate
         cands = []
         for s in ranked:
+            run.say(f"diagnose round {rnd}: refitting {s.effect}")
             c, ref = evaluate(run, s, cur, effect_free(s.effect) + cur_free, rnd)
             seen[s.effect] = c
             history.append(c)
@@ -302,10 +305,9 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, rules, max_nf
     problem = Problem(logs, split, max_samples, holdout_plan(logs))
     pool = _pool(problem, model, effects)
     run = Run(problem, model, rules, max_nfev)
+    run.say = say
     notes: list[str] = []
-    say("diagnose: baseline refit")
     base = baseline(run)
-    say("diagnose: screening the catalogue")
     cur, added, seen, history = search(run, base, pool, refit_top, max_rounds, notes)
     new = model.copy()
     final = None
