@@ -1,6 +1,17 @@
 """Command-line edge: parse, call one library function, write. Errors -> one line, exit 1.
 
-Each command lives in its own module of this package and registers itself on :data:`main`.
+Commands load lazily: ``pmdcid --help`` lists every command from :data:`COMMANDS` without
+importing any command module (so no numpy, scipy or numba), and ``pmdcid simulate ...`` imports
+only ``cmd_simulate`` and what that command needs.
+
+Adding a command is one line in :data:`COMMANDS`: its name -> (the module of this package that
+defines it with ``@main.command("name")``, the one-line help ``pmdcid --help`` shows), e.g.::
+
+    "export": ("cmd_export", "Write MODEL as a python-control, C or MATLAB simulation."),
+
+One module may define several commands (``cmd_fit`` defines the four ``fit-*`` stages).
+``main.commands`` still answers ``name in main.commands`` for every listed command; reading a
+command from it imports its module.
 """
 
 from __future__ import annotations
@@ -57,17 +68,111 @@ class _Group(click.Group):
             sys.exit(1)
 
 
-@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+#: every command: name -> (module of pmdcid.cli defining it, one-line help for ``pmdcid --help``).
+#: Adding a command is one line here (see the module docstring).
+COMMANDS: dict[str, tuple[str, str]] = {
+    "fit-electrical": ("cmd_fit", "Blocked-rotor current steps -> R, L (the model file is "
+                                  "created if missing)."),
+    "fit-mechanical": ("cmd_fit", "Free-speed speed steps -> Kmot, tau_mot -> b, J (paper) and "
+                                  "bv, bc (steady-speed line)."),
+    "fit-nonlinear": ("cmd_fit", "Triangular-input (or any rich) logs -> bc, bv, dz, J refined, "
+                                 "by simulation error."),
+    "fit-inverse-dynamics": ("cmd_fit", "Any logs with torque (or current) and angle or speed "
+                                        "-> J, bv, bc, tau0 by inverse dynamics."),
+    "report": ("cmd_report", "Compare MODEL with measured LOGs: DIR/report.html, "
+                             "DIR/metrics.json, DIR/*.png."),
+    "simulate": ("cmd_simulate", "Predict what the sensors read for INPUT's t and v (or tau), "
+                                 "starting from rest."),
+    "diagnose": ("cmd_diagnose", "Find the catalogue effects MODEL lacks on LOGs, add them, "
+                                 "refit, report before/after."),
+    "demo": ("cmd_demo", "Run the whole pipeline on the bundled example logs and write a "
+                         "report."),
+}
+
+
+def short_help(text: str, limit: int = 45) -> str:
+    """``text`` shortened as click shortens a command's help for the command list."""
+    return click.Command(None, help=text).get_short_help_str(limit)
+
+
+class _LazyCommands(dict):
+    """``Group.commands`` that knows every name of :data:`COMMANDS` and imports a command's
+    module the first time the command itself is read (the module registers it here)."""
+
+    def _load(self, name) -> None:
+        if not dict.__contains__(self, name) and name in COMMANDS:
+            import importlib
+
+            importlib.import_module(f"pmdcid.cli.{COMMANDS[name][0]}")
+
+    def __contains__(self, name) -> bool:
+        return dict.__contains__(self, name) or name in COMMANDS
+
+    def __getitem__(self, name):
+        self._load(name)
+        return dict.__getitem__(self, name)
+
+    def get(self, name, default=None):
+        self._load(name)
+        return dict.get(self, name, default)
+
+    def keys(self):
+        return list(dict.fromkeys([*COMMANDS, *dict.keys(self)]))
+
+    def __iter__(self):
+        return iter(self.keys())
+
+    def __len__(self) -> int:
+        return len(self.keys())
+
+    def values(self):
+        return [self[k] for k in self.keys()]
+
+    def items(self):
+        return [(k, self[k]) for k in self.keys()]
+
+
+class _LazyGroup(_Group):
+    """A group listing :data:`COMMANDS` without importing them."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.commands = _LazyCommands(self.commands)
+
+    def format_commands(self, ctx, formatter):
+        """The ``Commands:`` section from the one-line helps of :data:`COMMANDS` (a command
+        already loaded, or not in the table, shows its own short help)."""
+        names = self.list_commands(ctx)
+        if not names:
+            return
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = []
+        for name in names:
+            if name in COMMANDS and not dict.__contains__(self.commands, name):
+                rows.append((name, short_help(COMMANDS[name][1], limit)))
+                continue
+            cmd = self.get_command(ctx, name)
+            if cmd is not None and not cmd.hidden:
+                rows.append((name, cmd.get_short_help_str(limit)))
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="pmdcid")
 def main():
     """Identify a non-linear PMDC motor model (dead zone, stick-slip friction) from logs."""
 
 
 def _register() -> None:
+    """Import, now, the command modules of :data:`COMMAND_MODULES` that :data:`COMMANDS` does not
+    name (a command registered the old way still works, at the cost of a slower start-up)."""
     import importlib
 
+    listed = {mod for mod, _ in COMMANDS.values()}
     for mod in COMMAND_MODULES:
-        importlib.import_module(f"pmdcid.cli.{mod}")
+        if mod not in listed:
+            importlib.import_module(f"pmdcid.cli.{mod}")
 
 
 #: command modules, each registering its command(s) on ``main`` at import
