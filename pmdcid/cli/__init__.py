@@ -82,11 +82,17 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "report": ("cmd_report", "Compare MODEL with measured LOGs: DIR/report.html, "
                              "DIR/metrics.json, DIR/*.png."),
     "simulate": ("cmd_simulate", "Predict what the sensors read for INPUT's t and v (or tau), "
-                                 "starting from rest."),
+                                 "from rest unless --x0."),
     "diagnose": ("cmd_diagnose", "Find the catalogue effects MODEL lacks on LOGs, add them, "
                                  "refit, report before/after."),
     "demo": ("cmd_demo", "Run the whole pipeline on the bundled example logs and write a "
                          "report."),
+    "identify": ("cmd_identify", "A whole rig: sort the logs, run every stage that applies, a "
+                                 "joint fit, diagnose, and the report into DIR."),
+    "export": ("cmd_export", "Write MODEL as a python-control module, C99 source or MATLAB "
+                             "code that simulates it exactly."),
+    "plan": ("cmd_plan", "Input profiles to record, sized for the smallest standard errors in "
+                         "a time budget."),
 }
 
 
