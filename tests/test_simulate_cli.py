@@ -61,3 +61,40 @@ def test_simulate_torque_driven(tmp_path, paper_model):
     log = read_log(out)
     expect = (0.02 - PAPER["bc"]) / PAPER["bv"]
     assert log["omega"][-1] == pytest.approx(expect, rel=1e-3)
+
+
+def test_simulate_several_inputs_into_a_folder(tmp_path, paper_model):
+    """One call over several INPUTs writes DIR/<input name> for each, byte for byte what the
+    single-input form writes."""
+    names = ["step_1.0V.csv", "step_2.0V.csv", "blocked_1.0V.csv"]
+    ins = [str(FIX / "paper" / n) for n in names]
+    r = CliRunner()
+    res = r.invoke(main, ["simulate", *ins, "-m", str(paper_model), "-o", str(tmp_path / "sims"),
+                          "--noise-omega", "0.01", "--seed", "3"])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (tmp_path / "sims").iterdir()) == sorted(names)
+    for src, name in zip(ins, names, strict=True):
+        one = tmp_path / f"one_{name}"
+        res = r.invoke(main, ["simulate", src, "-m", str(paper_model), "-o", str(one),
+                              "--noise-omega", "0.01", "--seed", "3"])
+        assert res.exit_code == 0, res.output
+        assert (tmp_path / "sims" / name).read_bytes() == one.read_bytes()
+
+
+@pytest.mark.parametrize("case", ["same names", "one input, -o a folder", "-o a file"])
+def test_simulate_several_inputs_refusals(tmp_path, paper_model, case):
+    a = FIX / "paper" / "step_1.0V.csv"
+    (tmp_path / "copy").mkdir()
+    b = tmp_path / "copy" / "step_1.0V.csv"
+    b.write_bytes(a.read_bytes())
+    (tmp_path / "file.csv").write_text("not a folder\n")
+    args, code = {
+        "same names": ([str(a), str(b), "-o", str(tmp_path / "out")], 2),
+        "one input, -o a folder": ([str(a), "-o", str(tmp_path / "copy")], 2),
+        "-o a file": ([str(a), str(FIX / "paper" / "step_2.0V.csv"), "-o",
+                       str(tmp_path / "file.csv")], 1),
+    }[case]
+    res = CliRunner().invoke(main, ["simulate", *args, "-m", str(paper_model)])
+    assert res.exit_code == code, res.output
+    assert not (tmp_path / "out").exists()
+    assert (tmp_path / "file.csv").read_text() == "not a folder\n"
