@@ -89,10 +89,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
                          "report."),
     "identify": ("cmd_identify", "A whole rig: sort the logs, run every stage that applies, a "
                                  "joint fit, diagnose, and the report into DIR."),
-    "export": ("cmd_export", "Write MODEL as a python-control module, C99 source or MATLAB "
-                             "code that simulates it exactly."),
-    "plan": ("cmd_plan", "Input profiles to record, sized for the smallest standard errors in "
-                         "a time budget."),
+    "export": ("cmd_export", "Write code that steps MODEL exactly as `pmdcid simulate` does "
+                             "(python-control, C, MATLAB)."),
+    "plan": ("cmd_plan", "Input profiles to record, and the standard error each parameter will "
+                         "have."),
 }
 
 
