@@ -704,9 +704,9 @@ def test_no_warning_on_real_emps_logs():
     from pmdcid.errors import PmdcidWarning
     from pmdcid.io import parse_mapping, read_log
 
-    logs = sorted((FIX / "emps").glob("*.csv"))
+    logs = sorted((FIX.parents[1] / "shared" / "data" / "emps").glob("*.csv"))
     if not logs:
-        pytest.skip("no EMPS logs bundled")
+        pytest.skip("no EMPS logs under ../shared/data/emps")
     m = parse_mapping(["t=t_s", "theta=qm_meas_m", "tau=force_N"])
     with warnings.catch_warnings():
         warnings.simplefilter("error", PmdcidWarning)

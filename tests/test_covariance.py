@@ -86,6 +86,7 @@ def test_too_few_blocks_fall_back_to_white():
     assert cov is white and info.blocks == 3
 
 
+@pytest.mark.slow
 def test_fit_nonlinear_standard_errors_match_the_spread_under_correlated_noise():
     """Round trip, 16 logs: a torque-driven staircase (60 s, 1 kHz) whose speed sensor error is
     AR(1) with a 0.4 s correlation time (150 correlation times per log). The spread of the

@@ -71,6 +71,7 @@ def test_catalogue_holds_the_contract_effects():
         assert eff.signature is not None and eff.guess is not None, eff.name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect", sorted(VISIBLE))
 def test_hidden_effect_is_named_and_fixes_the_held_out_error(effect):
     seed = 500 + sorted(VISIBLE).index(effect)
@@ -102,6 +103,7 @@ def test_clean_logs_get_nothing(seed):
     assert res.model.effects == model.effects
 
 
+@pytest.mark.slow
 def test_two_effects_at_once():
     rng = np.random.default_rng(21)
     truth = perturbed_truth(rng, 0.2, **VISIBLE["torque_offset"], **VISIBLE["quadratic_drag"])

@@ -18,7 +18,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench import realdata  # noqa: E402
 
 RIGS = {r.name: r for r in realdata.rigs()}
-pytestmark = pytest.mark.skipif(not RIGS, reason=f"no real data under {realdata.SHARED}")
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(not RIGS, reason=f"no real data under {realdata.SHARED}")]
 
 
 def _check(name: str, *, target: bool, paper: bool = True, paper_target: bool | None = None):

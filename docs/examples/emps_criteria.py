@@ -145,8 +145,8 @@ def row(name, values, train, test, extra=""):
 
 def emps():
     cmap = parse_mapping(["tau=force_N", "theta=qm_meas_m", "t=t_s"])
-    train = read_log("fixtures/emps/emps_train_DATA_EMPS.csv", cmap)
-    test = read_log("fixtures/emps/emps_test_DATA_EMPS_PULSES.csv", cmap)
+    train = read_log("../shared/data/emps/emps_train_DATA_EMPS.csv", cmap)
+    test = read_log("../shared/data/emps/emps_test_DATA_EMPS_PULSES.csv", cmap)
     base = fit_nonlinear([train], Model())
     start = base.values()
     work = model_of(start)
@@ -156,7 +156,7 @@ def emps():
     row("speed + angle, residual-weighted", residual_weighted([train], work, start), train, test)
     row("speed, least absolute deviations", least_absolute(train, start), train, test)
     row("closed loop, force error (DIDIM)",
-        input_error("fixtures/emps/emps_train_DATA_EMPS.csv"), train, test)
+        input_error("../shared/data/emps/emps_train_DATA_EMPS.csv"), train, test)
     print("references no estimator can use (fitted on the validation file itself):")
     row("best symmetric model for val.", oracle(test), train, test)
     a = np.array(list(AUTHORS.values()))
