@@ -11,12 +11,13 @@ import io as _io
 import math
 import os
 import tempfile
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from pmdcid.errors import LogError, warn
+from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.mapping import ColumnMap
 
 CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
@@ -48,6 +49,10 @@ class Log:
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     derived: set[str] = field(default_factory=set)
     cutoff_hz: float | None = None
+    #: canonical column -> why a mapping-file line for it was skipped (its source is absent)
+    skipped: dict[str, str] = field(default_factory=dict)
+    #: what the plausibility checks found (:func:`pmdcid.io.checks.check_log`), one line each
+    issues: list[str] = field(default_factory=list)
 
     @property
     def dt(self) -> float:
@@ -76,8 +81,9 @@ class Log:
             return "v"
         if "tau" in self.data:
             return "tau"
+        why = "".join(f"; {self.skipped[c]}" for c in ("v", "tau") if c in self.skipped)
         raise LogError("has no input column: it needs 'v' [V] or 'tau' [N m] "
-                       "(map one with e.g. -c v=SOURCE*SCALE)", self.path)
+                       f"(map one with e.g. -c v=SOURCE*SCALE){why}", self.path)
 
     @property
     def u(self) -> np.ndarray:
@@ -88,10 +94,11 @@ class Log:
         """Raise a one-line :class:`LogError` naming what is missing and how to map it."""
         missing = [c for c in cols if c not in self.data]
         if missing:
-            have = ", ".join(list(self.data) + list(self.extra)) or "none"
+            have = short_list(list(self.data) + list(self.extra)) or "none"
             why = f" for {purpose}" if purpose else ""
+            skip = "".join(f"; {self.skipped[c]}" for c in missing if c in self.skipped)
             raise LogError(
-                f"needs column(s) {', '.join(missing)}{why}; it has {have} "
+                f"needs column(s) {', '.join(missing)}{why}{skip}; it has {have} "
                 f"(map one with e.g. -c {missing[0]}=SOURCE*SCALE)",
                 self.path,
             )
@@ -122,6 +129,12 @@ def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
 
 
 def _fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
+    big = np.abs(np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)) >= OVERLOAD
+    if big.any():
+        row = int(np.flatnonzero(big)[0])
+        raise LogError(f"column '{name}' holds {x[row]:.3g} (data row {row + 1}): an instrument "
+                       "overload or not-a-number marker, not a measurement; fix or remove that "
+                       "row", path)
     bad = ~np.isfinite(x)
     if not bad.any():
         return x
@@ -148,96 +161,126 @@ def _fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
     return x
 
 
-def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
-    """Read and validate one CSV log. Raises :class:`LogError` with one clear line."""
+#: at most this many unmapped numeric columns are kept in :attr:`Log.extra` (a transposed export
+#: of 120 000 columns must not cost 120 000 conversions)
+MAX_EXTRA = 64
+#: |values| at or above this are instrument overload / not-a-number markers (SCPI's 9.9e37),
+#: never a motor's voltage, current, speed or angle in SI units
+OVERLOAD = 1e30
+
+
+def _numeric_column(df, src: str, p: str) -> np.ndarray:
+    """Column ``src`` as floats; a text cell that is not a number is an error naming its row."""
     import pandas as pd
+
+    raw = df[src]
+    col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+    if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
+        notnum = np.isnan(col) & raw.notna().to_numpy() & (
+            raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
+        ).to_numpy()
+        if notnum.any():
+            row = int(np.flatnonzero(notnum)[0])
+            raise LogError(
+                f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
+                f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
+                "that row (or map another column)",
+                p,
+            )
+    return col
+
+
+def _sources(cols: list[str], mapping: ColumnMap, p: str):
+    """Spec of each canonical column, and the mapping-file lines skipped for this log."""
+    from pmdcid.io.mapping import ColumnSpec
+
+    have = set(cols)
+    specs = {c: ColumnSpec(c, c) for c in CANONICAL if c in have}
+    skipped: dict[str, str] = {}
+    for canon, spec in mapping.specs.items():
+        missing = [r for r in spec.refs if r not in have]
+        if missing and spec.origin is not None and len(missing) == len(spec.refs):
+            skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no column '{missing[0]}'"
+            continue
+        if missing:
+            raise LogError(f"column mapping {canon}={missing[0]}: no column '{missing[0]}' "
+                           f"(columns are {short_list(cols)})", p)
+        specs[canon] = spec
+    return specs, skipped
+
+
+def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
+             defer: bool = False) -> Log:
+    """Read and validate one CSV log. Raises :class:`LogError` with one clear line.
+
+    What the plausibility checks find (:mod:`pmdcid.io.checks`) is in ``log.issues``; it is
+    also warned about unless ``defer`` (a stage about to write a model refuses instead).
+    """
+    import pandas as pd
+
+    from pmdcid.io.csvsource import header_names, open_source, separator_hint, sniff
 
     p = str(path)
     if not os.path.exists(p):
         raise LogError("no such log file (check the path)", p)
     if os.path.isdir(p):
         raise LogError("is a folder, not a log file", p)
+    src = open_source(p)
+    meta, nskip = _split_comments(src.head, p)
+    sniff(src, nskip)
     try:
-        with open(p, "rb") as fh:
-            head = fh.read(1 << 16)
-    except OSError as exc:
-        raise LogError(f"cannot read log ({exc.strerror})", p) from None
-    if b"\x00" in head:
-        raise LogError("is not a text CSV file (binary content): export the log as CSV", p)
-    try:
-        head_text = head.decode("utf-8", errors="replace")
-    except Exception:  # pragma: no cover - decode with replace does not fail
-        head_text = ""
-    meta, nskip = _split_comments(head_text, p)
-    try:
-        df = pd.read_csv(p, skiprows=nskip, skipinitialspace=True, low_memory=False,
-                         encoding_errors="replace")
+        df = pd.read_csv(src.handle, skiprows=nskip, skipinitialspace=True, low_memory=False,
+                         encoding="utf-8-sig", encoding_errors="replace", sep=src.sep,
+                         decimal=src.decimal)
     except pd.errors.EmptyDataError:
         raise LogError("is empty: expected a header row naming the columns, then data rows",
                        p) from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-        raise LogError(f"is not a readable CSV ({msg}): check quotes and the number of fields "
-                       "per row", p) from None
+        raise LogError(f"is not a readable CSV ({msg[:100]}): check quotes and the number of "
+                       f"fields per row{separator_hint(src, nskip)}", p) from None
     cols = [" ".join(str(c).splitlines()).strip() for c in df.columns]  # one-line names
-    # pandas renames duplicates to 'x.1'; check the raw header instead
-    raw_header = next((ln for ln in head_text.splitlines()[nskip:] if ln.strip()), "")
-    raw_names = [c.strip().strip('"') for c in raw_header.split(",")]
-    dups = sorted({c for c in raw_names if raw_names.count(c) > 1 and c}
-                  | {c for c in cols if cols.count(c) > 1})  # also equal once stripped
+    # pandas renames duplicates to 'x.1'; check the raw header too (one pass: linear)
+    counts = Counter(c for c in header_names(src, nskip) if c)
+    counts_stripped = Counter(cols)
+    dups = sorted({c for c, k in counts.items() if k > 1}
+                  | {c for c, k in counts_stripped.items() if k > 1})  # also equal once stripped
     if dups:
-        raise LogError(f"header names column(s) {', '.join(dups)} more than once: rename one",
+        raise LogError(f"header names column(s) {short_list(dups)} more than once: rename one",
                        p)
     df.columns = cols
     if len(df) == 0:
         raise LogError("has a header but no data rows: was the recording saved?", p)
     mapping = mapping or ColumnMap()
-    # which source column feeds each canonical column
-    sources: dict[str, tuple[str, float, float]] = {}
-    for c in CANONICAL:
-        if c in cols:
-            sources[c] = (c, 1.0, 0.0)
-    for canon, spec in mapping.specs.items():
-        if spec.source not in cols:
-            raise LogError(
-                f"column mapping {canon}={spec.source}: no column '{spec.source}' "
-                f"(columns are {', '.join(cols)})",
-                p,
-            )
-        sources[canon] = (spec.source, spec.scale, spec.offset)
-    if "t" not in sources:
+    specs, skipped = _sources(cols, mapping, p)
+    if "t" not in specs:
         seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar")]
         sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
         if sep:
-            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}); pmdcid reads "
-                           "comma-separated CSV with '.' decimals: convert the file first", p)
-        raise LogError(
-            f"has no time column 't' (columns are {', '.join(cols)}; map one with -c t=SOURCE)", p
-        )
-    used_sources = {s for s, _, _ in sources.values()}
+            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}) but its rows do not "
+                           "have as many separators as the header: make every row alike, or "
+                           "convert the file to comma-separated CSV", p)
+        why = f"; {skipped['t']}" if "t" in skipped else ""
+        raise LogError(f"has no time column 't' (columns are {short_list(cols)}{why}; map one "
+                       "with -c t=SOURCE)", p)
+    cache: dict[str, np.ndarray] = {}
+
+    def get(name: str) -> np.ndarray:
+        if name not in cache:
+            cache[name] = _numeric_column(df, name, p)
+        return cache[name]
+
     data: dict[str, np.ndarray] = {}
-    for canon, (src, scale, offset) in sources.items():
-        col = pd.to_numeric(df[src], errors="coerce").to_numpy(dtype=float)
-        raw = df[src]
-        if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
-            notnum = np.isnan(col) & raw.notna().to_numpy() & (
-                raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
-            ).to_numpy()
-            if notnum.any():
-                row = int(np.flatnonzero(notnum)[0])
-                raise LogError(
-                    f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
-                    f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
-                    "that row (or map another column)",
-                    p,
-                )
-        data[canon] = col * scale + offset
+    for canon, spec in specs.items():
+        with np.errstate(all="ignore"):
+            data[canon] = np.broadcast_to(np.asarray(spec.evaluate(get), dtype=float),
+                                          (len(df),)).copy()
+    used_sources = {r for spec in specs.values() for r in spec.refs}
     extra = {}
-    for c in cols:
-        if c not in used_sources:
-            x = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
-            if np.isfinite(x).any():
-                extra[c] = x
+    for c in [c for c in cols if c not in used_sources][:MAX_EXTRA]:
+        x = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
+        if np.isfinite(x).any():
+            extra[c] = x
     t = data.pop("t")
     if not np.isfinite(t).all():
         row = int(np.flatnonzero(~np.isfinite(t))[0])
@@ -273,10 +316,14 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     for c in list(extra):
         if not np.isfinite(extra[c]).all():
             extra.pop(c)
-    log = Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra, cutoff_hz=mapping.cutoff_hz)
+    log = Log(path=p, t=t - t[0], data=data, meta=meta, extra=extra, cutoff_hz=mapping.cutoff_hz,
+              skipped=skipped)
     from pmdcid.io.checks import check_log
 
-    check_log(log)
+    log.issues = check_log(log)
+    if not defer:
+        for msg in log.issues:
+            warn(msg, p)
     if ("omega" in data) != ("theta" in data):
         from pmdcid.io.derive import derive_missing
 
@@ -284,11 +331,11 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     return log
 
 
-def read_logs(paths, mapping: ColumnMap | None = None) -> list[Log]:
-    """Read several logs with the same mapping."""
+def read_logs(paths, mapping: ColumnMap | None = None, defer: bool = False) -> list[Log]:
+    """Read several logs with the same mapping (``defer``: see :func:`read_log`)."""
     if not paths:
         raise LogError("no log files given")
-    return [read_log(p, mapping) for p in paths]
+    return [read_log(p, mapping, defer) for p in paths]
 
 
 #: rows formatted per chunk when writing a log (bounds the memory of writing huge logs)
@@ -322,9 +369,14 @@ def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, st
 def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
     """Write ``path`` atomically: ``fill(fh)`` writes a temporary file in the same folder (opened
     in binary mode when ``binary``), which then replaces ``path`` (os.replace). On any failure
-    the temporary file is removed and an existing ``path`` is left byte-for-byte as it was.
+    (SIGTERM included, see :mod:`pmdcid.io.outputs`) the temporary file is removed and an
+    existing ``path`` is left byte-for-byte as it was. A symlink is written through: its target
+    is replaced, the link stays. Inside a command's transaction the old version is kept until
+    the command succeeds.
     """
-    p = Path(path)
+    from pmdcid.io import outputs
+
+    p = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.exists():
         up = next((a for a in folder.parents if a.exists()), None)
@@ -337,6 +389,7 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
         fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
         raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
+    outputs.IN_FLIGHT.add(tmp)
     try:
         with os.fdopen(fd, "wb" if binary else "w") as fh:
             fill(fh)
@@ -348,6 +401,9 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(tmp, 0o666 & ~umask)
+        tr = outputs.current()
+        if tr is not None:
+            tr.before_replace(os.path.realpath(p))
         os.replace(tmp, p)
     except BaseException as exc:
         try:
@@ -355,8 +411,10 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
         except OSError:
             pass
         if isinstance(exc, OSError):
-            raise LogError(f"cannot write ({exc.strerror})", str(p)) from None
+            raise LogError(f"cannot write ({exc.strerror})", str(path)) from None
         raise
+    finally:
+        outputs.IN_FLIGHT.discard(tmp)
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:

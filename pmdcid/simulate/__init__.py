@@ -103,8 +103,11 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
 def simulate(t: np.ndarray, u: np.ndarray, model: Model, torque_driven: bool = False,
              nsub: int | None = None, overrides: dict[str, float] | None = None) -> SimResult:
     """Simulate ``model`` from rest under input ``u`` (V, or N m if ``torque_driven``) at ``t``."""
+    from pmdcid.simulate.kernel import bounded_for
+
     vals = param_values(model, torque_driven, overrides)
-    return simulate_values(t, u, vals, torque_driven, nsub)
+    with bounded_for(model.path):
+        return simulate_values(t, u, vals, torque_driven, nsub)
 
 
 def simulate_log(log, model: Model, nsub: int | None = None,
