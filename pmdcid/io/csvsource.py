@@ -17,7 +17,9 @@ import re
 import stat
 from dataclasses import dataclass
 
-from pmdcid.errors import LogError
+import numpy as np
+
+from pmdcid.errors import LogError, short_list
 from pmdcid.io.text import BOMS_16, decode
 
 HEAD_BYTES = 1 << 16
@@ -98,3 +100,43 @@ def header_names(src: Source, nskip: int) -> list[str]:
     if k == len(lines) - 1:  # the header runs past the head: its last name may be cut
         names = names[:-1]
     return names
+
+
+def numeric_column(df, src: str, p: str) -> np.ndarray:
+    """Column ``src`` as floats; a text cell that is not a number is an error naming its row."""
+    import pandas as pd
+
+    raw = df[src]
+    col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+    if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
+        notnum = np.isnan(col) & raw.notna().to_numpy() & (
+            raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
+        ).to_numpy()
+        if notnum.any():
+            row = int(np.flatnonzero(notnum)[0])
+            raise LogError(
+                f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
+                f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
+                "that row (or map another column)",
+                p,
+            )
+    return col
+
+
+def column_specs(cols: list[str], mapping, canonical, p: str):
+    """Spec of each canonical column, and the mapping-file lines skipped for this log."""
+    from pmdcid.io.mapping import ColumnSpec
+
+    have = set(cols)
+    specs = {c: ColumnSpec(c, c) for c in canonical if c in have}
+    skipped: dict[str, str] = {}
+    for canon, spec in mapping.specs.items():
+        missing = [r for r in spec.refs if r not in have]
+        if missing and spec.origin is not None and len(missing) == len(spec.refs):
+            skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no column '{missing[0]}'"
+            continue
+        if missing:
+            raise LogError(f"column mapping {canon}={missing[0]}: no column '{missing[0]}' "
+                           f"(columns are {short_list(cols)})", p)
+        specs[canon] = spec
+    return specs, skipped

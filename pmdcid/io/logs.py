@@ -169,46 +169,6 @@ MAX_EXTRA = 64
 OVERLOAD = 1e30
 
 
-def _numeric_column(df, src: str, p: str) -> np.ndarray:
-    """Column ``src`` as floats; a text cell that is not a number is an error naming its row."""
-    import pandas as pd
-
-    raw = df[src]
-    col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
-    if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
-        notnum = np.isnan(col) & raw.notna().to_numpy() & (
-            raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
-        ).to_numpy()
-        if notnum.any():
-            row = int(np.flatnonzero(notnum)[0])
-            raise LogError(
-                f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
-                f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
-                "that row (or map another column)",
-                p,
-            )
-    return col
-
-
-def _sources(cols: list[str], mapping: ColumnMap, p: str):
-    """Spec of each canonical column, and the mapping-file lines skipped for this log."""
-    from pmdcid.io.mapping import ColumnSpec
-
-    have = set(cols)
-    specs = {c: ColumnSpec(c, c) for c in CANONICAL if c in have}
-    skipped: dict[str, str] = {}
-    for canon, spec in mapping.specs.items():
-        missing = [r for r in spec.refs if r not in have]
-        if missing and spec.origin is not None and len(missing) == len(spec.refs):
-            skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no column '{missing[0]}'"
-            continue
-        if missing:
-            raise LogError(f"column mapping {canon}={missing[0]}: no column '{missing[0]}' "
-                           f"(columns are {short_list(cols)})", p)
-        specs[canon] = spec
-    return specs, skipped
-
-
 def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
              defer: bool = False) -> Log:
     """Read and validate one CSV log. Raises :class:`LogError` with one clear line.
@@ -218,7 +178,14 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     """
     import pandas as pd
 
-    from pmdcid.io.csvsource import header_names, open_source, separator_hint, sniff
+    from pmdcid.io.csvsource import (
+        column_specs,
+        header_names,
+        numeric_column,
+        open_source,
+        separator_hint,
+        sniff,
+    )
 
     p = str(path)
     if not os.path.exists(p):
@@ -252,7 +219,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     if len(df) == 0:
         raise LogError("has a header but no data rows: was the recording saved?", p)
     mapping = mapping or ColumnMap()
-    specs, skipped = _sources(cols, mapping, p)
+    specs, skipped = column_specs(cols, mapping, CANONICAL, p)
     if "t" not in specs:
         seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar")]
         sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
@@ -267,7 +234,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
 
     def get(name: str) -> np.ndarray:
         if name not in cache:
-            cache[name] = _numeric_column(df, name, p)
+            cache[name] = numeric_column(df, name, p)
         return cache[name]
 
     data: dict[str, np.ndarray] = {}
