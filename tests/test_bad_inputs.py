@@ -716,6 +716,9 @@ CASES: list[Case] = [
     C("sim-time-in-us", combine(MODEL, table("step.csv", {"t": T1K * 1e6, "v": np.ones(3000)})),
       SIM, 1,
       r"^error: model\.json: the simulation would take .*t in ms or us"),
+    C("fm-time-step-1e300", combine(MODEL, text("step.csv", "t,v,omega\n0,1,0\n1e300,1,1\n"
+                                                "2e300,1,2\n")), FM, 1,
+      r"^error: step\.csv: the sample period 1e\+300 s is no motor log's"),
     C("sim-time-step-1e300", combine(MODEL, text("step.csv", "t,v\n0,1\n1e300,1\n2e300,1\n")),
       SIM, 1, r"^error: model\.json: the simulation would take"),
     C("log-transposed-120k-columns", combine(MODEL, transposed("step.csv")), SIM, 1,

@@ -39,6 +39,9 @@ MAX_BACK_EMF_RATIO = 2.0
 
 
 def _time_unit_hint(dt: float) -> str:
+    if dt > 1e7:  # no unit makes this a motor log's period
+        return (f"the sample period {dt:.3g} s is no motor log's: check the time column (its "
+                "unit, or another column mapped to t with -c t=COLUMN)")
     unit, factor = ("ms", 1e-3) if dt < 50 else ("us", 1e-6)
     return (f"t looks like {'milliseconds' if unit == 'ms' else 'microseconds'} (a sample "
             f"period of {dt:g}; {unit} would make it {dt * factor:g} s): map it with "
