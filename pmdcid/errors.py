@@ -8,13 +8,38 @@ from __future__ import annotations
 
 import warnings
 
+#: longest error or warning line the tool prints [characters]: a message built from a huge input
+#: (120 000 column names, a 200 KB cell) keeps its head, which names the problem, and its tail,
+#: which says what to do
+MAX_MESSAGE = 300
+
+
+def one_line(message: str, limit: int = MAX_MESSAGE) -> str:
+    """``message`` on one line (newlines and runs of blanks collapsed), at most ``limit`` chars."""
+    s = " ".join(str(message).split())
+    if len(s) <= limit:
+        return s
+    tail = max(40, limit // 5)
+    return s[: limit - tail - 5] + " ... " + s[-tail:]
+
+
+def short_list(names, limit: int = 12) -> str:
+    """``a, b, c`` for a list of names, only the first ``limit`` then ``... (N more)``."""
+    names = [str(n)[:40] for n in names]
+    if len(names) <= limit:
+        return ", ".join(names)
+    return ", ".join(names[:limit]) + f", ... ({len(names) - limit} more)"
+
 
 class PmdcidError(Exception):
     """A problem with the user's data, files or model: one clear line, names the file if any."""
 
     def __init__(self, message: str, path: str | None = None):
         self.path = str(path) if path is not None else None
-        super().__init__(f"{self.path}: {message}" if self.path else message)
+        if self.path is not None and len(self.path) > 120:
+            self.path = self.path[:60] + "..." + self.path[-57:]
+        text = f"{self.path}: {message}" if self.path else str(message)
+        super().__init__(one_line(text))
 
 
 class LogError(PmdcidError):
@@ -35,4 +60,5 @@ class PmdcidWarning(UserWarning):
 
 def warn(message: str, path: str | None = None) -> None:
     """Emit a :class:`PmdcidWarning` (printed as one line by the CLI)."""
-    warnings.warn(f"{path}: {message}" if path else message, PmdcidWarning, stacklevel=2)
+    warnings.warn(one_line(f"{path}: {message}" if path else message), PmdcidWarning,
+                  stacklevel=2)

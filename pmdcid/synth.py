@@ -116,8 +116,18 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
     vals = param_values(model, torque)
     rng = np.random.default_rng(seed)
     has_noise = noise.i > 0 or noise.omega > 0 or noise.encoder > 0
-    cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque, blocked,
-                        x0=start_state(log, x0), input_name=log.drive)
+    from pmdcid.simulate.kernel import bounded_for
+
+    with np.errstate(over="ignore", invalid="ignore"), bounded_for(model_path):
+        cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque,
+                            blocked, x0=start_state(log, x0), input_name=log.drive)
+    for name, col in cols.items():  # a NaN current (torque-driven) is legitimate, inf is not
+        if np.isinf(col).any() or np.nanmax(np.abs(col), initial=0.0) >= 1e30:
+            std = {"i": noise.i, "omega": noise.omega}.get(name, 0.0)
+            why = (f"the noise std --noise-{name} {std:g} is far too large" if std >= 1e30 else
+                   "the model's parameters make it blow up: check their values and units")
+            raise LogError(f"simulated column '{name}' reaches {np.nanmax(np.abs(col)):.3g}: {why}"
+                           "; nothing written", output)
     meta = {"generator": GENERATOR, "source": os.path.basename(str(input_path)),
             "model": os.path.basename(str(model_path))}
     if has_noise:

@@ -15,7 +15,8 @@ afterwards (except files listed in ``changes`` when the command succeeds, e.g. t
 updates), and no temporary file is left behind.
 
 To add a case: write a ``build`` (the helpers below make logs and models in one line) and append a
-row. Rows for commands not registered yet are skipped until the command lands.
+row. A row for a command that is not registered fails (a skip could hide a regression): add rows
+only for commands that exist.
 """
 
 from __future__ import annotations
@@ -149,7 +150,7 @@ EXP = ["export", "-m", "model.json", "--to"]
 
 
 def _step_log(name, omega_scale=1.0, theta_scale=1.0, clip=None, v=1.5, onset=0.5, n=3000,
-              seed=1):
+              seed=1, theta=True):
     """A free-speed step log of the paper motor (analytic first order, small noise)."""
     def build(d: Path):
         rng = np.random.default_rng(seed)
@@ -166,26 +167,110 @@ def _step_log(name, omega_scale=1.0, theta_scale=1.0, clip=None, v=1.5, onset=0.
             om_meas = np.minimum(om_meas, clip)
         cols = {"t": t, "v": np.where(t >= onset, v, 0.0), "i": i + rng.normal(0, 2e-3, n),
                 "omega": om_meas * omega_scale, "theta": th * theta_scale}
+        if not theta:
+            cols.pop("theta")
         table(name, cols)(d)
     return build
 
 
-def _triangle_log(name, clip=None, seconds=40.0):
+def _triangle_log(name, clip=None, seconds=40.0, omega_scale=1.0, theta=True, **params):
     """A +-2 V triangle log of the paper motor, simulated by the kernel (noise, optional clip)."""
     def build(d: Path):
         from pmdcid.simulate import neutral_values
         from pmdcid.synth import NoiseSpec, synth_log, triangle
 
         t = np.arange(int(seconds * 1000)) * 1e-3
-        cols, _ = synth_log(t, triangle(t, 2.0, 20.0), {**neutral_values(), **PAPER},
+        cols, _ = synth_log(t, triangle(t, 2.0, 20.0), {**neutral_values(), **PAPER, **params},
                             NoiseSpec(4e-3, 4e-3, 4096), np.random.default_rng(2))
         if clip is not None:
             cols["omega"] = np.clip(cols["omega"], -np.inf, clip)
+        cols["omega"] = cols["omega"] * omega_scale
+        if not theta:
+            cols.pop("theta")
         table(name, {"t": t, **cols})(d)
     return build
 
 
 TRI = _triangle_log("tri.csv")
+
+
+# ---- builders for round two (issue 15) ---------------------------------------------------------
+
+def _scale_column(col: int, k: float):
+    """Multiply data column ``col`` of a fixture's lines by ``k`` (a unit left unmapped)."""
+    def fn(lines):
+        h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+        out = lines[:h + 1]
+        for ln in lines[h + 1:]:
+            cells = ln.split(",")
+            cells[col] = f"{float(cells[col]) * k:.9g}"
+            out.append(",".join(cells))
+        return out
+    return fn
+
+
+def model_units(name: str = "model.json", encoding: str = "utf-8", bom: bool = False, **given):
+    """The paper's model with some values given as ``name=(value, unit)``."""
+    def build(d: Path):
+        params = {k: {"value": v, "unit": ""} for k, v in PAPER.items()}
+        for k, (v, unit) in given.items():
+            params[k] = {"value": v, "unit": unit}
+        text_ = json.dumps({"parameters": params, "effects": []}, indent=2) + "\n"
+        data = text_.encode(encoding)
+        (d / name).write_bytes((b"\xef\xbb\xbf" if bom else b"") + data)
+    return build
+
+
+def _fixture_text(src: str) -> str:
+    return (FIX / src).read_text()
+
+
+def encoded(src: str, name: str, encoding: str, prefix: str = ""):
+    """A fixture log re-encoded (``utf-16`` writes a BOM), with ``prefix`` text before it."""
+    def build(d: Path):
+        (d / name).write_bytes((prefix + _fixture_text(src)).encode(encoding))
+    return build
+
+
+def european(src: str, name: str):
+    """A fixture log as a European Excel export: ';' separator, ',' decimal mark."""
+    def build(d: Path):
+        out = []
+        for ln in _fixture_text(src).splitlines():
+            out.append(ln if ln.startswith("#") else ln.replace(",", ";").replace(".", ","))
+        (d / name).write_text("\n".join(out) + "\n")
+    return build
+
+
+def transposed(name: str, ncols: int = 120_000):
+    """A log exported the wrong way round: one row per signal, one column per sample."""
+    def build(d: Path):
+        head = ",".join(f"s{k}" for k in range(ncols))
+        rows = [",".join(f"{k * 1e-3:.3f}" for k in range(ncols)),
+                ",".join("1.5" for _ in range(ncols))]
+        (d / name).write_text(head + "\n" + "\n".join(rows) + "\n")
+    return build
+
+
+def symlinked(link: str, target: str):
+    def build(d: Path):
+        (d / link).symlink_to(target)
+    return build
+
+
+def pwm_log(name: str, header: str = "t,pwm,dir"):
+    """Sign-magnitude PWM: 8-bit duty and a 0/1 direction column."""
+    def build(d: Path):
+        t = np.arange(2000) * 1e-3
+        pwm = np.full(2000, 128.0)
+        direction = (np.sin(2 * np.pi * t) > 0).astype(float)
+        table(name, {"t": t, "pwm": pwm, "dir": direction}, header)(d)
+    return build
+
+
+#: the one warning of fit-electrical on a single blocked-rotor log
+SAME_V = r"^warning: all logs step to the same voltage"
+OVERLOAD = edited("paper/step_1.5V.csv", "step.csv", _replace_data_row(700, 1, "9.9E+37"))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -234,7 +319,10 @@ CASES: list[Case] = [
       combine(MODEL, text("step.csv", '"ti\nme",v\n0,1\n1,1\n2,1\n')),
       SIM, 1, r"^error: step\.csv: has no time column 't' \(columns are ti me, v"),
     C("log-semicolon-separated", combine(MODEL, text(
-        "step.csv", "t;v;i\n0,000;1,5;0,1\n0,001;1,5;0,1\n0,002;1,5;0,1\n")), SIM, 1,
+        "step.csv", "t;v;i\n0,000;1,5;0,1\n0,001;1,5;0,1\n0,002;1,5;0,1\n")), SIM, 0, None,
+      changes=("out.csv",)),
+    C("log-semicolon-ragged", combine(MODEL, text(
+        "step.csv", "t;v;i\n0,000;1,5\n0,001;1,5;0,1;7\n0,002;1,5;0,1\n")), SIM, 1,
       r"^error: step\.csv: .*(semicolon|';')"),
     C("log-non-numeric-cell", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
                                                     _replace_data_row(100, 1, "1.5V"))), SIM, 1,
@@ -416,8 +504,11 @@ CASES: list[Case] = [
     C("fe-rotor-turns", combine(MODEL, fixture("paper/step_1.5V.csv", "blocked.csv")), FE, 0,
       r"^warning: blocked\.csv: .*rotor turns", changes=("model.json",)),
     C("fe-saturated-current", combine(MODEL, edited("paper/blocked_2.5V.csv", "blocked.csv",
-                                                    _clip_column(2, 0.9))), FE, 0,
-      r"^warning: blocked\.csv: column 'i' .*saturated", changes=("model.json",)),
+                                                    _clip_column(2, 0.9))), FE, 1,
+      r"^error: blocked\.csv: column 'i' .*saturated.*--force"),
+    C("fe-saturated-current-forced", combine(MODEL, edited("paper/blocked_2.5V.csv", "blocked.csv",
+                                                           _clip_column(2, 0.9))), FE + ["--force"],
+      0, r"^warning: blocked\.csv: column 'i' .*saturated", changes=("model.json",)),
     C("fe-second-log-bad", combine(MODEL, BLOCKED, text("bad.csv", "t,v,i\n")),
       ["fit-electrical", "blocked.csv", "bad.csv", "-m", "model.json"], 1,
       r"^error: bad\.csv: has a header but no data rows"),
@@ -439,7 +530,10 @@ CASES: list[Case] = [
                                                         _drop_column(4)(ls)))), FM, 1,
       r"^error: step\.csv: .*omega"),
     C("fm-rpm-as-rad-per-s", combine(MODEL, _step_log("step.csv", omega_scale=60 / (2 * np.pi))),
-      FM, 0, r"^warning: step\.csv: .*rpm", changes=("model.json",)),
+      FM, 1, r"^error: step\.csv: omega is 9\.5\d* x d\(theta\)/dt.*-c omega=COLUMN\*rpm"),
+    C("fm-rpm-as-rad-per-s-forced", combine(MODEL, _step_log("step.csv",
+                                                             omega_scale=60 / (2 * np.pi))),
+      FM + ["--force"], 0, r"^warning: step\.csv: .*rpm", changes=("model.json",)),
     C("fm-torque-driven-log", combine(MODEL, table("step.csv", {
         "t": T1K, "tau": np.where(T1K > 0.5, 0.02, 0.0), "omega": T1K})), FM, 1,
       r"^error: step\.csv: needs column\(s\) v for fit-mechanical"),
@@ -459,8 +553,8 @@ CASES: list[Case] = [
     C("fn-nothing-moves", combine(MODEL, table("tri.csv", {
         "t": T1K, "v": 0 * T1K, "i": 0 * T1K, "omega": 0 * T1K, "theta": 0 * T1K})), FN, 1,
       r"^error: tri\.csv: nothing moves"),
-    C("fn-saturated-speed", combine(MODEL, _triangle_log("tri.csv", clip=0.8)), FN, 0,
-      r"^warning: tri\.csv: column 'omega' .*saturat", changes=("model.json",)),
+    C("fn-saturated-speed", combine(MODEL, _triangle_log("tri.csv", clip=0.8)), FN, 1,
+      r"^error: tri\.csv: column 'omega' .*saturat.*--force"),
     # ---- fit-inverse-dynamics (beyond the contract) ----------------------------------------
     C("fid-voltage-log-without-km", TRI, ["fit-inverse-dynamics", "tri.csv", "-m", "model.json"],
       1, r"^error: tri\.csv: voltage-driven log: .*--km"),
@@ -534,7 +628,11 @@ CASES: list[Case] = [
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--effect", "warp_drive"],
       2, r"unknown effect 'warp_drive'"),
     C("diag-rpm-as-rad-per-s", combine(MODEL, _step_log("step.csv", omega_scale=60 / (2 * np.pi))),
-      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 0,
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
+      r"^error: step\.csv: .*omega looks like rpm.*--force"),
+    C("diag-rpm-as-rad-per-s-forced", combine(MODEL, _step_log("step.csv",
+                                                               omega_scale=60 / (2 * np.pi))),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--force"], 0,
       r"^warning: step\.csv: .*rpm", changes=("new.json",)),
     # ---- demo ------------------------------------------------------------------------------
     C("demo-out-under-regular-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt/d"], 1,
@@ -602,6 +700,176 @@ CASES: list[Case] = [
       r"'nan' is not a finite number > 0"),
     C("usage-unknown-option", combine(STEP, MODEL), SIM + ["--frobnicate"], 2,
       r"No such option '--frobnicate'", subprocess=True),
+    # ---- round two (issue 15): the plausibility gate -----------------------------------------
+    C("fm-time-in-ms", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                             _scale_column(0, 1e3))), FM, 1,
+      r"^error: step\.csv: t looks like milliseconds.*-c t=COLUMN\*ms"),
+    C("fe-time-in-us", combine(MODEL, edited("paper/blocked_1.5V.csv", "blocked.csv",
+                                             _scale_column(0, 1e6))), FE, 1,
+      r"^error: blocked\.csv: t looks like microseconds.*-c t=COLUMN\*us"),
+    C("fn-time-in-ms", combine(MODEL, edited("paper/triangle.csv", "tri.csv",
+                                             _scale_column(0, 1e3))), FN, 1,
+      r"^error: tri\.csv: t looks like milliseconds"),
+    C("diag-time-in-ms", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                               _scale_column(0, 1e3))),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
+      r"^error: step\.csv: t looks like milliseconds"),
+    C("fm-rpm-speed-only", combine(MODEL, _step_log("step.csv", omega_scale=60 / (2 * np.pi),
+                                                    theta=False)), FM, 1,
+      r"^error: step\.csv: km\*omega is 9\.\d+ x the back-EMF.*-c omega=COLUMN\*rpm"),
+    C("fm-rpm-speed-only-km-option", combine(
+        model(drop=("km", "J", "bv", "bc", "dz")),
+        _step_log("step.csv", omega_scale=60 / (2 * np.pi), theta=False)),
+      FM + ["--km", "0.0502"], 1, r"^error: step\.csv: km\*omega is .*rpm"),
+    C("fn-deg-per-s-speed-only", combine(MODEL, _triangle_log(
+        "tri.csv", omega_scale=180 / np.pi, theta=False, seconds=20.0, bv=2e-4, bc=1e-3)),
+      FN, 1, r"^error: tri\.csv: the speed is 4\d\.?\d* x the no-load speed.*deg/s"),
+    C("sim-overload-sample", combine(MODEL, OVERLOAD), SIM, 1,
+      r"^error: step\.csv: column 'v' holds 9\.9e\+37 \(data row 701\): an instrument overload"),
+    C("fm-overload-sample", combine(MODEL, OVERLOAD), FM, 1,
+      r"^error: step\.csv: column 'v' holds 9\.9e\+37"),
+    C("report-overload-in-speed", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                        _replace_data_row(9, 3, "-9.91e37"))),
+      ["report", "step.csv", "-m", "model.json", "-o", "rep"], 1,
+      r"^error: step\.csv: column 'omega' holds -9\.91e\+37"),
+    # ---- model values with units, values the loader would refuse ----------------------------
+    C("model-unit-mohm", combine(STEP, model_units(R=(2370.0, "mohm"))), SIM, 0, None,
+      changes=("out.csv",)),
+    C("model-unit-mH-and-mNm-per-A", combine(STEP, model_units(L=(17.8, "mH"),
+                                                                km=(50.2, "mN m/A"))), SIM, 0,
+      None, changes=("out.csv",)),
+    C("model-unit-unknown", combine(STEP, model_units(J=(2.0, "g cm^2"))), SIM, 1,
+      r"^error: model\.json: parameter 'J' has unit 'g cm\^2', which pmdcid cannot convert"),
+    C("model-unit-not-text", combine(STEP, text("model.json", '{"parameters": {"R": {"value": '
+                                                '2.37, "unit": 5}}}')), SIM, 1,
+      r"^error: model\.json: parameter 'R' has unit 5"),
+    C("model-unit-prefix-out-of-bounds", combine(STEP, model_units(R=(2.37, "Mohm"))), SIM, 1,
+      r"^error: model\.json: parameter 'R' = 2\.37e\+06 ohm is impossible"),
+    C("model-utf8-bom", combine(STEP, model_units(bom=True)), SIM, 0, None, changes=("out.csv",)),
+    C("model-utf16", combine(STEP, model_units(encoding="utf-16")), SIM, 0, None,
+      changes=("out.csv",)),
+    C("fm-km-huge", combine(STEP, MODEL), FM + ["--km", "1e300"], 2,
+      r"'1e300' is above 1000"),
+    C("fid-km-huge", TRI, ["fit-inverse-dynamics", "tri.csv", "-m", "model.json", "--km", "1e9"],
+      2, r"'1e9' is above 1000"),
+    C("sim-noise-huge", combine(STEP, MODEL), SIM + ["--noise-i", "1e308", "--seed", "1"], 1,
+      r"^error: out\.csv: simulated column 'i' reaches .*--noise-i"),
+    # ---- bounded work ------------------------------------------------------------------------
+    C("sim-tiny-J", combine(STEP, model(J=1e-12)), SIM, 1,
+      r"^error: model\.json: the simulation would take .* internal steps", subprocess=True),
+    C("sim-time-in-us", combine(MODEL, table("step.csv", {"t": T1K * 1e6, "v": np.ones(3000)})),
+      SIM, 1,
+      r"^error: model\.json: the simulation would take .*t in ms or us"),
+    C("fm-time-step-1e300", combine(MODEL, text("step.csv", "t,v,omega\n0,1,0\n1e300,1,1\n"
+                                                "2e300,1,2\n")), FM, 1,
+      r"^error: step\.csv: the sample period 1e\+300 s is no motor log's"),
+    C("sim-time-step-1e300", combine(MODEL, text("step.csv", "t,v\n0,1\n1e300,1\n2e300,1\n")),
+      SIM, 1, r"^error: model\.json: the simulation would take"),
+    C("log-transposed-120k-columns", combine(MODEL, transposed("step.csv")), SIM, 1,
+      r"^error: step\.csv: has no time column 't' \(columns are s0, s1, .*more\)",
+      subprocess=True),
+    C("log-200kb-column-name", combine(MODEL, text("step.csv", "x" * 200_000 + ",v\n1,2\n3,4\n"
+                                                   "5,6\n")), SIM, 1,
+      r"^error: step\.csv: has no time column"),
+    C("log-200kb-cell", combine(MODEL, text("step.csv", "t,v\n0,1\n0.001," + "7" * 200_000
+                                            + "x\n0.002,1\n")), SIM, 1,
+      r"^error: step\.csv: column 'v' holds non-numeric value"),
+    C("fm-cutoff-tiny", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                              _drop_column(3))), FM + ["--cutoff", "1e-9"], 1,
+      r"^error: step\.csv: filter cut-off 1e-09 Hz is too low.*at least 0\.01 Hz"),
+    C("sim-cutoff-tiny", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                               _drop_column(3))), SIM + ["--cutoff", "1e-9"], 1,
+      r"^error: step\.csv: filter cut-off 1e-09 Hz is too low"),
+    # ---- outputs -----------------------------------------------------------------------------
+    C("diag-out-is-a-measured-log", combine(STEP, MODEL, fixture("paper/step_2.5V.csv",
+                                                                 "other.csv")),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "other.csv"], 1,
+      r"^error: other\.csv: exists and is not a pmdcid model file.*--force"),
+    C("diag-summary-is-a-measured-log", combine(STEP, MODEL, fixture("paper/step_2.5V.csv",
+                                                                     "other.csv")),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--summary", "other.csv"],
+      1, r"^error: other\.csv: exists and is not a pmdcid summary file"),
+    C("diag-summary-is-notes", combine(STEP, MODEL, regular_file("notes.json")),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--summary", "notes.json"],
+      1, r"^error: notes\.json: exists and is not a pmdcid summary file"),
+    C("diag-out-is-another-model", combine(STEP, MODEL, model("old.json")),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "old.json", "--effect", "stribeck"], 0,
+      None, changes=("old.json",)),
+    C("fe-model-symlink", combine(BLOCKED, lambda d: (d / "real").mkdir(), model("real/m.json"),
+                                  symlinked("model.json", "real/m.json")), FE, 0, SAME_V,
+      changes=("model.json", "real/m.json")),
+    C("sim-out-dangling-symlink", combine(STEP, MODEL, symlinked("out.csv", "new.csv")), SIM, 0,
+      None),
+    C("report-summary-wrong-types", combine(STEP, MODEL, text(
+        "sum.json", '{"added": 5, "candidates": "x", "unexplained": "no"}')),
+      ["report", "step.csv", "-m", "model.json", "-o", "rep", "--summary", "sum.json"], 1,
+      r"^error: sum\.json: summary field 'added' must be a list of effect names"),
+    C("report-summary-bad-candidates", combine(STEP, MODEL, text(
+        "sum.json", '{"added": [], "candidates": [{"effect": "x", "delta_bic": "big"}]}')),
+      ["report", "step.csv", "-m", "model.json", "-o", "rep", "--summary", "sum.json"], 1,
+      r"^error: sum\.json: summary field 'candidates'"),
+    C("report-summary-bad-unexplained", combine(STEP, MODEL, text(
+        "sum.json", '{"added": [], "unexplained": "no"}')),
+      ["report", "step.csv", "-m", "model.json", "-o", "rep", "--summary", "sum.json"], 1,
+      r"^error: sum\.json: summary field 'unexplained'"),
+    # ---- reading what rigs export -----------------------------------------------------------
+    C("map-quoted-column-with-slash", combine(MODEL, text(
+        "step.csv", "t,v,speed [rad/s]\n0,0,0\n0.001,1,0.1\n0.002,1,0.2\n")),
+      SIM + ["-c", 'omega="speed [rad/s]"*1'], 0, None, changes=("out.csv",)),
+    C("map-quoted-column-absent", combine(MODEL, STEP), SIM + ["-c", 'omega="speed [rpm]"*rpm'],
+      1, r"^error: step\.csv: column mapping omega=speed \[rpm\]: no column 'speed \[rpm\]'"),
+    C("map-sign-magnitude-pwm", combine(MODEL, pwm_log("step.csv")),
+      SIM + ["-c", "v=pwm*(2*dir-1)*12/255"], 0, None, changes=("out.csv",)),
+    C("map-sign-function", combine(MODEL, pwm_log("step.csv")),
+      SIM + ["-c", "v=pwm*sign(dir-0.5)*12/255"], 0, None, changes=("out.csv",)),
+    C("map-unknown-function", combine(MODEL, pwm_log("step.csv")),
+      SIM + ["-c", "v=pwm*exp(dir)"], 2, r"unknown function 'exp' \(known: sign, abs\)"),
+    C("map-unclosed-parenthesis", combine(MODEL, pwm_log("step.csv")),
+      SIM + ["-c", "v=(pwm*12/255"], 2, r"a '\(' is not closed"),
+    C("map-no-eval", combine(MODEL, pwm_log("step.csv")),
+      SIM + ["-c", "v=__import__('os').getcwd()"], 2, r"column mapping"),
+    C("map-expression-divides-by-zero", combine(MODEL, pwm_log("step.csv")),
+      SIM + ["-c", "v=(pwm)/0"], 2, r"divides by zero"),
+    C("map-file-skips-absent-column", combine(MODEL, STEP, text(
+        "rig.map", "omega = speed_rpm*rpm\nv = v\n")), SIM + ["--map", "rig.map"], 0, None,
+      changes=("out.csv",)),
+    C("map-file-skipped-line-needed", combine(MODEL, pwm_log("step.csv", "t,duty,direction"), text(
+        "rig.map", "# two rigs\nv = pwm*sign(dir-0.5)*12/255\n")),
+      SIM + ["--map", "rig.map"], 1,
+      r"^error: step\.csv: has no input column.*rig\.map line 2 \(v = pwm.*skipped: no column "
+      r"'pwm'"),
+    C("map-file-skipped-line-fit", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv", lambda
+                                                         ls: _drop_column(3)(_drop_column(4)(ls))),
+                                           text("rig.map", "omega=tacho*150*rpm\n")),
+      FM + ["--map", "rig.map"], 1, r"^error: step\.csv: .*rig\.map line 1 .*no column 'tacho'"),
+    C("map-file-partly-absent", combine(MODEL, pwm_log("step.csv"), text(
+        "rig.map", "v = pwm*sign(direction)*12/255\n")), SIM + ["--map", "rig.map"], 1,
+      r"^error: step\.csv: column mapping v=direction: no column 'direction'"),
+    C("map-file-utf8-bom", combine(MODEL, STEP, text("cols.map", "\ufeffv=v*1\n")),
+      SIM + ["--map", "cols.map"], 0, None, changes=("out.csv",)),
+    C("map-file-quoted-hash", combine(MODEL, text("step.csv", 't,v,"speed #2"\n0,0,0\n'
+                                                  "0.001,1,0.1\n0.002,1,0.2\n"),
+                                      text("cols.map", 'omega = "speed #2"  # quoted\n')),
+      SIM + ["--map", "cols.map"], 0, None, changes=("out.csv",)),
+    C("log-european-excel", combine(MODEL, european("paper/step_1.5V.csv", "step.csv")), SIM, 0,
+      None, changes=("out.csv",)),
+    C("fm-european-excel", combine(MODEL, european("paper/step_1.5V.csv", "step.csv")), FM, 0,
+      r"^warning: all steps have the same amplitude", changes=("model.json",)),
+    C("log-tab-separated", combine(MODEL, text("step.csv", "t\tv\n0\t0\n0.001\t1\n"
+                                               "0.002\t1\n")), SIM, 0, None,
+      changes=("out.csv",)),
+    C("log-bom-before-comments", combine(MODEL, encoded("paper/step_1.5V.csv", "step.csv",
+                                                        "utf-8-sig")), SIM, 0, None,
+      changes=("out.csv",)),
+    C("log-utf16-with-bom", combine(MODEL, encoded("paper/step_1.5V.csv", "step.csv", "utf-16")),
+      SIM, 0, None, changes=("out.csv",)),
+    C("fe-utf16-with-bom", combine(MODEL, encoded("paper/blocked_1.5V.csv", "blocked.csv",
+                                                  "utf-16")), FE, 0, SAME_V,
+      changes=("model.json",)),
+    C("log-utf16-garbage", combine(MODEL, text("step.csv", b"\xff\xfe" + bytes(range(1, 200)))),
+      SIM, 1, r"^error: step\.csv: starts like UTF-16 text but is not"),
+    C("summary-utf8-bom", combine(STEP, MODEL, text("sum.json", '\ufeff{"added": []}')),
+      ["report", "step.csv", "-m", "model.json", "-o", "rep", "--summary", "sum.json"], 0, None),
 ]
 
 
@@ -646,14 +914,19 @@ def _command_available(args: list[str]) -> bool:
     return args[0] in main.commands
 
 
+def _require_command(case: Case) -> None:
+    assert _command_available(case.args), (
+        f"row {case.id}: command {case.args[0]!r} is not registered (a removed or renamed "
+        "command must not pass as a skip)")
+
+
 def _params(cases):
     return [pytest.param(c, id=c.id, marks=c.marks) for c in cases]
 
 
 @pytest.mark.parametrize("case", _params(CASES))
 def test_bad_input(case: Case, tmp_path, monkeypatch):
-    if not _command_available(case.args):
-        pytest.skip(f"command {case.args[0]} not available yet")
+    _require_command(case)
     monkeypatch.chdir(tmp_path)
     case.build(tmp_path)
     before = _snapshot(tmp_path)
@@ -667,8 +940,7 @@ SUB = [c for c in CASES if c.subprocess]
 @pytest.mark.parametrize("case", _params(SUB))
 def test_bad_input_real_process(case: Case, tmp_path):
     """The same rows through a real process: what a user's terminal shows."""
-    if not _command_available(case.args):
-        pytest.skip(f"command {case.args[0]} not available yet")
+    _require_command(case)
     case.build(tmp_path)
     before = _snapshot(tmp_path)
     env = {k: v for k, v in os.environ.items() if k != "PMDCID_DEBUG"}
@@ -680,7 +952,8 @@ def test_bad_input_real_process(case: Case, tmp_path):
 
 
 def test_table_is_large_enough():
-    assert len(CASES) >= 40
+    assert len(CASES) >= 150
+    assert len({c.id for c in CASES}) == len(CASES), "row ids must be unique"
 
 
 # ---- the plausibility checks themselves: no false alarms on good logs, right unit named ------

@@ -29,20 +29,27 @@ class _Group(click.Group):
     """Turns the library's exception family into one line on stderr and exit status 1."""
 
     def invoke(self, ctx):
-        from pmdcid.errors import PmdcidError, PmdcidWarning
+        from pmdcid.errors import PmdcidError, PmdcidWarning, one_line
 
         def _show(message, category, filename, lineno, file=None, line=None):
             if issubclass(category, PmdcidWarning):
-                click.echo(f"warning: {message}", err=True)
+                click.echo(f"warning: {one_line(message)}", err=True)
             elif os.environ.get("PMDCID_DEBUG"):
                 click.echo(f"warning: {category.__name__}: {message}", err=True)
 
+        from pmdcid.io.outputs import Terminated, install_sigterm, transaction
+
         warnings.showwarning = _show
         warnings.simplefilter("always", PmdcidWarning)
+        install_sigterm()
         try:
-            return super().invoke(ctx)
+            with transaction():  # a failing command leaves nothing new behind
+                return super().invoke(ctx)
+        except Terminated:
+            click.echo("error: terminated (SIGTERM): nothing was written", err=True)
+            sys.exit(143)
         except PmdcidError as exc:
-            click.echo("error: " + " ".join(str(exc).split("\n")), err=True)  # always one line
+            click.echo("error: " + one_line(str(exc)), err=True)  # always one short line
             sys.exit(1)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
@@ -53,8 +60,8 @@ class _Group(click.Group):
             if os.environ.get("PMDCID_DEBUG"):
                 raise
             where = f"{exc.filename}: " if exc.filename else ""
-            click.echo(f"error: {where}{exc.strerror or exc} (check the path and its permissions)",
-                       err=True)
+            click.echo(one_line(f"error: {where}{exc.strerror or exc} (check the path and its "
+                                "permissions)"), err=True)
             sys.exit(1)
         except MemoryError:
             click.echo("error: out of memory: the log is too large for this machine", err=True)
@@ -63,8 +70,9 @@ class _Group(click.Group):
             if os.environ.get("PMDCID_DEBUG"):
                 raise
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-            click.echo(f"error: internal error {type(exc).__name__}: {msg} "
-                       "(please report it; PMDCID_DEBUG=1 shows the traceback)", err=True)
+            click.echo(one_line(f"error: internal error {type(exc).__name__}: {msg[:120]} "
+                                "(please report it; PMDCID_DEBUG=1 shows the traceback)"),
+                       err=True)
             sys.exit(1)
 
 

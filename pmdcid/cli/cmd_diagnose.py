@@ -19,8 +19,11 @@ from pmdcid.cli.options import log_options, model_option
                                            "after, unexplained) as JSON.")
 @click.option("--effect", "effects", multiple=True, metavar="NAME",
               help="Search only this catalogue effect (repeatable; default: all).")
+@click.option("--force", is_flag=True,
+              help="Overwrite NEW_MODEL / SUMMARY even when they are not pmdcid files, and "
+                   "write the model even when the logs look implausible (then a warning).")
 @log_options
-def diagnose_cmd(logs, model_path, out_path, summary_path, effects, mapping):
+def diagnose_cmd(logs, model_path, out_path, summary_path, effects, force, mapping):
     """Find the catalogue effects MODEL lacks on LOGs, add them, refit, report before/after."""
     from pmdcid.diagnose.files import run_diagnose
     from pmdcid.model import EFFECTS
@@ -32,7 +35,7 @@ def diagnose_cmd(logs, model_path, out_path, summary_path, effects, mapping):
     from pmdcid.progress import stage_lines
 
     res = run_diagnose(list(logs), model_path, out_path, summary_path, mapping,
-                       effects=list(effects) or None, progress=stage_lines())
+                       effects=list(effects) or None, progress=stage_lines(), force=force)
     click.echo(res.table())
     click.echo(f"wrote {out_path}")
     if summary_path:

@@ -6,7 +6,13 @@ import click
 
 from pmdcid.cli import main
 from pmdcid.cli.options import FiniteFloat, log_options, model_option
+from pmdcid.model.params import BASE_PARAMS
 
+#: --km within the bounds the model file accepts (a model the tool writes it must read back)
+KM = FiniteFloat(min=0.0, min_open=True, max=BASE_PARAMS["km"].upper)
+FORCE = click.option("--force", is_flag=True,
+                     help="Write the model even when the logs look implausible (a unit left "
+                          "unmapped, a saturated sensor): the refusal becomes a warning.")
 LOGS = click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False),
                       metavar="LOG...")
 
@@ -34,25 +40,27 @@ def _show(result, model_path):
 @main.command("fit-electrical")
 @LOGS
 @model_option()
+@FORCE
 @log_options
-def fit_electrical_cmd(logs, model_path, mapping):
+def fit_electrical_cmd(logs, model_path, force, mapping):
     """Blocked-rotor current steps -> R, L (the model file is created if missing)."""
     from pmdcid.identify.stages import run_fit_electrical
 
-    _show(run_fit_electrical(list(logs), model_path, mapping), model_path)
+    _show(run_fit_electrical(list(logs), model_path, mapping, force=force), model_path)
 
 
 @main.command("fit-mechanical")
 @LOGS
 @model_option()
-@click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
+@click.option("--km", type=KM, default=None, metavar="X",
               help="Torque constant [N m/A] (datasheet); default: km from MODEL.")
+@FORCE
 @log_options
-def fit_mechanical_cmd(logs, model_path, km, mapping):
+def fit_mechanical_cmd(logs, model_path, km, force, mapping):
     """Free-speed speed steps -> Kmot, tau_mot -> b, J (paper) and bv, bc (steady-speed line)."""
     from pmdcid.identify.stages import run_fit_mechanical
 
-    _show(run_fit_mechanical(list(logs), model_path, mapping, km=km), model_path)
+    _show(run_fit_mechanical(list(logs), model_path, mapping, km=km, force=force), model_path)
 
 
 @main.command("fit-nonlinear")
@@ -70,13 +78,15 @@ def fit_mechanical_cmd(logs, model_path, km, mapping):
 @click.option("--no-prior", is_flag=True,
               help="Use these logs alone (default: combine them with the estimates earlier "
                    "stages wrote, each a Gaussian prior of its standard error).")
+@FORCE
 @log_options
-def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, no_prior, mapping):
+def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, no_prior, force, mapping):
     """Triangular-input (or any rich) logs -> bc, bv, dz, J refined, by simulation error."""
     from pmdcid.identify.stages import run_fit_nonlinear
 
-    _show(run_fit_nonlinear(list(logs), model_path, mapping, free=free, signals=signals,
-                            dead_zone=dead_zone, priors=not no_prior), model_path)
+    _show(run_fit_nonlinear(list(logs), model_path, mapping, force=force, free=free,
+                            signals=signals, dead_zone=dead_zone, priors=not no_prior),
+          model_path)
 
 
 @main.command("fit-inverse-dynamics")
@@ -85,13 +95,14 @@ def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, no_prior, mapp
 @click.option("--as-published", is_flag=True,
               help="The EMPS authors' IDIM-LS exactly: every row kept, the held torque not "
                    "centred (default: rows near rest left out, torque centred on the hold).")
-@click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
+@click.option("--km", type=KM, default=None, metavar="X",
               help="Torque constant [N m/A] for voltage logs with a current column.")
+@FORCE
 @log_options
-def fit_inverse_dynamics_cmd(logs, model_path, as_published, km, mapping):
+def fit_inverse_dynamics_cmd(logs, model_path, as_published, km, force, mapping):
     """Any logs with torque (or current) and angle or speed -> J, bv, bc, tau0 by inverse
     dynamics (linear least squares, instant; fit-nonlinear's start on torque-driven logs)."""
     from pmdcid.identify.stages import run_fit_inverse_dynamics
 
     _show(run_fit_inverse_dynamics(list(logs), model_path, mapping, as_published=as_published,
-                                   km=km), model_path)
+                                   km=km, force=force), model_path)

@@ -12,8 +12,9 @@ class FiniteFloat(click.ParamType):
 
     name = "number"
 
-    def __init__(self, min: float = 0.0, min_open: bool = False):  # noqa: A002 - as click's
-        self.min, self.min_open = min, min_open
+    def __init__(self, min: float = 0.0, min_open: bool = False,  # noqa: A002 - as click's
+                 max: float = float("inf")):  # noqa: A002
+        self.min, self.min_open, self.max = min, min_open, max
 
     def convert(self, value, param, ctx):
         import math
@@ -25,6 +26,9 @@ class FiniteFloat(click.ParamType):
         if not math.isfinite(x) or x < self.min or (self.min_open and x == self.min):
             need = f"{'>' if self.min_open else '>='} {self.min:g}"
             self.fail(f"{value!r} is not a finite number {need}", param, ctx)
+        if x > self.max:
+            self.fail(f"{value!r} is above {self.max:g}, the largest value pmdcid accepts "
+                      "(check the unit: SI)", param, ctx)
         return x
 
 

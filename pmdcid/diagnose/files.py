@@ -40,16 +40,19 @@ def diagnose_logs(logs, model, effects=None, **opts):
 
 
 def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, effects=None,
-                 **opts):
+                 force=False, **opts):
     """Diagnose ``model_path`` on the logs ``paths``; write ``out_path`` (and the summary).
 
     Neither output may be an input log; the summary may not be a model file. ``model_path`` is
     only rewritten when ``out_path`` is the same file. Both writes are atomic, after the whole
     analysis succeeded.
     """
+    from pmdcid.identify.plausibility import gate
     from pmdcid.io import read_logs
     from pmdcid.io.logs import atomic_write_text
+    from pmdcid.io.outputs import check_overwrite, locked
     from pmdcid.model import load_model, save_model
+    from pmdcid.simulate.kernel import bounded_for
 
     for p in paths:
         if _same(p, out_path):
@@ -61,9 +64,20 @@ def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, e
     if summary_path and (_same(summary_path, model_path) or _same(summary_path, out_path)):
         raise ModelError("the summary would overwrite a model file; choose another --summary",
                          summary_path)
+    check_overwrite(out_path, "model", force)
+    if summary_path:
+        check_overwrite(summary_path, "summary", force, "--summary")
     model = load_model(model_path)
-    res = diagnose_logs(read_logs(paths, mapping), model, effects=effects, **opts)
-    save_model(res.model, out_path)
+    logs = read_logs(paths, mapping, defer=True)
+
+    def value(name):
+        return model.parameters[name].value if name in model.parameters else None
+
+    gate(logs, force, value("km"), value("R"))
+    with bounded_for(model_path):
+        res = diagnose_logs(logs, model, effects=effects, **opts)
+    with locked(out_path):
+        save_model(res.model, out_path)
     if summary_path:
         atomic_write_text(summary_path, json.dumps(_clean(res.summary), indent=2) + "\n")
     return res

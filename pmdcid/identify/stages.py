@@ -3,6 +3,15 @@
 One function per command (the click layer calls exactly one of these). The model file is created
 when missing (its parent folder must exist), only the stage's own parameters change, and it is
 written in one atomic rename after the fit succeeded: a failed fit leaves it untouched.
+
+Before anything is written the plausibility gate (:mod:`pmdcid.identify.plausibility`) checks
+the logs' units and the fitted time constants; ``force`` turns its refusals into warnings. The
+model's read-modify-write holds a lock (:func:`pmdcid.io.outputs.locked`) and re-reads the file
+under it: two stages run at once on one model both land their updates.
+
+Voltage and speed logs without current, on a model without R, make a lumped (per-volt) model
+(:mod:`pmdcid.model.lumped`): :func:`lumped_if_wanted`, :func:`stage_mechanical`,
+:func:`stage_nonlinear` and :func:`updated` are shared by the commands, ``identify`` and the API.
 """
 
 from __future__ import annotations
@@ -11,10 +20,13 @@ import math
 import os
 
 from pmdcid.errors import LogError
+from pmdcid.identify.plausibility import gate, gate_result
 from pmdcid.io import read_logs
+from pmdcid.io.outputs import locked
 from pmdcid.model import load_model, save_model
 from pmdcid.model.lumped import is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.simulate import logs_for
+from pmdcid.simulate.kernel import bounded_for
 
 
 def _load(paths, model_path, mapping):
@@ -23,7 +35,7 @@ def _load(paths, model_path, mapping):
             raise LogError(f"the model file would overwrite the input log {p}; choose another -m",
                            model_path)
     model = load_model(model_path, must_exist=False)
-    logs = read_logs(paths, mapping)
+    logs = read_logs(paths, mapping, defer=True)
     return logs, lumped_if_wanted(logs, model)
 
 
@@ -38,16 +50,16 @@ def lumped_if_wanted(logs, model):
 def updated(result, model):
     """A copy of ``model`` with ``result`` applied (per volt for a lumped model)."""
     new = model.copy()
-    result.apply(new)
-    if is_lumped(model):
-        per_volt(result)
-        mark_lumped(new)
+    _apply(result, model, new)
     return new
 
 
-def _save(result, model, model_path):
-    save_model(updated(result, model), model_path)
-    return result
+def _apply(result, model, new) -> None:
+    if is_lumped(model):
+        per_volt(result)
+    result.apply(new)
+    if is_lumped(model):
+        mark_lumped(new)
 
 
 def per_volt(result) -> None:
@@ -61,12 +73,38 @@ def per_volt(result) -> None:
         result.warnings.insert(0, note)
 
 
-def run_fit_electrical(paths, model_path, mapping=None):
+def _value(model, name, given=None):
+    if given is not None:
+        return given
+    p = model.parameters.get(name)
+    return p.value if p is not None else None
+
+
+def _save(result, model, model_path, logs, force, pre=None):
+    """Apply ``result`` to the model file as it is now (under the lock), gate it, write it."""
+    with locked(model_path):
+        new = load_model(model_path, must_exist=False)
+        if pre is not None:
+            pre(new)
+        _apply(result, model, new)
+        gate_result(new, logs, force)
+        save_model(new, model_path)
+    return result
+
+
+def _run(fit, paths, model_path, mapping, force, km=None):
+    logs, model = _load(paths, model_path, mapping)
+    gate(logs, force, _value(model, "km", km), _value(model, "R"))
+    with bounded_for(model_path):
+        return logs, model, fit(logs, model)
+
+
+def run_fit_electrical(paths, model_path, mapping=None, force=False):
     """``pmdcid fit-electrical``: R, L from blocked-rotor logs into ``model_path``."""
     from pmdcid.identify.electrical import fit_electrical
 
-    logs, model = _load(paths, model_path, mapping)
-    return _save(fit_electrical(logs, model), model, model_path)
+    logs, model, res = _run(fit_electrical, paths, model_path, mapping, force)
+    return _save(res, model, model_path, logs, force)
 
 
 def stage_mechanical(logs, model, km=None):
@@ -88,12 +126,6 @@ def stage_nonlinear(logs, model, **opts):
     return fit_nonlinear(logs_for(logs, model), model, **opts)
 
 
-def run_fit_mechanical(paths, model_path, mapping=None, km=None):
-    """``pmdcid fit-mechanical``: b, bv, bc, J from free-speed step logs into ``model_path``."""
-    logs, model = _load(paths, model_path, mapping)
-    return _save(stage_mechanical(logs, model, km), model, model_path)
-
-
 def lumped_mechanical(logs, model, fit):
     """fit-mechanical per volt: R = km = 1 and no electrical lag, so that b, bv, J come out
     in V s/rad and V s^2/rad and bc in V (:mod:`pmdcid.model.lumped`)."""
@@ -110,24 +142,36 @@ def lumped_mechanical(logs, model, fit):
     return result
 
 
-def run_fit_nonlinear(paths, model_path, mapping=None, **opts):
+def run_fit_mechanical(paths, model_path, mapping=None, km=None, force=False):
+    """``pmdcid fit-mechanical``: b, bv, bc, J from free-speed step logs into ``model_path``."""
+    logs, model, res = _run(lambda lg, m: stage_mechanical(lg, m, km), paths, model_path,
+                            mapping, force, km)
+    return _save(res, model, model_path, logs, force)
+
+
+def run_fit_nonlinear(paths, model_path, mapping=None, force=False, **opts):
     """``pmdcid fit-nonlinear``: J, bv, bc, dz (tau0) by simulation error into ``model_path``."""
-    logs, model = _load(paths, model_path, mapping)
-    return _save(stage_nonlinear(logs, model, **opts), model, model_path)
+    logs, model, res = _run(lambda lg, m: stage_nonlinear(lg, m, **opts), paths, model_path,
+                            mapping, force)
+    return _save(res, model, model_path, logs, force)
 
 
-def run_fit_inverse_dynamics(paths, model_path, mapping=None, as_published=False, km=None):
+def run_fit_inverse_dynamics(paths, model_path, mapping=None, as_published=False, km=None,
+                             force=False):
     """``pmdcid fit-inverse-dynamics``: J, bv, bc, tau0 by inverse-dynamics least squares (the
     torque regressed on filtered acceleration, speed, sign of speed and 1) into ``model_path``.
     ``as_published``: the EMPS authors' IDIM-LS (every row, torque not centred on the ZOH)."""
     from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics
 
-    logs, model = _load(paths, model_path, mapping)
-    if km is not None:
-        model.set("km", km, stage="datasheet")
-    opts = {"rest_fraction": 0.0, "centre_zoh": False} if as_published else {}
-    result = fit_inverse_dynamics(logs, model, **opts)
-    new = model.copy()
-    result.apply(new)
-    save_model(new, model_path)
-    return result
+    def fit(logs, model):
+        if km is not None:
+            model.set("km", km, stage="datasheet")
+        opts = {"rest_fraction": 0.0, "centre_zoh": False} if as_published else {}
+        return fit_inverse_dynamics(logs, model, **opts)
+
+    def pre(new):
+        if km is not None:
+            new.set("km", km, stage="datasheet")
+
+    logs, model, res = _run(fit, paths, model_path, mapping, force, km)
+    return _save(res, model, model_path, logs, force, pre)

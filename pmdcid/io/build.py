@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pmdcid.errors import LogError, warn
+from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.logs import CANONICAL, JITTER_TOL, NAN_MAX_FRACTION, NAN_MAX_RUN, Log
 from pmdcid.io.mapping import ColumnMap, parse_mapping
 
@@ -38,55 +38,67 @@ def as_mapping(columns=None, map_file=None, cutoff_hz: float | None = None) -> C
 
 
 def frame_columns(df, mapping: ColumnMap, path: str):
-    """Canonical SI columns (name -> float array) and the other numeric columns of ``df``.
+    """Canonical SI columns (name -> float array), the other numeric columns of ``df`` (at most
+    :data:`MAX_EXTRA`), and the mapping-file lines skipped because their sources are absent.
 
-    A canonical column comes from the column of that name or from ``mapping``; raises
-    :class:`LogError` naming the column for a missing source, a text cell, or no time column.
+    A canonical column comes from the column of that name or from ``mapping`` (renames, units,
+    expressions: :mod:`pmdcid.io.csvsource`); raises :class:`LogError` naming the column for a
+    missing source, a text cell, or no time column.
     """
     import pandas as pd
 
+    from pmdcid.io.csvsource import column_specs, numeric_column
+
     cols = [str(c) for c in df.columns]
-    sources: dict[str, tuple[str, float, float]] = {c: (c, 1.0, 0.0) for c in CANONICAL
-                                                    if c in cols}
-    for canon, spec in mapping.specs.items():
-        if spec.source not in cols:
-            raise LogError(f"column mapping {canon}={spec.source}: no column '{spec.source}' "
-                           f"(columns are {', '.join(cols)})", path)
-        sources[canon] = (spec.source, spec.scale, spec.offset)
-    if "t" not in sources:
+    specs, skipped = column_specs(cols, mapping, CANONICAL, path)
+    if "t" not in specs:
         seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar")]
         sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
         if sep:
-            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}); pmdcid reads "
-                           "comma-separated CSV with '.' decimals: convert the file first", path)
-        raise LogError(f"has no time column 't' (columns are {', '.join(cols)}; map one with "
-                       "-c t=SOURCE)", path)
+            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}) but its rows do not "
+                           "have as many separators as the header: make every row alike, or "
+                           "convert the file to comma-separated CSV", path)
+        why = f"; {skipped['t']}" if "t" in skipped else ""
+        raise LogError(f"has no time column 't' (columns are {short_list(cols)}{why}; map one "
+                       "with -c t=SOURCE)", path)
+    cache: dict[str, np.ndarray] = {}
+
+    def get(name: str) -> np.ndarray:
+        if name not in cache:
+            cache[name] = numeric_column(df, name, path)
+        return cache[name]
+
     data: dict[str, np.ndarray] = {}
-    for canon, (src, scale, offset) in sources.items():
-        raw = df[src]
-        col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
-        if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
-            blank = raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"])
-            notnum = np.isnan(col) & raw.notna().to_numpy() & ~blank.to_numpy()
-            if notnum.any():
-                row = int(np.flatnonzero(notnum)[0])
-                raise LogError(f"column '{src}' holds non-numeric value "
-                               f"{str(raw.iloc[row])[:30]!r} (data row {row + 1}): numbers "
-                               "only, with '.' decimals; fix or remove that row (or map another "
-                               "column)", path)
-        data[canon] = col * scale + offset
-    used = {s for s, _, _ in sources.values()}
+    for canon, spec in specs.items():
+        with np.errstate(all="ignore"):
+            data[canon] = np.broadcast_to(np.asarray(spec.evaluate(get), dtype=float),
+                                          (len(df),)).copy()
+    used = {r for spec in specs.values() for r in spec.refs}
     extra = {}
-    for c in cols:
-        if c not in used:
-            x = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
-            if np.isfinite(x).any():
-                extra[c] = x
-    return data, extra
+    for c in [c for c in cols if c not in used][:MAX_EXTRA]:
+        x = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
+        if np.isfinite(x).any():
+            extra[c] = x
+    return data, extra, skipped
+
+
+#: at most this many unmapped numeric columns are kept in ``Log.extra`` (a transposed export
+#: of 120 000 columns must not cost 120 000 conversions)
+MAX_EXTRA = 64
+#: |values| at or above this are instrument overload / not-a-number markers (SCPI's 9.9e37),
+#: never a motor's voltage, current, speed or angle in SI units
+OVERLOAD = 1e30
 
 
 def fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
-    """``x`` with short NaN gaps interpolated (a warning); too many, or an inf: LogError."""
+    """``x`` with short NaN gaps interpolated (a warning); too many, an inf or an overload
+    marker (|x| >= :data:`OVERLOAD`): LogError."""
+    big = np.abs(np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)) >= OVERLOAD
+    if big.any():
+        row = int(np.flatnonzero(big)[0])
+        raise LogError(f"column '{name}' holds {x[row]:.3g} (data row {row + 1}): an instrument "
+                       "overload or not-a-number marker, not a measurement; fix or remove that "
+                       "row", path)
     bad = ~np.isfinite(x)
     if not bad.any():
         return x
@@ -142,7 +154,8 @@ def check_time(t: np.ndarray, path: str) -> float:
 
 
 def validated_log(path: str, data: dict[str, np.ndarray], extra: dict | None = None,
-                  meta: dict | None = None, cutoff_hz: float | None = None) -> Log:
+                  meta: dict | None = None, cutoff_hz: float | None = None, *,
+                  skipped: dict | None = None, defer: bool = False) -> Log:
     """The checked :class:`Log` of canonical SI columns ``data`` (``t`` [s] among them).
 
     The time column is checked (:func:`check_time`) and put on its uniform grid from 0 (the
@@ -159,10 +172,13 @@ def validated_log(path: str, data: dict[str, np.ndarray], extra: dict | None = N
         data[canon] = fill_nans(canon, data[canon], path)
     extra = {c: x for c, x in (extra or {}).items() if np.isfinite(x).all()}
     log = Log(path=path, t=t, data=data, meta=dict(meta or {}), extra=extra,
-              cutoff_hz=cutoff_hz, t_file=t_file)
+              cutoff_hz=cutoff_hz, t_file=t_file, skipped=dict(skipped or {}))
     from pmdcid.io.checks import check_log
 
-    check_log(log)
+    log.issues = check_log(log)
+    if not defer:  # a stage about to write a model refuses instead (identify/plausibility.py)
+        for msg in log.issues:
+            warn(msg, path)
     if ("omega" in data) != ("theta" in data):
         from pmdcid.io.derive import derive_missing
 
@@ -181,8 +197,8 @@ def log_from_frame(df, mapping: ColumnMap | None = None, path: str = "<dataframe
     if len(df) == 0:
         raise LogError("has no data rows", path)
     df = df.set_axis(cols, axis=1)
-    data, extra = frame_columns(df, mapping, path)
-    return validated_log(path, data, extra, meta, mapping.cutoff_hz)
+    data, extra, skipped = frame_columns(df, mapping, path)
+    return validated_log(path, data, extra, meta, mapping.cutoff_hz, skipped=skipped)
 
 
 def log_from_arrays(t, name: str = "<arrays>", cutoff_hz: float | None = None,

@@ -33,16 +33,31 @@ UNIT_RATIOS: tuple[tuple[float, str], ...] = (
     (1e-3, "theta looks like milli-units (mm, mrad): map it with -c theta=COLUMN*1e-3"),
     (1e3, "omega looks like milli-units per second (-c omega=COLUMN*1e-3), or t is in ms "
           "(-c t=COLUMN*ms)"),
+    (1e6, "t looks like microseconds: map it with -c t=COLUMN*us"),
 )
 
 
-def check_log(log) -> None:
-    """Run every plausibility check on a :class:`~pmdcid.io.Log` (measured columns only)."""
-    for col in SATURATION_COLUMNS:
-        if col in log.data and col not in log.derived:
-            check_saturation(log.data[col], col, log.path)
-    if "omega" in log.data and "theta" in log.data and not log.derived & {"omega", "theta"}:
-        check_speed_units(log.data["omega"], log.data["theta"], log.dt, log.path)
+def check_log(log) -> list[str]:
+    """Run every plausibility check on a :class:`~pmdcid.io.Log` (measured columns only).
+
+    Returns what looks wrong, one message each, without warning: the caller warns (a command
+    that only reads) or refuses (a stage about to write a model, see
+    :mod:`pmdcid.identify.plausibility`).
+    """
+    import warnings
+
+    from pmdcid.errors import PmdcidWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PmdcidWarning)
+        for col in SATURATION_COLUMNS:
+            if col in log.data and col not in log.derived:
+                check_saturation(log.data[col], col, log.path)
+        if "omega" in log.data and "theta" in log.data and not log.derived & {"omega", "theta"}:
+            check_speed_units(log.data["omega"], log.data["theta"], log.dt, log.path)
+    prefix = f"{log.path}: "
+    return [str(w.message).removeprefix(prefix) for w in caught
+            if issubclass(w.category, PmdcidWarning)]
 
 
 def _rail(x: np.ndarray, value: float) -> tuple[int, float]:

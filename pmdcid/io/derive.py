@@ -94,6 +94,11 @@ def choose_cutoff(x: np.ndarray, dt: float, nder: int = 2, max_noise: float = 0.
     return floor
 
 
+#: lowest cut-off as a fraction of the sample rate: below it the filter's design is numerically
+#: singular (a 1e-9 Hz cut-off at 1 kHz), and no motor signal is that slow
+MIN_CUTOFF_FRACTION = 1e-5
+
+
 def check_cutoff(cutoff_hz: float, dt: float, path: str | None = None) -> float:
     """Validate a cut-off [Hz] against the sample period ``dt`` [s]; raises :class:`LogError`."""
     nyq = 0.5 / dt
@@ -103,6 +108,11 @@ def check_cutoff(cutoff_hz: float, dt: float, path: str | None = None) -> float:
             f"{nyq:g} Hz of this log (give --cutoff HZ)",
             path,
         )
+    low = MIN_CUTOFF_FRACTION / dt
+    if cutoff_hz < low:
+        raise LogError(f"filter cut-off {cutoff_hz:g} Hz is too low for this log's sample rate "
+                       f"{1 / dt:g} Hz: give --cutoff of at least {low:.3g} Hz (the default is "
+                       f"{default_cutoff(dt):g} Hz)", path)
     return float(cutoff_hz)
 
 

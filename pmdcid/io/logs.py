@@ -11,12 +11,13 @@ import io as _io
 import math
 import os
 import tempfile
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from pmdcid.errors import LogError
+from pmdcid.errors import LogError, short_list
 from pmdcid.io.mapping import ColumnMap
 
 CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
@@ -50,6 +51,10 @@ class Log:
     cutoff_hz: float | None = None
     #: the file's own time column [s], unchanged (``t`` starts at 0 on a uniform grid)
     t_file: np.ndarray | None = None
+    #: canonical column -> why a mapping-file line for it was skipped (its source is absent)
+    skipped: dict[str, str] = field(default_factory=dict)
+    #: what the plausibility checks found (:func:`pmdcid.io.checks.check_log`), one line each
+    issues: list[str] = field(default_factory=list)
 
     @property
     def dt(self) -> float:
@@ -78,8 +83,9 @@ class Log:
             return "v"
         if "tau" in self.data:
             return "tau"
+        why = "".join(f"; {self.skipped[c]}" for c in ("v", "tau") if c in self.skipped)
         raise LogError("has no input column: it needs 'v' [V] or 'tau' [N m] "
-                       "(map one with e.g. -c v=SOURCE*SCALE)", self.path)
+                       f"(map one with e.g. -c v=SOURCE*SCALE){why}", self.path)
 
     @property
     def u(self) -> np.ndarray:
@@ -90,10 +96,11 @@ class Log:
         """Raise a one-line :class:`LogError` naming what is missing and how to map it."""
         missing = [c for c in cols if c not in self.data]
         if missing:
-            have = ", ".join(list(self.data) + list(self.extra)) or "none"
+            have = short_list(list(self.data) + list(self.extra)) or "none"
             why = f" for {purpose}" if purpose else ""
+            skip = "".join(f"; {self.skipped[c]}" for c in missing if c in self.skipped)
             raise LogError(
-                f"needs column(s) {', '.join(missing)}{why}; it has {have} "
+                f"needs column(s) {', '.join(missing)}{why}{skip}; it has {have} "
                 f"(map one with e.g. -c {missing[0]}=SOURCE*SCALE)",
                 self.path,
             )
@@ -151,45 +158,49 @@ def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
     return meta, n
 
 
-def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
-    """Read and validate one CSV log. Raises :class:`LogError` with one clear line."""
+def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
+             defer: bool = False) -> Log:
+    """Read and validate one CSV log. Raises :class:`LogError` with one clear line.
+
+    What the plausibility checks find (:mod:`pmdcid.io.checks`) is in ``log.issues``; it is
+    also warned about unless ``defer`` (a stage about to write a model refuses instead).
+    """
     import pandas as pd
+
+    from pmdcid.io.csvsource import (
+        header_names,
+        open_source,
+        separator_hint,
+        sniff,
+    )
 
     p = str(path)
     if not os.path.exists(p):
         raise LogError("no such log file (check the path)", p)
     if os.path.isdir(p):
         raise LogError("is a folder, not a log file", p)
+    src = open_source(p)
+    meta, nskip = _split_comments(src.head, p)
+    sniff(src, nskip)
     try:
-        with open(p, "rb") as fh:
-            head = fh.read(1 << 16)
-    except OSError as exc:
-        raise LogError(f"cannot read log ({exc.strerror})", p) from None
-    if b"\x00" in head:
-        raise LogError("is not a text CSV file (binary content): export the log as CSV", p)
-    try:
-        head_text = head.decode("utf-8", errors="replace")
-    except Exception:  # pragma: no cover - decode with replace does not fail
-        head_text = ""
-    meta, nskip = _split_comments(head_text, p)
-    try:
-        df = pd.read_csv(p, skiprows=nskip, skipinitialspace=True, low_memory=False,
-                         encoding_errors="replace")
+        df = pd.read_csv(src.handle, skiprows=nskip, skipinitialspace=True, low_memory=False,
+                         encoding="utf-8-sig", encoding_errors="replace", sep=src.sep,
+                         decimal=src.decimal)
     except pd.errors.EmptyDataError:
         raise LogError("is empty: expected a header row naming the columns, then data rows",
                        p) from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-        raise LogError(f"is not a readable CSV ({msg}): check quotes and the number of fields "
-                       "per row", p) from None
+        raise LogError(f"is not a readable CSV ({msg[:100]}): check quotes and the number of "
+                       f"fields per row{separator_hint(src, nskip)}", p) from None
     cols = [" ".join(str(c).splitlines()).strip() for c in df.columns]  # one-line names
-    # pandas renames duplicates to 'x.1'; check the raw header instead
-    raw_header = next((ln for ln in head_text.splitlines()[nskip:] if ln.strip()), "")
-    raw_names = [c.strip().strip('"') for c in raw_header.split(",")]
-    dups = sorted({c for c in raw_names if raw_names.count(c) > 1 and c}
-                  | {c for c in cols if cols.count(c) > 1})  # also equal once stripped
+    # pandas renames duplicates to 'x.1'; check the raw header too (one pass: linear)
+    counts = Counter(c for c in header_names(src, nskip) if c)
+    counts_stripped = Counter(cols)
+    dups = sorted({c for c, k in counts.items() if k > 1}
+                  | {c for c, k in counts_stripped.items() if k > 1})  # also equal once stripped
     if dups:
-        raise LogError(f"header names column(s) {', '.join(dups)} more than once: rename one",
+        raise LogError(f"header names column(s) {short_list(dups)} more than once: rename one",
                        p)
     df.columns = cols
     if len(df) == 0:
@@ -197,15 +208,15 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None) -> Log:
     from pmdcid.io.build import frame_columns, validated_log
 
     mapping = mapping or ColumnMap()
-    data, extra = frame_columns(df, mapping, p)
-    return validated_log(p, data, extra, meta, mapping.cutoff_hz)
+    data, extra, skipped = frame_columns(df, mapping, p)
+    return validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
 
 
-def read_logs(paths, mapping: ColumnMap | None = None) -> list[Log]:
-    """Read several logs with the same mapping."""
+def read_logs(paths, mapping: ColumnMap | None = None, defer: bool = False) -> list[Log]:
+    """Read several logs with the same mapping (``defer``: see :func:`read_log`)."""
     if not paths:
         raise LogError("no log files given")
-    return [read_log(p, mapping) for p in paths]
+    return [read_log(p, mapping, defer) for p in paths]
 
 
 #: rows formatted per chunk when writing a log (bounds the memory of writing huge logs)
@@ -245,9 +256,14 @@ def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, st
 def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
     """Write ``path`` atomically: ``fill(fh)`` writes a temporary file in the same folder (opened
     in binary mode when ``binary``), which then replaces ``path`` (os.replace). On any failure
-    the temporary file is removed and an existing ``path`` is left byte-for-byte as it was.
+    (SIGTERM included, see :mod:`pmdcid.io.outputs`) the temporary file is removed and an
+    existing ``path`` is left byte-for-byte as it was. A symlink is written through: its target
+    is replaced, the link stays. Inside a command's transaction the old version is kept until
+    the command succeeds.
     """
-    p = Path(path)
+    from pmdcid.io import outputs
+
+    p = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.exists():
         up = next((a for a in folder.parents if a.exists()), None)
@@ -260,6 +276,7 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
         fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
         raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
+    outputs.IN_FLIGHT.add(tmp)
     try:
         with os.fdopen(fd, "wb" if binary else "w") as fh:
             fill(fh)
@@ -271,6 +288,9 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(tmp, 0o666 & ~umask)
+        tr = outputs.current()
+        if tr is not None:
+            tr.before_replace(os.path.realpath(p))
         os.replace(tmp, p)
     except BaseException as exc:
         try:
@@ -278,8 +298,10 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
         except OSError:
             pass
         if isinstance(exc, OSError):
-            raise LogError(f"cannot write ({exc.strerror})", str(p)) from None
+            raise LogError(f"cannot write ({exc.strerror})", str(path)) from None
         raise
+    finally:
+        outputs.IN_FLIGHT.discard(tmp)
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:

@@ -16,8 +16,18 @@ stand for the factor converting that unit to SI. Examples::
     i=current_mA*mA-0.002          # mA -> A, minus a 2 mA sensor offset
     theta=angle                    # plain rename
 
+When the right-hand side holds quotes or parentheses it is read by the expression grammar of
+:mod:`pmdcid.io.expr`: quoted column names that may hold anything, ``+ - * /``, parentheses and
+``sign()``/``abs()``::
+
+    omega="speed [rad/s]"                # a column name with spaces and a '/'
+    v=pwm*sign(dir)*12/255               # sign-magnitude PWM: a pwm and a direction column
+    v=(pwm-128)*12/128                   # offset-binary PWM
+
 A mapping file holds one mapping per line (``#`` starts a comment), or a JSON object
-``{"omega": "speed_rpm*rpm", ...}``. Command-line mappings override the file's.
+``{"omega": "speed_rpm*rpm", ...}``. Command-line mappings override the file's. A file line
+whose source column(s) a log lacks is skipped for that log, so one file serves logs with different
+columns; a command that then misses the column names the skipped line.
 """
 
 from __future__ import annotations
@@ -29,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmdcid.errors import LogError
+from pmdcid.io.expr import evaluate, parse_expr, refs
 
 UNITS: dict[str, float] = {
     "pi": math.pi,
@@ -56,6 +67,22 @@ class ColumnSpec:
     source: str
     scale: float = 1.0
     offset: float = 0.0
+    #: parsed expression (:mod:`pmdcid.io.expr`) when the mapping is more than source*k+offset
+    expr: tuple | None = None
+    #: where a mapping-file line came from, e.g. ``rig.map line 3`` (None: command line)
+    origin: str | None = None
+    text: str = ""
+
+    @property
+    def refs(self) -> list[str]:
+        """Every column the mapping reads."""
+        return refs(self.expr) if self.expr is not None else [self.source]
+
+    def evaluate(self, get):
+        """The canonical column, ``get(name)`` giving a source column as a float array."""
+        if self.expr is not None:
+            return evaluate(self.expr, get)
+        return get(self.source) * self.scale + self.offset
 
 
 @dataclass
@@ -106,6 +133,9 @@ def parse_spec(text: str) -> ColumnSpec:
             f"column mapping '{text}': '{canon}' is not a canonical column "
             f"({', '.join(CANONICAL)})"
         )
+    if any(c in expr for c in "\"'()"):  # quoted names, parentheses, functions: the grammar
+        tree = parse_expr(expr, text, UNITS)
+        return ColumnSpec(canon, refs(tree)[0], expr=tree, text=text.strip())
     # offset: a trailing +number or -number (not part of an exponent)
     offset = 0.0
     om = re.search(r"(?<![eE*/])([+-])\s*([0-9.][0-9.eE+-]*|pi)\s*$", expr)
@@ -125,7 +155,18 @@ def parse_spec(text: str) -> ColumnSpec:
             if val == 0:
                 raise LogError(f"column mapping '{text}' divides by zero")
             scale /= val
-    return ColumnSpec(canon, source, scale, offset)
+    return ColumnSpec(canon, source, scale, offset, text=text.strip())
+
+
+def _strip_comment(line: str) -> str:
+    """A mapping-file line without its ``#`` comment (a ``#`` inside quotes is kept)."""
+    quote = None
+    for k, c in enumerate(line):
+        if c in "\"'":
+            quote = None if quote == c else (quote or c)
+        elif c == "#" and quote is None:
+            return line[:k].strip()
+    return line.strip()
 
 
 def parse_mapping(items: list[str] | tuple[str, ...] = (),
@@ -133,9 +174,11 @@ def parse_mapping(items: list[str] | tuple[str, ...] = (),
     """Build a :class:`ColumnMap` from a mapping file (optional) and command-line items."""
     specs: dict[str, ColumnSpec] = {}
     if path is not None:
+        from pmdcid.io.text import read_text
+
         p = Path(path)
         try:
-            text = p.read_text()
+            text = read_text(p)
         except OSError as exc:
             raise LogError(f"cannot read column-mapping file ({exc.strerror})", p) from None
         except UnicodeDecodeError:
@@ -149,16 +192,20 @@ def parse_mapping(items: list[str] | tuple[str, ...] = (),
                 raise LogError(f"mapping file is not valid JSON ({exc.msg})", p) from None
             except (ValueError, RecursionError) as exc:
                 raise LogError(f"mapping file is not usable JSON ({str(exc)[:60]})", p) from None
+            if not isinstance(obj, dict):
+                raise LogError("mapping file must hold a JSON object {\"omega\": \"...\"}", p)
             lines = [f"{k}={v}" for k, v in obj.items()]
         else:
-            lines = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
-        for ln in lines:
+            lines = [_strip_comment(ln) for ln in text.splitlines()]
+        for k, ln in enumerate(lines):
             if ln:
                 try:
                     spec = parse_spec(ln)
                 except LogError as exc:
                     raise LogError(str(exc), p) from None
-                specs[spec.canon] = spec
+                where = f"{p.name} {'entry' if text.lstrip().startswith('{') else 'line'} {k + 1}"
+                specs[spec.canon] = ColumnSpec(spec.canon, spec.source, spec.scale, spec.offset,
+                                               spec.expr, where, spec.text)
     for item in items:
         spec = parse_spec(item)
         specs[spec.canon] = spec

@@ -12,7 +12,6 @@ import json
 import math
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from pmdcid.errors import ModelError
@@ -180,7 +179,31 @@ def _unit_of(name: str) -> str:
     return spec.unit if spec else ""
 
 
-def _check_value(name: str, value: Any, path: str) -> float:
+def _spec(name: str) -> ParamSpec | None:
+    spec = BASE_PARAMS.get(name)
+    if spec is None:
+        from pmdcid.model.effects import effect_param_specs
+
+        spec = effect_param_specs().get(name)
+    return spec
+
+
+def check_bounds(name: str, v: float, path) -> float:
+    """``v`` if it lies in the parameter's bounds, else the loader's one-line error."""
+    spec = _spec(name)
+    if not math.isfinite(v):
+        raise ModelError(f"parameter '{name}' is not finite ({v!r}): give a finite number or "
+                         "remove it and rerun its stage", path)
+    if spec is not None and not (spec.lower <= v <= spec.upper):
+        raise ModelError(
+            f"parameter '{name}' = {v:g} {spec.unit} is impossible "
+            f"(must lie in [{spec.lower:g}, {spec.upper:g}])",
+            path,
+        )
+    return v
+
+
+def _check_value(name: str, value: Any, path: str, unit: Any = "") -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ModelError(f"parameter '{name}' has non-numeric value {repr(value)[:30]}: "
                          "give a plain number in SI units", path)
@@ -191,18 +214,15 @@ def _check_value(name: str, value: Any, path: str) -> float:
     if not math.isfinite(v):
         raise ModelError(f"parameter '{name}' is not finite ({repr(value)[:30]}): give a finite "
                          "number or remove it and rerun its stage", path)
-    spec = BASE_PARAMS.get(name)
-    if spec is None:
-        from pmdcid.model.effects import effect_param_specs
+    spec = _spec(name)
+    if spec is not None and unit not in (None, ""):
+        from pmdcid.model.units import to_canonical
 
-        spec = effect_param_specs().get(name)
-    if spec is not None and not (spec.lower <= v <= spec.upper):
-        raise ModelError(
-            f"parameter '{name}' = {v:g} {spec.unit} is impossible "
-            f"(must lie in [{spec.lower:g}, {spec.upper:g}])",
-            path,
-        )
-    return v
+        if not isinstance(unit, str):
+            raise ModelError(f"parameter '{name}' has unit {unit!r}: a unit is a text like "
+                             f"{spec.unit!r}", path)
+        v = to_canonical(name, v, unit, spec.unit, path)
+    return check_bounds(name, v, path)
 
 
 def model_from_json(obj: Any, path: str = "<model>") -> Model:
@@ -221,11 +241,14 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
             entry = {"value": entry}
         if not isinstance(entry, dict) or "value" not in entry:
             raise ModelError(f"parameter '{name}' must be an object with a 'value'", path)
-        v = _check_value(name, entry["value"], path)
+        unit = entry.get("unit")
+        v = _check_value(name, entry["value"], path, unit)
         se = entry.get("stderr")
         se = float(se) if isinstance(se, (int, float)) and not isinstance(se, bool) else math.nan
-        model.parameters[name] = Parameter(v, se, str(entry.get("unit") or _unit_of(name)),
-                                           str(entry.get("stage") or ""))
+        if math.isfinite(se) and entry["value"] and v != float(entry["value"]):
+            se *= v / float(entry["value"])  # the same prefix scaling as the value
+        unit = _unit_of(name) if _spec(name) is not None else str(unit or "")
+        model.parameters[name] = Parameter(v, se, unit, str(entry.get("stage") or ""))
     effects = obj.get("effects", [])
     if not isinstance(effects, list) or not all(isinstance(e, str) for e in effects):
         raise ModelError("'effects' must be a list of effect names", path)
@@ -255,8 +278,10 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
         return Model(path=p)
     if os.path.isdir(p):
         raise ModelError("is a folder, not a model file", p)
+    from pmdcid.io.text import read_text
+
     try:
-        text = Path(p).read_text()
+        text = read_text(p)
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"cannot read model file ({getattr(exc, 'strerror', exc)})", p) from None
     if not text.strip():
@@ -273,8 +298,15 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
 
 
 def save_model(model: Model, path: str | os.PathLike) -> None:
-    """Write the model file atomically (temporary file in the same folder, then rename)."""
+    """Write the model file atomically (temporary file in the same folder, then rename).
+
+    Every value is checked against the bounds the loader applies first: the tool never writes a
+    model it would then refuse to read.
+    """
     from pmdcid.io.logs import atomic_write_text
+
+    for name, par in model.parameters.items():
+        check_bounds(name, par.value, str(path))
 
     try:
         atomic_write_text(path, json.dumps(model.to_json(), indent=2) + "\n")

@@ -42,9 +42,14 @@ def check_out_dir(out_dir) -> Path:
 
 
 def make_out_dir(out_dir) -> Path:
+    from pmdcid.io.outputs import current
+
     p = check_out_dir(out_dir)
+    first_new = next((a for a in reversed([p, *p.parents]) if not a.exists()), None)
     try:
         p.mkdir(parents=True, exist_ok=True)
+        if first_new is not None and current() is not None:
+            current().created_dir(str(first_new))  # removed again if the report fails
     except OSError as exc:
         raise LogError(f"cannot create the output folder ({exc.strerror or exc})", str(p)) from None
     return p
@@ -77,10 +82,10 @@ def _clean(x):
 def load_summary(path) -> dict:
     """Read a diagnose summary file (JSON object) given with ``--summary``."""
     from pmdcid.errors import PmdcidError
+    from pmdcid.io.text import read_text
 
     try:
-        with open(path) as fh:
-            obj = json.load(fh)
+        obj = json.loads(read_text(path))
     except FileNotFoundError:
         raise PmdcidError("no such summary file", str(path)) from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -93,7 +98,34 @@ def load_summary(path) -> dict:
                           "file diagnose --summary wrote", str(path)) from None
     if not isinstance(obj, dict):
         raise PmdcidError("summary must hold a JSON object (diagnose --summary)", str(path))
+    bad = _summary_shape_error(obj)
+    if bad:
+        raise PmdcidError(f"summary {bad}: give the file diagnose --summary wrote", str(path))
     return obj
+
+
+def _is_num(x) -> bool:
+    return x is None or (isinstance(x, (int, float)) and not isinstance(x, bool))
+
+
+def _summary_shape_error(obj: dict) -> str | None:
+    """What in a diagnose summary has the wrong type (None: its fields are as CONTRACT.md)."""
+    added = obj.get("added", [])
+    if not isinstance(added, list) or not all(isinstance(a, str) for a in added):
+        return "field 'added' must be a list of effect names"
+    cands = obj.get("candidates", [])
+    if not isinstance(cands, list) or not all(
+            isinstance(c, dict) and isinstance(c.get("effect", ""), str)
+            and _is_num(c.get("delta_bic")) and _is_num(c.get("omega_nrmse")) for c in cands):
+        return "field 'candidates' must be a list of {effect, delta_bic, ...} objects"
+    for key in ("before", "after"):
+        v = obj.get(key, {})
+        if v is not None and (not isinstance(v, dict) or not all(
+                _is_num(x) for k, x in v.items() if k.endswith("nrmse"))):
+            return f"field '{key}' must be an object of error names -> numbers"
+    if not isinstance(obj.get("unexplained", False), bool):
+        return "field 'unexplained' must be true or false"
+    return None
 
 
 def parameter_table(model: Model) -> dict:

@@ -136,8 +136,11 @@ def simulate(t: np.ndarray, u: np.ndarray, model: Model, torque_driven: bool = F
              x0=None) -> SimResult:
     """Simulate ``model`` under input ``u`` (V, or N m if ``torque_driven``; V for a lumped
     model) at ``t``, from ``x0`` = (i, omega, theta) (default rest)."""
+    from pmdcid.simulate.kernel import bounded_for
+
     vals = param_values(model, torque_driven, overrides)
-    return simulate_values(t, u, vals, torque_driven, nsub, x0)
+    with bounded_for(model.path):
+        return simulate_values(t, u, vals, torque_driven, nsub, x0)
 
 
 def simulate_log(log, model: Model, nsub: int | None = None,

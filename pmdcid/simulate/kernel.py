@@ -16,10 +16,12 @@ converges at first order in h at the events.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 
 import numpy as np
 from numba import njit
 
+from pmdcid.errors import ModelError
 from pmdcid.simulate.layout import BC, BV, DZ_OFFSET, DZ_SLOPE, FS, KE, KM, J, L, R
 from pmdcid.simulate.terms import (
     armature_voltage,
@@ -196,6 +198,24 @@ def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compile
 #: error of about h / tau of the transient (2 %): measured on a fast motor (tau = 10 ms), the
 #: speed's RMS error against a 200-substep reference halves with each halving of h
 STEPS_PER_TAU = 50.0
+#: most internal steps (samples x substeps) one simulation may take: minutes of compute. Past it
+#: the input is wrong (J = 1e-12, time in microseconds, a 1e300 s sample period), not the motor
+MAX_STEPS = 5e8
+
+
+class WorkBoundError(ModelError):
+    """A simulation would take more than :data:`MAX_STEPS` internal steps (message says why)."""
+
+
+@contextmanager
+def bounded_for(model_path):
+    """Name ``model_path`` in a :class:`WorkBoundError` raised inside the block."""
+    try:
+        yield
+    except WorkBoundError as exc:
+        if exc.path is not None or model_path is None:
+            raise
+        raise WorkBoundError(str(exc), str(model_path)) from None
 
 
 def choose_substeps(dt: float, p: np.ndarray, h_max: float | None = None) -> int:
@@ -209,6 +229,20 @@ def choose_substeps(dt: float, p: np.ndarray, h_max: float | None = None) -> int
     return max(1, int(math.ceil(dt / h_max - 1e-9)))
 
 
+def check_work(n: int, dt: float, nsub: int, p: np.ndarray) -> None:
+    """Raise :class:`WorkBoundError` when ``n`` samples of ``nsub`` substeps exceed the bound."""
+    steps = float(n) * float(nsub)
+    if steps <= MAX_STEPS:
+        return
+    damping = p[BV] + (p[KM] * p[KE] / p[R] if p[R] > 0 else 0.0)
+    tau = p[J] / damping if damping > 0 else math.inf
+    raise WorkBoundError(
+        f"the simulation would take {steps:.2g} internal steps ({n} samples x {float(nsub):.2g} "
+        f"substeps; limit {MAX_STEPS:.0e}): a sample period of {dt:.3g} s is "
+        f"{dt / tau:.2g} x the time constant J/(bv+km^2/R) = {tau:.3g} s: check J (value, unit) "
+        "or the time unit (t in ms or us? -c t=COLUMN*ms)")
+
+
 def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = False,
                nsub: int | None = None, x0=None) -> np.ndarray:
     """Simulate from ``x0`` (default rest) under the zero-order-held input ``u`` sampled at ``dt``.
@@ -218,6 +252,7 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
     """
     if nsub is None:
         nsub = choose_substeps(dt, p)
+    check_work(len(u), dt, nsub, p)
     h = dt / nsub
     Phi, Gam = discretize(p, h, torque_driven)
     x = np.zeros(3) if x0 is None else np.asarray(x0, dtype=float)
@@ -225,4 +260,5 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
                 Phi, Gam, int(nsub), bool(torque_driven), x)
 
 
-__all__ = ["choose_substeps", "discretize", "run_kernel", "system_matrix", "FS", "BC"]
+__all__ = ["MAX_STEPS", "WorkBoundError", "bounded_for", "check_work", "choose_substeps",
+           "discretize", "run_kernel", "system_matrix", "FS", "BC"]

@@ -1,0 +1,132 @@
+"""The plausibility gate: before a stage writes a model, the logs' units are checked against each
+other and against what any motor can do. A unit mistake found here is refused with one line
+saying what to map (unless ``--force``): a model known to be wrong is never written, not even
+with a warning.
+
+Rules (each names the cause and the mapping that fixes it):
+
+- **time unit**: a sample period of 0.2 s or more. A motor identification log is sampled at tens
+  of hertz at the very least (the mechanical time constant of a motor is milliseconds to
+  seconds); a period of 1 is a 1 kHz log written in ms, 1000 one written in µs.
+- what :func:`pmdcid.io.checks.check_log` found on reading: a **saturated sensor** (current or
+  speed flat at its extreme for many samples) and a **speed that is not the angle's derivative**
+  (rpm, deg/s, rev/s, or time in ms: the ratio names which).
+- **no-load speed** (voltage logs, km known): a permanent-magnet motor's speed stays below
+  |v|/km, the speed at which the back-EMF km*omega equals the supply. A measured speed several
+  times that (median over the driven samples) is in rpm (x 9.55) or deg/s (x 57.3).
+- **back-EMF balance** (voltage logs with current, R and km known): km*omega equals the
+  back-EMF v - R*i the armature leaves. More than 3 times it (median over the driven samples)
+  names rpm or deg/s. (Less is not refused: a driver's voltage drop lowers the real v.)
+- **time constants** of the fitted result: an armature L/R above 1 s or a mechanical time
+  constant above 100 s is beyond any motor; the time column is in ms or µs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pmdcid.errors import LogError, warn
+
+#: longest sample period of a motor log [s]
+MAX_SAMPLE_PERIOD = 0.2
+#: largest armature time constant L/R of any motor [s], largest mechanical one [s]
+MAX_TAU_ELECTRICAL = 1.0
+MAX_TAU_MECHANICAL = 100.0
+#: median of km*|omega|/|v| over the driven samples above which omega cannot be rad/s
+MAX_BACK_EMF_RATIO = 2.0
+
+
+def _time_unit_hint(dt: float) -> str:
+    if dt > 1e7:  # no unit makes this a motor log's period
+        return (f"the sample period {dt:.3g} s is no motor log's: check the time column (its "
+                "unit, or another column mapped to t with -c t=COLUMN)")
+    unit, factor = ("ms", 1e-3) if dt < 50 else ("us", 1e-6)
+    return (f"t looks like {'milliseconds' if unit == 'ms' else 'microseconds'} (a sample "
+            f"period of {dt:g}; {unit} would make it {dt * factor:g} s): map it with "
+            f"-c t=COLUMN*{unit}")
+
+
+def log_issues(log) -> list[str]:
+    """What is implausible about one log, one message each (empty: nothing)."""
+    out = []
+    if log.dt >= MAX_SAMPLE_PERIOD:
+        out.append(_time_unit_hint(log.dt))
+    out += list(getattr(log, "issues", []))
+    return out
+
+
+def _omega_hint(ratio: float) -> str:
+    hints = ((60 / (2 * math.pi), "omega looks like rpm: map it with -c omega=COLUMN*rpm"),
+             (180 / math.pi, "omega looks like deg/s: map it with -c omega=COLUMN*deg"))
+    return next((h for k, h in hints if 0.6 * k < ratio < 1.4 * k),
+                "check omega's unit, and km (SI: N m/A = V s/rad)")
+
+
+def speed_issue(log, km: float | None, R: float | None = None) -> str | None:
+    """The no-load-speed and back-EMF rules on a voltage log with a measured speed (None: the
+    speed is plausible, or the rules do not apply)."""
+    if km is None or not (km > 0) or log.drive != "v" or "omega" not in log.data \
+            or "omega" in log.derived:
+        return None
+    v, om = log["v"], log["omega"]
+    vmax = float(np.max(np.abs(v)))
+    driven = np.abs(v) > 0.3 * vmax if vmax > 0 else np.zeros(len(v), bool)
+    if driven.sum() < 10:
+        return None
+    ratio = float(np.median(km * np.abs(om[driven]) / np.abs(v[driven])))
+    if ratio > MAX_BACK_EMF_RATIO:
+        return (f"the speed is {ratio:.3g} x the no-load speed |v|/km allows (km = {km:g} N m/A;"
+                f" the back-EMF km*omega cannot exceed the supply): {_omega_hint(ratio)}")
+    if R is None or not (R > 0) or "i" not in log.data or "i" in log.derived:
+        return None
+    emf = v - R * log["i"]  # the back-EMF the armature balance leaves (inductance: transients)
+    sure = driven & (np.abs(emf) > 0.02 * vmax)
+    if sure.sum() < 100:
+        return None
+    k = float(np.median(km * om[sure] / emf[sure]))
+    if k <= 3.0:
+        return None
+    return (f"km*omega is {k:.3g} x the back-EMF v - R*i (R = {R:g} ohm, km = {km:g} N m/A), "
+            f"where it should equal it: {_omega_hint(k)}")
+
+
+def gate(logs, force: bool = False, km: float | None = None, R: float | None = None) -> None:
+    """Refuse (:class:`LogError` naming the log) what :func:`log_issues` or :func:`speed_issue`
+    find, unless ``force``: then each is a warning."""
+    for log in logs:
+        found = log_issues(log)
+        s = speed_issue(log, km, R)
+        if s:
+            found.append(s)
+        for msg in found:
+            if not force:
+                raise LogError(f"{msg} (or --force to fit anyway)", log.path)
+            warn(msg, log.path)
+
+
+def gate_result(model, logs, force: bool = False) -> None:
+    """The time-constant rules on a fitted model (before it is written)."""
+    def val(name):
+        p = model.parameters.get(name)
+        return p.value if p is not None else math.nan
+
+    R, L, km, J = val("R"), val("L"), val("km"), val("J")
+    b = val("bv") if math.isfinite(val("bv")) else val("b")
+    msgs = []
+    if R > 0 and L / R > MAX_TAU_ELECTRICAL:
+        msgs.append(f"the fitted armature time constant L/R = {L / R:.3g} s is beyond any "
+                    "motor's (< 1 s)")
+    damping = (b if math.isfinite(b) else 0.0) + (km * km / R if R > 0 and km > 0 else 0.0)
+    if damping > 0 and J / damping > MAX_TAU_MECHANICAL:
+        msgs.append(f"the fitted mechanical time constant J/(b+km^2/R) = {J / damping:.3g} s is "
+                    "beyond any motor's (< 100 s)")
+    if not msgs:
+        return
+    dt = max(log.dt for log in logs)
+    path = logs[0].path if logs else None
+    msg = f"{msgs[0]}: is t in ms or us? (sample period {dt:g} s; map it with -c t=COLUMN*ms)"
+    if not force:
+        raise LogError(f"{msg} (or --force to write it anyway)", path)
+    warn(msg, path)

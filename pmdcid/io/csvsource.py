@@ -1,0 +1,142 @@
+"""Opening a log as rigs and spreadsheets export it: encoding, pipes, separator, decimal mark.
+
+- A UTF-8 byte-order mark is dropped (also before ``#`` comments); a UTF-16 file with its BOM is
+  decoded as UTF-16 (Excel's "Unicode text").
+- A pipe or process substitution (``<(zcat log.csv.gz)``) is read once, into memory: it cannot
+  be read twice or sized.
+- European exports (Excel with a comma decimal mark) separate fields with ``;`` and write
+  ``0,001``: a header with ``;`` (or a tab) and no ``,``, whose first data rows have as many
+  separators, is read with that separator, and with a decimal comma when the data show one.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import stat
+from dataclasses import dataclass
+
+import numpy as np
+
+from pmdcid.errors import LogError, short_list
+from pmdcid.io.text import BOMS_16, decode
+
+HEAD_BYTES = 1 << 16
+#: data rows looked at to recognise the separator and the decimal mark
+SNIFF_ROWS = 20
+
+
+@dataclass
+class Source:
+    """What pandas reads (a path or an in-memory buffer), the text head, the CSV dialect."""
+
+    handle: object
+    head: str
+    sep: str = ","
+    decimal: str = "."
+
+
+def open_source(p: str) -> Source:
+    """Read the head of log ``p`` (all of it when it is not a regular file); see module doc."""
+    try:
+        regular = stat.S_ISREG(os.stat(p).st_mode)
+        with open(p, "rb") as fh:
+            data = None if regular else fh.read()
+            head = fh.read(HEAD_BYTES) if regular else data[:HEAD_BYTES]
+    except OSError as exc:
+        raise LogError(f"cannot read log ({exc.strerror})", p) from None
+    if head.startswith(BOMS_16):
+        if data is None:
+            with open(p, "rb") as fh:
+                data = fh.read()
+        try:
+            text = decode(data)
+        except UnicodeDecodeError:
+            raise LogError("starts like UTF-16 text but is not: export the log as UTF-8 CSV",
+                           p) from None
+        return Source(io.StringIO(text), text[:HEAD_BYTES])
+    if b"\x00" in head:
+        raise LogError("is not a text CSV file (binary content): export the log as CSV", p)
+    text = head.decode("utf-8", errors="replace").lstrip("\ufeff")
+    return Source(p if data is None else io.BytesIO(data), text)
+
+
+def sniff(src: Source, nskip: int) -> Source:
+    """Set ``src.sep`` and ``src.decimal`` from the header and the first data rows."""
+    lines = [ln for ln in src.head.splitlines()[nskip:] if ln.strip()]
+    if len(lines) < 2:
+        return src
+    header, rows = lines[0], lines[1:1 + SNIFF_ROWS]
+    if len(rows) > 1 and len(src.head.encode()) >= HEAD_BYTES:
+        rows = rows[:-1]  # the last line of the head may be cut
+    for sep in (";", "\t"):
+        k = header.count(sep)
+        if k and "," not in header and all(r.count(sep) == k for r in rows):
+            src.sep = sep
+            if any(re.search(r"\d,\d", r) for r in rows):
+                src.decimal = ","
+            break
+    return src
+
+
+def separator_hint(src: Source, nskip: int) -> str:
+    """Why a file that looks ``;``- or tab-separated was not read as such ('' if it does not)."""
+    header = next((ln for ln in src.head.splitlines()[nskip:] if ln.strip()), "")
+    for sep, word in ((";", "semicolon"), ("\t", "tab")):
+        if sep in header and "," not in header:
+            return (f"; it looks {word}-separated, but its rows do not all have as many fields "
+                    "as the header")
+    return ""
+
+
+def header_names(src: Source, nskip: int) -> list[str]:
+    """The raw header's names (stripped, unquoted), for the duplicate-name check."""
+    lines = src.head.splitlines()[nskip:]
+    k = next((j for j, ln in enumerate(lines) if ln.strip()), None)
+    if k is None:
+        return []
+    names = [c.strip().strip('"') for c in lines[k].split(src.sep)]
+    if k == len(lines) - 1:  # the header runs past the head: its last name may be cut
+        names = names[:-1]
+    return names
+
+
+def numeric_column(df, src: str, p: str) -> np.ndarray:
+    """Column ``src`` as floats; a text cell that is not a number is an error naming its row."""
+    import pandas as pd
+
+    raw = df[src]
+    col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+    if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
+        notnum = np.isnan(col) & raw.notna().to_numpy() & (
+            raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
+        ).to_numpy()
+        if notnum.any():
+            row = int(np.flatnonzero(notnum)[0])
+            raise LogError(
+                f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
+                f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
+                "that row (or map another column)",
+                p,
+            )
+    return col
+
+
+def column_specs(cols: list[str], mapping, canonical, p: str):
+    """Spec of each canonical column, and the mapping-file lines skipped for this log."""
+    from pmdcid.io.mapping import ColumnSpec
+
+    have = set(cols)
+    specs = {c: ColumnSpec(c, c) for c in canonical if c in have}
+    skipped: dict[str, str] = {}
+    for canon, spec in mapping.specs.items():
+        missing = [r for r in spec.refs if r not in have]
+        if missing and spec.origin is not None and len(missing) == len(spec.refs):
+            skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no column '{missing[0]}'"
+            continue
+        if missing:
+            raise LogError(f"column mapping {canon}={missing[0]}: no column '{missing[0]}' "
+                           f"(columns are {short_list(cols)})", p)
+        specs[canon] = spec
+    return specs, skipped
