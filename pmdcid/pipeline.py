@@ -244,13 +244,19 @@ def _diagnose(res: IdentifyResult, logs, say=None) -> None:
 
 
 def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_diagnose=True,
-                 priors=True, progress=None) -> IdentifyResult:
-    """``pmdcid identify`` on files: read, identify, write MODEL atomically, then the report."""
+                 priors=True, progress=None, force=False) -> IdentifyResult:
+    """``pmdcid identify`` on files: read, identify, write MODEL atomically, then the report.
+
+    The plausibility gate (:mod:`pmdcid.identify.plausibility`) checks the logs before and the
+    model before it is written, as every stage command does; ``force`` makes it warn instead."""
     import os
 
     from pmdcid.errors import LogError
+    from pmdcid.identify.plausibility import gate, gate_result
     from pmdcid.io import read_logs
+    from pmdcid.io.outputs import locked
     from pmdcid.model import load_model, save_model
+    from pmdcid.simulate.kernel import bounded_for
 
     for p in paths:
         if os.path.exists(p) and os.path.exists(model_path) and os.path.samefile(p, model_path):
@@ -261,13 +267,22 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
 
         check_out_dir(out_dir)
     model = load_model(model_path, must_exist=False)
-    logs = read_logs(paths, mapping)
-    res = identify(logs, model, km=km, run_diagnose=run_diagnose, priors=priors,
-                   progress=progress)
+    logs = read_logs(paths, mapping, defer=True)
+
+    def value(name, given=None):
+        return given if given is not None else (
+            model.parameters[name].value if name in model.parameters else None)
+
+    gate(logs, force, value("km", km), value("R"))
+    with bounded_for(model_path):
+        res = identify(logs, model, km=km, run_diagnose=run_diagnose, priors=priors,
+                       progress=progress)
     res.model.extra.setdefault("fits", {})["identify"] = {
         "logs": {p.path: {"kind": p.kind, "why": p.why} for p in res.plan},
         "stages": [name for name, _ in res.stages], "notes": res.notes}
-    save_model(res.model, model_path)
+    gate_result(res.model, logs, force)
+    with locked(model_path):
+        save_model(res.model, model_path)
     if out_dir is not None:
         from pmdcid.report import make_report
 

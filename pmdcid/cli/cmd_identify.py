@@ -19,8 +19,10 @@ from pmdcid.cli.options import FiniteFloat, log_options, model_option
 @click.option("--no-prior", is_flag=True,
               help="Later stages use their own logs alone (default: combined with what the "
                    "earlier stages determined).")
+@click.option("--force", is_flag=True,
+              help="Write the model even when the plausibility checks refuse the logs' units.")
 @log_options
-def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, mapping):
+def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, mapping):
     """A whole rig: sort the logs, run every stage that applies, a joint fit, diagnose, and
     the report into DIR."""
     from pmdcid.pipeline import run_identify
@@ -28,7 +30,7 @@ def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, mapping):
 
     res = run_identify(list(logs), model_path, out_dir, mapping, km=km,
                        run_diagnose=not no_diagnose, priors=not no_prior,
-                       progress=stage_lines())
+                       progress=stage_lines(), force=force)
     click.echo(res.table())
     for w in res.warnings:
         click.echo(f"warning: {w}", err=True)

@@ -203,7 +203,7 @@ def check_bounds(name: str, v: float, path) -> float:
     return v
 
 
-def _check_value(name: str, value: Any, path: str, unit: Any = "") -> float:
+def _check_value(name: str, value: Any, path: str, unit: Any = "", lumped: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ModelError(f"parameter '{name}' has non-numeric value {repr(value)[:30]}: "
                          "give a plain number in SI units", path)
@@ -221,8 +221,19 @@ def _check_value(name: str, value: Any, path: str, unit: Any = "") -> float:
         if not isinstance(unit, str):
             raise ModelError(f"parameter '{name}' has unit {unit!r}: a unit is a text like "
                              f"{spec.unit!r}", path)
-        v = to_canonical(name, v, unit, spec.unit, path)
+        v = to_canonical(name, v, unit, _canonical_unit(name, lumped), path)
     return check_bounds(name, v, path)
+
+
+def _canonical_unit(name: str, lumped: bool) -> str:
+    """The unit a parameter is held in: SI, or per volt in a lumped model (``"lumped": true``,
+    :mod:`pmdcid.model.lumped`)."""
+    unit = _unit_of(name)
+    if lumped:
+        from pmdcid.model.lumped import lumped_unit
+
+        return lumped_unit(unit)
+    return unit
 
 
 def model_from_json(obj: Any, path: str = "<model>") -> Model:
@@ -236,18 +247,19 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
     if not isinstance(params, dict):
         raise ModelError("'parameters' must be an object of name -> {value, stderr, unit}", path)
     model = Model(path=path)
+    lumped = obj.get("lumped") is True
     for name, entry in params.items():
         if isinstance(entry, (int, float)) and not isinstance(entry, bool):
             entry = {"value": entry}
         if not isinstance(entry, dict) or "value" not in entry:
             raise ModelError(f"parameter '{name}' must be an object with a 'value'", path)
         unit = entry.get("unit")
-        v = _check_value(name, entry["value"], path, unit)
+        v = _check_value(name, entry["value"], path, unit, lumped)
         se = entry.get("stderr")
         se = float(se) if isinstance(se, (int, float)) and not isinstance(se, bool) else math.nan
         if math.isfinite(se) and entry["value"] and v != float(entry["value"]):
             se *= v / float(entry["value"])  # the same prefix scaling as the value
-        unit = _unit_of(name) if _spec(name) is not None else str(unit or "")
+        unit = _canonical_unit(name, lumped) if _spec(name) is not None else str(unit or "")
         model.parameters[name] = Parameter(v, se, unit, str(entry.get("stage") or ""))
     effects = obj.get("effects", [])
     if not isinstance(effects, list) or not all(isinstance(e, str) for e in effects):
