@@ -115,17 +115,22 @@ def _replace_data_row(k: int, col: int, value: str):
     return fn
 
 
-def _clip_column(col: int, level: float):
-    """Clip data column ``col`` of a fixture's lines at ``level`` (a saturated sensor)."""
+def _map_column(col: int, f):
+    """Apply ``f`` to every value of data column ``col`` of a fixture's lines."""
     def fn(lines):
         h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
         out = lines[:h + 1]
         for ln in lines[h + 1:]:
             cells = ln.split(",")
-            cells[col] = f"{min(float(cells[col]), level):.9g}"
+            cells[col] = f"{f(float(cells[col])):.9g}"
             out.append(",".join(cells))
         return out
     return fn
+
+
+def _clip_column(col: int, level: float):
+    """Clip data column ``col`` of a fixture's lines at ``level`` (a saturated sensor)."""
+    return _map_column(col, lambda x: min(x, level))
 
 
 def _drop_column(col: int):
@@ -198,15 +203,7 @@ TRI = _triangle_log("tri.csv")
 
 def _scale_column(col: int, k: float):
     """Multiply data column ``col`` of a fixture's lines by ``k`` (a unit left unmapped)."""
-    def fn(lines):
-        h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
-        out = lines[:h + 1]
-        for ln in lines[h + 1:]:
-            cells = ln.split(",")
-            cells[col] = f"{float(cells[col]) * k:.9g}"
-            out.append(",".join(cells))
-        return out
-    return fn
+    return _map_column(col, lambda x: x * k)
 
 
 def model_units(name: str = "model.json", encoding: str = "utf-8", bom: bool = False, **given):

@@ -319,7 +319,7 @@ def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool =
         return _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev, priors)
 
 
-def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
+def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,  # noqa: C901 - #12
                    priors=True) -> NonlinearResult:
     t_start = time.perf_counter()
     if not logs:

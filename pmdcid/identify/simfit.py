@@ -77,7 +77,7 @@ def available_signals(log, signals: Sequence[str]) -> list[str]:
     return [s for s in signals if log.has(s) and not (s == "i" and log.drive == "tau")]
 
 
-def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "theta"),
+def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "theta"),  # noqa: C901
                    start: dict[str, float] | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
                    sigma: list[dict[str, float]] | None = None, max_nfev: int = 200,

@@ -154,10 +154,12 @@ class Model:
         return rows_frame(self.rows())
 
     def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {
-            "parameters": {k: v.to_json() for k, v in self.parameters.items()},
-            "effects": list(self.effects),
-        }
+        params = {k: v.to_json() for k, v in self.parameters.items()}
+        if self.extra.get("lumped") is True:  # the units a lumped model's values are in
+            for k, d in params.items():
+                if _spec(k) is not None:
+                    d["unit"] = _canonical_unit(k, True)
+        out: dict[str, Any] = {"parameters": params, "effects": list(self.effects)}
         out.update(self.extra)
         out.setdefault("format", FORMAT_VERSION)
         return out
