@@ -160,6 +160,8 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
             raise FitError("no log identifies anything: give logs where the input changes and "
                            "the rotor moves (steps, ramps) or blocked-rotor current steps")
         return res
+    if not groups["blocked"] and not res.model.has("R"):
+        _free_running_electrical(res, moving, say)
     if wants_lumped(moving, res.model) and not is_lumped(res.model):
         mark_lumped(res.model)
         res.notes.append("no current and no R: the model is lumped (per-volt parameters; "
@@ -172,10 +174,30 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         _stage(res, "fit-nonlinear", groups["rich"], _nonlinear(priors))
     say("joint fit")
     _stage(res, "joint fit (all moving logs)", moving, _nonlinear(False))
+    if not res.stages:
+        raise FitError("no stage could use these logs: " + "; ".join(res.notes))
     if run_diagnose and any(name.startswith("joint") for name, _ in res.stages):
         say("diagnose")
         _diagnose(res, moving, say)
     return res
+
+
+def _free_running_electrical(res: IdentifyResult, moving, say) -> None:
+    """No blocked-rotor logs and no R: R, L and the back-EMF constant ke from the moving logs
+    that log current (fit-electrical's free-running path, v = R i + L di/dt + ke omega). Without
+    a datasheet km, the SI identity km = ke of an ideal motor gives it (said in the notes)."""
+    with_current = [lg for lg in moving if lg.has("i") and lg.drive == "v" and lg.has("omega")]
+    if not with_current:
+        return
+    say("fit-electrical (free-running)")
+    _stage(res, "fit-electrical (free-running logs)", with_current, _electrical)
+    m = res.model
+    if not m.has("km") and "back_emf" in m.effects and m.has("ke"):
+        ke = m.parameters["ke"]
+        m.set("km", ke.value, ke.stderr, stage="ke (km = ke, no datasheet)")
+        res.notes.append(f"no datasheet km: km = ke = {ke.value:.4g} (an ideal motor's torque and "
+                         "back-EMF constants are one number in SI; iron and brush losses make the "
+                         "true km slightly smaller); give --km to use the datasheet's")
 
 
 def _has_mech(model: Model) -> bool:

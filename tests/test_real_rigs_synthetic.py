@@ -190,3 +190,34 @@ def test_identify_a_whole_rig_on_the_fixtures(tmp_path):
     for k, tol in (("R", 5e-3), ("L", 5e-3), ("J", 0.02), ("bv", 0.02), ("bc", 0.02)):
         assert got[k]["value"] == pytest.approx(PAPER[k], rel=tol), k
     assert math.isfinite(got["J"]["stderr"])
+
+
+def test_identify_a_rig_that_logs_current_but_has_no_blocked_rotor_or_datasheet(tmp_path):
+    """Current, speed and voltage logged while running freely, no blocked-rotor test, no --km:
+    identify gets R, L and ke from the free-running logs, takes km = ke, and lands on the truth
+    (R, L, km 1 %; J, bv, bc 2 %) — today's most common lab rig with a current sensor."""
+    from pmdcid.cli import main
+    from pmdcid.synth import PAPER_NOISE, staircase, synth_log
+
+    rng = np.random.default_rng(5)
+    vals = {**neutral_values(), **PAPER, "J": 3.1e-4, "bv": 0.002, "ke": PAPER["km"]}
+    paths = []
+    t = np.arange(3000) / 1000.0
+    for a in (1.0, 2.0, 3.0):
+        cols, _ = synth_log(t, step(t, a, 0.5), vals, PAPER_NOISE, rng)
+        write_log(tmp_path / f"step_{a}.csv", t, cols)
+        paths.append(str(tmp_path / f"step_{a}.csv"))
+    t = np.arange(20000) / 1000.0
+    cols, _ = synth_log(t, staircase(t, 3.0, 0.5, rng), vals, PAPER_NOISE, rng)
+    write_log(tmp_path / "stair.csv", t, cols)
+    paths.append(str(tmp_path / "stair.csv"))
+    model = tmp_path / "m.json"
+    r = CliRunner().invoke(main, ["identify", *paths, "-m", str(model), "--no-diagnose"])
+    assert r.exit_code == 0, r.output
+    assert "km = ke" in r.output
+    got = json.loads(model.read_text())
+    assert "back_emf" in got["effects"]
+    g = got["parameters"]
+    for k, tol in (("R", 0.01), ("L", 0.01), ("km", 0.01), ("ke", 0.01), ("J", 0.02),
+                   ("bv", 0.02), ("bc", 0.02)):
+        assert g[k]["value"] == pytest.approx(vals[k], rel=tol), k

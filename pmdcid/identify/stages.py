@@ -68,9 +68,16 @@ def per_volt(result) -> None:
     for e in getattr(result, "estimates", {}).values():
         e.unit = lumped_unit(e.unit)
     result.lumped = True
+    result.warnings[:] = [_per_volt_text(w) for w in result.warnings]
     note = "lumped model: per-volt parameters (no current, no datasheet); see the model file"
     if note not in result.warnings:
         result.warnings.insert(0, note)
+
+
+def _per_volt_text(text: str) -> str:
+    """A message's torque units as per-volt ones (the values in it are per volt already)."""
+    return (text.replace("kg m^2", "V s^2/rad").replace("N m s/rad", "V s/rad")
+            .replace(" N m", " V"))
 
 
 def _value(model, name, given=None):
