@@ -77,7 +77,7 @@ def available_signals(log, signals: Sequence[str]) -> list[str]:
     return [s for s in signals if log.has(s) and not (s == "i" and log.drive == "tau")]
 
 
-def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "theta"),  # noqa: C901
+def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "theta"),
                    start: dict[str, float] | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
                    sigma: list[dict[str, float]] | None = None, max_nfev: int = 200,
@@ -104,35 +104,15 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     if not free:
         raise FitError("nothing to fit: no free parameters")
     base = [param_values(model, log.drive == "tau") for log in logs]
-    x0 = []
-    for name in free:
-        v = (start or {}).get(name, base[0].get(name, math.nan))
-        if not math.isfinite(v):
-            raise FitError(f"no starting value for '{name}'")
-        x0.append(v)
     sig_list = sigma or []
     starts = _initial_states(logs, sig_list, initial)
     moving = [k for k, x in enumerate(starts) if x[1] != 0.0]
-    x0 = np.array(x0 + [starts[k][1] for k in moving], float)
-    lo = np.array([_bounds(n, bounds)[0] for n in free] + [-np.inf] * len(moving))
-    hi = np.array([_bounds(n, bounds)[1] for n in free] + [np.inf] * len(moving))
-    x0 = np.clip(x0, lo, hi)
+    x0, lo, hi = _start_vector(free, start, base[0], [starts[k][1] for k in moving], bounds)
     scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
     npar = len(free)
     prior_rows = [(j, *priors[n]) for j, n in enumerate(free)
                   if priors and n in priors and priors[n][1] > 0 and math.isfinite(priors[n][1])]
-    plan = []  # (log index, signal, measured, sigma)
-    segments = []  # (log index, first row, end row) of each signal in the residual vector
-    for k, log in enumerate(logs):
-        sigs = available_signals(log, signals)
-        given = sig_list[k] if k < len(sig_list) else {}
-        for s in sigs:
-            meas = log[s]
-            plan.append((k, s, meas, float(given.get(s, noise_level(meas)))))
-            row = segments[-1][2] if segments else 0
-            segments.append((k, row, row + len(meas)))
-    if not plan:
-        raise FitError(f"no log carries any of the signals {', '.join(signals)} to fit")
+    plan, segments = _residual_plan(logs, signals, sig_list)
     ndata = int(sum(np.isfinite(m).sum() for _, _, m, _ in plan))
 
     def state(x):
@@ -210,16 +190,52 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
               for i, a in enumerate(free)}
     with blas_single_thread():
-        final = sims(x)
-    errs: list[dict[str, float]] = [dict() for _ in logs]
-    sig_out: list[dict[str, float]] = [dict() for _ in logs]
-    for k, s, meas, sd in plan:
-        errs[k][s] = nrmse(final[k].get(s), meas)
-        sig_out[k][s] = sd
+        errs, sig_out = _per_log(plan, sims(x), len(logs))
     res = SimFitResult(est, stats, correl, errs, sig_out, info)
     res.initial = state(x)
     res.priors = {free[j]: (m, sd) for j, m, sd in prior_rows}
     return res
+
+
+def _per_log(plan, final, nlogs: int):
+    """Per log: signal -> NRMSE of the final simulation, and signal -> the noise std used."""
+    errs: list[dict[str, float]] = [dict() for _ in range(nlogs)]
+    sig_out: list[dict[str, float]] = [dict() for _ in range(nlogs)]
+    for k, s, meas, sd in plan:
+        errs[k][s] = nrmse(final[k].get(s), meas)
+        sig_out[k][s] = sd
+    return errs, sig_out
+
+
+def _start_vector(free, start, base, speeds, bounds):
+    """Start, lower and upper bounds of the solver's vector: the free parameters [their SI
+    units], then each moving log's starting speed [rad/s]; raises when a start is missing."""
+    x0 = []
+    for name in free:
+        v = (start or {}).get(name, base.get(name, math.nan))
+        if not math.isfinite(v):
+            raise FitError(f"no starting value for '{name}'")
+        x0.append(v)
+    lo = np.array([_bounds(n, bounds)[0] for n in free] + [-np.inf] * len(speeds))
+    hi = np.array([_bounds(n, bounds)[1] for n in free] + [np.inf] * len(speeds))
+    return np.clip(np.array(x0 + list(speeds), float), lo, hi), lo, hi
+
+
+def _residual_plan(logs, signals, sig_list):
+    """The residual's blocks: (log index, signal, measured, noise std) each, and their rows
+    (log index, first row, end row) in the residual vector."""
+    plan = []
+    segments = []
+    for k, log in enumerate(logs):
+        given = sig_list[k] if k < len(sig_list) else {}
+        for s in available_signals(log, signals):
+            meas = log[s]
+            plan.append((k, s, meas, float(given.get(s, noise_level(meas)))))
+            row = segments[-1][2] if segments else 0
+            segments.append((k, row, row + len(meas)))
+    if not plan:
+        raise FitError(f"no log carries any of the signals {', '.join(signals)} to fit")
+    return plan, segments
 
 
 def _initial_states(logs, sig_list, initial: bool) -> list[np.ndarray]:
