@@ -24,7 +24,7 @@ from pmdcid.identify.plausibility import gate, gate_result
 from pmdcid.io import read_logs
 from pmdcid.io.outputs import locked
 from pmdcid.model import load_model, save_model
-from pmdcid.model.lumped import is_lumped, lumped_unit, mark_lumped, wants_lumped
+from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.simulate import logs_for
 from pmdcid.simulate.kernel import bounded_for
 
@@ -65,8 +65,9 @@ def _apply(result, model, new) -> None:
 def per_volt(result) -> None:
     """Relabel a result's estimates in per-volt units (a lumped model, :mod:`..model.lumped`);
     its ``apply`` then marks the model it writes into as lumped."""
-    for e in getattr(result, "estimates", {}).values():
-        e.unit = lumped_unit(e.unit)
+    for name, e in getattr(result, "estimates", {}).items():
+        if name not in ELECTRICAL:
+            e.unit = lumped_unit(e.unit)
     result.lumped = True
     result.warnings[:] = [_per_volt_text(w) for w in result.warnings]
     note = "lumped model: per-volt parameters (no current, no datasheet); see the model file"

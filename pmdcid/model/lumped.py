@@ -46,7 +46,8 @@ def mark_lumped(model: Model) -> None:
     model.extra[KEY] = True
     model.extra["lumped_note"] = NOTE
     for name, par in model.parameters.items():
-        par.unit = lumped_unit(_unit_of(name) or par.unit)
+        if name not in ELECTRICAL:  # R, L, km, ke (a datasheet km) keep their SI units
+            par.unit = lumped_unit(_unit_of(name) or par.unit)
 
 
 def wants_lumped(logs, model: Model) -> bool:

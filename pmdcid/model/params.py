@@ -232,9 +232,9 @@ def _canonical_unit(name: str, lumped: bool) -> str:
     :mod:`pmdcid.model.lumped`)."""
     unit = _unit_of(name)
     if lumped:
-        from pmdcid.model.lumped import lumped_unit
+        from pmdcid.model.lumped import ELECTRICAL, lumped_unit
 
-        return lumped_unit(unit)
+        return unit if name in ELECTRICAL else lumped_unit(unit)
     return unit
 
 
