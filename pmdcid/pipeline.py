@@ -166,6 +166,11 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         mark_lumped(res.model)
         res.notes.append("no current and no R: the model is lumped (per-volt parameters; "
                          "see the model file's lumped_note)")
+    elif (not is_lumped(res.model) and not res.model.has("km")
+          and any(lg.drive == "v" for lg in moving)):
+        mark_lumped(res.model)
+        res.notes.append("no km (no datasheet, and the back-EMF was not resolved): the "
+                         "mechanical part is identified per volt (lumped); give --km for SI")
     if groups["step"]:
         say("fit-mechanical")
         _stage(res, "fit-mechanical", groups["step"], _mechanical)
