@@ -1,0 +1,157 @@
+"""What fit-nonlinear fits: the logs checked, the free parameters, the signals in the cost, and
+the working model with its starting values (fit-mechanical's for voltage logs, inverse dynamics
+for torque-driven ones). Split from :mod:`.nonlinear`, which runs the grid and the local stage.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pmdcid.errors import FitError, ModelError
+from pmdcid.model import Model
+
+SIGNALS = ("omega", "theta")
+#: free parameters fitted by default: voltage-driven and torque-driven logs
+FREE_V = ("J", "bv", "bc", "dz")
+FREE_TAU = ("J", "bv", "bc", "tau0")
+KNOWN_FREE = ("J", "bv", "bc", "dz", "tau0")
+#: fewest samples per log
+MIN_SAMPLES = 50
+
+
+def default_signals(logs) -> tuple[str, ...]:
+    """Signals the simulation error uses by default: the speed, or the angle when no log has one.
+
+    The speed whenever a log has it, measured or derived from the angle: its simulation error
+    does not accumulate (viscous friction forgets), so a small force error cannot dominate the
+    cost as it does through the open-loop angle, which integrates every error. Weighted by its
+    noise (an encoder's quantisation, tiny), the angle of a model that still lacks an effect (a
+    load torque, direction-dependent friction) drifts by orders of magnitude more than its
+    noise and drags J, bv and bc far from their values to reduce the drift; closed-loop data,
+    where a controller holds the real axis on its trajectory, is worse still. The angle is
+    fitted when no log has a speed, or on request (``--signals omega,theta``).
+    """
+    if any(lg.has("omega") for lg in logs):
+        return ("omega",)
+    if any(lg.has("theta") for lg in logs):
+        return ("theta",)
+    raise FitError("fit-nonlinear needs a speed 'omega' or angle 'theta' column in the logs "
+                   "(map one with -c)")
+
+
+def start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set[str]]:
+    """Starting values: the model's (fit-mechanical) for voltage logs, inverse dynamics for
+    torque-driven logs, else a quasi-static fit with J from a one-sample time constant (too slow
+    a sampling to see the acceleration), else the model. Returns (start, names guessed)."""
+    from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics, fit_quasi_static
+
+    start: dict[str, float] = {}
+    guessed: set[str] = set()
+    tau_logs = [lg for lg in logs if lg.drive == "tau"]
+    if tau_logs and _earlier_mechanics(model):
+        tau_logs = []  # a lumped model from fit-mechanical: its J, bv are the better start
+    if tau_logs:
+        try:
+            idm = fit_inverse_dynamics(tau_logs, model)
+            start.update({k: v for k, v in idm.values().items() if math.isfinite(v)})
+            warns.extend(idm.warnings)
+        except FitError as exc:
+            try:
+                start.update(fit_quasi_static(tau_logs, model))
+                if not model.has("J"):
+                    start["J"] = start["bv"] * max(lg.dt for lg in tau_logs)
+                    guessed.add("J")
+                warns.append(f"inverse dynamics gave no start ({exc}); bv, bc, tau0 start from "
+                             "the torque against the speed (quasi-static), J from a mechanical "
+                             "time constant of one sample period")
+            except FitError as exc2:
+                warns.append(f"inverse dynamics gave no start ({exc}; {exc2}); starting from "
+                             "the model")
+    for name in ("J", "bv", "bc", "dz", "tau0"):
+        if name not in start and model.has(name):
+            start[name] = model.value(name)
+    if "bv" not in start and model.has("b"):
+        start["bv"] = model.value("b")
+    missing = [n for n in ("J", "bv") if n not in start]
+    if missing:
+        how = ("put them in the model: the torque-driven logs gave no start" if tau_logs
+               else "run fit-mechanical first")
+        raise ModelError(f"model lacks {', '.join(missing)} to start fit-nonlinear: {how}",
+                         model.path)
+    start.setdefault("bc", 0.0)
+    start["bc"] = max(start["bc"], 0.0)
+    start["bv"] = max(start["bv"], 1e-3 * start["J"])
+    if "dz" not in start:
+        tb = model.extra.get("fits", {}).get("fit-mechanical", {}).get("breakaway_torque")
+        start["dz"] = float(tb) if isinstance(tb, (int, float)) and tb > 0 else start["bc"]
+    start.setdefault("tau0", 0.0)
+    return start, guessed
+
+
+def _earlier_mechanics(model: Model) -> bool:
+    """True when an earlier stage (not a start value) wrote J and bv (or b) into ``model``."""
+    def staged(n):
+        return model.has(n) and model.parameters[n].stage not in ("", "start")
+    return staged("J") and (staged("bv") or staged("b"))
+
+
+def check_logs(logs) -> None:
+    """Each log has an input, a speed or angle, and enough samples (else one clear error)."""
+    if not logs:
+        raise FitError("fit-nonlinear needs at least one log")
+    for lg in logs:
+        lg.drive  # noqa: B018 - raises when a log has neither v nor tau
+        if not (lg.has("omega") or lg.has("theta")):
+            lg.require("omega", purpose="fit-nonlinear (a speed 'omega' or an angle 'theta')")
+        if lg.n < MIN_SAMPLES:
+            raise FitError(f"too short ({lg.n} samples) for a simulation-error fit (needs at "
+                           f"least {MIN_SAMPLES})", lg.path)
+
+
+def free_parameters(logs, model: Model, free, dead_zone: bool) -> list[str]:
+    """The parameters fitted: given, or J, bv, bc, dz (voltage logs; R, L, km required) or
+    J, bv, bc, tau0 (torque logs; dz with ``dead_zone``)."""
+    any_v = any(lg.drive == "v" for lg in logs)
+    if any_v:
+        model.require("R", "L", "km", stage="fit-nonlinear")
+    if free is None:
+        free = list(FREE_V if any_v else FREE_TAU)
+        if dead_zone and "dz" not in free:
+            free.append("dz")
+    free = list(dict.fromkeys(free))
+    bad = [f for f in free if f not in KNOWN_FREE]
+    if bad:
+        raise FitError(f"cannot fit {', '.join(bad)} here (choose among "
+                       f"{', '.join(KNOWN_FREE)})")
+    return free
+
+
+def chosen_signals(logs, signals) -> tuple[tuple[str, ...], list[str]]:
+    """The measured signals in the cost (given or :func:`default_signals`), and a warning for
+    each one derived from the other."""
+    signals = tuple(signals) if signals else default_signals(logs)
+    unknown = [s for s in signals if s not in SIGNALS]
+    if unknown:
+        raise FitError(f"unknown signal(s) {', '.join(unknown)} (choose omega, theta)")
+    warns: list[str] = []
+    for s in signals if len(signals) > 1 else ():
+        if any(s in lg.derived for lg in logs):
+            warns.append(f"'{s}' is derived from the other measured signal in some logs: it "
+                         "adds no independent information")
+    return signals, warns
+
+
+def working_model(logs, model: Model, free, warns):
+    """A copy of ``model`` holding the starting values (:func:`start_values`) of the fitted
+    parameters and of those it lacks (no dead zone unless the model has one or it is fitted);
+    returns (model, start values, names guessed)."""
+    work = model.copy()
+    if "tau0" in free:
+        work.add_effect("torque_offset")
+    start, guessed = start_values(logs, work, free, warns)
+    if "dz" not in free and not work.has("dz"):
+        start["dz"] = 0.0
+    for name in ("J", "bv", "bc", "dz", "tau0"):
+        if name in free or (not work.has(name) and name != "tau0"):
+            work.set(name, start[name], stage="start")
+    return work, start, guessed
