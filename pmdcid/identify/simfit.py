@@ -18,6 +18,7 @@ from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
+from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.model import Model
 from pmdcid.model.params import BASE_PARAMS
@@ -106,7 +107,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     base = [param_values(model, log.drive == "tau") for log in logs]
     sig_list = sigma or []
     starts = _initial_states(logs, sig_list, initial)
-    moving = [k for k, x in enumerate(starts) if x[1] != 0.0]
+    moving = [k for k, x in enumerate(starts) if moving_start(x)]
     x0, lo, hi = _start_vector(free, start, base[0], [starts[k][1] for k in moving], bounds)
     scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
     npar = len(free)
@@ -240,8 +241,6 @@ def _residual_plan(logs, signals, sig_list):
 
 def _initial_states(logs, sig_list, initial: bool) -> list[np.ndarray]:
     """Each log's starting state (:mod:`.initial`), or rest for every log."""
-    from pmdcid.identify.initial import initial_state
-
     if not initial:
         return [np.zeros(3) for _ in logs]
     out = []
