@@ -44,7 +44,7 @@ from pmdcid.diagnose.signatures import Screen, Screener
 from pmdcid.diagnose.starts import grid_start, profile_best
 from pmdcid.errors import ModelError
 from pmdcid.identify.results import ResultProtocol
-from pmdcid.identify.simfit import blas_single_thread
+from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.params import copy_model_into
 from pmdcid.simulate import param_values

@@ -14,12 +14,12 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
 from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
+from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
 from pmdcid.model import Model
 from pmdcid.model.params import BASE_PARAMS
 from pmdcid.simulate import param_values, simulate_values
@@ -40,17 +40,6 @@ def noise_level(x: np.ndarray) -> float:
     if s <= 0 or not math.isfinite(s):
         s = max(float(np.std(x)) * 1e-3, 1e-12)
     return s
-
-
-def blas_single_thread():
-    """Context limiting BLAS to one thread (threadpoolctl), for the fits' small linear algebra.
-
-    The least-squares steps work on tall, thin Jacobians; a multi-threaded BLAS spin-waits on a
-    busy 2-core machine and makes each fit 2-4x slower than one thread does.
-    """
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _unit(name: str) -> str:
@@ -148,15 +137,11 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         steps = float(diff_step)
     weight = [1.0]  # the prior rows' weight: the data's honest information (below)
 
-    def solve(z0):
-        try:
-            with blas_single_thread():
-                return least_squares(resid, z0, bounds=(lo / scale, hi / scale), method="trf",
-                                     diff_step=steps, max_nfev=max_nfev, x_scale="jac")
-        except ValueError as exc:
-            raise FitError(f"simulation-error fit failed: {exc}") from None
+    def run(z0):
+        return solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps,
+                     max_nfev=max_nfev, what="simulation-error fit")
 
-    sol = solve(x0 / scale)
+    sol = run(x0 / scale)
     nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them
     if prior_rows:
         # the data rows are weighted by the noise; when the model leaves a residual many times
@@ -166,8 +151,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         w = _data_discount(resid, sol, nd, segments, lo / scale, hi / scale, cov_step)
         if w > 1.5:
             weight[0] = w
-            sol = solve(sol.x)
-    x = sol.x * scale
+            sol = run(sol.z)
+    x = sol.x
     chisqr = float(np.sum(sol.fun[:nd] ** 2))
     stats = FitStats(ndata, len(x), chisqr, int(sol.nfev), bool(sol.success), str(sol.message))
     # covariance from the Jacobian at the solution, scaled by the reduced chi-square. The
@@ -175,7 +160,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     # parameter like dz (a zero column, hence a zero standard error): the covariance uses
     # central differences over a wider step, the slope of the cost's smooth envelope.
     with blas_single_thread():
-        Jm = envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale,
+        Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale,
                                 cov_step) / scale[None, :]
     try:
         cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
@@ -254,11 +239,11 @@ def _data_discount(resid, sol, nd, segments, lo, hi, cov_step) -> float:
     """sqrt(reduced chi-square) x the correlated-residual inflation of the data rows at ``sol``
     (>= 1): by how much the noise weights overstate the logs' information."""
     r = sol.fun[:nd]
-    redchi = float(np.sum(r**2)) / max(nd - len(sol.x), 1)
+    redchi = float(np.sum(r**2)) / max(nd - len(sol.z), 1)
     with blas_single_thread():
-        Jd = envelope_jacobian(resid, sol.x, sol.fun, lo, hi, cov_step)[:nd]
+        Jd = envelope_jacobian(resid, sol.z, sol.fun, lo, hi, cov_step)[:nd]
     try:
-        white = np.linalg.pinv(Jd.T @ Jd) * redchi
+        white = white_covariance(Jd, r)
         _, info = block_covariance(Jd, r, segments, white)
         infl = max(float(info.inflation), 1.0)
     except np.linalg.LinAlgError:

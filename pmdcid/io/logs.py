@@ -109,6 +109,13 @@ class Log:
     def kind(self) -> str | None:
         return self.meta.get("kind")
 
+    @property
+    def blocked(self) -> bool:
+        """A blocked-rotor log: its ``# kind:`` says so (any kind naming a block), or it
+        measures neither speed nor angle. The one rule every stage, diagnose and the report use."""
+        kind = (self.kind or "").lower()
+        return "block" in kind or not (self.has("omega") or self.has("theta"))
+
     @classmethod
     def from_csv(cls, path, *, columns=None, map_file=None, cutoff_hz=None) -> Log:
         """Read a CSV log as ``pmdcid`` commands do. ``columns``: mappings as a dict

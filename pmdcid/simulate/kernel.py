@@ -34,6 +34,9 @@ from pmdcid.simulate.terms import (
     static_friction,
 )
 
+#: the parameter slots :func:`system_matrix` reads: the discretisation depends on nothing else
+LINEAR_SLOTS = (R, L, KE, KM, DZ_SLOPE, J, BV)
+
 
 def system_matrix(p: np.ndarray, engaged: bool, torque_driven: bool) -> np.ndarray:
     """Continuous-time A (3x3) of x = (i, omega, theta) in one dead-zone mode.
@@ -109,6 +112,26 @@ def discretize(p: np.ndarray, h: float, torque_driven: bool) -> tuple[np.ndarray
         Phi[m] = E[:3, :3]
         Gam[m] = E[:3, 3:]
     return Phi, Gam
+
+
+_DISCRETE: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+_DISCRETE_SIZE = 64
+
+
+def discretize_cached(p: np.ndarray, h: float, torque_driven: bool):
+    """:func:`discretize`, remembered for the last few linear parts (:data:`LINEAR_SLOTS`).
+
+    A refit of friction or sensor parameters leaves the linear part unchanged and logs share
+    sample rates: the cache removes most of the 6x6 exponentials of a fit (which also suffer
+    from BLAS thread contention on a loaded machine). The arrays returned are shared: read only.
+    """
+    key = (tuple(float(p[k]) for k in LINEAR_SLOTS), float(h), bool(torque_driven))
+    hit = _DISCRETE.get(key)
+    if hit is None:
+        if len(_DISCRETE) >= _DISCRETE_SIZE:
+            _DISCRETE.pop(next(iter(_DISCRETE)))
+        hit = _DISCRETE[key] = discretize(p, h, torque_driven)
+    return hit
 
 
 @njit(cache=True)
@@ -254,11 +277,11 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
         nsub = choose_substeps(dt, p)
     check_work(len(u), dt, nsub, p)
     h = dt / nsub
-    Phi, Gam = discretize(p, h, torque_driven)
+    Phi, Gam = discretize_cached(p, h, torque_driven)
     x = np.zeros(3) if x0 is None else np.asarray(x0, dtype=float)
     return _run(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p, dtype=float),
                 Phi, Gam, int(nsub), bool(torque_driven), x)
 
 
 __all__ = ["MAX_STEPS", "WorkBoundError", "bounded_for", "check_work", "choose_substeps",
-           "discretize", "run_kernel", "system_matrix", "FS", "BC"]
+           "discretize", "discretize_cached", "run_kernel", "system_matrix", "FS", "BC"]
