@@ -25,8 +25,8 @@ from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import envelope_jacobian, noise_level
 from pmdcid.identify.solver import scale_of, solve, white_covariance
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
-from pmdcid.model.effects import effect_param_specs
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.effects import bounds_of, unit_of
+from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import SimResult, param_vector, simulate_values
 from pmdcid.simulate.kernel import choose_substeps
 
@@ -59,16 +59,6 @@ class FitOutcome:
     stats: FitStats
     chi2: dict[str, float] = field(default_factory=dict)  # part -> chi-square
     n: dict[str, int] = field(default_factory=dict)
-
-
-def bounds_of(name: str) -> tuple[float, float]:
-    spec = BASE_PARAMS.get(name) or effect_param_specs().get(name)
-    return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
-
-
-def unit_of(name: str) -> str:
-    spec = BASE_PARAMS.get(name) or effect_param_specs().get(name)
-    return spec.unit if spec else ""
 
 
 #: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)

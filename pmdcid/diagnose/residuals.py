@@ -126,7 +126,7 @@ def typical_scales(ctx: ResidualContext) -> dict[str, float]:
     Used to scale refits of parameters that start at 0.
     """
     from pmdcid.model.effects import effect_param_specs
-    from pmdcid.model.params import BASE_PARAMS
+    from pmdcid.model.spec import BASE_PARAMS
 
     t, w = ctx.torque_scale, ctx.speed_scale
     v = max(ctx.voltage_scale, 1e-3)

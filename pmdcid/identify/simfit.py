@@ -21,7 +21,7 @@ from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
 from pmdcid.model import Model
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.simulate import param_values, simulate_values
 
 
@@ -42,25 +42,8 @@ def noise_level(x: np.ndarray) -> float:
     return s
 
 
-def _unit(name: str) -> str:
-    if name in BASE_PARAMS:
-        return BASE_PARAMS[name].unit
-    from pmdcid.model.effects import effect_param_specs
-
-    spec = effect_param_specs().get(name)
-    return spec.unit if spec else ""
-
-
 def _bounds(name: str, user: dict | None) -> tuple[float, float]:
-    if user and name in user:
-        return user[name]
-    if name in BASE_PARAMS:
-        s = BASE_PARAMS[name]
-        return s.lower, s.upper
-    from pmdcid.model.effects import effect_param_specs
-
-    s = effect_param_specs().get(name)
-    return (s.lower, s.upper) if s else (-math.inf, math.inf)
+    return user[name] if user and name in user else bounds_of(name)
 
 
 def available_signals(log, signals: Sequence[str]) -> list[str]:
@@ -171,7 +154,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         info = None
         se = np.full(len(x), math.nan)
         corr = np.full((len(x), len(x)), math.nan)
-    est = {n: Estimate(n, float(v), float(e), _unit(n))
+    est = {n: Estimate(n, float(v), float(e), unit_of(n))
            for n, v, e in zip(free, x[:npar], se[:npar], strict=True)}
     correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
               for i, a in enumerate(free)}

@@ -20,7 +20,6 @@ import numpy as np
 from pmdcid.errors import LogError, short_list
 from pmdcid.io.mapping import ColumnMap
 
-CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
 UNITS = {"t": "s", "v": "V", "tau": "N m", "i": "A", "omega": "rad/s", "theta": "rad"}
 
 #: largest relative deviation of one sample period from the median still taken as uniform

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 from pmdcid.errors import ModelError
 from pmdcid.model import signatures as sg
-from pmdcid.model.params import ParamSpec
+from pmdcid.model.spec import BASE_PARAMS, ParamSpec
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,24 @@ def get_effect(name: str) -> Effect:
 def effect_param_specs() -> dict[str, ParamSpec]:
     """Every effect parameter by name."""
     return {p.name: p for e in EFFECTS.values() for p in e.params}
+
+
+def param_spec(name: str) -> ParamSpec | None:
+    """The declaration of any parameter, base or effect (None for an unknown name): the one
+    look-up of units, bounds and neutral values."""
+    return BASE_PARAMS.get(name) or effect_param_specs().get(name)
+
+
+def unit_of(name: str) -> str:
+    """The unit of any parameter ('' for an unknown name)."""
+    spec = param_spec(name)
+    return spec.unit if spec else ""
+
+
+def bounds_of(name: str) -> tuple[float, float]:
+    """(lower, upper) bounds of any parameter (unbounded for an unknown name)."""
+    spec = param_spec(name)
+    return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
 
 
 register(Effect(

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.model import EFFECTS, Model
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import param_values, simulate_values
 
 #: relative central-difference step of the sensitivities (see the module's docstring)

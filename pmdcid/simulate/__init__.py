@@ -14,7 +14,7 @@ import numpy as np
 from pmdcid.errors import ModelError
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.lumped import ELECTRICAL, is_lumped
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate.cache import invalidate_if_stale
 
 invalidate_if_stale()  # before anything compiled is loaded from the cache
