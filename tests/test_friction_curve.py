@@ -31,8 +31,8 @@ from pmdcid.synth import PAPER, PAPER_NOISE, staircase, step, triangle
 
 #: a friction curve (knot speeds [rad/s], values [N m]) rising then falling back to the paper's
 #: line at 1.6 rad/s: no named law follows it
-CURVE = {"fcw1": 0.25, "fcw2": 0.55, "fcw3": 0.9, "fcw4": 1.6,
-         "fc1": 0.006, "fc2": 0.009, "fc3": 0.008}
+CURVE = {"fcw1": 0.15, "fcw2": 0.4, "fcw3": 1.0, "fcw4": 2.0,
+         "fc1": 0.006, "fc2": 0.008, "fc3": 0.008}
 #: smooth flattening friction added to bc + bv*|omega|: A [N m] * tanh(|omega| / ws [rad/s])
 TANH = (0.01, 0.3)
 

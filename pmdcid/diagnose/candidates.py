@@ -188,4 +188,5 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
     return c, {"values": ref_vals, "chi2": ref}
 
 
-__all__ = ["Candidate", "effect_free", "effect_z", "evaluate", "gain", "refit_starts"]
+__all__ = ["Candidate", "effect_free", "effect_z", "evaluate", "gain", "refit_starts",
+           "unphysical"]

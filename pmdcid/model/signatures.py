@@ -185,9 +185,11 @@ def saturation_guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> d
 
 # --- friction_curve: knots placed by the logged speeds; quadratic drag's room below zero -------
 
-#: knot speeds of friction_curve: these quantiles of the measured |omega| while moving (the last
-#: one is the top of the logged speeds, :data:`TOP_QUANTILE`)
-CURVE_QUANTILES = (0.2, 0.45, 0.7)
+#: inner knot speeds of friction_curve, as fractions of the top logged speed (the last knot);
+#: denser at low speed, where friction changes fastest. Not quantiles of |omega|: those crowd
+#: the knots where the logs dwell (step plateaus, slow ramps) and leave the top of the speed
+#: range to one long segment
+CURVE_FRACTIONS = (0.15, 0.4, 0.7)
 #: the top of the logged speeds: this quantile of the measured |omega| while moving (a few
 #: noise spikes above it do not count as logged speeds)
 TOP_QUANTILE = 0.999
@@ -207,16 +209,14 @@ def moving_speeds(ctx: ResidualContext) -> np.ndarray:
 
 
 def curve_knots(ctx: ResidualContext) -> list[float]:
-    """friction_curve's knot speeds [rad/s], increasing: the :data:`CURVE_QUANTILES` and the
-    :data:`TOP_QUANTILE` of the moving speeds; [] when too few samples move."""
+    """friction_curve's knot speeds [rad/s], increasing: the top logged speed (the
+    :data:`TOP_QUANTILE` of the moving speeds) times :data:`CURVE_FRACTIONS`, and the top
+    itself; [] when too few samples move."""
     w = moving_speeds(ctx)
     if len(w) < MIN_MOVING:
         return []
-    q = np.quantile(w, (*CURVE_QUANTILES, TOP_QUANTILE))
-    knots = [float(q[0])]
-    for x in q[1:]:
-        knots.append(max(float(x), knots[-1] * (1 + 1e-6)))  # strictly increasing
-    return knots if knots[0] > 0 else []
+    top = float(np.quantile(w, TOP_QUANTILE))
+    return [f * top for f in CURVE_FRACTIONS] + [top] if top > 0 else []
 
 
 def paper_friction(ctx: ResidualContext, speed: float) -> float:
