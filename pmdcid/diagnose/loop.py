@@ -28,6 +28,7 @@ import numpy as np
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
+from pmdcid.diagnose.named import prefer_named, with_named
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import (
     context,
@@ -211,12 +212,14 @@ def accept(cands: list[Candidate], rules: Rules) -> Candidate | None:
                 passing.append(c)
     if not passing:
         return None
-    best = min(passing, key=lambda c: c.delta_bic)
+    lowest = min(passing, key=lambda c: c.delta_bic)
+    best = prefer_named(lowest, passing)
     best.chosen = True
     best.reason = "chosen: " + best.reason + (
-        f" (lowest ΔBIC of {len(passing)} passing)" if len(passing) > 1 else "")
+        f" (lowest ΔBIC of {len(passing)} passing)" if len(passing) > 1 and best is lowest
+        else "")
     for c in passing:
-        if c is not best:
+        if c is not best and "not chosen" not in c.reason:
             c.reason += f"; {best.effect} dropped the ΔBIC more ({best.delta_bic:+.0f})"
     return best
 
@@ -239,8 +242,8 @@ def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_round
             break
         run.say(f"diagnose round {rnd}: screening {len(pool)} effect(s)")
         screens = screen(run, cur, pool)
-        ranked = sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
-                        key=lambda s: -s.gain)[:refit_top]
+        ranked = with_named(sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
+                                   key=lambda s: -s.gain)[:refit_top], screens)
         for s in screens:
             seen[s.effect] = Candidate(s.effect, rnd, s.gain, s.approx_delta_bic,
                                        reason=_screen_reason(s, ranked, refit_top))

@@ -51,6 +51,9 @@ class Effect:
     #: signals some log must measure by its own sensor (not derived from another) for the
     #: effect to mean anything (a speed-sensor bias needs a speed sensor)
     requires: tuple[str, ...] = ()
+    #: parameters whose largest distance from neutral, in standard errors, is the effect's size
+    #: (default: its first parameter)
+    size_params: tuple[str, ...] = ()
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -123,12 +126,16 @@ register(Effect(
 ))
 register(Effect(
     "quadratic_drag",
-    "Friction growing with speed squared: friction gains bq*omega*|omega| (windage, lubricant). "
-    "Signature: speed residual proportional to -omega*|omega|; high speeds over-predicted.",
-    (ParamSpec("bq", "N m s^2/rad^2", "quadratic drag coefficient", 0.0, 0.0, 1e6),),
+    "Friction growing with speed squared: friction gains bq*omega*|omega| (windage, lubricant); "
+    "bq < 0 is friction flattening with speed, bounded so that the total friction stays "
+    "positive over the logged speeds. Signature: speed residual proportional to "
+    "-omega*|omega|; high speeds over-predicted (bq > 0) or under-predicted (bq < 0).",
+    (ParamSpec("bq", "N m s^2/rad^2", "quadratic drag coefficient (negative: friction "
+               "flattening with speed)", 0.0, -1e6, 1e6),),
     "mechanical",
     ("bv",),
-    **sg.linear("bq", sg.quadratic_probe),
+    **sg.linear("bq", sg.quadratic_probe, positive=False),
+    limits=sg.quadratic_drag_limits,
 ))
 register(Effect(
     "torque_offset",
@@ -208,4 +215,35 @@ register(Effect(
     ("bv", "tau0"),
     **sg.linear("dbv", sg.viscous_probe, positive=False),
     limits=sg.viscous_asymmetry_limits,
+))
+
+
+#: friction_curve's parameters: knot speeds fcw1..fcw4 [rad/s] (placed by the logged speeds and
+#: held) and the friction added at the first three fc1..fc3 [N m] (0 at the last)
+CURVE_SPEEDS = tuple(f"fcw{k}" for k in range(1, 5))
+CURVE_VALUES = tuple(f"fc{k}" for k in range(1, 4))
+
+register(Effect(
+    "friction_curve",
+    "Speed-dependent friction that follows no named law: friction gains sign(omega)*c(|omega|), "
+    "c piecewise linear through (0, 0), (fcw_k, fc_k) for k = 1..3 and (fcw4, 0), zero beyond "
+    "fcw4 (the paper's bc + bv*|omega| continues past the logged speeds). The knot speeds are "
+    "0.15, 0.4, 0.7 and 1 times the top logged |omega| (its 99.9 % quantile while moving), "
+    "written in the model file and held; the knot values are fitted, each at least -0.9 times "
+    "bc + bv*fcw_k so the total friction stays positive over the logged speeds. Zero at "
+    "omega = 0 (breakaway unchanged), the same in both directions. Signature: a speed residual "
+    "that is a smooth function of |omega| (e.g. friction rising then flattening: the speed per "
+    "unit torque grows with speed) which quadratic drag, Stribeck or viscous asymmetry do not "
+    "follow. diagnose prefers those named laws when they explain the residual about as well.",
+    tuple(ParamSpec(n, "rad/s", f"friction curve knot speed {n[-1]} (from the logged speeds)",
+                    0.0, 0.0, 1e6) for n in CURVE_SPEEDS)
+    + tuple(ParamSpec(n, "N m", f"friction added at knot speed fcw{n[-1]}", 0.0, -1e6, 1e6)
+            for n in CURVE_VALUES),
+    "mechanical",
+    ("bv", "bc"),
+    signature=sg.friction_curve_signature,
+    guess=sg.friction_curve_guess,
+    held=CURVE_SPEEDS,
+    limits=sg.friction_curve_limits,
+    size_params=CURVE_VALUES,
 ))

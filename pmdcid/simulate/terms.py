@@ -17,10 +17,13 @@ from pmdcid.simulate.layout import (
     CA,
     CN,
     CPHI,
+    CURVE_KNOTS,
     DBV,
     DZ,
     DZ_OFFSET,
     DZ_SLOPE,
+    FC1,
+    FCW1,
     FS,
     KE,
     TAU0,
@@ -87,12 +90,42 @@ def static_friction(p) -> float:
 
 
 @njit(cache=True, inline="always")
+def friction_curve(p, speed: float) -> float:
+    """Friction added at ``speed`` = |omega| [rad/s] by the friction_curve effect [N m].
+
+    Piecewise linear through (0, 0), the knots (fcw_k [rad/s], fc_k [N m]) for k = 1..3 and
+    (fcw4, 0), knot speeds increasing; 0 beyond fcw4 (past the logged speeds the paper's
+    bc + bv*|omega| continues). Pinned to 0 at both ends so that it is neither Coulomb friction
+    (the jump at 0) nor viscous friction (the line through the last knot). Zero when fcw4 is
+    not positive (the effect is off).
+    """
+    if p[FCW1 + CURVE_KNOTS - 1] <= 0.0:
+        return 0.0
+    w0 = 0.0
+    f0 = 0.0
+    for k in range(CURVE_KNOTS):
+        w1 = p[FCW1 + k]
+        f1 = p[FC1 + k] if k < CURVE_KNOTS - 1 else 0.0
+        if speed <= w1:
+            if w1 <= w0:
+                return f1
+            return f0 + (f1 - f0) * (speed - w0) / (w1 - w0)
+        w0 = w1
+        f0 = f1
+    return 0.0
+
+
+@njit(cache=True, inline="always")
 def sliding_friction(p, omega: float, direction: float) -> float:
     """Friction torque [N m] while sliding in ``direction`` (+1/-1), less the viscous bv*omega.
 
-    Coulomb bc, Stribeck fs*exp(-(omega/ws)^2), quadratic drag bq*omega*|omega| and the
+    Coulomb bc, Stribeck fs*exp(-(omega/ws)^2), quadratic drag bq*omega*|omega|, the
     direction-dependent part of the viscous friction dbv*|omega| (viscous bv + dbv forward,
-    bv - dbv backward).
+    bv - dbv backward) and the friction curve direction*curve(|omega|).
+
+    The total with the viscous part never opposes ``direction``: where the terms would sum to a
+    friction that drives the rotor (a negative quadratic drag past the logged speeds), the total
+    is held at zero (frictionless) instead.
     """
     f = direction * p[BC]
     if p[FS] > 0.0:
@@ -100,6 +133,9 @@ def sliding_friction(p, omega: float, direction: float) -> float:
         f += direction * p[FS] * math.exp(-r * r)
     f += p[BQ] * omega * abs(omega)
     f += p[DBV] * abs(omega)
+    f += direction * friction_curve(p, abs(omega))
+    if direction * (f + p[BV] * omega) < 0.0:
+        f = -p[BV] * omega
     return f
 
 
@@ -113,6 +149,7 @@ def load_torque(p, theta: float) -> float:
 
 
 __all__ = [
-    "armature_voltage", "dead_zone", "dead_zone_engaged", "drive_voltage", "load_torque", "sgn",
+    "armature_voltage", "dead_zone", "dead_zone_engaged", "drive_voltage", "friction_curve",
+    "load_torque", "sgn",
     "sliding_friction", "static_friction", "BV",
 ]
