@@ -50,6 +50,27 @@ def _band_share(x: np.ndarray, dt: float, f: float) -> float:
     return float(np.sum(p[max(j - 2, 1): j + 3])) / tot
 
 
+def _angle_locked(resid: np.ndarray, omega: np.ndarray, dt: float, f: float,
+                  share: float) -> bool:
+    """True when a line at ``f`` [Hz] is a whole number N of periods per revolution at the
+    typical speed and at least as sharp in the rotor's angle as in time (N per revolution:
+    cogging, an eccentric load; at a varying speed only such a line stays sharp in angle)."""
+    fast = np.abs(omega) > 0.2 * np.percentile(np.abs(omega), 95)
+    if fast.sum() < 64:
+        return False
+    per_rev = f / (float(np.median(np.abs(omega[fast]))) / (2 * math.pi))
+    n = round(per_rev)
+    if n < 1 or abs(per_rev - n) > ANGLE_TOL:
+        return False
+    revs = np.cumsum(np.abs(omega[fast])) * dt / (2 * math.pi)
+    if revs[-1] - revs[0] < MIN_PERIODS / n:
+        return False
+    grid = np.linspace(revs[0], revs[-1], min(len(revs), 1 << 16))
+    ra = np.interp(grid, revs, resid[fast])
+    width = (grid[-1] - grid[0]) / (len(grid) - 1)
+    return _band_share(ra, width, n) >= 0.8 * share
+
+
 def carrier_line(t: np.ndarray, u: np.ndarray, omega: np.ndarray,
                  resid: np.ndarray) -> tuple[float, float] | None:
     """(frequency [Hz], amplitude [rad/s]) of a fixed-frequency speed ripple the model misses,
@@ -66,11 +87,8 @@ def carrier_line(t: np.ndarray, u: np.ndarray, omega: np.ndarray,
         return None
     if _band_share(u, dt, f) > INPUT_SHARE:
         return None
-    moving = np.abs(omega) > 0.2 * np.percentile(np.abs(omega), 95)
-    if moving.any():
-        per_rev = f / (float(np.median(np.abs(omega[moving]))) / (2 * math.pi))
-        if round(per_rev) >= 1 and abs(per_rev - round(per_rev)) < ANGLE_TOL:
-            return None
+    if _angle_locked(resid, omega, dt, f, share):
+        return None
     amp = math.sqrt(2.0 * share * float(np.var(resid)))
     return f, amp
 
