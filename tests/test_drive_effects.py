@@ -247,3 +247,18 @@ def test_a_sensor_delay_without_current_may_be_latency():
     assert "3.5 ms" in latency_warning(_problem(12.0, True, False), vals, ["sensor_delay"])
     assert latency_warning(_problem(12.0, False, True), vals, ["sensor_delay"]) is None
     assert latency_warning(_problem(12.0, True, False), vals, []) is None
+
+
+def test_exporters_refuse_a_late_input():
+    """The exported kernels take one input per sample: a model with input_delay is refused in
+    one line (a PmdcidError), and the same model without it exports."""
+    from pmdcid.export import ExportError, spec_of
+
+    model = Model()
+    for k in ("R", "L", "km", "J", "bv", "bc", "dz"):
+        model.set(k, PAPER[k], stage="datasheet")
+    assert spec_of(model).values["R"] == PAPER["R"]
+    model.add_effect("input_delay")
+    model.set("latency", 4e-3, stage="diagnose")
+    with pytest.raises(ExportError, match="input_delay"):
+        spec_of(model)
