@@ -262,3 +262,17 @@ def test_exporters_refuse_a_late_input():
     model.set("latency", 4e-3, stage="diagnose")
     with pytest.raises(ExportError, match="input_delay"):
         spec_of(model)
+
+
+@pytest.mark.skipif(not (REAL / "guanlunlu-l298n").is_dir(), reason="real rigs not here")
+def test_real_l298n_drop_is_warned_about():
+    """`identify` on the L298N rig's first runs (lumped: voltage and speed only) says that the
+    command loses about the README's 2.4 V intercept before the motor turns."""
+    from pmdcid import api
+
+    paths = [str(REAL / "guanlunlu-l298n" / f"step_{v}V_1.csv") for v in (6, 12, 24)]
+    res = api.identify(paths, progress=False)
+    lost = [w for w in res.diagnose.summary["warnings"] if "the command loses" in w]
+    assert len(lost) == 1, res.diagnose.summary["warnings"]
+    volts = float(lost[0].split("loses ")[1].split(" V")[0])
+    assert 1.9 <= volts <= 2.9, lost
