@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
+from pmdcid.diagnose.drive import drive_warnings
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
 from pmdcid.diagnose.named import prefer_named, with_named
@@ -358,14 +359,15 @@ def summarise(run: Run, new: Model, base: FitOutcome, final_vals: dict[str, floa
     problem = run.problem
     before = error_table(problem, problem.simulate_all(run.vals0))
     after = error_table(problem, problem.simulate_all(final_vals)) if added else before
-    white = whiteness(problem, problem.simulate_all(final_vals))
+    final_sims = problem.simulate_all(final_vals)
+    white = whiteness(problem, final_sims)
     unexplained = any(w.structured for w in white)
     shapes: list[dict] = []
     if unexplained:
         dp = drift_problem(problem)
         if dp is not None:
             notes.extend(drift_notes(dp, final_vals, run.max_nfev))
-        shapes = residual_shapes(problem, problem.simulate_all(final_vals),
+        shapes = residual_shapes(problem, final_sims,
                                  floor_of(run.floors), pooled(after)["omega_nrmse"])
     cands = sorted(seen.values(), key=lambda c: (not c.chosen, c.delta_bic))
     new.extra.setdefault("fits", {})[STAGE] = {
@@ -378,6 +380,7 @@ def summarise(run: Run, new: Model, base: FitOutcome, final_vals: dict[str, floa
         "unexplained": bool(unexplained),
         "residual_shape": shapes,
         "notes": notes,
+        "warnings": drive_warnings(problem, final_sims, final_vals, added),
         "holdout": [{"log": log.path, "part": p} for log, p in zip(problem.logs, problem.plan,
                                                                     strict=True)],
         "heldout": heldout_errors(run, base, final_vals, added),

@@ -7,8 +7,8 @@ returns, per set, the weighted sum of squared errors against the measured speed 
 sigma_theta)^2)``. Nothing of size (sets x samples) is kept, so a grid of hundreds of sets on a
 120 s, 1 kHz log needs no more memory than a few simulations.
 
-Sensor delay is not applied here (only the speed offset): the grid is a starting point; the
-least-squares stage that follows uses the full simulation.
+Sensor delay and a late input (input_delay) are not applied here (only the speed offset): the
+grid is a starting point; the least-squares stage that follows uses the full simulation.
 """
 
 from __future__ import annotations

@@ -247,3 +247,20 @@ register(Effect(
     limits=sg.friction_curve_limits,
     size_params=CURVE_VALUES,
 ))
+
+register(Effect(
+    "input_delay",
+    "The drive applies the command latency seconds late (a host-paced loop: the USB or serial "
+    "round trip, a PWM duty taken at the next period): every state, the current included, "
+    "follows the input late (sensor_delay: the outputs read late, the current on time). "
+    "Signature: current and speed residuals = -latency x their derivatives after every input "
+    "change. Only searched when some log measures the current: on voltage and speed alone a "
+    "system started at rest cannot tell an input applied late from outputs read late, and "
+    "sensor_delay stands for both.",
+    (ParamSpec("latency", "s", "delay between the logged command and the applied input", 0.0,
+               0.0, 10.0),),
+    "input",
+    (),
+    **sg.linear("latency", sg.delay_probe),
+    requires=("i",),
+))

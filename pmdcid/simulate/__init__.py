@@ -37,6 +37,7 @@ def check_layout() -> None:
 
 check_layout()
 
+from pmdcid.simulate.drive import late_input, parts_for  # noqa: E402
 from pmdcid.simulate.kernel import choose_substeps, run_kernel  # noqa: E402
 from pmdcid.simulate.layout import INDEX, NAMES, SENSOR_NAMES  # noqa: E402
 from pmdcid.simulate.sensors import apply_sensors  # noqa: E402
@@ -124,7 +125,12 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     t = np.asarray(t, dtype=float)
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
-    x = run_kernel(u, dt, p, torque_driven, nsub, x0)
+    latency = float(vals.get("latency", 0.0))
+    if latency > 0.0:  # input_delay: the command applied late, on a finer grid
+        q = parts_for(choose_substeps(dt, p) if nsub is None else nsub)
+        x = run_kernel(late_input(u, dt, latency, q), dt / q, p, torque_driven, 1, x0)[::q]
+    else:
+        x = run_kernel(u, dt, p, torque_driven, nsub, x0)
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}
     om, th = apply_sensors(t, x[:, 1], x[:, 2], sensor)
     i = np.full(len(t), np.nan) if torque_driven else x[:, 0]
