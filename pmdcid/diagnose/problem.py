@@ -29,7 +29,14 @@ from pmdcid.model.effects import effect_param_specs
 from pmdcid.model.params import BASE_PARAMS
 from pmdcid.simulate import SimResult, param_vector
 from pmdcid.simulate.kernel import _run, choose_substeps, discretize
-from pmdcid.simulate.layout import BV, DZ_SLOPE, KE, KM, SENSOR_NAMES, J, L, R
+from pmdcid.simulate.layout import (
+    LINEAR,
+    OMEGA_STATE,
+    SENSOR_NAMES,
+    SIGMA0,
+    THETA_STATE,
+    state_vector,
+)
 from pmdcid.simulate.sensors import apply_sensors
 
 SIGNALS = ("i", "omega", "theta")
@@ -81,6 +88,9 @@ def unit_of(name: str) -> str:
 
 #: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)
 MAX_SUBSTEPS = 16
+#: the cap with LuGre on: its bristle spring is held over a step, stable only for steps below
+#: :func:`pmdcid.simulate.kernel.lugre_step`
+LUGRE_MAX_SUBSTEPS = 256
 #: positive base parameters are refitted within this factor of their starting value
 BASE_RANGE = 30.0
 #: parameters that move stick-slip and dead-zone events by whole internal steps: their
@@ -88,7 +98,7 @@ BASE_RANGE = 30.0
 SWITCHING = ("bc", "dz", "fs", "tau0")
 SWITCH_STEP = 1e-2
 #: kernel parameters the discretisation depends on
-_LINEAR = (R, L, KE, KM, DZ_SLOPE, J, BV)
+_LINEAR = LINEAR
 
 
 class _Discretizations:
@@ -119,13 +129,14 @@ def simulate_cached(cache: _Discretizations, t: np.ndarray, u: np.ndarray,
     discretisations."""
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
-    nsub = min(choose_substeps(dt, p), MAX_SUBSTEPS)
+    nsub = min(choose_substeps(dt, p), LUGRE_MAX_SUBSTEPS if p[SIGMA0] > 0 else MAX_SUBSTEPS)
     phi, gam = cache.get(p, dt / nsub, torque)
     x = _run(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p), phi, gam,
-             int(nsub), bool(torque), np.zeros(3) if x0 is None else np.asarray(x0, float))
-    om, th = apply_sensors(t, x[:, 1], x[:, 2], {n: vals.get(n, 0.0) for n in SENSOR_NAMES})
+             int(nsub), bool(torque), state_vector(x0))
+    w, theta = x[:, OMEGA_STATE], x[:, THETA_STATE]
+    om, th = apply_sensors(t, w, theta, {n: vals.get(n, 0.0) for n in SENSOR_NAMES})
     i = np.full(len(t), np.nan) if torque else x[:, 0]
-    return SimResult(t, i, om, th, x[:, 1], x[:, 2])
+    return SimResult(t, i, om, th, w, theta)
 
 
 class Problem:
@@ -186,7 +197,7 @@ class Problem:
     def simulate(self, vals: dict[str, float], k: int) -> SimResult:
         log = self.logs[k]
         if self.blocked[k]:
-            vals = {**vals, "bc": BLOCKED}
+            vals = {**vals, "bc": BLOCKED, "sigma0": 0.0}  # held by stiction, not bristles
         return simulate_cached(self._cache, log.t, log.u, vals, log.drive == "tau",
                                self.x0[k])
 

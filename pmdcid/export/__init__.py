@@ -64,6 +64,10 @@ def spec_of(model: Model) -> ExportSpec:
     """The parameters of ``model`` as the kernel sees them (ModelError if some are lacking)."""
     drive = drive_of(model)
     vals = param_values(model, torque_driven=drive != "v")
+    if vals.get("sigma0", 0.0) > 0:
+        raise ModelError("cannot export the effect lugre: its bristle state is not ported to "
+                          "the exported code (remove it from the model's effects to export the "
+                          "stick-slip model)", model.path)
     return ExportSpec({n: float(vals[n]) for n in NAMES}, drive, float(vals.get("delay", 0.0)),
                       float(vals.get("omega0", 0.0)),
                       os.path.basename(model.path) if model.path else "a model")

@@ -46,7 +46,7 @@ def simulate_for(log, model: Model) -> SimResult:
 
     torque = input_is_torque(log, model)
     blocked = is_blocked(log)
-    over = {"bc": BLOCKED_BC} if blocked else None
+    over = {"bc": BLOCKED_BC, "sigma0": 0.0} if blocked else None  # stiction holds it
     vals = param_values(model, torque, over)
     x0 = initial_state(log)
     if blocked:
