@@ -284,7 +284,8 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
              progress=None) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
-    ``effects`` restricts the catalogue searched (default: all not already in the model).
+    ``effects`` restricts the catalogue searched (default: every effect screened by default,
+    i.e. all but ``lugre``, not already in the model).
     The input model is not modified. ``progress(msg)`` is called as each round starts and
     before each candidate's refit.
     """
@@ -300,7 +301,8 @@ def _pool(problem: Problem, model: Model, effects) -> list[str]:
         if unknown:
             raise ModelError(f"unknown effect(s) {', '.join(unknown)} "
                              f"(known: {', '.join(EFFECTS)})")
-    return [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)
+    wanted = (lambda e: EFFECTS[e].screened) if effects is None else (lambda e: e in effects)
+    return [e for e in EFFECTS if e not in model.effects and wanted(e)
             and all(problem.measures(s) for s in EFFECTS[e].requires)]
 
 

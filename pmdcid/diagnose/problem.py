@@ -29,6 +29,7 @@ from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import SimResult, param_vector, simulate_values
 from pmdcid.simulate.kernel import choose_substeps
+from pmdcid.simulate.layout import SIGMA0
 
 SIGNALS = ("i", "omega", "theta")
 #: static friction that holds a blocked rotor [N m]
@@ -63,6 +64,9 @@ class FitOutcome:
 
 #: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)
 MAX_SUBSTEPS = 16
+#: the cap with LuGre on: its bristle spring is held over a step, stable only for steps below
+#: :func:`pmdcid.simulate.kernel.lugre_step`
+LUGRE_MAX_SUBSTEPS = 256
 #: positive base parameters are refitted within this factor of their starting value
 BASE_RANGE = 30.0
 #: parameters that move stick-slip and dead-zone events by whole internal steps: their
@@ -77,7 +81,8 @@ def simulate_capped(t: np.ndarray, u: np.ndarray, vals: dict[str, float], torque
     internal steps per sample (diagnose compares many candidates: speed before the last
     fraction of accuracy, which the written model's final refit restores)."""
     dt = float((t[-1] - t[0]) / (len(t) - 1))
-    nsub = min(choose_substeps(dt, param_vector(vals)), MAX_SUBSTEPS)
+    p = param_vector(vals)
+    nsub = min(choose_substeps(dt, p), LUGRE_MAX_SUBSTEPS if p[SIGMA0] > 0 else MAX_SUBSTEPS)
     return simulate_values(t, u, vals, torque, nsub, x0)
 
 
@@ -138,7 +143,7 @@ class Problem:
     def simulate(self, vals: dict[str, float], k: int) -> SimResult:
         log = self.logs[k]
         if self.blocked[k]:
-            vals = {**vals, "bc": BLOCKED}
+            vals = {**vals, "bc": BLOCKED, "sigma0": 0.0}  # held by stiction, not bristles
         return simulate_capped(log.t, log.u, vals, log.drive == "tau", self.x0[k])
 
     def simulate_all(self, vals: dict[str, float]) -> list[SimResult]:

@@ -238,7 +238,19 @@ def _covariance(Jm, fun, nd, segments, redchi, correlated, weight=1.0):
     """Parameter covariance: the data rows' (white or correlated-residual sandwich), combined
     with the prior rows' information: ``(Hd + P)^-1 (Sd + w^2 P) (Hd + P)^-1`` where ``Sd`` is
     the data score's covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision
-    and ``w`` their weight (the prior means' own variance, scaled like their rows)."""
+    and ``w`` their weight (the prior means' own variance, scaled like their rows).
+
+    Computed with the Jacobian's columns scaled to unit norm and scaled back (the same
+    covariance): parameters of very different sizes (LuGre's sigma0 ~ 1e2 N m/rad beside
+    bc ~ 1e-3 N m) would otherwise give J'J a condition number past the pseudo-inverse's
+    cut-off, which then zeroes the small direction's variance."""
+    norms = np.linalg.norm(Jm, axis=0)
+    d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+    cov, info = _scaled_covariance(Jm * d, fun, nd, segments, redchi, correlated, weight)
+    return cov * np.outer(d, d), info
+
+
+def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
     Jd = Jm[:nd]
     Hd = Jd.T @ Jd
     cov = np.linalg.pinv(Hd) * redchi

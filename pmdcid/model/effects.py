@@ -54,6 +54,11 @@ class Effect:
     #: parameters whose largest distance from neutral, in standard errors, is the effect's size
     #: (default: its first parameter)
     size_params: tuple[str, ...] = ()
+    #: kernel states the effect owns (:data:`pmdcid.simulate.layout.STATE_OWNERS`), integrated
+    #: only while it is on
+    states: tuple[str, ...] = ()
+    #: screened by ``pmdcid diagnose`` unless ``--effect`` names the effects to search
+    screened: bool = True
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -263,4 +268,24 @@ register(Effect(
     (),
     **sg.linear("latency", sg.delay_probe),
     requires=("i",),
+))
+
+register(Effect(
+    "lugre",
+    "LuGre dynamic friction: bristles of deflection z (a kernel state) replace the stick-slip "
+    "logic. dz/dt = omega - sigma0*|omega|*z/g(omega), g = bc + fs*exp(-(omega/ws)^2) (the "
+    "Coulomb/Stribeck level, from the model's bc and stribeck); friction sigma0*z + sigma1*dz/dt "
+    "+ bv*omega (+ quadratic drag, viscous asymmetry). Below breakaway the rotor springs back: "
+    "a presliding angle of about torque/sigma0, with hysteresis on a reversal; at constant speed "
+    "the static curve g(omega) sign(omega) + bv*omega. Signature: angle creeping under torques "
+    "below breakaway (needs an angle sampled well above sqrt(sigma0/J)/(2 pi) Hz and resolved "
+    "below bc/sigma0); smooth, not stepped, breakaway. Not screened by default (--effect lugre).",
+    (ParamSpec("sigma0", "N m/rad", "bristle stiffness (presliding spring)", 0.0, 0.0, 1e12),
+     ParamSpec("sigma1", "N m s/rad", "bristle micro-damping", 0.0, 0.0, 1e9)),
+    "mechanical",
+    ("bc",),
+    signature=sg.lugre_signature,
+    guess=sg.lugre_guess,
+    states=("z",),
+    screened=False,
 ))

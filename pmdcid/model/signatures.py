@@ -304,7 +304,43 @@ def lowest_friction(values: dict[str, float], top: float, n: int = 256) -> tuple
     return best
 
 
+# --- lugre: the bristle stiffness enters non-linearly: a few presliding displacements ---------
+
+#: presliding displacements tried [rad]: the breakaway torque moves the rotor this far
+PRESLIDING = (1e-4, 1e-3, 1e-2)
+
+
+def lugre_damping(sigma0: float, J: float) -> float:
+    """[N m s/rad] micro-damping making the presliding spring critically damped: 2 sqrt(sigma0 J)
+    (J [kg m^2] unknown or not positive: none)."""
+    if not (math.isfinite(J) and J > 0):
+        return 0.0
+    return 2.0 * math.sqrt(sigma0 * J)
+
+
+def lugre_signature(ctx: ResidualContext) -> list[Probe]:
+    """The full effect at a few bristle stiffnesses sigma0 = breakaway / displacement."""
+    breakaway = ctx.values.get("bc", 0.0) + ctx.values.get("fs", 0.0)
+    if not (math.isfinite(breakaway) and breakaway > 0):
+        breakaway = ctx.torque_scale
+    J = ctx.values.get("J", math.nan)
+    out = []
+    for x in PRESLIDING:
+        s0 = breakaway / x
+        out.append(Probe([{"sigma0": s0, "sigma1": lugre_damping(s0, J)}], f"x={x:g} rad"))
+    return out
+
+
+def lugre_guess(probe: Probe, coefs: np.ndarray, ctx: ResidualContext) -> dict | None:
+    """The probe is the full effect at that stiffness: keep it when the residual follows it."""
+    if not (float(coefs[0]) > 0.3):
+        return None
+    col = probe.columns[0]
+    return {"sigma0": col["sigma0"], "sigma1": col["sigma1"]}
+
+
 __all__ = [
+    "lugre_damping", "lugre_guess", "lugre_signature",
     "angle_spectrum", "curve_knots", "friction_curve_guess", "friction_curve_limits",
     "friction_curve_signature", "lowest_friction", "moving_speeds", "quadratic_drag_limits",
     "cogging_guess", "cogging_signature", "linear", "saturation_guess",

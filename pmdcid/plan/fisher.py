@@ -99,7 +99,7 @@ def signals_of(blocked: bool, drive: Drive) -> tuple[str, ...]:
 def simulate_profile(t, u, vals: dict[str, float], drive: Drive, blocked: bool):
     """Simulated i [A] and omega [rad/s] of one profile (blocked: the rotor held)."""
     if blocked:
-        vals = {**vals, "bc": BLOCKED_BC}
+        vals = {**vals, "bc": BLOCKED_BC, "sigma0": 0.0}  # held by stiction, not bristles
     return simulate_values(t, u, vals, drive.torque_path, internal_steps(t))
 
 

@@ -41,7 +41,7 @@ def simulate_for(log, model: Model) -> SimResult:
 
     torque = input_is_torque(log, model)
     blocked = log.blocked
-    over = {"bc": BLOCKED_BC} if blocked else None
+    over = {"bc": BLOCKED_BC, "sigma0": 0.0} if blocked else None  # stiction holds it
     vals = param_values(model, torque, over)
     x0 = initial_state(log)
     if blocked:

@@ -26,6 +26,8 @@ from pmdcid.simulate.layout import (
     FCW1,
     FS,
     KE,
+    SIGMA0,
+    SIGMA1,
     TAU0,
     VB,
     VMAX,
@@ -140,6 +142,56 @@ def sliding_friction(p, omega: float, direction: float) -> float:
 
 
 @njit(cache=True, inline="always")
+def lugre_on(p) -> bool:
+    """True when LuGre dynamic friction replaces the stick-slip logic (sigma0 > 0)."""
+    return p[SIGMA0] > 0.0
+
+
+@njit(cache=True, inline="always")
+def steady_friction_level(p, omega: float) -> float:
+    """LuGre's g(omega) [N m]: the Coulomb + Stribeck level bc + fs*exp(-(omega/ws)^2) the
+    bristles settle at when sliding steadily at omega [rad/s]."""
+    g = p[BC]
+    if p[FS] > 0.0:
+        r = omega / p[WS]
+        g += p[FS] * math.exp(-r * r)
+    return g
+
+
+@njit(cache=True, inline="always")
+def bristle_rate(p, omega: float) -> float:
+    """Relaxation rate a = sigma0*|omega|/g(omega) [1/s] of the bristle deflection z:
+    dz/dt = omega - a z (infinite when g = 0: no Coulomb level, the bristles hold nothing)."""
+    g = steady_friction_level(p, omega)
+    if g <= 0.0:
+        return math.inf
+    return p[SIGMA0] * abs(omega) / g
+
+
+@njit(cache=True, inline="always")
+def lugre_held_friction(p, omega: float, z: float, a: float) -> float:
+    """LuGre friction [N m] less its exact viscous part (bv + sigma1)*omega, held over a step:
+    sigma0*z - sigma1*a*z (the bristles' spring and the rest of sigma1*dz/dt), plus the speed
+    terms of the other effects (quadratic drag, direction-dependent viscous)."""
+    az = a * z if z != 0.0 else 0.0
+    return (p[SIGMA0] * z - p[SIGMA1] * az + p[BQ] * omega * abs(omega)
+            + p[DBV] * abs(omega))
+
+
+@njit(cache=True, inline="always")
+def bristle_step(z: float, a: float, h: float, dtheta: float) -> float:
+    """Bristle deflection [rad] after a step of h [s] that turned the rotor by dtheta [rad]:
+    dz/dt = w - a z solved exactly with rate a [1/s] held and w the step's mean speed
+    dtheta/h. Stable for any stiffness; a = 0 (at rest) gives z + dtheta (pure presliding)."""
+    ah = a * h
+    if ah > 700.0:
+        return dtheta / ah if math.isfinite(ah) else 0.0
+    if ah < 1e-9:
+        return (1.0 - ah) * z + dtheta * (1.0 - 0.5 * ah)
+    return math.exp(-ah) * z - math.expm1(-ah) / ah * dtheta
+
+
+@njit(cache=True, inline="always")
 def load_torque(p, theta: float) -> float:
     """Torque [N m] opposing motion that does not depend on speed: tau0 + cogging(theta)."""
     t = p[TAU0]
@@ -149,7 +201,7 @@ def load_torque(p, theta: float) -> float:
 
 
 __all__ = [
-    "armature_voltage", "dead_zone", "dead_zone_engaged", "drive_voltage", "friction_curve",
-    "load_torque", "sgn",
-    "sliding_friction", "static_friction", "BV",
+    "armature_voltage", "bristle_rate", "bristle_step", "dead_zone", "dead_zone_engaged",
+    "drive_voltage", "friction_curve", "load_torque", "lugre_held_friction", "lugre_on", "sgn",
+    "sliding_friction", "static_friction", "steady_friction_level", "BV",
 ]
