@@ -149,7 +149,7 @@ def start_state(log, x0: dict[str, float] | str | None) -> np.ndarray:
             raise LogError(f"--x0 {x0!r}: give 'measured' or omega=VAL,i=VAL,theta=VAL")
         out = np.zeros(3)
         for k, name in enumerate(("i", "omega", "theta")):
-            if log.has(name) and not (name == "i" and log.drive == "tau"):
+            if log.compares(name):
                 first = np.asarray(log[name], float)[:1]
                 if first.size and np.isfinite(first[0]):
                     out[k] = float(first[0])

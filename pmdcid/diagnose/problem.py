@@ -31,7 +31,6 @@ from pmdcid.simulate import SimResult, param_vector, simulate_values
 from pmdcid.simulate.kernel import choose_substeps
 from pmdcid.simulate.layout import SIGMA0
 
-SIGNALS = ("i", "omega", "theta")
 #: static friction that holds a blocked rotor [N m]
 BLOCKED = 1e300
 
@@ -96,8 +95,7 @@ class Problem:
         self.plan = list(plan) if plan is not None else ["split"] * len(self.logs)
         self.channels: list[Channel] = []
         for k, log in enumerate(self.logs):
-            torque = log.drive == "tau"
-            have = [s for s in SIGNALS if log.has(s) and not (s == "i" and torque)]
+            have = log.compared_signals()
             measured = [s for s in have if s not in log.derived] or have
             if "omega" in have and "theta" in measured:
                 # the angle integrates every force error: weighted by an encoder's tiny noise,

@@ -25,9 +25,8 @@ def error_table(problem: Problem, sims: list[SimResult]) -> list[dict[str, float
     out = []
     for k, log in enumerate(problem.logs):
         row = {}
-        for s in ("i", "omega", "theta"):
-            if log.has(s) and not (s == "i" and log.drive == "tau"):
-                row[s] = nrmse(sims[k].get(s), np.asarray(log[s], float))
+        for s in log.compared_signals():
+            row[s] = nrmse(sims[k].get(s), np.asarray(log[s], float))
         out.append(row)
     return out
 
@@ -98,7 +97,7 @@ def context(problem: Problem, vals: dict[str, float], sims: list[SimResult]) -> 
         fit = problem.fit_mask(k)
         resid = {}
         for s in ("i", "omega", "theta"):
-            if log.has(s) and not (s == "i" and log.drive == "tau"):
+            if log.compares(s):
                 r = np.asarray(log[s], float) - sims[k].get(s)
                 resid[s] = np.where(fit, r, np.nan)
         blocked = problem.blocked[k]

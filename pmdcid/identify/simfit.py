@@ -47,7 +47,7 @@ def _bounds(name: str, user: dict | None) -> tuple[float, float]:
 
 
 def available_signals(log, signals: Sequence[str]) -> list[str]:
-    return [s for s in signals if log.has(s) and not (s == "i" and log.drive == "tau")]
+    return [s for s in signals if log.compares(s)]
 
 
 def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "theta"),

@@ -108,6 +108,20 @@ class Log:
     def kind(self) -> str | None:
         return self.meta.get("kind")
 
+    #: the signals a model predicts, in the kernel's state order: current [A], speed [rad/s],
+    #: angle [rad]
+    MODEL_SIGNALS = ("i", "omega", "theta")
+
+    def compares(self, signal: str) -> bool:
+        """True when the log measures ``signal`` and a simulation predicts it: the current only
+        on a voltage-driven log (a torque-driven simulation has none). The one rule every fit,
+        diagnose and the report use to pick the signals they compare."""
+        return self.has(signal) and not (signal == "i" and self.drive == "tau")
+
+    def compared_signals(self) -> list[str]:
+        """The :data:`MODEL_SIGNALS` this log :meth:`compares`."""
+        return [s for s in self.MODEL_SIGNALS if self.compares(s)]
+
     @property
     def blocked(self) -> bool:
         """A blocked-rotor log: its ``# kind:`` says so (any kind naming a block), or it

@@ -53,8 +53,8 @@ def compared_signals(log) -> list[str]:
     """The measured signals the model predicts: speed and angle (not for a blocked rotor), and
     current unless the log is torque-driven."""
     blocked = log.blocked
-    out = [s for s in ("omega", "theta") if log.has(s) and not blocked]
-    if log.has("i") and log.drive == "v":
+    out = [s for s in ("omega", "theta") if log.compares(s) and not blocked]
+    if log.compares("i"):
         out.append("i")
     if not out:
         raise LogError("has nothing to compare the model with: it needs omega, theta or "
