@@ -4,7 +4,7 @@ Every function takes logs as :class:`~pmdcid.io.Log` objects, paths, or a list o
 model as a :class:`~pmdcid.model.Model`, a path, or None (an empty model); the model given is
 never modified (each fit returns a result; ``result.apply(model)`` writes it in). Options are
 keyword-only. Each function runs exactly what the matching command runs (the CLI's runners
-share these steps: :mod:`pmdcid.identify.stages`, :mod:`pmdcid.diagnose.files`), including the
+share these steps: :mod:`pmdcid.identify.runners`, :mod:`pmdcid.diagnose.files`), including the
 lumped (per-volt) path for voltage+speed logs.
 
 Results follow one protocol (:class:`~pmdcid.identify.results.ResultProtocol`): ``str()`` is
@@ -57,7 +57,7 @@ def fit_electrical(logs, model=None):
     """R [ohm], L [H] from blocked-rotor logs (``t``, ``v``, ``i``, one step each), as
     ``pmdcid fit-electrical``. Returns an :class:`~pmdcid.identify.electrical.ElectricalResult`."""
     from pmdcid.identify.electrical import fit_electrical as fit
-    from pmdcid.identify.stages import lumped_if_wanted, per_volt
+    from pmdcid.identify.runners import lumped_if_wanted, per_volt
     from pmdcid.model.lumped import is_lumped
 
     logs = _logs(logs)
@@ -72,7 +72,7 @@ def fit_mechanical(logs, model, *, km: float | None = None):
     """b, bv, bc, J from free-speed step logs, as ``pmdcid fit-mechanical`` (per volt when the
     logs carry no current and the model no R). ``km`` [N m/A]: datasheet torque constant.
     Returns a :class:`~pmdcid.identify.mechanical.MechanicalResult`."""
-    from pmdcid.identify.stages import lumped_if_wanted, per_volt, stage_mechanical
+    from pmdcid.identify.runners import lumped_if_wanted, per_volt, stage_mechanical
     from pmdcid.model.lumped import is_lumped
 
     logs = _logs(logs)
@@ -90,7 +90,7 @@ def fit_nonlinear(logs, model, *, free=None, signals=None, priors: bool = True):
     model's values); ``signals``: the measured signals in the cost (e.g. ``("omega",)``);
     ``priors``: combine with the estimates earlier stages wrote into the model.
     Returns a :class:`~pmdcid.identify.nonlinear.NonlinearResult`."""
-    from pmdcid.identify.stages import lumped_if_wanted, per_volt, stage_nonlinear
+    from pmdcid.identify.runners import lumped_if_wanted, per_volt, stage_nonlinear
     from pmdcid.model.lumped import is_lumped
 
     logs = _logs(logs)

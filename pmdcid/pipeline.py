@@ -219,7 +219,7 @@ def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
     new = res.model.copy()
     out.apply(new)
     if is_lumped(res.model):
-        from pmdcid.identify.stages import per_volt
+        from pmdcid.identify.runners import per_volt
 
         per_volt(out)
         mark_lumped(new)
@@ -236,7 +236,7 @@ def _electrical(logs, model):
 
 def _mechanical(logs, model):
     from pmdcid.identify.mechanical import fit_mechanical
-    from pmdcid.identify.stages import lumped_mechanical
+    from pmdcid.identify.runners import lumped_mechanical
 
     if is_lumped(model):
         return lumped_mechanical(logs, model, fit_mechanical)
@@ -248,7 +248,7 @@ def _mechanical(logs, model):
 
 def _nonlinear(priors: bool):
     def run(logs, model):
-        from pmdcid.identify.stages import stage_nonlinear
+        from pmdcid.identify.runners import stage_nonlinear
 
         return stage_nonlinear(logs, model, priors=priors)
 

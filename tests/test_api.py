@@ -140,7 +140,7 @@ def test_fit_nonlinear_round_trip_and_protocol(rng):
 
 
 def test_lumped_fit_matches_cli_runner(tmp_path):
-    from pmdcid.identify.stages import run_fit_mechanical
+    from pmdcid.identify.runners import run_fit_mechanical
 
     paths = []
     for a in ("1.0", "2.0"):
@@ -163,7 +163,7 @@ def test_lumped_fit_matches_cli_runner(tmp_path):
 
 
 def test_subpackages_are_callable():
-    import pmdcid.identify.stages  # noqa: F401 - binds pmdcid.identify to the subpackage
+    import pmdcid.identify.runners  # noqa: F401 - binds pmdcid.identify to the subpackage
     import pmdcid.simulate as simpkg
 
     assert callable(pmdcid.identify) and callable(pmdcid.diagnose) and callable(pmdcid.report)

@@ -152,7 +152,7 @@ class _FakeRun:
 
 def test_failed_refit_is_retried_from_other_starts():
     from pmdcid.diagnose.candidates import refit_starts
-    from pmdcid.diagnose.signatures import Screen
+    from pmdcid.diagnose.screen import Screen
 
     cur = _Fit({"J": 1.0, "tau0": 0.0}, 100.0)
     scr = Screen("torque_offset", 1.0, start={"tau0": 1.0})

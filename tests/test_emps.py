@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics
-from pmdcid.identify.validation import velocity_error
+from pmdcid.identify.openloop import velocity_error
 from pmdcid.io import parse_mapping, read_log
 from pmdcid.model import Model
 

@@ -20,7 +20,7 @@ from scipy.optimize import least_squares, minimize
 
 from pmdcid.identify.nonlinear import DIFF_STEP, fit_nonlinear
 from pmdcid.identify.simfit import fit_simulation
-from pmdcid.identify.validation import measured_speed, velocity_error
+from pmdcid.identify.openloop import measured_speed, velocity_error
 from pmdcid.io import parse_mapping, read_log
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_log, simulate_values
@@ -170,19 +170,10 @@ def undeclared_load(seed=41):
     t = np.arange(40000) / 1000.0
     cols, _ = synth_log(t, triangle(t, 2.0, 20.0), vals, PAPER_NOISE, np.random.default_rng(seed))
 
-    class _Log:  # the two signals and the input, as fit_simulation reads them
-        drive, path, derived = "v", "synthetic", set()
+    from pmdcid import Log
 
-        def __init__(self):
-            self.t, self.u, self.n = t, cols["v"], len(t)
-
-        def has(self, s):
-            return s in ("omega", "theta")
-
-        def __getitem__(self, s):
-            return cols[s]
-
-    log = _Log()
+    log = Log.from_arrays(t, v=cols["v"], omega=cols["omega"], theta=cols["theta"],
+                          name="synthetic")
     m = Model()
     for k in ("R", "L", "km"):
         m.set(k, PAPER[k])

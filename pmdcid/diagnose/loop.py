@@ -4,7 +4,7 @@
    from currents) on the fit part (:mod:`pmdcid.diagnose.folds`: a repeat of a protocol held out
    whole, a log without repeats split in time), so that the comparison is fair.
 2. *screen*: regress the residual on every missing effect's simulated signature
-   (:mod:`pmdcid.diagnose.signatures`).
+   (:mod:`pmdcid.diagnose.screen`).
 3. *evaluate* the strongest few: refit from several starts (:mod:`pmdcid.diagnose.candidates`);
    a failed or degenerate refit is flagged, never counted.
 4. *accept* (:mod:`pmdcid.diagnose.rules`, the one rule set): the passing candidate with the
@@ -41,8 +41,8 @@ from pmdcid.diagnose.residuals import (
     whiteness,
 )
 from pmdcid.diagnose.rules import Rules, judge, same_rows
+from pmdcid.diagnose.screen import Screen, Screener
 from pmdcid.diagnose.shape import residual_shapes
-from pmdcid.diagnose.signatures import Screen, Screener
 from pmdcid.diagnose.starts import grid_start, profile_best
 from pmdcid.errors import ModelError
 from pmdcid.identify.results import ResultProtocol
@@ -72,7 +72,7 @@ class DiagnoseResult(ResultProtocol):
     history: list[Candidate] = field(default_factory=list)
 
     def table(self) -> str:
-        from pmdcid.diagnose.report import format_table
+        from pmdcid.diagnose.table import format_table
 
         return format_table(self)
 

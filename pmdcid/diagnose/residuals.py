@@ -10,7 +10,7 @@ from scipy import stats as sst
 
 from pmdcid.diagnose.problem import Problem
 from pmdcid.identify.results import nrmse
-from pmdcid.model.context import LogResidual, ResidualContext
+from pmdcid.model.residual import LogResidual, ResidualContext
 from pmdcid.simulate import SimResult
 
 #: residual std over the noise level beyond which a channel shows structure ...

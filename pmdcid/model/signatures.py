@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from pmdcid.model.context import Probe, ResidualContext
+from pmdcid.model.residual import Probe, ResidualContext
 
 #: probe sizes, as fractions of the context scales (small: linear regime; not tiny: stick-slip
 #: events quantise the simulated response)

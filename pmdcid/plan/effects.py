@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from pmdcid.model import EFFECTS, Model
-from pmdcid.model.context import LogResidual, Probe, ResidualContext
+from pmdcid.model.residual import LogResidual, Probe, ResidualContext
 from pmdcid.model.signatures import PROBE
 from pmdcid.plan import fisher as fi
 

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.diagnose.problem import Problem
-from pmdcid.model.context import ResidualContext
 from pmdcid.model.effects import Effect
+from pmdcid.model.residual import ResidualContext
 
 #: relative step of a base parameter's sensitivity column
 BASE_STEP = 0.05
