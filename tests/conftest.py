@@ -14,3 +14,19 @@ def paper_values():
     from pmdcid.simulate import neutral_values
 
     return {**neutral_values(), **PAPER}
+
+
+#: whole-pipeline modules (diagnose round trips, real rigs, a browser, compilers, Monte Carlo,
+#: subprocess races): `make test-fast` (-m "not slow") leaves them to `make test`
+SLOW_MODULES = {
+    "test_api", "test_demo", "test_diagnose", "test_diagnose_real", "test_drive_effects",
+    "test_emps", "test_export_native", "test_friction_curve", "test_lugre", "test_outputs_safety",
+    "test_plan", "test_read_log_hypothesis", "test_real_rigs", "test_real_rigs_synthetic",
+    "test_real_steps", "test_report", "test_report_browser",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.module is not None and item.module.__name__.rsplit(".", 1)[-1] in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)

@@ -19,8 +19,8 @@ from numba import njit
 from scipy.optimize import least_squares, minimize
 
 from pmdcid.identify.nonlinear import DIFF_STEP, fit_nonlinear
-from pmdcid.identify.simfit import fit_simulation
 from pmdcid.identify.openloop import measured_speed, velocity_error
+from pmdcid.identify.simfit import fit_simulation
 from pmdcid.io import parse_mapping, read_log
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_log, simulate_values

@@ -159,6 +159,23 @@ def discretize_cached(p: np.ndarray, h: float, torque_driven: bool):
 
 
 @njit(cache=True, inline="always")
+def _record(out, k, i, w, th, z):  # pragma: no cover - compiled
+    """Row k of the output: the state (i, omega, theta, z) at the sample instant."""
+    out[k, 0] = i
+    out[k, 1] = w
+    out[k, 2] = th
+    out[k, 3] = z
+
+
+@njit(cache=True, inline="always")
+def _sample_input(p, uk, torque_driven):  # pragma: no cover - compiled
+    """(torque input [N m], voltage the drive applies [V]) held over one sample."""
+    if torque_driven:
+        return uk, 0.0
+    return 0.0, drive_voltage(p, uk)
+
+
+@njit(cache=True, inline="always")
 def _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, Lh, Jm):  # pragma: no cover
     """The held forcing of one step: (dead-zone mode, electrical row [A/s], mechanical row
     [rad/s^2]) from the driving torque td, load tl and held friction fric [N m]."""
@@ -211,16 +228,8 @@ def _run_stick(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out):  # pragma
     fstat = static_friction(p)
     clamp = fstat > 0.0
     for k in range(n):
-        out[k, 0] = i
-        out[k, 1] = w
-        out[k, 2] = th
-        out[k, 3] = z
-        if torque_driven:
-            tin = u[k]
-            vin = 0.0
-        else:
-            vin = drive_voltage(p, u[k])
-            tin = 0.0
+        _record(out, k, i, w, th, z)
+        tin, vin = _sample_input(p, u[k], torque_driven)
         for _ in range(nsub):
             if torque_driven:
                 tm = tin
@@ -278,15 +287,8 @@ def _run_lugre(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out):  # pragma
     Jm = p[J]
     h = Gam[0, 2, 2]  # the angle's own input column integrates 1 over the step: exactly h
     for k in range(n):
-        out[k, 0] = i
-        out[k, 1] = w
-        out[k, 2] = th
-        out[k, 3] = z
-        if torque_driven:
-            tm = u[k]
-            vin = 0.0
-        else:
-            vin = drive_voltage(p, u[k])
+        _record(out, k, i, w, th, z)
+        tm, vin = _sample_input(p, u[k], torque_driven)
         for _ in range(nsub):
             if not torque_driven:
                 tm = p[KM] * i
