@@ -239,10 +239,12 @@ def write_csv(fh, t: np.ndarray, columns: dict[str, np.ndarray],
         fh.write(f"# {k}: {v}\n")
     fh.write(",".join(["t", *columns]) + "\n")
     cols = [np.asarray(t, dtype=float), *(np.asarray(c, dtype=float) for c in columns.values())]
+    row = ",".join([TIME_FORMAT] + [f"%.{precision}g"] * (len(cols) - 1)) + "\n"
     for a in range(0, len(cols[0]), WRITE_CHUNK):
         arr = np.column_stack([c[a:a + WRITE_CHUNK] for c in cols])
-        fmt = [TIME_FORMAT] + [f"%.{precision}g"] * (len(cols) - 1)
-        np.savetxt(fh, arr, delimiter=",", fmt=fmt)
+        # one %-format of the whole chunk: the text np.savetxt(fmt=..., delimiter=",") writes
+        # row by row, in half the time (savetxt's per-row loop was a quarter of `simulate`)
+        fh.write((row * len(arr)) % tuple(arr.ravel().tolist()))
 
 
 def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None,
