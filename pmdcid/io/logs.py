@@ -165,14 +165,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     What the plausibility checks find (:mod:`pmdcid.io.checks`) is in ``log.issues``; it is
     also warned about unless ``defer`` (a stage about to write a model refuses instead).
     """
-    import pandas as pd
-
-    from pmdcid.io.csvsource import (
-        header_names,
-        open_source,
-        separator_hint,
-        sniff,
-    )
+    from pmdcid.io.csvsource import header_names, open_source, sniff
 
     p = str(path)
     if not os.path.exists(p):
@@ -182,17 +175,13 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     src = open_source(p)
     meta, nskip = _split_comments(src.head, p)
     sniff(src, nskip)
-    try:
-        df = pd.read_csv(src.handle, skiprows=nskip, skipinitialspace=True, low_memory=False,
-                         encoding="utf-8-sig", encoding_errors="replace", sep=src.sep,
-                         decimal=src.decimal)
-    except pd.errors.EmptyDataError:
-        raise LogError("is empty: expected a header row naming the columns, then data rows",
-                       p) from None
-    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
-        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-        raise LogError(f"is not a readable CSV ({msg[:100]}): check quotes and the number of "
-                       f"fields per row{separator_hint(src, nskip)}", p) from None
+    df = None
+    if isinstance(src.handle, str) and (src.sep, src.decimal) == (",", "."):
+        from pmdcid.io.plain import read_plain  # plain numbers: no pandas import
+
+        df = read_plain(p, nskip)
+    if df is None:
+        df = _read_frame(src, nskip, p)
     cols = [" ".join(str(c).splitlines()).strip() for c in df.columns]  # one-line names
     # pandas renames duplicates to 'x.1'; check the raw header too (one pass: linear)
     counts = Counter(c for c in header_names(src, nskip) if c)
@@ -210,6 +199,26 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     mapping = mapping or ColumnMap()
     data, extra, skipped = frame_columns(df, mapping, p)
     return validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
+
+
+def _read_frame(src, nskip: int, p: str):
+    """The data rows of log ``p`` as a pandas DataFrame (any CSV pandas reads)."""
+    import pandas as pd
+
+    from pmdcid.io.csvsource import separator_hint
+
+    try:
+        df = pd.read_csv(src.handle, skiprows=nskip, skipinitialspace=True, low_memory=False,
+                         encoding="utf-8-sig", encoding_errors="replace", sep=src.sep,
+                         decimal=src.decimal)
+    except pd.errors.EmptyDataError:
+        raise LogError("is empty: expected a header row naming the columns, then data rows",
+                       p) from None
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise LogError(f"is not a readable CSV ({msg[:100]}): check quotes and the number of "
+                       f"fields per row{separator_hint(src, nskip)}", p) from None
+    return df
 
 
 def read_logs(paths, mapping: ColumnMap | None = None, defer: bool = False) -> list[Log]:
