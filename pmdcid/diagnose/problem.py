@@ -28,7 +28,7 @@ from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed
 from pmdcid.model.effects import effect_param_specs
 from pmdcid.model.params import BASE_PARAMS
 from pmdcid.simulate import SimResult, param_vector
-from pmdcid.simulate.kernel import _run, choose_substeps, discretize
+from pmdcid.simulate.kernel import choose_substeps, discretize, run_discretized
 from pmdcid.simulate.layout import BV, DZ_SLOPE, KE, KM, SENSOR_NAMES, J, L, R
 from pmdcid.simulate.sensors import apply_sensors
 
@@ -121,8 +121,7 @@ def simulate_cached(cache: _Discretizations, t: np.ndarray, u: np.ndarray,
     p = param_vector(vals)
     nsub = min(choose_substeps(dt, p), MAX_SUBSTEPS)
     phi, gam = cache.get(p, dt / nsub, torque)
-    x = _run(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p), phi, gam,
-             int(nsub), bool(torque), np.zeros(3) if x0 is None else np.asarray(x0, float))
+    x = run_discretized(u, p, phi, gam, nsub, torque, x0)
     om, th = apply_sensors(t, x[:, 1], x[:, 2], {n: vals.get(n, 0.0) for n in SENSOR_NAMES})
     i = np.full(len(t), np.nan) if torque else x[:, 0]
     return SimResult(t, i, om, th, x[:, 1], x[:, 2])

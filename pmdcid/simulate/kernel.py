@@ -19,10 +19,11 @@ import math
 from contextlib import contextmanager
 
 import numpy as np
-from numba import njit
 
 from pmdcid.errors import ModelError
+from pmdcid.simulate import aot
 from pmdcid.simulate.layout import BC, BV, DZ_OFFSET, DZ_SLOPE, FS, KE, KM, J, L, R
+from pmdcid.simulate.lazyjit import njit
 from pmdcid.simulate.terms import (
     armature_voltage,
     dead_zone,
@@ -105,7 +106,7 @@ def discretize(p: np.ndarray, h: float, torque_driven: bool) -> tuple[np.ndarray
         M = np.zeros((6, 6))
         M[:3, :3] = system_matrix(p, engaged, torque_driven)
         M[:3, 3:] = np.eye(3)
-        E = expm_small(M * h)
+        E = _compiled("expm_small")(M * h)
         Phi[m] = E[:3, :3]
         Gam[m] = E[:3, 3:]
     return Phi, Gam
@@ -255,10 +256,27 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
     check_work(len(u), dt, nsub, p)
     h = dt / nsub
     Phi, Gam = discretize(p, h, torque_driven)
-    x = np.zeros(3) if x0 is None else np.asarray(x0, dtype=float)
-    return _run(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p, dtype=float),
-                Phi, Gam, int(nsub), bool(torque_driven), x)
+    return run_discretized(u, p, Phi, Gam, nsub, torque_driven, x0)
+
+
+def run_discretized(u: np.ndarray, p: np.ndarray, Phi: np.ndarray, Gam: np.ndarray, nsub: int,
+                    torque_driven: bool, x0=None) -> np.ndarray:
+    """The kernel's loop (``_run``) on ``u`` with ``nsub`` internal steps per sample and the
+    discretisation ``Phi``, ``Gam`` of :func:`discretize`; from ``x0`` (default rest)."""
+    x = np.zeros(3) if x0 is None else np.ascontiguousarray(x0, dtype=float)
+    return _compiled("run")(np.ascontiguousarray(u, dtype=float),
+                            np.ascontiguousarray(p, dtype=float), np.ascontiguousarray(Phi),
+                            np.ascontiguousarray(Gam), int(nsub), bool(torque_driven), x)
+
+
+def _compiled(name: str):
+    """Compiled function ``name`` of :data:`pmdcid.simulate.aot.EXPORTS` from this module: the
+    ahead-of-time build when it matches these sources, numba's JIT otherwise."""
+    ahead = aot.load()
+    if ahead is not None:
+        return getattr(ahead, name)
+    return {"run": _run, "expm_small": expm_small}[name]
 
 
 __all__ = ["MAX_STEPS", "WorkBoundError", "bounded_for", "check_work", "choose_substeps",
-           "discretize", "run_kernel", "system_matrix", "FS", "BC"]
+           "discretize", "run_discretized", "run_kernel", "system_matrix", "FS", "BC"]
