@@ -18,6 +18,7 @@ from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
+from pmdcid.identify.fdjac import ForwardJacobian
 from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.model import Model
@@ -131,16 +132,21 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k]))
         return out
 
-    def resid(z):
+    nrows = segments[-1][2] + len(prior_rows)
+
+    def resid(z, out=None):
+        """(simulated - measured) / sigma per block, then the prior rows; into ``out``."""
         x = z * scale
         ss = sims(x)
-        parts = []
-        for k, s, meas, sd in plan:
-            r = (ss[k].get(s) - meas) / sd
-            parts.append(np.where(np.isfinite(r), r, 0.0))
+        out = np.empty(nrows) if out is None else out
+        for (k, s, meas, sd), (_, a, b) in zip(plan, segments, strict=True):
+            r = out[a:b]
+            np.subtract(ss[k].get(s), meas, out=r)
+            np.divide(r, sd, out=r)
+            r[~np.isfinite(r)] = 0.0
         if prior_rows:
-            parts.append(np.array([weight[0] * (x[j] - m) / sd for j, m, sd in prior_rows]))
-        return np.concatenate(parts)
+            out[segments[-1][2]:] = [weight[0] * (x[j] - m) / sd for j, m, sd in prior_rows]
+        return out
 
     if isinstance(diff_step, dict):
         steps = np.array([float(diff_step.get(n, 1e-3)) for n in free] + [1e-3] * len(moving))
@@ -149,10 +155,12 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     weight = [1.0]  # the prior rows' weight: the data's honest information (below)
 
     def solve(z0):
+        fd = ForwardJacobian(resid, steps, lo / scale, hi / scale)  # jac="2-point", in place
         try:
             with blas_single_thread():
-                return least_squares(resid, z0, bounds=(lo / scale, hi / scale), method="trf",
-                                     diff_step=steps, max_nfev=max_nfev, x_scale="jac")
+                return least_squares(fd.fun, z0, jac=fd.jac, bounds=(lo / scale, hi / scale),
+                                     method="trf", diff_step=steps, max_nfev=max_nfev,
+                                     x_scale="jac")
         except ValueError as exc:
             raise FitError(f"simulation-error fit failed: {exc}") from None
 
@@ -175,8 +183,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     # parameter like dz (a zero column, hence a zero standard error): the covariance uses
     # central differences over a wider step, the slope of the cost's smooth envelope.
     with blas_single_thread():
-        Jm = envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale,
-                                cov_step) / scale[None, :]
+        Jm = envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale, cov_step)
+        Jm /= scale[None, :]
     try:
         cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -289,24 +297,22 @@ def _covariance(Jm, fun, nd, segments, redchi, correlated, weight=1.0):
 def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
     """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one-sided at a
     bound); columns that still come out zero fall back to a 5x wider step."""
-    cols = []
+    J = np.empty((len(f0), len(z)))  # filled column by column: no list of columns to stack
     for j in range(len(z)):
-        col = None
         for r in (rel, 5 * rel):
             h = r * max(abs(z[j]), 1e-12)
             up, dn = min(z[j] + h, hi[j]), max(z[j] - h, lo[j])
             if up <= dn:
-                col = np.zeros_like(f0)
+                J[:, j] = 0.0
                 break
             zu, zd = z.copy(), z.copy()
             zu[j], zd[j] = up, dn
             fu = fun(zu) if up > z[j] else f0
             fd = fun(zd) if dn < z[j] else f0
-            col = (fu - fd) / (up - dn)
-            if np.any(col != 0):
+            J[:, j] = (fu - fd) / (up - dn)
+            if np.any(J[:, j] != 0):
                 break
-        cols.append(col)
-    return np.column_stack(cols)
+    return J
 
 
 def format_estimates(estimates, width: int = 10) -> list[str]:
