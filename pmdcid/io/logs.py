@@ -228,8 +228,9 @@ def read_logs(paths, mapping: ColumnMap | None = None, defer: bool = False) -> l
     return [read_log(p, mapping, defer) for p in paths]
 
 
-#: rows formatted per chunk when writing a log (bounds the memory of writing huge logs)
-WRITE_CHUNK = 200_000
+#: rows formatted per chunk when writing a log (bounds the memory of writing huge logs: one
+#: chunk is formatted in one %-operation, ~15 MB of Python floats and text at 50 000 rows x 5)
+WRITE_CHUNK = 50_000
 
 
 #: the time column keeps 15 significant digits: a time stamp (e.g. seconds since 1970 with
