@@ -77,6 +77,7 @@ def synth_log(t, u, vals: dict[str, float], noise: NoiseSpec, rng: np.random.Gen
     vals = dict(vals)
     if blocked:
         vals["bc"] = 1e300  # infinite static friction: the rotor never moves
+        vals["sigma0"] = 0.0  # held by stiction, not by LuGre bristles
         if x0 is not None:
             x0 = np.array([x0[0], 0.0, x0[2]], float)
     sim = simulate_values(t, u, vals, torque_driven, nsub, x0)

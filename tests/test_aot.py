@@ -21,8 +21,12 @@ EFFECTS = {"fs": 0.003, "ws": 0.5, "ca": 0.001, "cn": 7.0, "bq": 1e-4, "vb": 0.2
            "tau0": 0.001, "dbv": 0.002, "ke": 0.05}
 
 
-def _vals(rng, effects: bool) -> dict[str, float]:
-    vals = {**neutral_values(), **PAPER, **(EFFECTS if effects else {})}
+LUGRE = {"sigma0": 5.0, "sigma1": 0.01}  # bristles: 1 mrad at the breakaway torque
+
+
+def _vals(rng, effects) -> dict[str, float]:
+    extra = {False: {}, True: EFFECTS, "lugre": LUGRE}[effects]
+    vals = {**neutral_values(), **PAPER, **extra}
     for k in ("J", "bv", "bc", "dz"):
         vals[k] *= float(np.exp(0.3 * rng.standard_normal()))
     return vals
@@ -30,9 +34,9 @@ def _vals(rng, effects: bool) -> dict[str, float]:
 
 @built
 @pytest.mark.parametrize("torque", [False, True])
-@pytest.mark.parametrize("effects", [False, True])
+@pytest.mark.parametrize("effects", [False, True, "lugre"])
 def test_kernel_and_batch_bit_identical_to_jit(torque, effects):
-    rng = np.random.default_rng(16 + 2 * torque + effects)
+    rng = np.random.default_rng(16 + 2 * torque + len(str(effects)))
     jit = aot.jit()
     t = np.arange(20000) / 1000.0
     u = (0.04 if torque else 2.0) * np.sign(np.sin(2 * np.pi * t / 4.0)) * (t % 4.0) / 4.0
@@ -41,7 +45,7 @@ def test_kernel_and_batch_bit_identical_to_jit(torque, effects):
     for nsub in (3, 3):
         p = param_vector(_vals(rng, effects))
         Phi, Gam = discretize(p, 1e-3 / nsub, torque)
-        x0 = rng.standard_normal(3)
+        x0 = rng.standard_normal(4) * [1.0, 1.0, 1.0, 1e-4]
         a = AHEAD.run(u, p, Phi, Gam, nsub, torque, x0)
         b = jit.run(u, p, Phi, Gam, nsub, torque, x0)
         assert np.abs(b).max() > 0
@@ -52,7 +56,7 @@ def test_kernel_and_batch_bit_identical_to_jit(torque, effects):
     w = rng.standard_normal(len(t))
     th = rng.standard_normal(len(t))
     args = (u, np.array(P), np.array(Phis), np.array(Gams), 3, torque, w, th, 0.01, 0.02, 0.001,
-            rng.standard_normal(3))
+            rng.standard_normal(4) * [1.0, 1.0, 1.0, 1e-4])
     assert AHEAD.batch_cost(*args).tobytes() == jit.batch_cost(*args).tobytes()
 
 

@@ -6,7 +6,7 @@ import click
 
 from pmdcid.cli import main
 from pmdcid.cli.options import FiniteFloat, log_options, model_option
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.spec import BASE_PARAMS
 
 #: --km within the bounds the model file accepts (a model the tool writes it must read back)
 KM = FiniteFloat(min=0.0, min_open=True, max=BASE_PARAMS["km"].upper)

@@ -13,10 +13,13 @@ import math
 import os
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from pmdcid.diagnose.problem import FitOutcome, bounds_of
 from pmdcid.diagnose.residuals import error_table, pooled
 from pmdcid.diagnose.rules import at_bound, failed_refit
 from pmdcid.model import EFFECTS
+from pmdcid.model.signatures import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
 
 #: factors applied to the guess's effect parameters when the first starts fail
 RETRY_FACTORS = (0.3, 3.0)
@@ -72,8 +75,13 @@ def effect_free(name: str) -> list[str]:
 
 
 def effect_z(eff, fo: FitOutcome) -> float:
-    """Size of an effect in standard errors: its first parameter's distance from neutral."""
-    spec = eff.params[0]
+    """Size of an effect in standard errors: its first parameter's distance from neutral (or
+    the largest of its ``size_params``')."""
+    names = eff.size_params or (eff.params[0].name,)
+    return max(_param_z(spec, fo) for spec in eff.params if spec.name in names)
+
+
+def _param_z(spec, fo: FitOutcome) -> float:
     est = fo.estimates.get(spec.name)
     if est is None:
         return math.inf
@@ -127,6 +135,19 @@ def degenerate(name: str, fo: FitOutcome, limits: dict) -> str | None:
     return None
 
 
+def unphysical(fo: FitOutcome, ctx) -> str | None:
+    """Why the refit is unphysical (its total sliding friction is negative somewhere within the
+    logged speeds of ``ctx``), or None."""
+    w = moving_speeds(ctx)
+    if len(w) < MIN_MOVING:
+        return None
+    low, at = lowest_friction(fo.values, float(np.quantile(w, TOP_QUANTILE)))
+    if low < 0:
+        return (f"unphysical: total sliding friction {low:.3g} N m < 0 at ω = {at:.3g} rad/s, "
+                "within the logged speeds")
+    return None
+
+
 def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[Candidate, dict]:
     """Refit one screened effect and measure its evidence against the better of the current
     model and the refit's own values with the effect switched off (the refit may also have
@@ -161,10 +182,11 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
                     f"extends ({cur.chi2['fit']:.6g}) from all {starts} starts; not evidence "
                     "against the effect")
     else:
-        why = degenerate(name, fo, run.limits)
+        why = degenerate(name, fo, run.limits) or unphysical(fo, run.ctx0)
         if why:
             c.status, c.reason = "degenerate", why + "; not counted"
     return c, {"values": ref_vals, "chi2": ref}
 
 
-__all__ = ["Candidate", "effect_free", "effect_z", "evaluate", "gain", "refit_starts"]
+__all__ = ["Candidate", "effect_free", "effect_z", "evaluate", "gain", "refit_starts",
+           "unphysical"]

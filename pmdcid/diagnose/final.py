@@ -15,12 +15,16 @@ import math
 
 import numpy as np
 
-from pmdcid.diagnose.candidates import effect_free, effect_z
+from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.identify.nonlinear import masked_upper
 from pmdcid.identify.results import Estimate
 from pmdcid.model import EFFECTS
+
+#: added effects that can lower the total friction (removed, the last added first, when the
+#: final model's friction is negative somewhere within the logged speeds)
+LOWERING = ("quadratic_drag", "viscous_asymmetry", "friction_curve")
 
 
 def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
@@ -157,13 +161,19 @@ def finalise(run, cur: FitOutcome, added: list[str], notes: list[str], history):
         honest_errors(run, final, free, info)
         sizes = {e: effect_z(EFFECTS[e], final) for e in added}
         weak = [e for e in added if not sizes[e] >= run.rules.min_z]
-        if not weak:
+        bad = unphysical(final, run.ctx0)
+        lowering = [e for e in added if e in LOWERING]
+        if not weak and not (bad and lowering):
             notes.extend(info)
             return final, free
-        e = min(weak, key=lambda a: sizes[a])
+        if weak:
+            e = min(weak, key=lambda a: sizes[a])
+            why = (f"{sizes[e]:.2g} standard errors in the final model (all data, correlated "
+                   f"residual allowed for) < {run.rules.min_z:g}")
+        else:
+            e, why = lowering[-1], f"in the final model, {bad}"
         added.remove(e)
         _unchoose(history, e)
-        notes.append(f"{e} removed: {sizes[e]:.2g} standard errors in the final model (all "
-                     f"data, correlated residual allowed for) < {run.rules.min_z:g}")
+        notes.append(f"{e} removed: {why}")
         off = {p.name: p.neutral for p in EFFECTS[e].params}
         final = run.fit({**final.values, **off}, free_of(run, added), "all")

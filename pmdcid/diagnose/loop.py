@@ -26,8 +26,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
+from pmdcid.diagnose.drive import drive_warnings
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
+from pmdcid.diagnose.named import prefer_named, with_named
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import (
     context,
@@ -44,7 +46,7 @@ from pmdcid.diagnose.signatures import Screen, Screener
 from pmdcid.diagnose.starts import grid_start, profile_best
 from pmdcid.errors import ModelError
 from pmdcid.identify.results import ResultProtocol
-from pmdcid.identify.simfit import blas_single_thread
+from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.params import copy_model_into
 from pmdcid.simulate import param_values
@@ -211,12 +213,14 @@ def accept(cands: list[Candidate], rules: Rules) -> Candidate | None:
                 passing.append(c)
     if not passing:
         return None
-    best = min(passing, key=lambda c: c.delta_bic)
+    lowest = min(passing, key=lambda c: c.delta_bic)
+    best = prefer_named(lowest, passing)
     best.chosen = True
     best.reason = "chosen: " + best.reason + (
-        f" (lowest ΔBIC of {len(passing)} passing)" if len(passing) > 1 else "")
+        f" (lowest ΔBIC of {len(passing)} passing)" if len(passing) > 1 and best is lowest
+        else "")
     for c in passing:
-        if c is not best:
+        if c is not best and "not chosen" not in c.reason:
             c.reason += f"; {best.effect} dropped the ΔBIC more ({best.delta_bic:+.0f})"
     return best
 
@@ -239,8 +243,8 @@ def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_round
             break
         run.say(f"diagnose round {rnd}: screening {len(pool)} effect(s)")
         screens = screen(run, cur, pool)
-        ranked = sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
-                        key=lambda s: -s.gain)[:refit_top]
+        ranked = with_named(sorted((s for s in screens if s.start and s.approx_delta_bic < 0),
+                                   key=lambda s: -s.gain)[:refit_top], screens)
         for s in screens:
             seen[s.effect] = Candidate(s.effect, rnd, s.gain, s.approx_delta_bic,
                                        reason=_screen_reason(s, ranked, refit_top))
@@ -280,7 +284,8 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
              progress=None) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
-    ``effects`` restricts the catalogue searched (default: all not already in the model).
+    ``effects`` restricts the catalogue searched (default: every effect screened by default,
+    i.e. all but ``lugre``, not already in the model).
     The input model is not modified. ``progress(msg)`` is called as each round starts and
     before each candidate's refit.
     """
@@ -296,7 +301,8 @@ def _pool(problem: Problem, model: Model, effects) -> list[str]:
         if unknown:
             raise ModelError(f"unknown effect(s) {', '.join(unknown)} "
                              f"(known: {', '.join(EFFECTS)})")
-    return [e for e in EFFECTS if e not in model.effects and (effects is None or e in effects)
+    wanted = (lambda e: EFFECTS[e].screened) if effects is None else (lambda e: e in effects)
+    return [e for e in EFFECTS if e not in model.effects and wanted(e)
             and all(problem.measures(s) for s in EFFECTS[e].requires)]
 
 
@@ -355,14 +361,15 @@ def summarise(run: Run, new: Model, base: FitOutcome, final_vals: dict[str, floa
     problem = run.problem
     before = error_table(problem, problem.simulate_all(run.vals0))
     after = error_table(problem, problem.simulate_all(final_vals)) if added else before
-    white = whiteness(problem, problem.simulate_all(final_vals))
+    final_sims = problem.simulate_all(final_vals)
+    white = whiteness(problem, final_sims)
     unexplained = any(w.structured for w in white)
     shapes: list[dict] = []
     if unexplained:
         dp = drift_problem(problem)
         if dp is not None:
             notes.extend(drift_notes(dp, final_vals, run.max_nfev))
-        shapes = residual_shapes(problem, problem.simulate_all(final_vals),
+        shapes = residual_shapes(problem, final_sims,
                                  floor_of(run.floors), pooled(after)["omega_nrmse"])
     cands = sorted(seen.values(), key=lambda c: (not c.chosen, c.delta_bic))
     new.extra.setdefault("fits", {})[STAGE] = {
@@ -375,6 +382,7 @@ def summarise(run: Run, new: Model, base: FitOutcome, final_vals: dict[str, floa
         "unexplained": bool(unexplained),
         "residual_shape": shapes,
         "notes": notes,
+        "warnings": drive_warnings(problem, final_sims, final_vals, added),
         "holdout": [{"log": log.path, "part": p} for log, p in zip(problem.logs, problem.plan,
                                                                     strict=True)],
         "heldout": heldout_errors(run, base, final_vals, added),

@@ -17,30 +17,23 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError, LogError
 from pmdcid.identify.covariance import CovarianceInfo, block_covariance
 from pmdcid.identify.initial import initial_state
 from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import envelope_jacobian, noise_level
+from pmdcid.identify.solver import scale_of, solve, white_covariance
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
-from pmdcid.model.effects import effect_param_specs
-from pmdcid.model.params import BASE_PARAMS
-from pmdcid.simulate import SimResult, param_vector
-from pmdcid.simulate.kernel import choose_substeps, discretize, run_discretized
-from pmdcid.simulate.layout import BV, DZ_SLOPE, KE, KM, SENSOR_NAMES, J, L, R
-from pmdcid.simulate.sensors import apply_sensors
+from pmdcid.model.effects import bounds_of, unit_of
+from pmdcid.model.spec import BASE_PARAMS
+from pmdcid.simulate import SimResult, param_vector, simulate_values
+from pmdcid.simulate.kernel import choose_substeps
+from pmdcid.simulate.layout import SIGMA0
 
 SIGNALS = ("i", "omega", "theta")
 #: static friction that holds a blocked rotor [N m]
 BLOCKED = 1e300
-
-
-def is_blocked(log) -> bool:
-    """A blocked-rotor log: says so in its metadata, or measures neither speed nor angle."""
-    kind = (log.kind or "").lower()
-    return "block" in kind or not (log.has("omega") or log.has("theta"))
 
 
 @dataclass
@@ -69,62 +62,28 @@ class FitOutcome:
     n: dict[str, int] = field(default_factory=dict)
 
 
-def bounds_of(name: str) -> tuple[float, float]:
-    spec = BASE_PARAMS.get(name) or effect_param_specs().get(name)
-    return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
-
-
-def unit_of(name: str) -> str:
-    spec = BASE_PARAMS.get(name) or effect_param_specs().get(name)
-    return spec.unit if spec else ""
-
-
 #: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)
 MAX_SUBSTEPS = 16
+#: the cap with LuGre on: its bristle spring is held over a step, stable only for steps below
+#: :func:`pmdcid.simulate.kernel.lugre_step`
+LUGRE_MAX_SUBSTEPS = 256
 #: positive base parameters are refitted within this factor of their starting value
 BASE_RANGE = 30.0
 #: parameters that move stick-slip and dead-zone events by whole internal steps: their
 #: finite-difference step must span several (as in fit-nonlinear)
 SWITCHING = ("bc", "dz", "fs", "tau0")
 SWITCH_STEP = 1e-2
-#: kernel parameters the discretisation depends on
-_LINEAR = (R, L, KE, KM, DZ_SLOPE, J, BV)
 
 
-class _Discretizations:
-    """Cache of the kernel's exact discretisation (two 6x6 matrix exponentials per call).
-
-    A refit of friction or sensor parameters leaves the linear part unchanged, and logs share
-    sample rates: caching removes most exponentials (which also suffer badly from BLAS thread
-    contention on a loaded machine).
-    """
-
-    def __init__(self, size: int = 64):
-        self.size = size
-        self.store: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-
-    def get(self, p: np.ndarray, h: float, torque: bool):
-        key = (tuple(float(p[k]) for k in _LINEAR), h, torque)
-        hit = self.store.get(key)
-        if hit is None:
-            if len(self.store) >= self.size:
-                self.store.pop(next(iter(self.store)))
-            hit = self.store[key] = discretize(p, h, torque)
-        return hit
-
-
-def simulate_cached(cache: _Discretizations, t: np.ndarray, u: np.ndarray,
-                    vals: dict[str, float], torque: bool, x0=None) -> SimResult:
-    """:func:`pmdcid.simulate.simulate_values` (from ``x0``, default rest) with cached
-    discretisations."""
+def simulate_capped(t: np.ndarray, u: np.ndarray, vals: dict[str, float], torque: bool,
+                    x0=None) -> SimResult:
+    """:func:`pmdcid.simulate.simulate_values` from ``x0`` with at most :data:`MAX_SUBSTEPS`
+    internal steps per sample (diagnose compares many candidates: speed before the last
+    fraction of accuracy, which the written model's final refit restores)."""
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
-    nsub = min(choose_substeps(dt, p), MAX_SUBSTEPS)
-    phi, gam = cache.get(p, dt / nsub, torque)
-    x = run_discretized(u, p, phi, gam, nsub, torque, x0)
-    om, th = apply_sensors(t, x[:, 1], x[:, 2], {n: vals.get(n, 0.0) for n in SENSOR_NAMES})
-    i = np.full(len(t), np.nan) if torque else x[:, 0]
-    return SimResult(t, i, om, th, x[:, 1], x[:, 2])
+    nsub = min(choose_substeps(dt, p), LUGRE_MAX_SUBSTEPS if p[SIGMA0] > 0 else MAX_SUBSTEPS)
+    return simulate_values(t, u, vals, torque, nsub, x0)
 
 
 class Problem:
@@ -162,12 +121,11 @@ class Problem:
                 self.channels.append(Channel(k, s, idx, x[idx], sigma, fit, fc))
         if not self.channels:
             raise LogError("no log carries current, speed or angle to compare the model with")
-        self.blocked = [is_blocked(log) for log in self.logs]
+        self.blocked = [log.blocked for log in self.logs]
         # each log from the state its first samples measured (a log that starts turning is
         # never credited to an effect); a blocked rotor from rest
         self.x0 = [np.zeros(3) if b else initial_state(log)
                    for log, b in zip(self.logs, self.blocked, strict=True)]
-        self._cache = _Discretizations()
 
     def fit_mask(self, k: int) -> np.ndarray:
         """Samples of log ``k`` (full rate) that are fitted: all, none, or its first part."""
@@ -185,9 +143,8 @@ class Problem:
     def simulate(self, vals: dict[str, float], k: int) -> SimResult:
         log = self.logs[k]
         if self.blocked[k]:
-            vals = {**vals, "bc": BLOCKED}
-        return simulate_cached(self._cache, log.t, log.u, vals, log.drive == "tau",
-                               self.x0[k])
+            vals = {**vals, "bc": BLOCKED, "sigma0": 0.0}  # held by stiction, not bristles
+        return simulate_capped(log.t, log.u, vals, log.drive == "tau", self.x0[k])
 
     def simulate_all(self, vals: dict[str, float]) -> list[SimResult]:
         return [self.simulate(vals, k) for k in range(len(self.logs))]
@@ -202,14 +159,19 @@ class Problem:
             return speed_from_position(sim.theta, log.dt, ch.derived_cutoff)[ch.idx]
         return sim.get(ch.signal)[ch.idx]
 
+    def residual(self, sims: list[SimResult], ch: Channel) -> np.ndarray:
+        """Simulated - measured at channel ``ch``'s samples (the sign of every fit of pmdcid,
+        :mod:`pmdcid.identify.solver`), in the signal's unit."""
+        return self.simulated(sims, ch) - ch.meas
+
     def weighted(self, sims: list[SimResult], part: str = "fit") -> np.ndarray:
-        """(measured - simulated) / sigma over the channels' samples of ``part``.
+        """(simulated - measured) / sigma over the channels' samples of ``part``.
 
         ``part`` is 'fit', 'held' or 'all'.
         """
         out = []
         for ch in self.channels:
-            r = (ch.meas - self.simulated(sims, ch)) / ch.sigma
+            r = self.residual(sims, ch) / ch.sigma
             r = np.where(np.isfinite(r), r, 0.0)
             out.append(r if part == "all" else r[ch.fit] if part == "fit" else r[~ch.fit])
         return np.concatenate(out)
@@ -257,7 +219,7 @@ class Problem:
             bad = [n for n, v in zip(free, x0, strict=True) if not math.isfinite(v)]
             raise FitError(f"no finite starting value for {', '.join(bad)}")
         typical = np.array([(typical_scale or {}).get(n, 1.0) for n in free])
-        scale = np.where(np.abs(x0) > 0, np.abs(x0), typical)
+        scale = scale_of(x0, typical)
 
         def with_x(z):
             v = dict(vals)
@@ -267,21 +229,14 @@ class Problem:
         def resid(z):
             return self.weighted(self.simulate_all(with_x(z)), part)
 
+        steps = np.array([SWITCH_STEP if n in SWITCHING else 1e-3 for n in free])
+        sol = solve(resid, x0 / scale, lo / scale, hi / scale, scale=scale, diff_step=steps,
+                    max_nfev=max_nfev, what="diagnose refit")
+        out = with_x(sol.z)
+        stats = FitStats(len(sol.fun), len(free), float(np.sum(sol.fun**2)), sol.nfev,
+                         sol.success, sol.message)
         try:
-            steps = np.array([SWITCH_STEP if n in SWITCHING else 1e-3 for n in free])
-            sol = least_squares(resid, x0 / scale, bounds=(lo / scale, hi / scale),
-                                method="trf", diff_step=steps, max_nfev=max_nfev,
-                                x_scale="jac")
-        except ValueError as exc:
-            raise FitError(f"diagnose refit failed: {exc}") from None
-        out = with_x(sol.x)
-        n = len(sol.fun)
-        stats = FitStats(n, len(free), float(np.sum(sol.fun**2)), int(sol.nfev),
-                         bool(sol.success), str(sol.message))
-        jm = sol.jac / scale[None, :]
-        try:
-            cov = np.linalg.pinv(jm.T @ jm) * stats.redchi
-            se = np.sqrt(np.clip(np.diag(cov), 0, None))
+            se = np.sqrt(np.clip(np.diag(white_covariance(sol.jac, sol.fun)), 0, None))
         except np.linalg.LinAlgError:
             se = np.full(len(free), math.nan)
         est = {nm: Estimate(nm, float(out[nm]), float(e), unit_of(nm))
@@ -325,4 +280,4 @@ class Problem:
         return dict(zip(free, (float(e) for e in se), strict=True)), info
 
 
-__all__ = ["BLOCKED", "Channel", "FitOutcome", "Problem", "is_blocked"]
+__all__ = ["BLOCKED", "Channel", "FitOutcome", "Problem"]

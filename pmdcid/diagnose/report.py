@@ -41,6 +41,8 @@ def format_table(res) -> str:
         lines.append(f"  {e}: " + "; ".join(pars))
     for note in s.get("notes", []):
         lines.append(f"note: {note}")
+    for warning in s.get("warnings", []):
+        lines.append(f"warning: {warning}")
     for f in s.get("repeatability", []):
         lines.append(f"repeatability floor of {f['protocol']} ({len(f['logs'])} runs): speed "
                      f"NRMSE {_f(f['floor'])} (each run against the mean of the others)")

@@ -74,7 +74,7 @@ def whiteness(problem: Problem, sims: list[SimResult]) -> list[Whiteness]:
     for ch in problem.channels:
         if ch.signal == "theta":
             continue  # the angle integrates: never white
-        r = ch.meas - problem.simulated(sims, ch)
+        r = problem.residual(sims, ch)
         if ch.derived_cutoff is not None:
             # a derived speed's noise is filtered, correlated over about 1/(2 fc): test the
             # residual at that spacing, where filtered white noise is nearly white again
@@ -90,7 +90,9 @@ def whiteness(problem: Problem, sims: list[SimResult]) -> list[Whiteness]:
 
 
 def context(problem: Problem, vals: dict[str, float], sims: list[SimResult]) -> ResidualContext:
-    """The effects' view of the residual (fit part only; held-out samples NaN)."""
+    """The effects' view of the residual (fit part only; held-out samples NaN), as the deficit
+    measured - simulated: what a missing effect must add (the probes and guesses of
+    :mod:`pmdcid.model.signatures` read it so); the fits' residual is its negative."""
     logs = []
     for k, log in enumerate(problem.logs):
         fit = problem.fit_mask(k)
@@ -124,7 +126,7 @@ def typical_scales(ctx: ResidualContext) -> dict[str, float]:
     Used to scale refits of parameters that start at 0.
     """
     from pmdcid.model.effects import effect_param_specs
-    from pmdcid.model.params import BASE_PARAMS
+    from pmdcid.model.spec import BASE_PARAMS
 
     t, w = ctx.torque_scale, ctx.speed_scale
     v = max(ctx.voltage_scale, 1e-3)

@@ -59,7 +59,9 @@ class Screener:
         self._base_cols: dict[str, np.ndarray | None] = {}
 
     def column(self, overrides: dict[str, float]) -> np.ndarray:
-        """Weighted change of the simulated signals when ``overrides`` are applied."""
+        """Weighted change of the residual when ``overrides`` are applied, sign flipped
+        (``r0 - r``: minus the change of the simulated signals): regressing ``r0`` on such
+        columns gives the fraction of each override that removes the residual."""
         sims = self.problem.simulate_all({**self.vals, **overrides})
         return self.r0 - self.problem.weighted(sims, "fit")
 

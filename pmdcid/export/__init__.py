@@ -60,11 +60,25 @@ class ExportSpec:
         return self.drive != "v"
 
 
+#: effects the exported code does not step (refused with one line); their parameters, neutral
+#: in every model exported, are left out of the generated code
+NOT_PORTED = ("friction_curve", "input_delay", "lugre")
+
+
 def spec_of(model: Model) -> ExportSpec:
     """The parameters of ``model`` as the kernel sees them (ModelError if some are lacking)."""
+    from pmdcid.model import EFFECTS
+
+    used = [e for e in NOT_PORTED if e in model.effects]
+    if used:
+        raise ExportError(f"the model uses {', '.join(used)}, which the exported code does not "
+                          "step yet: simulate it with pmdcid (or remove the effect and refit)",
+                          model.path)
+    skip = {p for e in NOT_PORTED for p in EFFECTS[e].param_names}
     drive = drive_of(model)
     vals = param_values(model, torque_driven=drive != "v")
-    return ExportSpec({n: float(vals[n]) for n in NAMES}, drive, float(vals.get("delay", 0.0)),
+    return ExportSpec({n: float(vals[n]) for n in NAMES if n not in skip}, drive,
+                      float(vals.get("delay", 0.0)),
                       float(vals.get("omega0", 0.0)),
                       os.path.basename(model.path) if model.path else "a model")
 

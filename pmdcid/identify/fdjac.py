@@ -24,12 +24,13 @@ except ImportError:  # pragma: no cover - a scipy without these helpers: its "2-
 
 class ForwardJacobian:
     """The residual (:meth:`fun`, remembering its last value) and its forward-difference Jacobian
-    (:meth:`jac`) for one ``least_squares`` call with relative steps ``rel_step`` inside bounds
-    ``lb``, ``ub`` (of the solver's vector). ``resid(x, out=None)`` writes the residual into
-    ``out`` when given (an m-vector), else returns a new array."""
+    (:meth:`jac`) for one ``least_squares`` call with relative steps ``rel_step`` (scipy's
+    default when None) inside bounds ``lb``, ``ub`` of the solver's vector. With ``fills``,
+    ``resid(x, out=row)`` writes the residual into ``row`` (an m-vector)."""
 
-    def __init__(self, resid, rel_step, lb: np.ndarray, ub: np.ndarray):
+    def __init__(self, resid, rel_step, lb, ub, fills: bool = False):
         self.resid = resid
+        self.fills = fills
         self.rel_step = rel_step
         self.lb = np.asarray(lb, float)
         self.ub = np.asarray(ub, float)
@@ -42,7 +43,7 @@ class ForwardJacobian:
         return self if _compute_absolute_step is not None else "2-point"
 
     def fun(self, x: np.ndarray) -> np.ndarray:
-        f = self.resid(x)
+        f = np.atleast_1d(self.resid(x))
         self._last = (np.asarray(x, float).tobytes(), f)
         return f
 
@@ -59,8 +60,11 @@ class ForwardJacobian:
             x1 = np.copy(x0)
             x1[i] = x0[i] + h[i]
             row = JT[i]
-            self.resid(x1, out=row)
-            np.subtract(row, f0, out=row)
+            if self.fills:
+                self.resid(x1, out=row)
+                np.subtract(row, f0, out=row)
+            else:
+                np.subtract(np.atleast_1d(self.resid(x1)), f0, out=row)
             np.divide(row, (x0[i] + h[i]) - x0[i], out=row)
         return JT.T
 

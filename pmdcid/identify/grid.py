@@ -7,8 +7,8 @@ returns, per set, the weighted sum of squared errors against the measured speed 
 sigma_theta)^2)``. Nothing of size (sets x samples) is kept, so a grid of hundreds of sets on a
 120 s, 1 kHz log needs no more memory than a few simulations.
 
-Sensor delay is not applied here (only the speed offset): the grid is a starting point; the
-least-squares stage that follows uses the full simulation.
+Sensor delay and a late input (input_delay) are not applied here (only the speed offset): the
+grid is a starting point; the least-squares stage that follows uses the full simulation.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 
 from pmdcid.simulate import aot, param_vector
 from pmdcid.simulate.kernel import _run, choose_substeps, discretize
-from pmdcid.simulate.layout import BV, DZ_SLOPE, KE, KM, J, L, R
+from pmdcid.simulate.layout import KM, LINEAR, OMEGA_STATE, THETA_STATE, L, R, state_vector
 from pmdcid.simulate.lazyjit import njit, prange
 
 
@@ -34,11 +34,11 @@ def _batch_cost(u, P, Phi, Gam, nsub, torque_driven, w_meas, th_meas, sw, sth,
         c = 0.0
         for k in range(n):
             if sw > 0.0:
-                r = (out[k, 1] + omega0 - w_meas[k]) / sw
+                r = (out[k, OMEGA_STATE] + omega0 - w_meas[k]) / sw
                 if math.isfinite(r):
                     c += r * r
             if sth > 0.0:
-                r = (out[k, 2] - th_meas[k]) / sth
+                r = (out[k, THETA_STATE] - th_meas[k]) / sth
                 if math.isfinite(r):
                     c += r * r
         cost[j] = c
@@ -66,7 +66,7 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     Gam = np.empty((len(P), 2, 3, 3))
     cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
     for k, p in enumerate(P):
-        key = tuple(p[[R, L, KE, KM, J, BV, DZ_SLOPE]])
+        key = tuple(p[list(LINEAR)])
         if key not in cache:
             cache[key] = discretize(p, h, torque)
         Phi[k], Gam[k] = cache[key]
@@ -78,4 +78,4 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     fn = ahead.batch_cost if ahead is not None else _batch_cost
     return fn(np.ascontiguousarray(log.u, float), P, Phi, Gam, int(nsub), bool(torque), w, th,
               float(sigma.get("omega", 0.0)), float(sigma.get("theta", 0.0)), omega0,
-              np.zeros(3) if x0 is None else np.ascontiguousarray(x0, float))
+              state_vector(x0))

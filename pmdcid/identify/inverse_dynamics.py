@@ -28,7 +28,7 @@ from pmdcid.identify.covariance import block_covariance
 from pmdcid.identify.results import Estimate, ResultProtocol
 from pmdcid.io.derive import check_cutoff, choose_cutoff, log_cutoff, log_kinematics, lowpass
 from pmdcid.model import Model
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.spec import BASE_PARAMS
 
 PARAMS = ("J", "bv", "bc", "tau0")
 STAGE = "inverse-dynamics"

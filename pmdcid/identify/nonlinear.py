@@ -42,12 +42,8 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
 )
 from pmdcid.identify.priors import prior_terms, stage_priors
 from pmdcid.identify.results import Estimate, ResultProtocol, SimFitResult
-from pmdcid.identify.simfit import (
-    blas_single_thread,
-    fit_simulation,
-    format_estimates,
-    noise_level,
-)
+from pmdcid.identify.simfit import fit_simulation, format_estimates, noise_level
+from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import Model
 from pmdcid.simulate import param_values
 

@@ -14,15 +14,14 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
-from pmdcid.identify.fdjac import ForwardJacobian
 from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
+from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
 from pmdcid.model import Model
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.simulate import param_values, simulate_values
 
 
@@ -43,36 +42,8 @@ def noise_level(x: np.ndarray) -> float:
     return s
 
 
-def blas_single_thread():
-    """Context limiting BLAS to one thread (threadpoolctl), for the fits' small linear algebra.
-
-    The least-squares steps work on tall, thin Jacobians; a multi-threaded BLAS spin-waits on a
-    busy 2-core machine and makes each fit 2-4x slower than one thread does.
-    """
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=1, user_api="blas")
-
-
-def _unit(name: str) -> str:
-    if name in BASE_PARAMS:
-        return BASE_PARAMS[name].unit
-    from pmdcid.model.effects import effect_param_specs
-
-    spec = effect_param_specs().get(name)
-    return spec.unit if spec else ""
-
-
 def _bounds(name: str, user: dict | None) -> tuple[float, float]:
-    if user and name in user:
-        return user[name]
-    if name in BASE_PARAMS:
-        s = BASE_PARAMS[name]
-        return s.lower, s.upper
-    from pmdcid.model.effects import effect_param_specs
-
-    s = effect_param_specs().get(name)
-    return (s.lower, s.upper) if s else (-math.inf, math.inf)
+    return user[name] if user and name in user else bounds_of(name)
 
 
 def available_signals(log, signals: Sequence[str]) -> list[str]:
@@ -154,17 +125,11 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         steps = float(diff_step)
     weight = [1.0]  # the prior rows' weight: the data's honest information (below)
 
-    def solve(z0):
-        fd = ForwardJacobian(resid, steps, lo / scale, hi / scale)  # jac="2-point", in place
-        try:
-            with blas_single_thread():
-                return least_squares(fd.fun, z0, jac=fd.jac, bounds=(lo / scale, hi / scale),
-                                     method="trf", diff_step=steps, max_nfev=max_nfev,
-                                     x_scale="jac")
-        except ValueError as exc:
-            raise FitError(f"simulation-error fit failed: {exc}") from None
+    def run(z0):
+        return solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
+                     max_nfev=max_nfev, what="simulation-error fit")
 
-    sol = solve(x0 / scale)
+    sol = run(x0 / scale)
     nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them
     if prior_rows:
         # the data rows are weighted by the noise; when the model leaves a residual many times
@@ -174,8 +139,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         w = _data_discount(resid, sol, nd, segments, lo / scale, hi / scale, cov_step)
         if w > 1.5:
             weight[0] = w
-            sol = solve(sol.x)
-    x = sol.x * scale
+            sol = run(sol.z)
+    x = sol.x
     chisqr = float(np.sum(sol.fun[:nd] ** 2))
     stats = FitStats(ndata, len(x), chisqr, int(sol.nfev), bool(sol.success), str(sol.message))
     # covariance from the Jacobian at the solution, scaled by the reduced chi-square. The
@@ -183,7 +148,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     # parameter like dz (a zero column, hence a zero standard error): the covariance uses
     # central differences over a wider step, the slope of the cost's smooth envelope.
     with blas_single_thread():
-        Jm = envelope_jacobian(resid, sol.x, sol.fun, lo / scale, hi / scale, cov_step)
+        Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale, cov_step)
         Jm /= scale[None, :]
     try:
         cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
@@ -194,7 +159,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         info = None
         se = np.full(len(x), math.nan)
         corr = np.full((len(x), len(x)), math.nan)
-    est = {n: Estimate(n, float(v), float(e), _unit(n))
+    est = {n: Estimate(n, float(v), float(e), unit_of(n))
            for n, v, e in zip(free, x[:npar], se[:npar], strict=True)}
     correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
               for i, a in enumerate(free)}
@@ -262,11 +227,11 @@ def _data_discount(resid, sol, nd, segments, lo, hi, cov_step) -> float:
     """sqrt(reduced chi-square) x the correlated-residual inflation of the data rows at ``sol``
     (>= 1): by how much the noise weights overstate the logs' information."""
     r = sol.fun[:nd]
-    redchi = float(np.sum(r**2)) / max(nd - len(sol.x), 1)
+    redchi = float(np.sum(r**2)) / max(nd - len(sol.z), 1)
     with blas_single_thread():
-        Jd = envelope_jacobian(resid, sol.x, sol.fun, lo, hi, cov_step)[:nd]
+        Jd = envelope_jacobian(resid, sol.z, sol.fun, lo, hi, cov_step)[:nd]
     try:
-        white = np.linalg.pinv(Jd.T @ Jd) * redchi
+        white = white_covariance(Jd, r)
         _, info = block_covariance(Jd, r, segments, white)
         infl = max(float(info.inflation), 1.0)
     except np.linalg.LinAlgError:
@@ -278,7 +243,19 @@ def _covariance(Jm, fun, nd, segments, redchi, correlated, weight=1.0):
     """Parameter covariance: the data rows' (white or correlated-residual sandwich), combined
     with the prior rows' information: ``(Hd + P)^-1 (Sd + w^2 P) (Hd + P)^-1`` where ``Sd`` is
     the data score's covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision
-    and ``w`` their weight (the prior means' own variance, scaled like their rows)."""
+    and ``w`` their weight (the prior means' own variance, scaled like their rows).
+
+    Computed with the Jacobian's columns scaled to unit norm and scaled back (the same
+    covariance): parameters of very different sizes (LuGre's sigma0 ~ 1e2 N m/rad beside
+    bc ~ 1e-3 N m) would otherwise give J'J a condition number past the pseudo-inverse's
+    cut-off, which then zeroes the small direction's variance."""
+    norms = np.linalg.norm(Jm, axis=0)
+    d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+    cov, info = _scaled_covariance(Jm * d, fun, nd, segments, redchi, correlated, weight)
+    return cov * np.outer(d, d), info
+
+
+def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
     Jd = Jm[:nd]
     Hd = Jd.T @ Jd
     cov = np.linalg.pinv(Hd) * redchi

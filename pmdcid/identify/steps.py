@@ -15,11 +15,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
-from pmdcid.identify.simfit import blas_single_thread
+from pmdcid.identify.solver import scale_of, solve, white_covariance
 
 #: Strejc's table: Tu/Tn of the tangent at the inflection point for n equal lags, n = 1..6
 STREJC_TU_TN = (0.0, 0.104, 0.218, 0.319, 0.410, 0.493)
@@ -268,19 +267,17 @@ def lsq(fun, x0, lo, hi, names, ndata: int | None = None, segments=None) -> Curv
     s^2, in the sandwich that allows for a residual correlated in time (:mod:`.covariance`).
     ``segments``: (log, first, end) rows of each log in the residual (default: one log)."""
     x0 = np.clip(np.asarray(x0, float), lo, hi)
-    scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
-    with blas_single_thread():
-        sol = least_squares(lambda z: fun(z * scale), x0 / scale,
-                            bounds=(lo / scale, hi / scale), method="trf", x_scale="jac")
-    x = sol.x * scale
+    scale = scale_of(x0)
+    sol = solve(lambda z: fun(z * scale), x0 / scale, lo / scale, hi / scale, scale=scale,
+                what="curve fit")
+    x = sol.x
     r = sol.fun
     n = len(r) if ndata is None else ndata
     dof = max(n - len(x), 1)
     s2 = float(r @ r) / dof
-    Jm = sol.jac / scale[None, :]
     try:
-        cov = np.linalg.pinv(Jm.T @ Jm) * s2
-        cov, _ = block_covariance(Jm, r, segments or [(0, 0, len(r))], cov)
+        cov = white_covariance(sol.jac, r, dof)
+        cov, _ = block_covariance(sol.jac, r, segments or [(0, 0, len(r))], cov)
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
     except np.linalg.LinAlgError:
         se = np.full(len(x), math.nan)

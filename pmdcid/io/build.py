@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from pmdcid.errors import LogError, short_list, warn
-from pmdcid.io.logs import CANONICAL, JITTER_TOL, NAN_MAX_FRACTION, NAN_MAX_RUN, Log
-from pmdcid.io.mapping import ColumnMap, parse_mapping
+from pmdcid.io.logs import JITTER_TOL, NAN_MAX_FRACTION, NAN_MAX_RUN, Log
+from pmdcid.io.mapping import CANONICAL, ColumnMap, parse_mapping
 
 
 def as_mapping(columns=None, map_file=None, cutoff_hz: float | None = None) -> ColumnMap:

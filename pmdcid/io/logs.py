@@ -20,7 +20,6 @@ import numpy as np
 from pmdcid.errors import LogError, short_list
 from pmdcid.io.mapping import ColumnMap
 
-CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
 UNITS = {"t": "s", "v": "V", "tau": "N m", "i": "A", "omega": "rad/s", "theta": "rad"}
 
 #: largest relative deviation of one sample period from the median still taken as uniform
@@ -108,6 +107,13 @@ class Log:
     @property
     def kind(self) -> str | None:
         return self.meta.get("kind")
+
+    @property
+    def blocked(self) -> bool:
+        """A blocked-rotor log: its ``# kind:`` says so (any kind naming a block), or it
+        measures neither speed nor angle. The one rule every stage, diagnose and the report use."""
+        kind = (self.kind or "").lower()
+        return "block" in kind or not (self.has("omega") or self.has("theta"))
 
     @classmethod
     def from_csv(cls, path, *, columns=None, map_file=None, cutoff_hz=None) -> Log:

@@ -41,6 +41,10 @@ from pathlib import Path
 from pmdcid.errors import LogError
 from pmdcid.io.expr import evaluate, parse_expr, refs
 
+#: the canonical column names of a log (CONTRACT.md): time [s], voltage [V], torque [N m],
+#: current [A], speed [rad/s], angle [rad]
+CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
+
 UNITS: dict[str, float] = {
     "pi": math.pi,
     "rpm": 2 * math.pi / 60.0,
@@ -120,8 +124,6 @@ def _number(token: str, text: str) -> float:
 
 def parse_spec(text: str) -> ColumnSpec:
     """Parse one mapping ``CANON=SOURCE*FACTOR/DIVISOR+OFFSET`` (see module docstring)."""
-    from pmdcid.io.logs import CANONICAL
-
     if any(not c.isprintable() for c in text):
         raise LogError(f"column mapping {text!r} holds control characters")
     m = _MAP_RE.match(text)

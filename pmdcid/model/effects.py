@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 from pmdcid.errors import ModelError
 from pmdcid.model import signatures as sg
-from pmdcid.model.params import ParamSpec
+from pmdcid.model.spec import BASE_PARAMS, ParamSpec
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,14 @@ class Effect:
     #: signals some log must measure by its own sensor (not derived from another) for the
     #: effect to mean anything (a speed-sensor bias needs a speed sensor)
     requires: tuple[str, ...] = ()
+    #: parameters whose largest distance from neutral, in standard errors, is the effect's size
+    #: (default: its first parameter)
+    size_params: tuple[str, ...] = ()
+    #: kernel states the effect owns (:data:`pmdcid.simulate.layout.STATE_OWNERS`), integrated
+    #: only while it is on
+    states: tuple[str, ...] = ()
+    #: screened by ``pmdcid diagnose`` unless ``--effect`` names the effects to search
+    screened: bool = True
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -80,6 +88,24 @@ def effect_param_specs() -> dict[str, ParamSpec]:
     return {p.name: p for e in EFFECTS.values() for p in e.params}
 
 
+def param_spec(name: str) -> ParamSpec | None:
+    """The declaration of any parameter, base or effect (None for an unknown name): the one
+    look-up of units, bounds and neutral values."""
+    return BASE_PARAMS.get(name) or effect_param_specs().get(name)
+
+
+def unit_of(name: str) -> str:
+    """The unit of any parameter ('' for an unknown name)."""
+    spec = param_spec(name)
+    return spec.unit if spec else ""
+
+
+def bounds_of(name: str) -> tuple[float, float]:
+    """(lower, upper) bounds of any parameter (unbounded for an unknown name)."""
+    spec = param_spec(name)
+    return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
+
+
 register(Effect(
     "back_emf",
     "Counter-EMF: the armature equation gains -ke*omega, L di/dt = v - R i - ke omega. "
@@ -105,12 +131,16 @@ register(Effect(
 ))
 register(Effect(
     "quadratic_drag",
-    "Friction growing with speed squared: friction gains bq*omega*|omega| (windage, lubricant). "
-    "Signature: speed residual proportional to -omega*|omega|; high speeds over-predicted.",
-    (ParamSpec("bq", "N m s^2/rad^2", "quadratic drag coefficient", 0.0, 0.0, 1e6),),
+    "Friction growing with speed squared: friction gains bq*omega*|omega| (windage, lubricant); "
+    "bq < 0 is friction flattening with speed, bounded so that the total friction stays "
+    "positive over the logged speeds. Signature: speed residual proportional to "
+    "-omega*|omega|; high speeds over-predicted (bq > 0) or under-predicted (bq < 0).",
+    (ParamSpec("bq", "N m s^2/rad^2", "quadratic drag coefficient (negative: friction "
+               "flattening with speed)", 0.0, -1e6, 1e6),),
     "mechanical",
     ("bv",),
-    **sg.linear("bq", sg.quadratic_probe),
+    **sg.linear("bq", sg.quadratic_probe, positive=False),
+    limits=sg.quadratic_drag_limits,
 ))
 register(Effect(
     "torque_offset",
@@ -190,4 +220,72 @@ register(Effect(
     ("bv", "tau0"),
     **sg.linear("dbv", sg.viscous_probe, positive=False),
     limits=sg.viscous_asymmetry_limits,
+))
+
+
+#: friction_curve's parameters: knot speeds fcw1..fcw4 [rad/s] (placed by the logged speeds and
+#: held) and the friction added at the first three fc1..fc3 [N m] (0 at the last)
+CURVE_SPEEDS = tuple(f"fcw{k}" for k in range(1, 5))
+CURVE_VALUES = tuple(f"fc{k}" for k in range(1, 4))
+
+register(Effect(
+    "friction_curve",
+    "Speed-dependent friction that follows no named law: friction gains sign(omega)*c(|omega|), "
+    "c piecewise linear through (0, 0), (fcw_k, fc_k) for k = 1..3 and (fcw4, 0), zero beyond "
+    "fcw4 (the paper's bc + bv*|omega| continues past the logged speeds). The knot speeds are "
+    "0.15, 0.4, 0.7 and 1 times the top logged |omega| (its 99.9 % quantile while moving), "
+    "written in the model file and held; the knot values are fitted, each at least -0.9 times "
+    "bc + bv*fcw_k so the total friction stays positive over the logged speeds. Zero at "
+    "omega = 0 (breakaway unchanged), the same in both directions. Signature: a speed residual "
+    "that is a smooth function of |omega| (e.g. friction rising then flattening: the speed per "
+    "unit torque grows with speed) which quadratic drag, Stribeck or viscous asymmetry do not "
+    "follow. diagnose prefers those named laws when they explain the residual about as well.",
+    tuple(ParamSpec(n, "rad/s", f"friction curve knot speed {n[-1]} (from the logged speeds)",
+                    0.0, 0.0, 1e6) for n in CURVE_SPEEDS)
+    + tuple(ParamSpec(n, "N m", f"friction added at knot speed fcw{n[-1]}", 0.0, -1e6, 1e6)
+            for n in CURVE_VALUES),
+    "mechanical",
+    ("bv", "bc"),
+    signature=sg.friction_curve_signature,
+    guess=sg.friction_curve_guess,
+    held=CURVE_SPEEDS,
+    limits=sg.friction_curve_limits,
+    size_params=CURVE_VALUES,
+))
+
+register(Effect(
+    "input_delay",
+    "The drive applies the command latency seconds late (a host-paced loop: the USB or serial "
+    "round trip, a PWM duty taken at the next period): every state, the current included, "
+    "follows the input late (sensor_delay: the outputs read late, the current on time). "
+    "Signature: current and speed residuals = -latency x their derivatives after every input "
+    "change. Only searched when some log measures the current: on voltage and speed alone a "
+    "system started at rest cannot tell an input applied late from outputs read late, and "
+    "sensor_delay stands for both.",
+    (ParamSpec("latency", "s", "delay between the logged command and the applied input", 0.0,
+               0.0, 10.0),),
+    "input",
+    (),
+    **sg.linear("latency", sg.delay_probe),
+    requires=("i",),
+))
+
+register(Effect(
+    "lugre",
+    "LuGre dynamic friction: bristles of deflection z (a kernel state) replace the stick-slip "
+    "logic. dz/dt = omega - sigma0*|omega|*z/g(omega), g = bc + fs*exp(-(omega/ws)^2) (the "
+    "Coulomb/Stribeck level, from the model's bc and stribeck); friction sigma0*z + sigma1*dz/dt "
+    "+ bv*omega (+ quadratic drag, viscous asymmetry). Below breakaway the rotor springs back: "
+    "a presliding angle of about torque/sigma0, with hysteresis on a reversal; at constant speed "
+    "the static curve g(omega) sign(omega) + bv*omega. Signature: angle creeping under torques "
+    "below breakaway (needs an angle sampled well above sqrt(sigma0/J)/(2 pi) Hz and resolved "
+    "below bc/sigma0); smooth, not stepped, breakaway. Not screened by default (--effect lugre).",
+    (ParamSpec("sigma0", "N m/rad", "bristle stiffness (presliding spring)", 0.0, 0.0, 1e12),
+     ParamSpec("sigma1", "N m s/rad", "bristle micro-damping", 0.0, 0.0, 1e9)),
+    "mechanical",
+    ("bc",),
+    signature=sg.lugre_signature,
+    guess=sg.lugre_guess,
+    states=("z",),
+    screened=False,
 ))

@@ -20,7 +20,8 @@ from __future__ import annotations
 import math
 
 from pmdcid.errors import ModelError
-from pmdcid.model.params import Model, _unit_of
+from pmdcid.model.effects import unit_of
+from pmdcid.model.params import Model
 
 KEY = "lumped"
 NOTE = ("per-volt parameters (voltage and speed only: no current, no datasheet): "
@@ -47,7 +48,7 @@ def mark_lumped(model: Model) -> None:
     model.extra["lumped_note"] = NOTE
     for name, par in model.parameters.items():
         if name not in ELECTRICAL:  # R, L, km, ke (a datasheet km) keep their SI units
-            par.unit = lumped_unit(_unit_of(name) or par.unit)
+            par.unit = lumped_unit(unit_of(name) or par.unit)
 
 
 def wants_lumped(logs, model: Model) -> bool:
@@ -78,7 +79,7 @@ def to_si(model: Model, km: float, R: float) -> Model:
     for name, par in list(out.parameters.items()):
         if name in ELECTRICAL:
             continue
-        unit = _unit_of(name)
+        unit = unit_of(name)
         if "N m" in unit or "kg m^2" in unit:
             par.value *= g
             par.stderr *= g

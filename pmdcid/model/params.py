@@ -15,40 +15,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pmdcid.errors import ModelError
+from pmdcid.model.effects import EFFECTS, param_spec, unit_of
 
 FORMAT_VERSION = 1
-
-
-@dataclass(frozen=True)
-class ParamSpec:
-    """Declaration of one parameter: name, unit, meaning, the value that switches it off, bounds."""
-
-    name: str
-    unit: str
-    doc: str
-    neutral: float = 0.0
-    lower: float = -math.inf
-    upper: float = math.inf
-
-
-BASE_PARAMS: dict[str, ParamSpec] = {
-    p.name: p
-    for p in [
-        ParamSpec("R", "ohm", "armature resistance", math.nan, 1e-6, 1e6),
-        ParamSpec("L", "H", "armature inductance", math.nan, 1e-9, 10.0),
-        ParamSpec("km", "N m/A", "torque constant", math.nan, 1e-9, 1e3),
-        ParamSpec("J", "kg m^2", "rotor inertia (kg for a linear axis)", math.nan, 1e-12, 1e6),
-        ParamSpec("b", "N m s/rad", "linear viscous friction, Coulomb lumped in (paper)", 0.0,
-                  0.0, 1e6),
-        ParamSpec("bv", "N m s/rad", "viscous friction coefficient", 0.0, 0.0, 1e6),
-        ParamSpec("bc", "N m", "Coulomb friction level", 0.0, 0.0, 1e6),
-        ParamSpec("dz", "N m", "torque break point of the hard dead zone", 0.0, 0.0, 1e6),
-        ParamSpec("dz_slope", "1", "slope k-bar of the hard dead zone (paper eq. 7)", 1.0, 0.0,
-                  10.0),
-        ParamSpec("dz_offset", "N m", "jump k-hat of the hard dead zone (paper eq. 7)", 0.0,
-                  -1e6, 1e6),
-    ]
-}
 
 
 @dataclass
@@ -88,7 +57,7 @@ class Model:
     def set(self, name: str, value: float, stderr: float = math.nan, unit: str | None = None,
             stage: str = "") -> None:
         if unit is None:
-            unit = _unit_of(name)
+            unit = unit_of(name)
         self.parameters[name] = Parameter(float(value), float(stderr), unit, stage)
 
     def require(self, *names: str, stage: str = "") -> None:
@@ -157,7 +126,7 @@ class Model:
         params = {k: v.to_json() for k, v in self.parameters.items()}
         if self.extra.get("lumped") is True:  # the units a lumped model's values are in
             for k, d in params.items():
-                if _spec(k) is not None:
+                if param_spec(k) is not None:
                     d["unit"] = _canonical_unit(k, True)
         out: dict[str, Any] = {"parameters": params, "effects": list(self.effects)}
         out.update(self.extra)
@@ -172,27 +141,9 @@ def copy_model_into(src: Model, dst: Model) -> None:
     dst.parameters, dst.effects, dst.extra = new.parameters, new.effects, new.extra
 
 
-def _unit_of(name: str) -> str:
-    if name in BASE_PARAMS:
-        return BASE_PARAMS[name].unit
-    from pmdcid.model.effects import effect_param_specs
-
-    spec = effect_param_specs().get(name)
-    return spec.unit if spec else ""
-
-
-def _spec(name: str) -> ParamSpec | None:
-    spec = BASE_PARAMS.get(name)
-    if spec is None:
-        from pmdcid.model.effects import effect_param_specs
-
-        spec = effect_param_specs().get(name)
-    return spec
-
-
 def check_bounds(name: str, v: float, path) -> float:
     """``v`` if it lies in the parameter's bounds, else the loader's one-line error."""
-    spec = _spec(name)
+    spec = param_spec(name)
     if not math.isfinite(v):
         raise ModelError(f"parameter '{name}' is not finite ({v!r}): give a finite number or "
                          "remove it and rerun its stage", path)
@@ -216,7 +167,7 @@ def _check_value(name: str, value: Any, path: str, unit: Any = "", lumped: bool 
     if not math.isfinite(v):
         raise ModelError(f"parameter '{name}' is not finite ({repr(value)[:30]}): give a finite "
                          "number or remove it and rerun its stage", path)
-    spec = _spec(name)
+    spec = param_spec(name)
     if spec is not None and unit not in (None, ""):
         from pmdcid.model.units import to_canonical
 
@@ -230,7 +181,7 @@ def _check_value(name: str, value: Any, path: str, unit: Any = "", lumped: bool 
 def _canonical_unit(name: str, lumped: bool) -> str:
     """The unit a parameter is held in: SI, or per volt in a lumped model (``"lumped": true``,
     :mod:`pmdcid.model.lumped`)."""
-    unit = _unit_of(name)
+    unit = unit_of(name)
     if lumped:
         from pmdcid.model.lumped import ELECTRICAL, lumped_unit
 
@@ -240,8 +191,6 @@ def _canonical_unit(name: str, lumped: bool) -> str:
 
 def model_from_json(obj: Any, path: str = "<model>") -> Model:
     """Validate a parsed model file and build a :class:`Model`."""
-    from pmdcid.model.effects import EFFECTS
-
     if not isinstance(obj, dict):
         raise ModelError("model file must hold a JSON object {\"parameters\": ..., "
                          "\"effects\": [...]}", path)
@@ -261,7 +210,7 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
         se = float(se) if isinstance(se, (int, float)) and not isinstance(se, bool) else math.nan
         if math.isfinite(se) and entry["value"] and v != float(entry["value"]):
             se *= v / float(entry["value"])  # the same prefix scaling as the value
-        unit = _canonical_unit(name, lumped) if _spec(name) is not None else str(unit or "")
+        unit = _canonical_unit(name, lumped) if param_spec(name) is not None else str(unit or "")
         model.parameters[name] = Parameter(v, se, unit, str(entry.get("stage") or ""))
     effects = obj.get("effects", [])
     if not isinstance(effects, list) or not all(isinstance(e, str) for e in effects):

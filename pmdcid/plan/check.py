@@ -92,7 +92,6 @@ def _log_signals(log, drive: fi.Drive, blocked: bool) -> tuple[str, ...]:
 
 def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
     """Predicted standard errors from ``logs`` (their inputs, their noise) at ``model``."""
-    from pmdcid.diagnose.problem import is_blocked
     from pmdcid.identify.simfit import noise_level
 
     drive = _log_drive(logs, model)
@@ -104,7 +103,7 @@ def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
     F = np.zeros((len(names), len(names)))
     noises = []
     for lg in logs:
-        blocked = is_blocked(lg)
+        blocked = lg.blocked
         sigs = _log_signals(lg, drive, blocked)
         if not sigs:
             continue

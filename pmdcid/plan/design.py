@@ -96,7 +96,7 @@ def breakaway_input(vals: dict[str, float], drive: fi.Drive) -> float:
 def parameter_scales(vals: dict[str, float], drive: fi.Drive, speed: float) -> dict[str, float]:
     """Typical size of a zero-valued parameter (finite-difference steps), by its unit."""
     from pmdcid.model.effects import effect_param_specs
-    from pmdcid.model.params import BASE_PARAMS
+    from pmdcid.model.spec import BASE_PARAMS
 
     torque = max(vals.get("bc", 0.0) + vals.get("bv", 0.0) * speed, vals.get("dz", 0.0), 1e-12)
     by_unit = {"N m": torque, "rad/s": speed, "N m s/rad": torque / speed,

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.model import EFFECTS, Model
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import param_values, simulate_values
 
 #: relative central-difference step of the sensitivities (see the module's docstring)
@@ -99,7 +99,7 @@ def signals_of(blocked: bool, drive: Drive) -> tuple[str, ...]:
 def simulate_profile(t, u, vals: dict[str, float], drive: Drive, blocked: bool):
     """Simulated i [A] and omega [rad/s] of one profile (blocked: the rotor held)."""
     if blocked:
-        vals = {**vals, "bc": BLOCKED_BC}
+        vals = {**vals, "bc": BLOCKED_BC, "sigma0": 0.0}  # held by stiction, not bristles
     return simulate_values(t, u, vals, drive.torque_path, internal_steps(t))
 
 

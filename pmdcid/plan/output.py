@@ -9,16 +9,10 @@ from pathlib import Path
 
 from pmdcid.errors import LogError
 from pmdcid.io.logs import atomic_write_text, write_log
-from pmdcid.model.effects import effect_param_specs
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.effects import unit_of
 from pmdcid.plan.design import Plan
 
 GENERATOR = "pmdcid plan"
-
-
-def unit_of(name: str) -> str:
-    spec = BASE_PARAMS.get(name) or effect_param_specs().get(name)
-    return spec.unit if spec else ""
 
 
 def _num(x: float):

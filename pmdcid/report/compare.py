@@ -33,11 +33,6 @@ class LogComparison:
     metrics: dict
 
 
-def is_blocked(log) -> bool:
-    """A blocked-rotor log: says so in its metadata, or measures neither speed nor angle."""
-    return log.kind == "blocked-rotor" or not (log.has("omega") or log.has("theta"))
-
-
 def simulate_for(log, model: Model) -> SimResult:
     """Simulate ``model`` on the log's input from the state its first samples measured
     (:mod:`pmdcid.identify.initial`: rest unless it starts turning); a blocked rotor is held
@@ -45,8 +40,8 @@ def simulate_for(log, model: Model) -> SimResult:
     from pmdcid.identify.initial import initial_state
 
     torque = input_is_torque(log, model)
-    blocked = is_blocked(log)
-    over = {"bc": BLOCKED_BC} if blocked else None
+    blocked = log.blocked
+    over = {"bc": BLOCKED_BC, "sigma0": 0.0} if blocked else None  # stiction holds it
     vals = param_values(model, torque, over)
     x0 = initial_state(log)
     if blocked:
@@ -57,7 +52,7 @@ def simulate_for(log, model: Model) -> SimResult:
 def compared_signals(log) -> list[str]:
     """The measured signals the model predicts: speed and angle (not for a blocked rotor), and
     current unless the log is torque-driven."""
-    blocked = is_blocked(log)
+    blocked = log.blocked
     out = [s for s in ("omega", "theta") if log.has(s) and not blocked]
     if log.has("i") and log.drive == "v":
         out.append("i")
@@ -85,7 +80,7 @@ def compare_log(log, model: Model, name: str) -> LogComparison:
         raise LogError(f"has only {log.n} samples: too short to compare", log.path)
     signals = compared_signals(log)
     sim = simulate_for(log, model)
-    blocked = is_blocked(log)
+    blocked = log.blocked
     low = threshold = None
     if log.has("omega") and not blocked:
         threshold = speed_threshold(log["omega"])

@@ -14,7 +14,7 @@ import numpy as np
 from pmdcid.errors import ModelError
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.lumped import ELECTRICAL, is_lumped
-from pmdcid.model.params import BASE_PARAMS
+from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate.cache import invalidate_if_stale
 
 invalidate_if_stale()  # before anything compiled is loaded from the cache
@@ -37,8 +37,16 @@ def check_layout() -> None:
 
 check_layout()
 
+from pmdcid.simulate.drive import late_input, parts_for  # noqa: E402
 from pmdcid.simulate.kernel import choose_substeps, run_kernel  # noqa: E402
-from pmdcid.simulate.layout import INDEX, NAMES, SENSOR_NAMES  # noqa: E402
+from pmdcid.simulate.layout import (  # noqa: E402
+    I_STATE,
+    INDEX,
+    NAMES,
+    OMEGA_STATE,
+    SENSOR_NAMES,
+    THETA_STATE,
+)
 from pmdcid.simulate.sensors import apply_sensors  # noqa: E402
 
 
@@ -120,15 +128,22 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
                     torque_driven: bool = False, nsub: int | None = None,
                     x0=None) -> SimResult:
     """Simulate with parameter values ``vals`` (see :func:`param_values`) from ``x0`` =
-    (i [A], omega [rad/s], theta [rad]) at ``t[0]`` (default: rest)."""
+    (i [A], omega [rad/s], theta [rad]) at ``t[0]`` (default: rest; effect states such as
+    LuGre's bristle deflection start at 0 unless a full state vector is given)."""
     t = np.asarray(t, dtype=float)
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
-    x = run_kernel(u, dt, p, torque_driven, nsub, x0)
+    latency = float(vals.get("latency", 0.0))
+    if latency > 0.0:  # input_delay: the command applied late, on a finer grid
+        q = parts_for(choose_substeps(dt, p) if nsub is None else nsub)
+        x = run_kernel(late_input(u, dt, latency, q), dt / q, p, torque_driven, 1, x0)[::q]
+    else:
+        x = run_kernel(u, dt, p, torque_driven, nsub, x0)
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}
-    om, th = apply_sensors(t, x[:, 1], x[:, 2], sensor)
-    i = np.full(len(t), np.nan) if torque_driven else x[:, 0]
-    return SimResult(t, i, om, th, x[:, 1], x[:, 2])
+    w, theta = x[:, OMEGA_STATE], x[:, THETA_STATE]
+    om, th = apply_sensors(t, w, theta, sensor)
+    i = np.full(len(t), np.nan) if torque_driven else x[:, I_STATE]
+    return SimResult(t, i, om, th, w, theta)
 
 
 def simulate(t: np.ndarray, u: np.ndarray, model: Model, torque_driven: bool = False,

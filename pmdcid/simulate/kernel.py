@@ -11,6 +11,12 @@ rotor whose speed would cross zero is stopped there and re-tested for sticking.
 
 With bc = dz = 0 and no effects the kernel is exact to rounding for any step; with them it
 converges at first order in h at the events.
+
+Effects may own extra states (:data:`pmdcid.simulate.layout.STATES`): LuGre's bristle deflection
+z. With LuGre on (sigma0 > 0) the stick-slip logic is replaced by the bristles' friction
+sigma0 z + sigma1 dz/dt + bv omega (sigma1's omega part in the exact linear step, the rest held),
+and z is stepped exactly with its rate held (:func:`pmdcid.simulate.terms.bristle_step`). Off, z
+stays at its start and every other state is bit-for-bit the 3-state kernel's.
 """
 
 from __future__ import annotations
@@ -22,14 +28,34 @@ import numpy as np
 
 from pmdcid.errors import ModelError
 from pmdcid.simulate import aot
-from pmdcid.simulate.layout import BC, BV, DZ_OFFSET, DZ_SLOPE, FS, KE, KM, J, L, R
+from pmdcid.simulate.layout import (
+    BC,
+    BV,
+    DZ_OFFSET,
+    DZ_SLOPE,
+    FS,
+    KE,
+    KM,
+    LINEAR,
+    NSTATE,
+    SIGMA0,
+    SIGMA1,
+    J,
+    L,
+    R,
+    state_vector,
+)
 from pmdcid.simulate.lazyjit import njit
 from pmdcid.simulate.terms import (
     armature_voltage,
+    bristle_rate,
+    bristle_step,
     dead_zone,
     dead_zone_engaged,
     drive_voltage,
     load_torque,
+    lugre_held_friction,
+    lugre_on,
     sgn,
     sliding_friction,
     static_friction,
@@ -40,7 +66,8 @@ def system_matrix(p: np.ndarray, engaged: bool, torque_driven: bool) -> np.ndarr
     """Continuous-time A (3x3) of x = (i, omega, theta) in one dead-zone mode.
 
     Voltage-driven: L di/dt = v - R i - ke omega; J domega/dt = k*km*i - bv omega + ...
-    Torque-driven: the current row is zero (the current is not simulated).
+    Torque-driven: the current row is zero (the current is not simulated). LuGre's micro-damping
+    sigma1 [N m s/rad] adds to bv here while LuGre is on (sigma0 > 0); off, the same matrix.
     """
     A = np.zeros((3, 3))
     if not torque_driven:
@@ -48,7 +75,7 @@ def system_matrix(p: np.ndarray, engaged: bool, torque_driven: bool) -> np.ndarr
         A[0, 1] = -p[KE] / p[L]
         if engaged:
             A[1, 0] = p[DZ_SLOPE] * p[KM] / p[J]
-    A[1, 1] = -p[BV] / p[J]
+    A[1, 1] = -(p[BV] + (p[SIGMA1] if p[SIGMA0] > 0 else 0.0)) / p[J]
     A[2, 1] = 1.0
     return A
 
@@ -112,13 +139,72 @@ def discretize(p: np.ndarray, h: float, torque_driven: bool) -> tuple[np.ndarray
     return Phi, Gam
 
 
+_DISCRETE: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+_DISCRETE_SIZE = 64
+
+
+def discretize_cached(p: np.ndarray, h: float, torque_driven: bool):
+    """:func:`discretize`, remembered for the last few linear parts (``layout.LINEAR``).
+
+    A refit of friction or sensor parameters leaves the linear part unchanged and logs share
+    sample rates: the cache removes most of the 6x6 exponentials of a fit (which also suffer
+    from BLAS thread contention on a loaded machine). The arrays returned are shared: read only.
+    """
+    key = (tuple(float(p[k]) for k in LINEAR), float(h), bool(torque_driven))
+    hit = _DISCRETE.get(key)
+    if hit is None:
+        if len(_DISCRETE) >= _DISCRETE_SIZE:
+            _DISCRETE.pop(next(iter(_DISCRETE)))
+        hit = _DISCRETE[key] = discretize(p, h, torque_driven)
+    return hit
+
+
+@njit(cache=True, inline="always")
+def _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, Lh, Jm):  # pragma: no cover
+    """The held forcing of one step: (dead-zone mode, electrical row [A/s], mechanical row
+    [rad/s^2]) from the driving torque td, load tl and held friction fric [N m]."""
+    if torque_driven:
+        return 0, 0.0, (td - tl - fric) / Jm
+    fe = armature_voltage(p, vin, w) / Lh
+    if eng:
+        m = 0
+        fm = p[DZ_OFFSET] * sgn(i)
+    else:
+        m = 1
+        fm = 0.0
+    return m, fe, (fm - tl - fric) / Jm
+
+
+@njit(cache=True, inline="always")
+def _linear_step(Phi, Gam, m, i, w, th, fe, fm):  # pragma: no cover - compiled
+    """One exact step of (i, omega, theta) in dead-zone mode m under held forcing (fe, fm)."""
+    i1 = Phi[m, 0, 0] * i + Phi[m, 0, 1] * w + Gam[m, 0, 0] * fe + Gam[m, 0, 1] * fm
+    w1 = (Phi[m, 1, 0] * i + Phi[m, 1, 1] * w + Gam[m, 1, 0] * fe
+          + Gam[m, 1, 1] * fm)
+    th1 = (th + Phi[m, 2, 0] * i + Phi[m, 2, 1] * w + Gam[m, 2, 0] * fe
+           + Gam[m, 2, 1] * fm)
+    return i1, w1, th1
+
+
 @njit(cache=True)
 def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compiled
+    """States (n, NSTATE) at the sample instants from ``x0`` (the base triple or a full state):
+    the stick-slip loop, or the LuGre loop when LuGre is on (two loops: the stick-slip one, the
+    hot path of every fit, stays free of LuGre's branches)."""
+    out = np.empty((u.shape[0], NSTATE))
+    z0 = x0[3] if x0.shape[0] > 3 else 0.0
+    if lugre_on(p):
+        _run_lugre(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out)
+    else:
+        _run_stick(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out)
+    return out
+
+
+@njit(cache=True)
+def _run_stick(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out):  # pragma: no cover
+    """The stick-slip loop: true stiction, a rotor at rest stays at rest (module docstring).
+    LuGre is off: its bristle deflection z is not integrated (stays at its start)."""
     n = u.shape[0]
-    out = np.empty((n, 3))
-    i = x0[0]
-    w = x0[1]
-    th = x0[2]
     Lh = p[L]
     Jm = p[J]
     a_stuck = Phi[1, 0, 0]  # current decay over h with omega = 0 (disengaged row has no coupling)
@@ -129,6 +215,7 @@ def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compile
         out[k, 0] = i
         out[k, 1] = w
         out[k, 2] = th
+        out[k, 3] = z
         if torque_driven:
             tin = u[k]
             vin = 0.0
@@ -162,25 +249,9 @@ def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compile
                 direction = sgn(net)
             else:
                 direction = sgn(w)
-            # forcing: electrical row (V/H) and mechanical row (N m / kg m^2)
-            if torque_driven:
-                fe = 0.0
-                fm = (td - tl - sliding_friction(p, w, direction)) / Jm
-                m = 0
-            else:
-                fe = armature_voltage(p, vin, w) / Lh
-                if eng:
-                    m = 0
-                    fm = p[DZ_OFFSET] * sgn(i)
-                else:
-                    m = 1
-                    fm = 0.0
-                fm = (fm - tl - sliding_friction(p, w, direction)) / Jm
-            i1 = Phi[m, 0, 0] * i + Phi[m, 0, 1] * w + Gam[m, 0, 0] * fe + Gam[m, 0, 1] * fm
-            w1 = (Phi[m, 1, 0] * i + Phi[m, 1, 1] * w + Gam[m, 1, 0] * fe
-                  + Gam[m, 1, 1] * fm)
-            th1 = (th + Phi[m, 2, 0] * i + Phi[m, 2, 1] * w + Gam[m, 2, 0] * fe
-                   + Gam[m, 2, 1] * fm)
+            fric = sliding_friction(p, w, direction)
+            m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, Lh, Jm)
+            i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
             if tentative and w1 * direction <= 0.0:
                 i = i_stuck  # did not break free after all: stays at rest
                 continue
@@ -191,7 +262,44 @@ def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compile
             i = i1
             w = w1
             th = th1
-    return out
+
+
+@njit(cache=True)
+def _run_lugre(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out):  # pragma: no cover
+    """The LuGre loop: no sticking test, the bristles (state z [rad]) hold a rotor at rest.
+
+    Friction sigma0 z + sigma1 dz/dt + bv omega (+ drag, viscous asymmetry): (bv + sigma1)
+    omega is in the exact linear step (:func:`system_matrix`), the rest is held over the step
+    (:func:`pmdcid.simulate.terms.lugre_held_friction`); then z is stepped exactly with the
+    step's mean speed (:func:`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
+    driving torque as in the stick-slip loop.
+    """
+    n = u.shape[0]
+    Lh = p[L]
+    Jm = p[J]
+    h = Gam[0, 2, 2]  # the angle's own input column integrates 1 over the step: exactly h
+    for k in range(n):
+        out[k, 0] = i
+        out[k, 1] = w
+        out[k, 2] = th
+        out[k, 3] = z
+        if torque_driven:
+            tm = u[k]
+            vin = 0.0
+        else:
+            vin = drive_voltage(p, u[k])
+        for _ in range(nsub):
+            if not torque_driven:
+                tm = p[KM] * i
+            a = bristle_rate(p, w)
+            fric = lugre_held_friction(p, w, z, a)
+            m, fe, fm = _forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, i, w,
+                                 dead_zone(p, tm), load_torque(p, th), fric, Lh, Jm)
+            i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
+            z = bristle_step(z, a, h, th1 - th)
+            i = 0.0 if torque_driven else i1
+            w = w1
+            th = th1
 
 
 #: internal steps per mechanical time constant. The linear dynamics are exact at any step (the
@@ -221,13 +329,32 @@ def bounded_for(model_path):
 
 def choose_substeps(dt: float, p: np.ndarray, h_max: float | None = None) -> int:
     """Internal steps per sample: h <= min(1 ms, tau_mech / 50) unless ``h_max`` [s] is given;
-    tau_mech = J / (bv + km ke / R) [s], the back-EMF's damping included."""
+    tau_mech = J / (bv + km ke / R) [s], the back-EMF's damping included. With LuGre on, also
+    h <= :func:`lugre_step` (its spring and micro-damping are held over a step)."""
     if h_max is None:
         h_max = 1e-3
         damping = p[BV] + (p[KM] * p[KE] / p[R] if p[R] > 0 else 0.0)
         if damping > 0 and p[J] > 0:
             h_max = min(h_max, p[J] / damping / STEPS_PER_TAU)
+        if p[SIGMA0] > 0:
+            h_max = min(h_max, lugre_step(p))
     return max(1, int(math.ceil(dt / h_max - 1e-9)))
+
+
+#: internal steps per radian of the bristles' presliding oscillation sqrt(sigma0/J), and per
+#: micro-damping time J/sigma1: the spring force sigma0 z and sigma1's a z part are held over a
+#: step, stable for h sqrt(sigma0/J) < 2 and h sigma1/J < 1; 20 keeps the presliding period's
+#: error near (h w_n)^2/24 = 1e-4
+LUGRE_STEPS = 20.0
+
+
+def lugre_step(p: np.ndarray) -> float:
+    """Largest internal step [s] for LuGre: sqrt(J/sigma0)/20 and J/(20 sigma1). The bristle
+    deflection's own time constant g/(sigma0 |omega|) needs no bound: z is stepped exactly."""
+    h = math.sqrt(p[J] / p[SIGMA0]) / LUGRE_STEPS if p[J] > 0 else math.inf
+    if p[SIGMA1] > 0 and p[J] > 0:
+        h = min(h, p[J] / p[SIGMA1] / LUGRE_STEPS)
+    return h
 
 
 def check_work(n: int, dt: float, nsub: int, p: np.ndarray) -> None:
@@ -248,25 +375,20 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
                nsub: int | None = None, x0=None) -> np.ndarray:
     """Simulate from ``x0`` (default rest) under the zero-order-held input ``u`` sampled at ``dt``.
 
-    Returns an (n, 3) array of (i [A], omega [rad/s], theta [rad]) at the sample instants; row k
-    is the state at t_k, before input u[k] is applied over [t_k, t_k + dt).
+    Returns an (n, NSTATE) array of the states :data:`pmdcid.simulate.layout.STATES` (i [A],
+    omega [rad/s], theta [rad], then effect states: LuGre's z [rad]) at the sample instants; row
+    k is the state at t_k, before input u[k] is applied over [t_k, t_k + dt). ``x0``: the base
+    triple or a full state (:func:`pmdcid.simulate.layout.state_vector`).
     """
     if nsub is None:
         nsub = choose_substeps(dt, p)
     check_work(len(u), dt, nsub, p)
     h = dt / nsub
-    Phi, Gam = discretize(p, h, torque_driven)
-    return run_discretized(u, p, Phi, Gam, nsub, torque_driven, x0)
-
-
-def run_discretized(u: np.ndarray, p: np.ndarray, Phi: np.ndarray, Gam: np.ndarray, nsub: int,
-                    torque_driven: bool, x0=None) -> np.ndarray:
-    """The kernel's loop (``_run``) on ``u`` with ``nsub`` internal steps per sample and the
-    discretisation ``Phi``, ``Gam`` of :func:`discretize`; from ``x0`` (default rest)."""
-    x = np.zeros(3) if x0 is None else np.ascontiguousarray(x0, dtype=float)
+    Phi, Gam = discretize_cached(p, h, torque_driven)
+    x = state_vector(x0)
     return _compiled("run")(np.ascontiguousarray(u, dtype=float),
-                            np.ascontiguousarray(p, dtype=float), np.ascontiguousarray(Phi),
-                            np.ascontiguousarray(Gam), int(nsub), bool(torque_driven), x)
+                            np.ascontiguousarray(p, dtype=float), Phi, Gam, int(nsub),
+                            bool(torque_driven), x)
 
 
 def _compiled(name: str):
@@ -278,5 +400,6 @@ def _compiled(name: str):
     return {"run": _run, "expm_small": expm_small}[name]
 
 
-__all__ = ["MAX_STEPS", "WorkBoundError", "bounded_for", "check_work", "choose_substeps",
-           "discretize", "run_discretized", "run_kernel", "system_matrix", "FS", "BC"]
+__all__ = ["LUGRE_STEPS", "MAX_STEPS", "WorkBoundError", "bounded_for", "check_work",
+           "choose_substeps", "discretize", "discretize_cached", "lugre_step", "run_kernel",
+           "system_matrix", "FS", "BC"]

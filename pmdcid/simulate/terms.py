@@ -15,12 +15,17 @@ from pmdcid.simulate.layout import (
     CA,
     CN,
     CPHI,
+    CURVE_KNOTS,
     DBV,
     DZ,
     DZ_OFFSET,
     DZ_SLOPE,
+    FC1,
+    FCW1,
     FS,
     KE,
+    SIGMA0,
+    SIGMA1,
     TAU0,
     VB,
     VMAX,
@@ -86,12 +91,42 @@ def static_friction(p) -> float:
 
 
 @njit(cache=True, inline="always")
+def friction_curve(p, speed: float) -> float:
+    """Friction added at ``speed`` = |omega| [rad/s] by the friction_curve effect [N m].
+
+    Piecewise linear through (0, 0), the knots (fcw_k [rad/s], fc_k [N m]) for k = 1..3 and
+    (fcw4, 0), knot speeds increasing; 0 beyond fcw4 (past the logged speeds the paper's
+    bc + bv*|omega| continues). Pinned to 0 at both ends so that it is neither Coulomb friction
+    (the jump at 0) nor viscous friction (the line through the last knot). Zero when fcw4 is
+    not positive (the effect is off).
+    """
+    if p[FCW1 + CURVE_KNOTS - 1] <= 0.0:
+        return 0.0
+    w0 = 0.0
+    f0 = 0.0
+    for k in range(CURVE_KNOTS):
+        w1 = p[FCW1 + k]
+        f1 = p[FC1 + k] if k < CURVE_KNOTS - 1 else 0.0
+        if speed <= w1:
+            if w1 <= w0:
+                return f1
+            return f0 + (f1 - f0) * (speed - w0) / (w1 - w0)
+        w0 = w1
+        f0 = f1
+    return 0.0
+
+
+@njit(cache=True, inline="always")
 def sliding_friction(p, omega: float, direction: float) -> float:
     """Friction torque [N m] while sliding in ``direction`` (+1/-1), less the viscous bv*omega.
 
-    Coulomb bc, Stribeck fs*exp(-(omega/ws)^2), quadratic drag bq*omega*|omega| and the
+    Coulomb bc, Stribeck fs*exp(-(omega/ws)^2), quadratic drag bq*omega*|omega|, the
     direction-dependent part of the viscous friction dbv*|omega| (viscous bv + dbv forward,
-    bv - dbv backward).
+    bv - dbv backward) and the friction curve direction*curve(|omega|).
+
+    The total with the viscous part never opposes ``direction``: where the terms would sum to a
+    friction that drives the rotor (a negative quadratic drag past the logged speeds), the total
+    is held at zero (frictionless) instead.
     """
     f = direction * p[BC]
     if p[FS] > 0.0:
@@ -99,7 +134,60 @@ def sliding_friction(p, omega: float, direction: float) -> float:
         f += direction * p[FS] * math.exp(-r * r)
     f += p[BQ] * omega * abs(omega)
     f += p[DBV] * abs(omega)
+    f += direction * friction_curve(p, abs(omega))
+    if direction * (f + p[BV] * omega) < 0.0:
+        f = -p[BV] * omega
     return f
+
+
+@njit(cache=True, inline="always")
+def lugre_on(p) -> bool:
+    """True when LuGre dynamic friction replaces the stick-slip logic (sigma0 > 0)."""
+    return p[SIGMA0] > 0.0
+
+
+@njit(cache=True, inline="always")
+def steady_friction_level(p, omega: float) -> float:
+    """LuGre's g(omega) [N m]: the Coulomb + Stribeck level bc + fs*exp(-(omega/ws)^2) the
+    bristles settle at when sliding steadily at omega [rad/s]."""
+    g = p[BC]
+    if p[FS] > 0.0:
+        r = omega / p[WS]
+        g += p[FS] * math.exp(-r * r)
+    return g
+
+
+@njit(cache=True, inline="always")
+def bristle_rate(p, omega: float) -> float:
+    """Relaxation rate a = sigma0*|omega|/g(omega) [1/s] of the bristle deflection z:
+    dz/dt = omega - a z (infinite when g = 0: no Coulomb level, the bristles hold nothing)."""
+    g = steady_friction_level(p, omega)
+    if g <= 0.0:
+        return math.inf
+    return p[SIGMA0] * abs(omega) / g
+
+
+@njit(cache=True, inline="always")
+def lugre_held_friction(p, omega: float, z: float, a: float) -> float:
+    """LuGre friction [N m] less its exact viscous part (bv + sigma1)*omega, held over a step:
+    sigma0*z - sigma1*a*z (the bristles' spring and the rest of sigma1*dz/dt), plus the speed
+    terms of the other effects (quadratic drag, direction-dependent viscous)."""
+    az = a * z if z != 0.0 else 0.0
+    return (p[SIGMA0] * z - p[SIGMA1] * az + p[BQ] * omega * abs(omega)
+            + p[DBV] * abs(omega))
+
+
+@njit(cache=True, inline="always")
+def bristle_step(z: float, a: float, h: float, dtheta: float) -> float:
+    """Bristle deflection [rad] after a step of h [s] that turned the rotor by dtheta [rad]:
+    dz/dt = w - a z solved exactly with rate a [1/s] held and w the step's mean speed
+    dtheta/h. Stable for any stiffness; a = 0 (at rest) gives z + dtheta (pure presliding)."""
+    ah = a * h
+    if ah > 700.0:
+        return dtheta / ah if math.isfinite(ah) else 0.0
+    if ah < 1e-9:
+        return (1.0 - ah) * z + dtheta * (1.0 - 0.5 * ah)
+    return math.exp(-ah) * z - math.expm1(-ah) / ah * dtheta
 
 
 @njit(cache=True, inline="always")
@@ -112,6 +200,7 @@ def load_torque(p, theta: float) -> float:
 
 
 __all__ = [
-    "armature_voltage", "dead_zone", "dead_zone_engaged", "drive_voltage", "load_torque", "sgn",
-    "sliding_friction", "static_friction", "BV",
+    "armature_voltage", "bristle_rate", "bristle_step", "dead_zone", "dead_zone_engaged",
+    "drive_voltage", "friction_curve", "load_torque", "lugre_held_friction", "lugre_on", "sgn",
+    "sliding_friction", "static_friction", "steady_friction_level", "BV",
 ]

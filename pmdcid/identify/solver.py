@@ -1,0 +1,104 @@
+"""The one least-squares solver every fit of pmdcid goes through.
+
+fit-electrical's and fit-mechanical's curve fits (:mod:`.steps`), the simulation-error engine
+(:mod:`.simfit`: fit-mechanical's joint fit, fit-nonlinear, inverse dynamics' refinement) and
+every diagnose refit (:mod:`pmdcid.diagnose.problem`) call :func:`solve`: scipy's trust-region
+reflective least squares on a scaled vector ``z = x / scale`` (each parameter of order one, so
+bounds, steps and tolerances mean the same for an inertia of 1e-6 kg m^2 and a resistance of
+3 ohm), one BLAS thread, and a solver failure turned into a :class:`~pmdcid.errors.FitError`.
+:func:`white_covariance` is the textbook covariance the correlated-residual sandwich
+(:mod:`.covariance`) starts from.
+
+The residual convention is the caller's, but every caller in pmdcid uses ``(simulated -
+measured) / sigma``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pmdcid.errors import FitError
+
+
+def blas_single_thread():
+    """Context limiting BLAS to one thread (threadpoolctl), for the fits' small linear algebra.
+
+    The least-squares steps work on tall, thin Jacobians; a multi-threaded BLAS spin-waits on a
+    busy 2-core machine and makes each fit 2-4x slower than one thread does.
+    """
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+@dataclass
+class Solution:
+    """A solved least-squares problem in the scaled variable ``z``: ``x = z * scale``.
+
+    ``fun`` is the residual at the solution, ``jac`` its Jacobian in ``x`` (the solver's own,
+    forward differences), ``nfev`` the residual evaluations.
+    """
+
+    z: np.ndarray
+    scale: np.ndarray
+    fun: np.ndarray
+    jac: np.ndarray
+    nfev: int
+    success: bool
+    message: str
+
+    @property
+    def x(self) -> np.ndarray:
+        return self.z * self.scale
+
+
+def scale_of(x0: np.ndarray, typical: np.ndarray | float = 1.0) -> np.ndarray:
+    """Scale of each parameter: its starting magnitude, or ``typical`` where the start is 0."""
+    x0 = np.asarray(x0, float)
+    return np.where(np.abs(x0) > 0, np.abs(x0), typical)
+
+
+def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None = None,
+          x_scale="jac", what: str = "fit", fills: bool = False) -> Solution:
+    """Minimise ``sum(fun_z(z)**2)`` over ``lo_z <= z <= hi_z`` from ``z0`` (scaled vector).
+
+    ``diff_step``: relative finite-difference step (one, or one per parameter; scipy's default
+    when None). The cost of a simulation with stick-slip and a dead zone is only piecewise
+    smooth: the callers pass steps large enough to cross the kernel's event quantisation.
+    ``what`` names the fit in the error raised when scipy refuses the problem. ``fills``:
+    ``fun_z(z, out=row)`` writes the residual into ``row`` (saves a copy per evaluation). The
+    Jacobian is scipy's forward differences, computed into one preallocated matrix
+    (:mod:`.fdjac`): the same numbers as ``jac="2-point"``.
+    """
+    from pmdcid.identify.fdjac import ForwardJacobian
+
+    z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
+    fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills)
+    try:
+        with blas_single_thread():
+            sol = _least_squares(fd.fun, z0, (lo_z, hi_z), diff_step, max_nfev, x_scale,
+                                 fd.jac)
+    except ValueError as exc:
+        raise FitError(f"{what} failed: {exc}") from None
+    return Solution(sol.x, np.asarray(scale, float), sol.fun, sol.jac / scale[None, :],
+                    int(sol.nfev), bool(sol.success), str(sol.message))
+
+
+def _least_squares(fun, z0, bounds, diff_step, max_nfev, x_scale, jac="2-point"):
+    from scipy.optimize import least_squares
+
+    return least_squares(fun, z0, jac=jac, bounds=bounds, method="trf", diff_step=diff_step,
+                         max_nfev=max_nfev, x_scale=x_scale)
+
+
+def white_covariance(jac: np.ndarray, resid: np.ndarray, dof: int | None = None) -> np.ndarray:
+    """Textbook covariance ``(J'J)^+ s^2``, ``s^2 = sum(r^2) / dof`` (``dof`` default: rows minus
+    columns, at least 1). Raises numpy's LinAlgError when J'J cannot be pseudo-inverted."""
+    r = np.asarray(resid, float)
+    dof = max(len(r) - jac.shape[1], 1) if dof is None else max(dof, 1)
+    return np.linalg.pinv(jac.T @ jac) * float(r @ r) / dof
+
+
+__all__ = ["Solution", "blas_single_thread", "scale_of", "solve", "white_covariance"]

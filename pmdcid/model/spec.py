@@ -1,0 +1,47 @@
+"""The one owner of parameter declarations: :class:`ParamSpec` and the base parameters.
+
+Each parameter is declared once, with its unit, meaning, the value that switches it off
+(``neutral``) and its bounds: the paper's base parameters here, each effect's own in its
+catalogue record (:mod:`pmdcid.model.effects`, whose ``param_spec``, ``unit_of`` and
+``bounds_of`` answer for any name). The kernel's parameter vector (:mod:`pmdcid.simulate.layout`)
+is checked against these declarations at import: a parameter without a slot is an error.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Declaration of one parameter: name, unit, meaning, the value that switches it off, bounds."""
+
+    name: str
+    unit: str
+    doc: str
+    neutral: float = 0.0
+    lower: float = -math.inf
+    upper: float = math.inf
+
+
+BASE_PARAMS: dict[str, ParamSpec] = {
+    p.name: p
+    for p in [
+        ParamSpec("R", "ohm", "armature resistance", math.nan, 1e-6, 1e6),
+        ParamSpec("L", "H", "armature inductance", math.nan, 1e-9, 10.0),
+        ParamSpec("km", "N m/A", "torque constant", math.nan, 1e-9, 1e3),
+        ParamSpec("J", "kg m^2", "rotor inertia (kg for a linear axis)", math.nan, 1e-12, 1e6),
+        ParamSpec("b", "N m s/rad", "linear viscous friction, Coulomb lumped in (paper)", 0.0,
+                  0.0, 1e6),
+        ParamSpec("bv", "N m s/rad", "viscous friction coefficient", 0.0, 0.0, 1e6),
+        ParamSpec("bc", "N m", "Coulomb friction level", 0.0, 0.0, 1e6),
+        ParamSpec("dz", "N m", "torque break point of the hard dead zone", 0.0, 0.0, 1e6),
+        ParamSpec("dz_slope", "1", "slope k-bar of the hard dead zone (paper eq. 7)", 1.0, 0.0,
+                  10.0),
+        ParamSpec("dz_offset", "N m", "jump k-hat of the hard dead zone (paper eq. 7)", 0.0,
+                  -1e6, 1e6),
+    ]
+}
+
+__all__ = ["BASE_PARAMS", "ParamSpec"]
