@@ -19,7 +19,7 @@ from ident_util import as_log, blocked_logs, perturbed_truth, step_logs, triangl
 from numba import njit
 
 from pmdcid.diagnose import diagnose
-from pmdcid.diagnose.named import NAMED_MARGIN, prefer_named
+from pmdcid.diagnose.named import NAMED_MARGIN, generalises, prefer_named
 from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.mechanical import fit_mechanical
 from pmdcid.identify.nonlinear import fit_nonlinear
@@ -29,8 +29,8 @@ from pmdcid.simulate import neutral_values, param_values, param_vector, simulate
 from pmdcid.simulate.terms import friction_curve, sliding_friction
 from pmdcid.synth import PAPER, PAPER_NOISE, staircase, step, triangle
 
-#: a friction curve (knot speeds [rad/s], values [N m]) rising then falling back to the paper's
-#: line at 1.6 rad/s: no named law follows it
+#: a friction curve (knot speeds [rad/s], values [N m]) rising steeply, then flat over the logged
+#: speeds (about 1 rad/s at most): no named law follows it
 CURVE = {"fcw1": 0.15, "fcw2": 0.4, "fcw3": 1.0, "fcw4": 2.0,
          "fc1": 0.006, "fc2": 0.008, "fc3": 0.008}
 #: smooth flattening friction added to bc + bv*|omega|: A [N m] * tanh(|omega| / ws [rad/s])
@@ -174,7 +174,10 @@ def test_pure_quadratic_drag_is_named_not_the_curve(bq):
 def test_curve_term_is_piecewise_linear_zero_at_both_ends():
     p = param_vector({**neutral_values(), **PAPER, **CURVE})
     speeds = np.linspace(0.0, 2.5, 101)
-    want = np.interp(speeds, [0, 0.25, 0.55, 0.9, 1.6], [0, 0.006, 0.009, 0.008, 0], right=0.0)
+    knots = [0.0] + [CURVE[f"fcw{k}"] for k in range(1, 5)]
+    values = [0.0] + [CURVE[f"fc{k}"] for k in range(1, 4)] + [0.0]
+    want = np.interp(speeds, knots, values, right=0.0)
+    assert want[-1] == 0.0 and want[10] > 0.005  # zero past the last knot, not zero inside
     got = np.array([friction_curve(p, s) for s in speeds])
     np.testing.assert_allclose(got, want, atol=1e-15)
     # direction-symmetric, and off when the knots are neutral
@@ -211,6 +214,18 @@ def test_a_named_law_that_suffices_is_preferred():
     assert "beats the best named law" in curve.reason
     alone = _cand("friction_curve", -50.0)
     assert prefer_named(alone, [alone, _cand("cogging", -40.0)]) is alone
+
+
+def test_a_curve_that_does_not_generalise_is_refused():
+    """The curve's held-out gain must be at least half its fit gain (the rule's own numbers)."""
+    c = SimpleNamespace(effect="friction_curve", delta_bic=-2295.0, gain_fit=0.268,
+                        gain_held=0.06)
+    assert "must generalise" in generalises(c)
+    c.gain_held = 0.2
+    assert generalises(c) is None
+    named = SimpleNamespace(effect="quadratic_drag", delta_bic=-2295.0, gain_fit=0.268,
+                            gain_held=0.06)
+    assert generalises(named) is None  # a named law is judged by the common rules alone
 
 
 def test_exporters_refuse_the_curve(tmp_path):

@@ -216,3 +216,11 @@ def test_diagnose_names_lugre_only_when_asked():
     default = pmdcid.diagnose(clean, truth_model(BASE))
     assert default.summary["added"] == []
     assert "lugre" not in [c["effect"] for c in default.summary["candidates"]]
+
+
+def test_absurd_bristle_stiffness_is_one_clear_error():
+    from pmdcid.simulate.kernel import WorkBoundError
+
+    vals = lugre_vals(sigma0=1e12, sigma1=0.0)
+    with pytest.raises(WorkBoundError, match="LuGre's bristles"):
+        run(np.zeros(100000), vals)

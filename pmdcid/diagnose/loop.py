@@ -29,7 +29,7 @@ from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
 from pmdcid.diagnose.drive import drive_warnings
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
-from pmdcid.diagnose.named import prefer_named, with_named
+from pmdcid.diagnose.named import generalises, prefer_named, with_named
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import (
     context,
@@ -209,6 +209,8 @@ def accept(cands: list[Candidate], rules: Rules) -> Candidate | None:
     for c in cands:
         if c.counted:
             ok, c.reason = judge(c, rules)
+            if ok and generalises(c):
+                ok, c.reason = False, generalises(c)
             if ok:
                 passing.append(c)
     if not passing:

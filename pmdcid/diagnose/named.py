@@ -7,6 +7,11 @@ also passes, the curve is chosen only if its ΔBIC (which already charges its ex
 log(n) each) beats the best named law's by more than :data:`NAMED_MARGIN`; otherwise the named
 law is chosen, and both rows say so. So that the comparison can be made, a round that refits the
 curve also refits the best-screened named law.
+
+Being flexible, the curve must also *generalise*: its chi-square gain on the held-out data must
+be at least :data:`HELD_SHARE` of its gain on the fit data. A friction law is time-invariant; a
+curve that removes 27 % of the fit part's excess but 6 % of the held-out part's (seen on EMPS,
+whose validation run it then predicted 14 % worse) follows the fit data, not the friction.
 """
 
 from __future__ import annotations
@@ -16,6 +21,20 @@ CURVE = "friction_curve"
 NAMED_LAWS = ("quadratic_drag", "stribeck", "viscous_asymmetry")
 #: ΔBIC by which the curve must beat the best passing named law to be chosen over it
 NAMED_MARGIN = 10.0
+#: the curve's held-out chi-square gain must be at least this share of its fit gain
+HELD_SHARE = 0.5
+
+
+def generalises(c) -> str | None:
+    """Why the curve candidate ``c`` does not generalise (held-out gain under
+    :data:`HELD_SHARE` of its fit gain), or None (also for every other effect)."""
+    if c.effect != CURVE or c.gain_fit is None or c.gain_held is None:
+        return None
+    if c.gain_held >= HELD_SHARE * c.gain_fit:
+        return None
+    return (f"ΔBIC {c.delta_bic:+.0f} but a flexible curve must generalise: held-out gain "
+            f"{100 * c.gain_held:.1f} % < {HELD_SHARE:g} × its fit gain "
+            f"{100 * c.gain_fit:.1f} %")
 
 
 def with_named(ranked: list, screens: list) -> list:
@@ -50,4 +69,5 @@ def prefer_named(best, passing: list, margin: float = NAMED_MARGIN):
     return law
 
 
-__all__ = ["CURVE", "NAMED_LAWS", "NAMED_MARGIN", "prefer_named", "with_named"]
+__all__ = ["CURVE", "HELD_SHARE", "NAMED_LAWS", "NAMED_MARGIN", "generalises", "prefer_named",
+           "with_named"]

@@ -23,7 +23,8 @@ invalidate_if_stale()  # before anything compiled is loaded from the cache
 def check_layout() -> None:
     """Every parameter the registry declares (base and effects) has a slot: in the kernel's
     vector (:data:`layout.NAMES`) or among the sensor parameters. A parameter missing from both
-    would be silently ignored by every simulation: an import-time error instead."""
+    would be silently ignored by every simulation: an import-time error instead. Likewise the
+    states effects declare (``Effect.states``) are the kernel's :data:`layout.STATE_OWNERS`."""
     from pmdcid.simulate import layout
 
     slots = set(layout.NAMES) | set(layout.SENSOR_NAMES)
@@ -33,6 +34,12 @@ def check_layout() -> None:
     if missing:
         raise ImportError(f"parameters without a kernel slot: {', '.join(missing)} "
                           "(add them to pmdcid/simulate/layout.py)")
+    owned = {(s, e.name) for e in EFFECTS.values() for s in e.states}
+    if owned != set(layout.STATE_OWNERS.items()) or not set(layout.STATE_OWNERS) <= set(
+            layout.STATES):
+        raise ImportError(f"effect states {sorted(owned)} do not match the kernel's "
+                          f"STATE_OWNERS {sorted(layout.STATE_OWNERS.items())} "
+                          "(pmdcid/simulate/layout.py)")
 
 
 check_layout()

@@ -362,6 +362,11 @@ def check_work(n: int, dt: float, nsub: int, p: np.ndarray) -> None:
     steps = float(n) * float(nsub)
     if steps <= MAX_STEPS:
         return
+    if p[SIGMA0] > 0 and lugre_step(p) < dt / float(nsub) * 1.5:
+        raise WorkBoundError(
+            f"the simulation would take {steps:.2g} internal steps (limit {MAX_STEPS:.0e}): "
+            f"LuGre's bristles (sigma0 = {p[SIGMA0]:.3g} N m/rad, sigma1 = {p[SIGMA1]:.3g} "
+            f"N m s/rad) need steps of {lugre_step(p):.2g} s: check sigma0, sigma1 and J")
     damping = p[BV] + (p[KM] * p[KE] / p[R] if p[R] > 0 else 0.0)
     tau = p[J] / damping if damping > 0 else math.inf
     raise WorkBoundError(
