@@ -226,7 +226,7 @@ def startup_rows(quick: bool) -> list[Row]:
     b2 = collect(lambda: run_child([sys.executable, "-c", "pass"])[::4], repeat=n)
     heavy = heavy_imports()
     return [Row("start-up: `pmdcid --help`", hs, "s", f"{hs.median / b2.median:.1f}x B2",
-                "<= 0.3 s", hs.median <= 0.3,
+                "<= 0.15 s", hs.median <= 0.15,
                 "heavy imports at start-up: " + (heavy or "none")),
             Row("B2 baseline: `python -c pass`", b2, "s", "B2")]
 

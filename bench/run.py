@@ -3,7 +3,9 @@
 Each figure is the median of several runs with min and max. Baselines, measured here too:
 B1 = scipy solve_ivp (LSODA, rtol 1e-6, tanh-smoothed friction and dead zone) simulating the same
 120 s log (bench/baseline.py); B2 = a bare ``python -c pass``; B3 = the peak memory of a python
-that imports numpy, pandas, scipy, numba and matplotlib.
+that imports numpy, pandas, scipy, numba and matplotlib; B4 = ``python -c "import numpy"``, the
+floor of any command that reads a log (bench/rows_process.py). PMDCID_BENCH_LARGE=1 adds the
+2-million-row fit.
 
     python bench/run.py [--quick] [--write docs/performance.md] [--json out.json]
 """
@@ -26,12 +28,14 @@ from bench.rows_kernel import (  # noqa: E402
     paper_setup,
 )
 from bench.rows_pipeline import demo_rows, diagnose_rows, fit_rows, startup_rows  # noqa: E402
+from bench.rows_process import process_rows, scaling_rows  # noqa: E402
 from bench.table import Row, machine, markdown, write_docs  # noqa: E402
 
 LEGEND = ("B1 = scipy `solve_ivp` LSODA (rtol 1e-6, atol 1e-9, tanh-smoothed Coulomb friction "
           "and dead zone) on the same model and 120 s log, measured in the same run; "
           "\"x B1\" = time / B1. B2 = `python -c pass`. B3 = peak RSS of a python importing "
-          "numpy, pandas, scipy, numba, matplotlib. Targets from issue #8.")
+          "numpy, pandas, scipy, numba, matplotlib. B4 = `python -c \"import numpy\"`, in turns "
+          "with the whole-process rows. Targets from issues #8 and #16.")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -64,6 +68,8 @@ def main(argv: list[str] | None = None) -> int:
         rows += step("diagnose", lambda: diagnose_rows(b1, args.quick))
         rows += step("demo", lambda: demo_rows(b1, args.quick, tmp))
         rows += step("start-up", lambda: startup_rows(args.quick))
+        rows += step("whole processes", lambda: process_rows(args.quick, tmp))
+        rows += step("command scaling", lambda: scaling_rows(args.quick, tmp))
         rows += step("kernel scaling", lambda: kernel_scaling_rows(setup, args.quick))
     total = time.perf_counter() - t0
 

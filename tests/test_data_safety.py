@@ -4,6 +4,7 @@ outputs not silently overwritten (policy in docs/data-safety.md).
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -98,15 +99,15 @@ def test_write_log_is_atomic_too(tmp_path, monkeypatch):
     old = out.read_bytes()
     monkeypatch.setattr(logs_mod, "WRITE_CHUNK", 10)
     calls = {"n": 0}
-    real = logs_mod.np.savetxt
+    real = logs_mod.np.column_stack
 
-    def failing_savetxt(*a, **k):
+    def failing_chunk(*a, **k):  # the third chunk fails, after two were written
         calls["n"] += 1
         if calls["n"] == 3:
             raise OSError(5, "Input/output error")
         return real(*a, **k)
 
-    monkeypatch.setattr(logs_mod.np, "savetxt", failing_savetxt)
+    monkeypatch.setattr(logs_mod.np, "column_stack", failing_chunk)
     t = logs_mod.np.arange(100) * 1e-3
     with pytest.raises(LogError, match="Input/output error"):
         write_log(out, t, {"v": t * 0 + 1.0})
@@ -121,6 +122,22 @@ def test_chunked_log_writing_is_identical_to_one_piece(tmp_path, monkeypatch):
     monkeypatch.setattr(logs_mod, "WRITE_CHUNK", 7)
     write_log(tmp_path / "a.csv", t, cols, {"kind": "x"})
     assert (tmp_path / "a.csv").read_text() == one
+
+
+def test_log_text_is_what_savetxt_writes():
+    np = logs_mod.np
+    rng = np.random.default_rng(16)
+    n = 2000
+    t = np.cumsum(rng.uniform(1e-4, 2e-3, n)) + 1.7e9  # epoch seconds: 15 digits kept
+    v = rng.standard_normal(n) * 10.0 ** rng.integers(-12, 12, n)
+    v[:6] = [0.0, -0.0, np.nan, np.inf, -np.inf, 1e300]
+    cols = {"v": v, "i": -v / 3.0}
+    got = logs_mod.format_csv(t, cols, precision=9)
+    buf = io.StringIO()
+    buf.write("t,v,i\n")
+    np.savetxt(buf, np.column_stack([t, v, -v / 3.0]), delimiter=",",
+               fmt=[logs_mod.TIME_FORMAT, "%.9g", "%.9g"])
+    assert got == buf.getvalue()
 
 
 def test_atomic_write_text_round_trip(tmp_path):

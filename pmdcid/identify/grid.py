@@ -16,11 +16,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 
-from pmdcid.simulate import param_vector
+from pmdcid.simulate import aot, param_vector
 from pmdcid.simulate.kernel import _run, choose_substeps, discretize
 from pmdcid.simulate.layout import KM, LINEAR, OMEGA_STATE, THETA_STATE, L, R, state_vector
+from pmdcid.simulate.lazyjit import njit, prange
 
 
 @njit(parallel=True, cache=True)
@@ -74,6 +74,8 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     w = np.ascontiguousarray(log["omega"], float) if "omega" in sigma else nan
     th = np.ascontiguousarray(log["theta"], float) if "theta" in sigma else nan
     omega0 = float(vals_list[0].get("omega0", 0.0))
-    return _batch_cost(np.ascontiguousarray(log.u, float), P, Phi, Gam, int(nsub), torque, w,
-                       th, float(sigma.get("omega", 0.0)), float(sigma.get("theta", 0.0)),
-                       omega0, state_vector(x0))
+    ahead = aot.load()  # the ahead-of-time build (one thread) when current, else numba's JIT
+    fn = ahead.batch_cost if ahead is not None else _batch_cost
+    return fn(np.ascontiguousarray(log.u, float), P, Phi, Gam, int(nsub), bool(torque), w, th,
+              float(sigma.get("omega", 0.0)), float(sigma.get("theta", 0.0)), omega0,
+              state_vector(x0))

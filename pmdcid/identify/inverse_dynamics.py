@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
@@ -146,6 +145,8 @@ def regression_rows(log, model: Model | None = None, cutoff_hz: float | None = N
     # near rest the rotor may stick (friction then balances any torque below breakaway, not
     # bc*sign(omega)) and the sign of a filtered speed is noise: leave those rows out
     # (widened by one period of the cut-off: the parallel filter spreads their error)
+    from scipy.ndimage import maximum_filter1d  # here: fit-nonlinear imports this module
+
     slow = np.abs(kin.omega) < rest_fraction * np.percentile(np.abs(kin.omega), 99)
     width = int(math.ceil(1.0 / (fc * log.dt)))
     slow = maximum_filter1d(slow.astype(np.uint8), 2 * width + 1, mode="constant") > 0

@@ -103,16 +103,21 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k]))
         return out
 
-    def resid(z):
+    nrows = segments[-1][2] + len(prior_rows)
+
+    def resid(z, out=None):
+        """(simulated - measured) / sigma per block, then the prior rows; into ``out``."""
         x = z * scale
         ss = sims(x)
-        parts = []
-        for k, s, meas, sd in plan:
-            r = (ss[k].get(s) - meas) / sd
-            parts.append(np.where(np.isfinite(r), r, 0.0))
+        out = np.empty(nrows) if out is None else out
+        for (k, s, meas, sd), (_, a, b) in zip(plan, segments, strict=True):
+            r = out[a:b]
+            np.subtract(ss[k].get(s), meas, out=r)
+            np.divide(r, sd, out=r)
+            r[~np.isfinite(r)] = 0.0
         if prior_rows:
-            parts.append(np.array([weight[0] * (x[j] - m) / sd for j, m, sd in prior_rows]))
-        return np.concatenate(parts)
+            out[segments[-1][2]:] = [weight[0] * (x[j] - m) / sd for j, m, sd in prior_rows]
+        return out
 
     if isinstance(diff_step, dict):
         steps = np.array([float(diff_step.get(n, 1e-3)) for n in free] + [1e-3] * len(moving))
@@ -121,7 +126,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     weight = [1.0]  # the prior rows' weight: the data's honest information (below)
 
     def run(z0):
-        return solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps,
+        return solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
                      max_nfev=max_nfev, what="simulation-error fit")
 
     sol = run(x0 / scale)
@@ -143,8 +148,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     # parameter like dz (a zero column, hence a zero standard error): the covariance uses
     # central differences over a wider step, the slope of the cost's smooth envelope.
     with blas_single_thread():
-        Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale,
-                                cov_step) / scale[None, :]
+        Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale, cov_step)
+        Jm /= scale[None, :]
     try:
         cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -269,24 +274,22 @@ def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
 def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
     """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one-sided at a
     bound); columns that still come out zero fall back to a 5x wider step."""
-    cols = []
+    J = np.empty((len(f0), len(z)))  # filled column by column: no list of columns to stack
     for j in range(len(z)):
-        col = None
         for r in (rel, 5 * rel):
             h = r * max(abs(z[j]), 1e-12)
             up, dn = min(z[j] + h, hi[j]), max(z[j] - h, lo[j])
             if up <= dn:
-                col = np.zeros_like(f0)
+                J[:, j] = 0.0
                 break
             zu, zd = z.copy(), z.copy()
             zu[j], zd[j] = up, dn
             fu = fun(zu) if up > z[j] else f0
             fd = fun(zd) if dn < z[j] else f0
-            col = (fu - fd) / (up - dn)
-            if np.any(col != 0):
+            J[:, j] = (fu - fd) / (up - dn)
+            if np.any(J[:, j] != 0):
                 break
-        cols.append(col)
-    return np.column_stack(cols)
+    return J
 
 
 def format_estimates(estimates, width: int = 10) -> list[str]:

@@ -61,28 +61,35 @@ def scale_of(x0: np.ndarray, typical: np.ndarray | float = 1.0) -> np.ndarray:
 
 
 def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None = None,
-          x_scale="jac", what: str = "fit") -> Solution:
+          x_scale="jac", what: str = "fit", fills: bool = False) -> Solution:
     """Minimise ``sum(fun_z(z)**2)`` over ``lo_z <= z <= hi_z`` from ``z0`` (scaled vector).
 
     ``diff_step``: relative finite-difference step (one, or one per parameter; scipy's default
     when None). The cost of a simulation with stick-slip and a dead zone is only piecewise
     smooth: the callers pass steps large enough to cross the kernel's event quantisation.
-    ``what`` names the fit in the error raised when scipy refuses the problem.
+    ``what`` names the fit in the error raised when scipy refuses the problem. ``fills``:
+    ``fun_z(z, out=row)`` writes the residual into ``row`` (saves a copy per evaluation). The
+    Jacobian is scipy's forward differences, computed into one preallocated matrix
+    (:mod:`.fdjac`): the same numbers as ``jac="2-point"``.
     """
+    from pmdcid.identify.fdjac import ForwardJacobian
+
     z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
+    fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills)
     try:
         with blas_single_thread():
-            sol = _least_squares(fun_z, z0, (lo_z, hi_z), diff_step, max_nfev, x_scale)
+            sol = _least_squares(fd.fun, z0, (lo_z, hi_z), diff_step, max_nfev, x_scale,
+                                 fd.jac)
     except ValueError as exc:
         raise FitError(f"{what} failed: {exc}") from None
     return Solution(sol.x, np.asarray(scale, float), sol.fun, sol.jac / scale[None, :],
                     int(sol.nfev), bool(sol.success), str(sol.message))
 
 
-def _least_squares(fun, z0, bounds, diff_step, max_nfev, x_scale):
+def _least_squares(fun, z0, bounds, diff_step, max_nfev, x_scale, jac="2-point"):
     from scipy.optimize import least_squares
 
-    return least_squares(fun, z0, bounds=bounds, method="trf", diff_step=diff_step,
+    return least_squares(fun, z0, jac=jac, bounds=bounds, method="trf", diff_step=diff_step,
                          max_nfev=max_nfev, x_scale=x_scale)
 
 

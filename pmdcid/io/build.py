@@ -45,8 +45,6 @@ def frame_columns(df, mapping: ColumnMap, path: str):
     expressions: :mod:`pmdcid.io.csvsource`); raises :class:`LogError` naming the column for a
     missing source, a text cell, or no time column.
     """
-    import pandas as pd
-
     from pmdcid.io.csvsource import column_specs, numeric_column
 
     cols = [str(c) for c in df.columns]
@@ -76,7 +74,7 @@ def frame_columns(df, mapping: ColumnMap, path: str):
     used = {r for spec in specs.values() for r in spec.refs}
     extra = {}
     for c in [c for c in cols if c not in used][:MAX_EXTRA]:
-        x = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
+        x = numeric_column(df, c, path, strict=False)
         if np.isfinite(x).any():
             extra[c] = x
     return data, extra, skipped

@@ -102,13 +102,16 @@ def header_names(src: Source, nskip: int) -> list[str]:
     return names
 
 
-def numeric_column(df, src: str, p: str) -> np.ndarray:
-    """Column ``src`` as floats; a text cell that is not a number is an error naming its row."""
+def numeric_column(df, src: str, p: str, strict: bool = True) -> np.ndarray:
+    """Column ``src`` as floats; a text cell that is not a number is an error naming its row
+    (``strict``) or NaN. ``df`` is a DataFrame or a :class:`pmdcid.io.plain.PlainFrame`."""
+    raw = df[src]
+    if isinstance(raw, np.ndarray):  # a PlainFrame's column: plain float64 numbers
+        return np.array(raw, dtype=float)  # a copy: no view keeps the whole table alive
     import pandas as pd
 
-    raw = df[src]
     col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
-    if not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str dtype)
+    if strict and not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str)
         notnum = np.isnan(col) & raw.notna().to_numpy() & (
             raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
         ).to_numpy()

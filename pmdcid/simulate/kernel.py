@@ -25,9 +25,9 @@ import math
 from contextlib import contextmanager
 
 import numpy as np
-from numba import njit
 
 from pmdcid.errors import ModelError
+from pmdcid.simulate import aot
 from pmdcid.simulate.layout import (
     BC,
     BV,
@@ -45,6 +45,7 @@ from pmdcid.simulate.layout import (
     R,
     state_vector,
 )
+from pmdcid.simulate.lazyjit import njit
 from pmdcid.simulate.terms import (
     armature_voltage,
     bristle_rate,
@@ -132,7 +133,7 @@ def discretize(p: np.ndarray, h: float, torque_driven: bool) -> tuple[np.ndarray
         M = np.zeros((6, 6))
         M[:3, :3] = system_matrix(p, engaged, torque_driven)
         M[:3, 3:] = np.eye(3)
-        E = expm_small(M * h)
+        E = _compiled("expm_small")(M * h)
         Phi[m] = E[:3, :3]
         Gam[m] = E[:3, 3:]
     return Phi, Gam
@@ -392,8 +393,18 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
     h = dt / nsub
     Phi, Gam = discretize_cached(p, h, torque_driven)
     x = state_vector(x0)
-    return _run(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p, dtype=float),
-                Phi, Gam, int(nsub), bool(torque_driven), x)
+    return _compiled("run")(np.ascontiguousarray(u, dtype=float),
+                            np.ascontiguousarray(p, dtype=float), Phi, Gam, int(nsub),
+                            bool(torque_driven), x)
+
+
+def _compiled(name: str):
+    """Compiled function ``name`` of :data:`pmdcid.simulate.aot.EXPORTS` from this module: the
+    ahead-of-time build when it matches these sources, numba's JIT otherwise."""
+    ahead = aot.load()
+    if ahead is not None:
+        return getattr(ahead, name)
+    return {"run": _run, "expm_small": expm_small}[name]
 
 
 __all__ = ["LUGRE_STEPS", "MAX_STEPS", "WorkBoundError", "bounded_for", "check_work",

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from pmdcid.simulate.layout import (
     BC,
     BQ,
@@ -33,6 +31,7 @@ from pmdcid.simulate.layout import (
     VMAX,
     WS,
 )
+from pmdcid.simulate.lazyjit import njit
 
 
 @njit(cache=True, inline="always")
