@@ -22,8 +22,13 @@ def load_module(path):
     return mod
 
 
-def export(tmp_path, kind, fmt="python-control", name="motor_model.py", every_effect=False):
-    model = write_model(tmp_path / "m.json", kind, every_effect)
+#: the effects ported later (friction curve, late input), both on
+LATER = ("friction_curve", "input_delay")
+
+
+def export(tmp_path, kind, fmt="python-control", name="motor_model.py", every_effect=False,
+           later=()):
+    model = write_model(tmp_path / "m.json", kind, every_effect, later)
     out = tmp_path / name
     res = CliRunner().invoke(main, ["export", "-m", str(tmp_path / "m.json"), "--to", fmt,
                                     "-o", str(out)])
@@ -31,10 +36,11 @@ def export(tmp_path, kind, fmt="python-control", name="motor_model.py", every_ef
     return model, out
 
 
-@pytest.mark.parametrize("kind,every", [("v", False), ("v", True), ("tau", False),
-                                        ("lumped", False)])
-def test_python_control_matches_simulate(tmp_path, kind, every):
-    model, out = export(tmp_path, kind, every_effect=every)
+@pytest.mark.parametrize("kind,every,later", [
+    ("v", False, ()), ("v", True, ()), ("tau", False, ()), ("lumped", False, ()),
+    ("v", True, ("friction_curve",)), ("v", True, LATER), ("tau", False, LATER)])
+def test_python_control_matches_simulate(tmp_path, kind, every, later):
+    model, out = export(tmp_path, kind, every_effect=every, later=later)
     mod = load_module(out)
     for name, t, u in inputs(kind):
         sys = mod.make_system(dt_of(t))
@@ -52,6 +58,21 @@ def test_python_control_delay_line_in_state(tmp_path):
     sys = load_module(out).make_system(1e-3)
     # 2.5 ms at 1 ms: the speed and angle of the last 3 samples are states
     assert sys.nstates == 3 + 2 * 3
+
+
+def test_python_control_late_input_line_in_state(tmp_path):
+    """A latency of 2.6 ms at 1 ms needs the last 3 inputs (states u_d1..u_d3); from rest they
+    are 0, and an input that does not start at 0 is reproduced once they hold its first value."""
+    model, out = export(tmp_path, "v", later=("input_delay",))
+    sys = load_module(out).make_system(1e-3)
+    assert sys.state_labels[3:6] == ["u_d1", "u_d2", "u_d3"] and sys.nstates == 6 + 2 * 3
+    t = np.arange(1500) * 1e-3
+    u = 0.8 + 0.6 * np.sin(2 * np.pi * t)  # starts at 0.8 V
+    x0 = np.zeros(sys.nstates)
+    x0[3:6] = u[0]
+    res = control.input_output_response(sys, t, u, X0=x0)
+    err = rel_error(res.outputs.T, reference(t, u, model, "v"))
+    assert max(err) < 1e-9, err
 
 
 def test_drive_of():

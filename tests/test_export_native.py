@@ -15,7 +15,10 @@ from pmdcid.cli import main
 
 CC = shutil.which("gcc") or shutil.which("cc")
 OCTAVE = shutil.which("octave-cli")
-KINDS = [("v", False), ("v", True), ("tau", False), ("lumped", False)]
+#: (drive, every catalogue effect, effects ported later: friction curve and late input)
+LATER = ("friction_curve", "input_delay")
+KINDS = [("v", False, ()), ("v", True, ()), ("tau", False, ()), ("lumped", False, ()),
+         ("v", True, LATER), ("lumped", False, LATER)]
 
 DRIVER = r"""
 #include <stdio.h>
@@ -34,8 +37,8 @@ int main(void) {
 """
 
 
-def export(tmp_path, kind, every, fmt, name):
-    model = write_model(tmp_path / "m.json", kind, every)
+def export(tmp_path, kind, every, fmt, name, later=()):
+    model = write_model(tmp_path / "m.json", kind, every, later)
     res = CliRunner().invoke(main, ["export", "-m", str(tmp_path / "m.json"), "--to", fmt,
                                     "-o", str(tmp_path / name)])
     assert res.exit_code == 0, res.output
@@ -51,9 +54,9 @@ def compile_c(tmp_path, *sources, shared=False):
 
 
 @pytest.mark.skipif(CC is None, reason="no C compiler (gcc/cc) installed")
-@pytest.mark.parametrize("kind,every", KINDS)
-def test_c_matches_kernel(tmp_path, kind, every):
-    model = export(tmp_path, kind, every, "c", "motor.c")
+@pytest.mark.parametrize("kind,every,later", KINDS)
+def test_c_matches_kernel(tmp_path, kind, every, later):
+    model = export(tmp_path, kind, every, "c", "motor.c", later)
     assert (tmp_path / "motor.h").exists()
     (tmp_path / "driver.c").write_text(DRIVER)
     exe = compile_c(tmp_path, "driver.c", "motor.c")
@@ -76,9 +79,10 @@ def _without_delay(model):
 
 
 @pytest.mark.skipif(OCTAVE is None, reason="GNU Octave (octave-cli) not installed")
-@pytest.mark.parametrize("kind,every", [("v", True), ("lumped", False)])  # Octave is slow: the
-def test_matlab_matches_kernel_in_octave(tmp_path, kind, every):  # two code paths, all terms
-    model = export(tmp_path, kind, every, "matlab", "motor.m")
+@pytest.mark.parametrize("kind,every,later", [  # Octave is slow: the two code paths, all terms
+    ("v", True, ()), ("lumped", False, ("friction_curve",)), ("v", True, LATER)])
+def test_matlab_matches_kernel_in_octave(tmp_path, kind, every, later):
+    model = export(tmp_path, kind, every, "matlab", "motor.m", later)
     cases = inputs(kind)
     code = []
     for k, (_, t, u) in enumerate(cases):
@@ -134,7 +138,7 @@ def test_compensator_law(tmp_path, kind):
 
     model = export(tmp_path, kind, False, "c", "motor.c")
     lib = ctypes.CDLL(str(compile_c(tmp_path, "motor.c", shared=True)))
-    params = (ctypes.c_double * 22)()
+    params = (ctypes.c_double * 64)()  # room for pmdc_params (30 doubles)
     lib.pmdc_default_params(params)
     lib.pmdc_compensate.restype = ctypes.c_double
     lib.pmdc_compensate.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]

@@ -62,7 +62,7 @@ class ExportSpec:
 
 #: effects the exported code does not step (refused with one line); their parameters, neutral
 #: in every model exported, are left out of the generated code
-NOT_PORTED = ("friction_curve", "input_delay", "lugre")
+NOT_PORTED = ("lugre",)
 
 
 def spec_of(model: Model) -> ExportSpec:
