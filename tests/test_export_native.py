@@ -18,7 +18,8 @@ OCTAVE = shutil.which("octave-cli")
 #: (drive, every catalogue effect, effects ported later: friction curve and late input)
 LATER = ("friction_curve", "input_delay")
 KINDS = [("v", False, ()), ("v", True, ()), ("tau", False, ()), ("lumped", False, ()),
-         ("v", True, LATER), ("lumped", False, LATER)]
+         ("v", True, LATER), ("lumped", False, LATER), ("v", True, ("lugre",)),
+         ("tau", False, ("lugre", "input_delay"))]
 
 DRIVER = r"""
 #include <stdio.h>
@@ -79,11 +80,12 @@ def _without_delay(model):
 
 
 @pytest.mark.skipif(OCTAVE is None, reason="GNU Octave (octave-cli) not installed")
-@pytest.mark.parametrize("kind,every,later", [  # Octave is slow: the two code paths, all terms
-    ("v", True, ()), ("lumped", False, ("friction_curve",)), ("v", True, LATER)])
-def test_matlab_matches_kernel_in_octave(tmp_path, kind, every, later):
+@pytest.mark.parametrize("kind,every,later,only", [  # Octave is slow: the two drive paths, all
+    ("v", True, (), None), ("lumped", False, ("friction_curve",), None),  # terms, the curve's
+    ("v", True, LATER, "step"), ("v", True, ("lugre",), None)])  # knots on the triangle
+def test_matlab_matches_kernel_in_octave(tmp_path, kind, every, later, only):
     model = export(tmp_path, kind, every, "matlab", "motor.m", later)
-    cases = inputs(kind)
+    cases = [c for c in inputs(kind) if only in (None, c[0])]
     code = []
     for k, (_, t, u) in enumerate(cases):
         np.savetxt(tmp_path / f"u{k}.txt", u, fmt="%.17g")
@@ -138,7 +140,7 @@ def test_compensator_law(tmp_path, kind):
 
     model = export(tmp_path, kind, False, "c", "motor.c")
     lib = ctypes.CDLL(str(compile_c(tmp_path, "motor.c", shared=True)))
-    params = (ctypes.c_double * 64)()  # room for pmdc_params (30 doubles)
+    params = (ctypes.c_double * 64)()  # room for pmdc_params (32 doubles)
     lib.pmdc_default_params(params)
     lib.pmdc_compensate.restype = ctypes.c_double
     lib.pmdc_compensate.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]

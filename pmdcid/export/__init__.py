@@ -62,14 +62,27 @@ class ExportSpec:
 
 #: effects the exported code does not step (refused with one line); their parameters, neutral
 #: in every model exported, are left out of the generated code
-NOT_PORTED = ("lugre",)
+NOT_PORTED: tuple[str, ...] = ()
+#: the kernel parameters the templates step: layout.NAMES up to the last one ported. A parameter
+#: appended to the kernel later is left out of the generated code, and a model whose effects
+#: use it is refused (not silently simulated without it)
+PORTED = NAMES[:NAMES.index("sigma1") + 1]
+
+
+def unported_effects(model: Model) -> list[str]:
+    """The model's effects the exported code does not step: listed in :data:`NOT_PORTED`, or
+    with a kernel parameter beyond :data:`PORTED`."""
+    from pmdcid.model import EFFECTS
+
+    return [e for e in model.effects if e in NOT_PORTED or any(
+        p in NAMES and p not in PORTED for p in EFFECTS[e].param_names)]
 
 
 def spec_of(model: Model) -> ExportSpec:
     """The parameters of ``model`` as the kernel sees them (ModelError if some are lacking)."""
     from pmdcid.model import EFFECTS
 
-    used = [e for e in NOT_PORTED if e in model.effects]
+    used = unported_effects(model)
     if used:
         raise ExportError(f"the model uses {', '.join(used)}, which the exported code does not "
                           "step yet: simulate it with pmdcid (or remove the effect and refit)",
@@ -77,7 +90,7 @@ def spec_of(model: Model) -> ExportSpec:
     skip = {p for e in NOT_PORTED for p in EFFECTS[e].param_names}
     drive = drive_of(model)
     vals = param_values(model, torque_driven=drive != "v")
-    return ExportSpec({n: float(vals[n]) for n in NAMES if n not in skip}, drive,
+    return ExportSpec({n: float(vals[n]) for n in PORTED if n not in skip}, drive,
                       float(vals.get("delay", 0.0)),
                       float(vals.get("omega0", 0.0)),
                       os.path.basename(model.path) if model.path else "a model")
