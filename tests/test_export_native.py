@@ -79,6 +79,30 @@ def _without_delay(model):
     return m
 
 
+@pytest.mark.skipif(CC is None, reason="no C compiler (gcc/cc) installed")
+def test_c_input_line_bound(tmp_path):
+    """pmdc_init refuses (-2) a latency needing more past inputs than PMDC_INPUT_LINE (256)
+    at the dt given, and takes one that fits (the line lives in pmdc_model: no allocation)."""
+    export(tmp_path, "v", False, "c", "motor.c", ("input_delay",))
+    (tmp_path / "bound.c").write_text(r"""
+#include <stdio.h>
+#include "motor.h"
+int main(void) {
+    pmdc_params p; pmdc_model m; int rc;
+    pmdc_default_params(&p);
+    p.latency = 0.2555;
+    rc = pmdc_init(&m, &p, 1e-3);
+    printf("%d %d", rc, m.lag);
+    p.latency = 0.2565;
+    printf(" %d\n", pmdc_init(&m, &p, 1e-3));
+    return 0;
+}
+""")
+    out = subprocess.run([str(compile_c(tmp_path, "bound.c", "motor.c"))], capture_output=True,
+                         text=True, check=True).stdout.split()
+    assert out == ["0", "256", "-2"]
+
+
 @pytest.mark.skipif(OCTAVE is None, reason="GNU Octave (octave-cli) not installed")
 @pytest.mark.parametrize("kind,every,later,only", [  # Octave is slow: the two drive paths, all
     ("v", True, (), None), ("lumped", False, ("friction_curve",), None),  # terms, the curve's
