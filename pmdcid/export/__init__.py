@@ -67,15 +67,22 @@ NOT_PORTED: tuple[str, ...] = ()
 #: appended to the kernel later is left out of the generated code, and a model whose effects
 #: use it is refused (not silently simulated without it)
 PORTED = NAMES[:NAMES.index("sigma1") + 1]
+#: the sensor parameters and the effect states the templates apply / integrate
+PORTED_SENSORS = ("delay", "omega0")
+PORTED_STATES = ("z",)
 
 
 def unported_effects(model: Model) -> list[str]:
     """The model's effects the exported code does not step: listed in :data:`NOT_PORTED`, or
-    with a kernel parameter beyond :data:`PORTED`."""
+    with a parameter or a state the templates do not know (added to the kernel after them)."""
     from pmdcid.model import EFFECTS
 
-    return [e for e in model.effects if e in NOT_PORTED or any(
-        p in NAMES and p not in PORTED for p in EFFECTS[e].param_names)]
+    def known(e):
+        eff = EFFECTS[e]
+        return (all(p in PORTED or p in PORTED_SENSORS for p in eff.param_names)
+                and all(s in PORTED_STATES for s in eff.states))
+
+    return [e for e in model.effects if e in NOT_PORTED or not known(e)]
 
 
 def spec_of(model: Model) -> ExportSpec:
