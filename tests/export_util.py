@@ -20,11 +20,24 @@ ALL_EFFECTS = EFFECTS + ["quadratic_drag", "torque_offset", "cogging", "voltage_
 ALL_EXTRA = dict(EXTRA, bq=2e-4, tau0=5e-4, ca=1e-3, cn=6.0, cphi=0.3, vmax=1.8, vb=0.1,
                  dbv=3e-3)
 
+#: effects the exporters gained later, and values that exercise them on :func:`inputs`: curve
+#: knots the triangle's speeds (up to ~1.1 rad/s) and the step's (~0.7 rad/s) pass; a latency
+#: that is no multiple of the sample period nor of the late input's fine grid (dt/8); LuGre's
+#: bristles (the paper's bc over 1 mrad, presliding damping ratio 0.3)
+LATER_EXTRA = {"friction_curve": {"fcw1": 0.1, "fcw2": 0.3, "fcw3": 0.6, "fcw4": 1.0,
+                                  "fc1": 0.002, "fc2": 0.003, "fc3": 0.0015},
+               "input_delay": {"latency": 2.6e-3},
+               "lugre": {"sigma0": 5.0, "sigma1": 0.075}}  # 1 mrad presliding at bc
 
-def write_model(path, kind="v", every_effect=False):
-    """A model file: 'v' (voltage), 'tau' (no R, L, km) or 'lumped' (per-volt, lumped: true)."""
+
+def write_model(path, kind="v", every_effect=False, later=()):
+    """A model file: 'v' (voltage), 'tau' (no R, L, km) or 'lumped' (per-volt, lumped: true);
+    ``later``: effects of :data:`LATER_EXTRA` to switch on as well."""
     vals = dict(PAPER, **(ALL_EXTRA if every_effect else EXTRA))
     effects = ALL_EFFECTS if every_effect else EFFECTS
+    for eff in later:
+        vals.update(LATER_EXTRA[eff])
+    effects = effects + list(later)
     if kind != "v":
         for n in ("R", "L", "km", "ke", "vmax", "vb"):
             vals.pop(n, None)

@@ -249,19 +249,19 @@ def test_a_sensor_delay_without_current_may_be_latency():
     assert latency_warning(_problem(12.0, True, False), vals, []) is None
 
 
-def test_exporters_refuse_a_late_input():
-    """The exported kernels take one input per sample: a model with input_delay is refused in
-    one line (a PmdcidError), and the same model without it exports."""
-    from pmdcid.export import ExportError, spec_of
+def test_exporters_take_a_late_input():
+    """The exporters step the late input themselves (agreement with simulate:
+    tests/test_export.py, tests/test_export_native.py): the latency is in the exported values,
+    0 when the effect is off."""
+    from pmdcid.export import spec_of
 
     model = Model()
     for k in ("R", "L", "km", "J", "bv", "bc", "dz"):
         model.set(k, PAPER[k], stage="datasheet")
-    assert spec_of(model).values["R"] == PAPER["R"]
+    assert spec_of(model).values["latency"] == 0.0
     model.add_effect("input_delay")
     model.set("latency", 4e-3, stage="diagnose")
-    with pytest.raises(ExportError, match="input_delay"):
-        spec_of(model)
+    assert spec_of(model).values["latency"] == 4e-3
 
 
 @pytest.mark.skipif(not (REAL / "guanlunlu-l298n").is_dir(), reason="real rigs not here")

@@ -22,8 +22,13 @@ def load_module(path):
     return mod
 
 
-def export(tmp_path, kind, fmt="python-control", name="motor_model.py", every_effect=False):
-    model = write_model(tmp_path / "m.json", kind, every_effect)
+#: the effects ported later (friction curve, late input), both on
+LATER = ("friction_curve", "input_delay")
+
+
+def export(tmp_path, kind, fmt="python-control", name="motor_model.py", every_effect=False,
+           later=()):
+    model = write_model(tmp_path / "m.json", kind, every_effect, later)
     out = tmp_path / name
     res = CliRunner().invoke(main, ["export", "-m", str(tmp_path / "m.json"), "--to", fmt,
                                     "-o", str(out)])
@@ -31,10 +36,12 @@ def export(tmp_path, kind, fmt="python-control", name="motor_model.py", every_ef
     return model, out
 
 
-@pytest.mark.parametrize("kind,every", [("v", False), ("v", True), ("tau", False),
-                                        ("lumped", False)])
-def test_python_control_matches_simulate(tmp_path, kind, every):
-    model, out = export(tmp_path, kind, every_effect=every)
+@pytest.mark.parametrize("kind,every,later", [
+    ("v", False, ()), ("v", True, ()), ("tau", False, ()), ("lumped", False, ()),
+    ("v", True, ("friction_curve",)), ("v", True, LATER), ("tau", False, LATER),
+    ("v", True, ("lugre",)), ("lumped", False, ("lugre", "input_delay"))])
+def test_python_control_matches_simulate(tmp_path, kind, every, later):
+    model, out = export(tmp_path, kind, every_effect=every, later=later)
     mod = load_module(out)
     for name, t, u in inputs(kind):
         sys = mod.make_system(dt_of(t))
@@ -52,6 +59,36 @@ def test_python_control_delay_line_in_state(tmp_path):
     sys = load_module(out).make_system(1e-3)
     # 2.5 ms at 1 ms: the speed and angle of the last 3 samples are states
     assert sys.nstates == 3 + 2 * 3
+
+
+def test_python_control_late_input_line_in_state(tmp_path):
+    """A latency of 2.6 ms at 1 ms needs the last 3 inputs (states u_d1..u_d3); from rest they
+    are 0, and an input that does not start at 0 is reproduced once they hold its first value."""
+    model, out = export(tmp_path, "v", later=("input_delay",))
+    sys = load_module(out).make_system(1e-3)
+    assert sys.state_labels[3:6] == ["u_d1", "u_d2", "u_d3"] and sys.nstates == 6 + 2 * 3
+    t = np.arange(1500) * 1e-3
+    u = 0.8 + 0.6 * np.sin(2 * np.pi * t)  # starts at 0.8 V
+    x0 = np.zeros(sys.nstates)
+    x0[3:6] = u[0]
+    res = control.input_output_response(sys, t, u, X0=x0)
+    err = rel_error(res.outputs.T, reference(t, u, model, "v"))
+    assert max(err) < 1e-9, err
+
+
+def test_python_control_bristle_state(tmp_path):
+    """With LuGre the bristle deflection z is the fourth state, as the kernel's z."""
+    from pmdcid.simulate import param_values, param_vector, run_kernel
+    from pmdcid.simulate.layout import Z_STATE
+
+    model, out = export(tmp_path, "tau", later=("lugre",))
+    _, t, u = inputs("tau")[0]
+    sys = load_module(out).make_system(dt_of(t))
+    assert sys.state_labels[:4] == ["i", "omega", "theta", "z"]
+    z = control.input_output_response(sys, t - t[0], u, return_x=True).states[3]
+    ref = run_kernel(u, dt_of(t), param_vector(param_values(model, True)), True)[:, Z_STATE]
+    assert np.max(np.abs(ref)) > 1e-3  # deflected to (bc + fs) / sigma0 = 1.6 mrad
+    assert np.max(np.abs(z - ref)) < 1e-9 * np.max(np.abs(ref))
 
 
 def test_drive_of():
@@ -73,6 +110,21 @@ def one_line_error(res):
     lines = res.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and "Traceback" not in res.output
     return lines[0]
+
+
+def test_effect_with_an_unported_kernel_parameter_is_refused(tmp_path, monkeypatch):
+    """A kernel parameter appended after the last port (played here by LuGre's two) leaves
+    the effect using it refused in one line, not simulated without it."""
+    import pmdcid.export as ex
+
+    monkeypatch.setattr(ex, "PORTED", ex.PORTED[:ex.PORTED.index("sigma0")])
+    write_model(tmp_path / "m.json", "v", later=("lugre",))
+    msg = one_line_error(run(["-m", str(tmp_path / "m.json"), "--to", "c",
+                              "-o", str(tmp_path / "x.c")]))
+    assert "lugre" in msg and not (tmp_path / "x.c").exists()
+    write_model(tmp_path / "m.json", "v", later=("friction_curve",))
+    assert run(["-m", str(tmp_path / "m.json"), "--to", "python-control",
+                "-o", str(tmp_path / "x.py")]).exit_code == 0
 
 
 def test_unknown_format_is_a_usage_error(tmp_path):

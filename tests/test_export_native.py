@@ -15,7 +15,11 @@ from pmdcid.cli import main
 
 CC = shutil.which("gcc") or shutil.which("cc")
 OCTAVE = shutil.which("octave-cli")
-KINDS = [("v", False), ("v", True), ("tau", False), ("lumped", False)]
+#: (drive, every catalogue effect, effects ported later: friction curve and late input)
+LATER = ("friction_curve", "input_delay")
+KINDS = [("v", False, ()), ("v", True, ()), ("tau", False, ()), ("lumped", False, ()),
+         ("v", True, LATER), ("lumped", False, LATER), ("v", True, ("lugre",)),
+         ("tau", False, ("lugre", "input_delay"))]
 
 DRIVER = r"""
 #include <stdio.h>
@@ -34,8 +38,8 @@ int main(void) {
 """
 
 
-def export(tmp_path, kind, every, fmt, name):
-    model = write_model(tmp_path / "m.json", kind, every)
+def export(tmp_path, kind, every, fmt, name, later=()):
+    model = write_model(tmp_path / "m.json", kind, every, later)
     res = CliRunner().invoke(main, ["export", "-m", str(tmp_path / "m.json"), "--to", fmt,
                                     "-o", str(tmp_path / name)])
     assert res.exit_code == 0, res.output
@@ -51,9 +55,9 @@ def compile_c(tmp_path, *sources, shared=False):
 
 
 @pytest.mark.skipif(CC is None, reason="no C compiler (gcc/cc) installed")
-@pytest.mark.parametrize("kind,every", KINDS)
-def test_c_matches_kernel(tmp_path, kind, every):
-    model = export(tmp_path, kind, every, "c", "motor.c")
+@pytest.mark.parametrize("kind,every,later", KINDS)
+def test_c_matches_kernel(tmp_path, kind, every, later):
+    model = export(tmp_path, kind, every, "c", "motor.c", later)
     assert (tmp_path / "motor.h").exists()
     (tmp_path / "driver.c").write_text(DRIVER)
     exe = compile_c(tmp_path, "driver.c", "motor.c")
@@ -75,11 +79,37 @@ def _without_delay(model):
     return m
 
 
+@pytest.mark.skipif(CC is None, reason="no C compiler (gcc/cc) installed")
+def test_c_input_line_bound(tmp_path):
+    """pmdc_init refuses (-2) a latency needing more past inputs than PMDC_INPUT_LINE (256)
+    at the dt given, and takes one that fits (the line lives in pmdc_model: no allocation)."""
+    export(tmp_path, "v", False, "c", "motor.c", ("input_delay",))
+    (tmp_path / "bound.c").write_text(r"""
+#include <stdio.h>
+#include "motor.h"
+int main(void) {
+    pmdc_params p; pmdc_model m; int rc;
+    pmdc_default_params(&p);
+    p.latency = 0.2555;
+    rc = pmdc_init(&m, &p, 1e-3);
+    printf("%d %d", rc, m.lag);
+    p.latency = 0.2565;
+    printf(" %d\n", pmdc_init(&m, &p, 1e-3));
+    return 0;
+}
+""")
+    out = subprocess.run([str(compile_c(tmp_path, "bound.c", "motor.c"))], capture_output=True,
+                         text=True, check=True).stdout.split()
+    assert out == ["0", "256", "-2"]
+
+
 @pytest.mark.skipif(OCTAVE is None, reason="GNU Octave (octave-cli) not installed")
-@pytest.mark.parametrize("kind,every", [("v", True), ("lumped", False)])  # Octave is slow: the
-def test_matlab_matches_kernel_in_octave(tmp_path, kind, every):  # two code paths, all terms
-    model = export(tmp_path, kind, every, "matlab", "motor.m")
-    cases = inputs(kind)
+@pytest.mark.parametrize("kind,every,later,only", [  # Octave is slow: the two drive paths, all
+    ("v", True, (), None), ("lumped", False, ("friction_curve",), None),  # terms, the curve's
+    ("v", True, LATER, "step"), ("v", True, ("lugre",), None)])  # knots on the triangle
+def test_matlab_matches_kernel_in_octave(tmp_path, kind, every, later, only):
+    model = export(tmp_path, kind, every, "matlab", "motor.m", later)
+    cases = [c for c in inputs(kind) if only in (None, c[0])]
     code = []
     for k, (_, t, u) in enumerate(cases):
         np.savetxt(tmp_path / f"u{k}.txt", u, fmt="%.17g")
@@ -134,7 +164,7 @@ def test_compensator_law(tmp_path, kind):
 
     model = export(tmp_path, kind, False, "c", "motor.c")
     lib = ctypes.CDLL(str(compile_c(tmp_path, "motor.c", shared=True)))
-    params = (ctypes.c_double * 22)()
+    params = (ctypes.c_double * 64)()  # room for pmdc_params (32 doubles)
     lib.pmdc_default_params(params)
     lib.pmdc_compensate.restype = ctypes.c_double
     lib.pmdc_compensate.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]

@@ -228,8 +228,9 @@ def test_a_curve_that_does_not_generalise_is_refused():
     assert generalises(named) is None  # a named law is judged by the common rules alone
 
 
-def test_exporters_refuse_the_curve(tmp_path):
-    from pmdcid.errors import PmdcidError
+def test_exporters_take_the_curve(tmp_path):
+    """Every format writes the curve's knots (their agreement with simulate on a log crossing
+    them: tests/test_export.py, tests/test_export_native.py)."""
     from pmdcid.export import export_model
     from pmdcid.model import save_model
 
@@ -241,7 +242,6 @@ def test_exporters_refuse_the_curve(tmp_path):
         m.set(k, v)
     path = tmp_path / "m.json"
     save_model(m, str(path))
-    for fmt in ("python-control", "c", "matlab"):
-        out = tmp_path / ("motor.m" if fmt == "matlab" else "motor.c")
-        with pytest.raises(PmdcidError, match="friction_curve"):
-            export_model(str(path), fmt, str(out))
+    for fmt, name in (("python-control", "motor.py"), ("c", "motor.c"), ("matlab", "motor.m")):
+        export_model(str(path), fmt, str(tmp_path / name))
+        assert repr(CURVE["fcw4"]) in (tmp_path / name).read_text(), fmt

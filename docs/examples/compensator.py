@@ -45,7 +45,7 @@ def compensator(model_path: str | Path, workdir: Path):
     subprocess.run([cc, "-std=c99", "-O2", "-shared", "-fPIC", "-o", str(lib_path),
                     str(workdir / "motor.c"), "-lm"], check=True)
     lib = ctypes.CDLL(str(lib_path))
-    params = (ctypes.c_double * 22)()  # pmdc_params: 22 doubles
+    params = (ctypes.c_double * 64)()  # room for pmdc_params (32 doubles)
     lib.pmdc_default_params(params)
     lib.pmdc_compensate.restype = ctypes.c_double
     lib.pmdc_compensate.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]

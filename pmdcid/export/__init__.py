@@ -62,14 +62,34 @@ class ExportSpec:
 
 #: effects the exported code does not step (refused with one line); their parameters, neutral
 #: in every model exported, are left out of the generated code
-NOT_PORTED = ("friction_curve", "input_delay", "lugre")
+NOT_PORTED: tuple[str, ...] = ()
+#: the kernel parameters the templates step: layout.NAMES up to the last one ported. A parameter
+#: appended to the kernel later is left out of the generated code, and a model whose effects
+#: use it is refused (not silently simulated without it)
+PORTED = NAMES[:NAMES.index("sigma1") + 1]
+#: the sensor parameters and the effect states the templates apply / integrate
+PORTED_SENSORS = ("delay", "omega0")
+PORTED_STATES = ("z",)
+
+
+def unported_effects(model: Model) -> list[str]:
+    """The model's effects the exported code does not step: listed in :data:`NOT_PORTED`, or
+    with a parameter or a state the templates do not know (added to the kernel after them)."""
+    from pmdcid.model import EFFECTS
+
+    def known(e):
+        eff = EFFECTS[e]
+        return (all(p in PORTED or p in PORTED_SENSORS for p in eff.param_names)
+                and all(s in PORTED_STATES for s in eff.states))
+
+    return [e for e in model.effects if e in NOT_PORTED or not known(e)]
 
 
 def spec_of(model: Model) -> ExportSpec:
     """The parameters of ``model`` as the kernel sees them (ModelError if some are lacking)."""
     from pmdcid.model import EFFECTS
 
-    used = [e for e in NOT_PORTED if e in model.effects]
+    used = unported_effects(model)
     if used:
         raise ExportError(f"the model uses {', '.join(used)}, which the exported code does not "
                           "step yet: simulate it with pmdcid (or remove the effect and refit)",
@@ -77,7 +97,7 @@ def spec_of(model: Model) -> ExportSpec:
     skip = {p for e in NOT_PORTED for p in EFFECTS[e].param_names}
     drive = drive_of(model)
     vals = param_values(model, torque_driven=drive != "v")
-    return ExportSpec({n: float(vals[n]) for n in NAMES if n not in skip}, drive,
+    return ExportSpec({n: float(vals[n]) for n in PORTED if n not in skip}, drive,
                       float(vals.get("delay", 0.0)),
                       float(vals.get("omega0", 0.0)),
                       os.path.basename(model.path) if model.path else "a model")

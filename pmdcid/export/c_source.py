@@ -2,9 +2,10 @@
 with a friction and dead-zone compensator (feed-forward, see docs/export.md).
 
 The source is a line-by-line port of the kernel: the same 20-term scaling-and-squaring expm
-(plain loops, so the discretisation agrees to rounding), the same substep rule and stick-slip
-events. The sensor delay is not applied (the state is the rotor's); omega0 is added by
-``pmdc_measured_omega``.
+(plain loops, so the discretisation agrees to rounding), the same substep rule, stick-slip
+events and LuGre loop; a late input keeps its past inputs in a fixed line inside the model
+struct (no allocation). The sensor delay is not applied (the state is the rotor's); omega0 is
+added by ``pmdc_measured_omega``.
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 discretisation, substeps and events as the kernel) and a script ``run_FILE.m`` that runs it.
 
 Works in MATLAB and GNU Octave. The function applies the sensor effects (speed offset, delay by
-linear interpolation) like ``pmdcid simulate``.
+linear interpolation) and the late input (input_delay, from the input array) like ``pmdcid
+simulate``; with LuGre the bristle deflection is an optional fourth output.
 """
 
 from __future__ import annotations

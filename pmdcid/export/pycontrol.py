@@ -3,8 +3,10 @@ discrete-time ``control.NonlinearIOSystem`` stepping the kernel's exact model.
 
 The module is self-contained (numpy, and python-control for ``make_system``): the discretisation
 is computed at ``make_system`` time for the dt given, by a pure-Python port of the kernel's
-``expm_small``; the step is a line-by-line port of the kernel's inner loop. A sensor delay is
-kept as a delay line in the state (the outputs must be a function of the state).
+``expm_small``; the step is a line-by-line port of the kernel's inner loops (stick-slip and
+LuGre, whose bristle deflection z is a state). A sensor delay is kept as a delay line in the
+state (the outputs must be a function of the state), and so are the past inputs a late input
+(input_delay) needs.
 """
 
 from __future__ import annotations
