@@ -183,6 +183,25 @@ def evaluate(rig: Rig, models: dict) -> dict:
             "linear_params": lin.tolist()}
 
 
+def lag_drift(rig: Rig, model) -> list[str]:
+    """The held-out runs whose speed lags ``model`` by an amount that changes along the run
+    (:mod:`pmdcid.diagnose.timing`), one description each."""
+    from pmdcid.diagnose.timing import describe_lag, lag_profile
+    from pmdcid.io.derive import noise_std
+    from pmdcid.report.compare import simulate_for
+
+    out = []
+    for names in rig.heldout.values():
+        for name, lg in zip(names, read(rig, names), strict=True):
+            if not lg.has("omega") or "omega" in lg.derived:
+                continue
+            om = np.asarray(lg["omega"], float)
+            prof = lag_profile(lg.t, simulate_for(lg, model).omega, om, noise_std(om))
+            if prof is not None and prof.varies:
+                out.append(describe_lag(name, prof))
+    return out
+
+
 def summarise(result: dict, labels) -> dict:
     """Means over the held-out runs and the target max(linear/2, 1.2 floor)."""
     rows = result["rows"]

@@ -122,10 +122,13 @@ def lag_profile(t, sim, meas, noise: float) -> LagProfile | None:
                       float(np.ptp(lags)), slope, dt)
 
 
-def _describe(name: str, p: LagProfile) -> str:
-    first, last = 1e3 * p.lags[0], 1e3 * p.lags[-1]
-    return (f"{name} {first:.0f} -> {last:.0f} ms (span {1e3 * p.spread:.0f} ms, trend "
-            f"{1e3 * p.slope:+.2g} ms/s; a constant lag leaves {100 * p.gain:.0f} % more error)")
+def describe_lag(name: str, p: LagProfile) -> str:
+    """One log's lag in words: its straight-line trend from the first to the last window."""
+    line = np.polyfit(p.times, p.lags, 1) if len(p.lags) >= 2 else (0.0, p.common)
+    first, last = (1e3 * float(np.polyval(line, x)) for x in (p.times[0], p.times[-1]))
+    return (f"{name} {first:.0f} -> {last:.0f} ms (trend {1e3 * p.slope:+.2g} ms/s, windows "
+            f"spanning {1e3 * p.spread:.0f} ms; a lag per window removes {100 * p.gain:.0f} % "
+            "of the error one constant lag leaves)")
 
 
 def timing_warning(problem, sims) -> str | None:
@@ -140,7 +143,7 @@ def timing_warning(problem, sims) -> str | None:
         om = np.asarray(log["omega"], float)
         prof = lag_profile(log.t, sim.omega, om, noise_std(om))
         if prof is not None and prof.varies:
-            seen.append(_describe(os.path.basename(str(log.path)), prof))
+            seen.append(describe_lag(os.path.basename(str(log.path)), prof))
     if not seen:
         return None
     return ("the speed lags the model by an amount that changes along the log: "
@@ -151,4 +154,4 @@ def timing_warning(problem, sims) -> str | None:
             "command and speed on the same clock (on the board) and record again")
 
 
-__all__ = ["LagProfile", "lag_profile", "timing_warning"]
+__all__ = ["LagProfile", "describe_lag", "lag_profile", "timing_warning"]
