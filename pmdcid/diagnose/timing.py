@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pmdcid.identify.latency import shift_curve
+
 #: windows per log (scale-free: the same test on a 10 s and a 160 s log)
 WINDOWS = 10
 #: a window shorter than this has too few samples to place a lag [samples]
@@ -63,22 +65,6 @@ class LagProfile:
                 and self.spread >= MIN_SPREAD * self.dt)
 
 
-def _sse_curve(padded: np.ndarray, meas: np.ndarray, a: int, b: int, kmax: int) -> np.ndarray:
-    """Mean squared error of the simulation delayed by k samples against meas[a:b], for k =
-    -kmax..kmax; ``padded`` is the simulation with kmax edge samples added at each end (the
-    rotor held its first and last state outside the log). One FFT correlation per window."""
-    from scipy.signal import correlate
-
-    seg = padded[a:b + 2 * kmax]
-    w = meas[a:b]
-    cross = correlate(seg, w, mode="valid", method="fft")[::-1]  # index k + kmax
-    c2 = np.concatenate(([0.0], np.cumsum(seg * seg)))
-    width = b - a
-    starts = np.arange(2 * kmax, -1, -1)  # delay k reads seg[kmax - k : kmax - k + width]
-    ss = c2[starts + width] - c2[starts]
-    return (ss - 2.0 * cross + float(np.dot(w, w))) / width
-
-
 def _moves(sim: np.ndarray, noise: float) -> bool:
     x = np.arange(len(sim), dtype=float)
     resid = sim - np.polyval(np.polyfit(x, sim, 1), x)
@@ -101,7 +87,7 @@ def lag_profile(t, sim, meas, noise: float) -> LagProfile | None:
     for w in range(WINDOWS):
         a, b = w * width, (w + 1) * width
         if _moves(sim[a:b], max(noise, 1e-12)):
-            curves.append(_sse_curve(padded, meas, a, b, kmax))
+            curves.append(shift_curve(padded, meas, a, b, kmax))
             centres.append(float(t[(a + b) // 2]))
     if not curves:
         return LagProfile(np.array([]), np.array([]), 0.0, 0.0, 0.0, 0.0, dt)
