@@ -142,18 +142,21 @@ def predict(model, log) -> float:
 
 def paper_sequence(rig: Rig, km=None):
     """fit-mechanical on the steps, then fit-nonlinear on the rich logs (priors)."""
+    from pmdcid.identify.stages import per_volt
     from pmdcid.model import Model
-    from pmdcid.model.lumped import mark_lumped, wants_lumped
+    from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
     from pmdcid.pipeline import _mechanical, _nonlinear
 
     model = Model()
     steps, rich = read(rig, rig.steps), read(rig, rig.rich)
     if wants_lumped(steps + rich, model):
         mark_lumped(model)
-    if steps:
-        _mechanical(steps, model).apply(model)
-    if rich:
-        _nonlinear(True)(rich, model).apply(model)
+    for logs, stage in ((steps, _mechanical), (rich, _nonlinear(True))):
+        if logs:
+            res = stage(logs, model)
+            if is_lumped(model):  # per-volt units in the table, as identify's stages
+                per_volt(res)
+            res.apply(model)
     return model
 
 

@@ -17,9 +17,10 @@ about a lag, only about a level), find the shift s (the simulation delayed by s,
 window either way) that minimises the squared speed error. Then one shift for every window (what
 a constant latency can do) against one per window: the lag varies along the log when the shifts
 per window remove at least :data:`MIN_GAIN` of the squared error a constant shift leaves and
-their span is at least :data:`MIN_SPREAD` samples, leaving out the one window a constant shift
-fits worst (a single transient the model misses, such as a breakaway from rest, is not a
-clock). With a constant lag and white noise the
+both their span and their straight-line trend from the first to the last window are at least
+:data:`MIN_SPREAD` samples, leaving out the one window a constant shift fits worst (a single
+transient the model misses, such as a breakaway from rest, is not a clock; nor are two windows
+off in opposite directions, which move no trend). With a constant lag and white noise the
 per-window shifts fit only the noise (a gain of about windows / samples, far below MIN_GAIN).
 """
 
@@ -41,7 +42,8 @@ MIN_WINDOW = 200
 MIN_MOTION = 5.0
 #: per-window shifts must remove this share of the squared error a constant shift leaves
 MIN_GAIN = 0.2
-#: ... and span at least this many samples (a constant lag scatters by a sample or so)
+#: ... and both span and drift (the trend across the windows) by this many samples (a constant
+#: lag scatters by a sample or so)
 MIN_SPREAD = 4
 #: at least this many informative windows
 MIN_INFORMATIVE = 3
@@ -61,8 +63,9 @@ class LagProfile:
 
     @property
     def varies(self) -> bool:
+        drift = abs(self.slope) * (self.times[-1] - self.times[0]) if len(self.times) else 0.0
         return (len(self.lags) >= MIN_INFORMATIVE and self.gain >= MIN_GAIN
-                and self.spread >= MIN_SPREAD * self.dt)
+                and min(self.spread, drift) >= MIN_SPREAD * self.dt)
 
 
 def _moves(sim: np.ndarray, noise: float) -> bool:
