@@ -38,6 +38,7 @@ def run(args) -> list[dict]:
             continue
         res = realdata.evaluate(rig, models)
         res["mean"] = realdata.summarise(res, LABELS)
+        res["lag"] = realdata.lag_drift(rig, models["identify"])
         res["seconds"] = time.perf_counter() - t0
         print(table([res]).split("\n\n")[0], file=sys.stderr, flush=True)
         out.append(res)
@@ -64,6 +65,10 @@ def table(results) -> str:
         for row in r["rows"]:
             lines.append(f"| {r['rig']} | {row['log']} | {row['linear']:.3f} | "
                          f"{row['floor']:.3f} | {row['paper']:.3f} | {row['identify']:.3f} |")
+    lines += ["", "Held-out runs whose speed lags identify's model by an amount that changes along "
+              "the run (pmdcid.diagnose.timing, the warning diagnose gives):", ""]
+    drifting = [f"- {r['rig']}: {d}" for r in results for d in r.get("lag", [])]
+    lines += drifting or ["- none"]
     return "\n".join(lines)
 
 

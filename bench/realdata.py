@@ -142,18 +142,21 @@ def predict(model, log) -> float:
 
 def paper_sequence(rig: Rig, km=None):
     """fit-mechanical on the steps, then fit-nonlinear on the rich logs (priors)."""
+    from pmdcid.identify.stages import per_volt
     from pmdcid.model import Model
-    from pmdcid.model.lumped import mark_lumped, wants_lumped
+    from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
     from pmdcid.pipeline import _mechanical, _nonlinear
 
     model = Model()
     steps, rich = read(rig, rig.steps), read(rig, rig.rich)
     if wants_lumped(steps + rich, model):
         mark_lumped(model)
-    if steps:
-        _mechanical(steps, model).apply(model)
-    if rich:
-        _nonlinear(True)(rich, model).apply(model)
+    for logs, stage in ((steps, _mechanical), (rich, _nonlinear(True))):
+        if logs:
+            res = stage(logs, model)
+            if is_lumped(model):  # per-volt units in the table, as identify's stages
+                per_volt(res)
+            res.apply(model)
     return model
 
 
@@ -181,6 +184,25 @@ def evaluate(rig: Rig, models: dict) -> dict:
             rows.append(row)
     return {"rig": rig.name, "why": rig.why, "fit": rig.steps + rig.rich, "rows": rows,
             "linear_params": lin.tolist()}
+
+
+def lag_drift(rig: Rig, model) -> list[str]:
+    """The held-out runs whose speed lags ``model`` by an amount that changes along the run
+    (:mod:`pmdcid.diagnose.timing`), one description each."""
+    from pmdcid.diagnose.timing import describe_lag, lag_profile
+    from pmdcid.io.derive import noise_std
+    from pmdcid.report.compare import simulate_for
+
+    out = []
+    for names in rig.heldout.values():
+        for name, lg in zip(names, read(rig, names), strict=True):
+            if not lg.has("omega") or "omega" in lg.derived:
+                continue
+            om = np.asarray(lg["omega"], float)
+            prof = lag_profile(lg.t, simulate_for(lg, model).omega, om, noise_std(om))
+            if prof is not None and prof.varies:
+                out.append(describe_lag(name, prof))
+    return out
 
 
 def summarise(result: dict, labels) -> dict:

@@ -14,7 +14,9 @@ it saw and what to do, one line each (summary ``warnings``):
   current; r_d |i| sign(i) = r_d i is indistinguishable from R (with a current sensor) or from
   friction and viscous per volt (without one);
 - a **sensor delay on logs without current**: an input applied late (a host-paced loop's
-  latency) and outputs read late are the same thing on voltage and speed alone.
+  latency) and outputs read late are the same thing on voltage and speed alone;
+- a **lag that changes along a log** (:mod:`pmdcid.diagnose.timing`): the command's and the
+  speed's time stamps drift apart, which no time-invariant delay follows.
 """
 
 from __future__ import annotations
@@ -159,8 +161,10 @@ def latency_warning(problem, vals: dict[str, float], added: list[str]) -> str | 
 
 def drive_warnings(problem, sims, vals: dict[str, float], added: list[str]) -> list[str]:
     """Every drive warning that applies (summary ``warnings``)."""
+    from pmdcid.diagnose.timing import timing_warning
+
     out = [carrier_warning(problem, sims), drop_warning(problem, vals, added),
-           latency_warning(problem, vals, added)]
+           latency_warning(problem, vals, added), timing_warning(problem, sims)]
     return [w for w in out if w]
 
 

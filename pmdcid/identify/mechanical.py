@@ -101,6 +101,10 @@ class MechanicalResult(ResultProtocol):
             e = self.estimates.get(name)
             if e is not None and e.vary and math.isfinite(e.value):
                 model.set(name, e.value, e.stderr, e.unit, stage=STAGE)
+        d = self.estimates.get("delay")  # the steps' latency (lumped: identify/latency.py)
+        if d is not None and math.isfinite(d.value):
+            model.add_effect("sensor_delay")
+            model.set("delay", d.value, d.stderr, "s", stage=STAGE)
         fits = model.extra.setdefault("fits", {})
         fits[STAGE] = {
             "logs": list(dict.fromkeys(s.path for s in self.steps)),
@@ -143,6 +147,8 @@ class MechanicalResult(ResultProtocol):
                          "written to the model:")
             lines += format_estimates([self.estimates[k] for k in ("bv", "bc", "J")])[1:]
         lines += format_estimates([self.estimates["T_break"]])[1:]
+        if "delay" in self.estimates:  # latency: a dead time with no electrical lag
+            lines += format_estimates([self.estimates["delay"]])[1:]
         return "\n".join(lines)
 
 

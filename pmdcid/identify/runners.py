@@ -147,7 +147,21 @@ def lumped_mechanical(logs, model, fit):
     if not result.joint:  # a dead time with no electrical lag is latency, not a breakaway
         tb = result.estimates["T_break"]
         result.estimates["T_break"] = type(tb)("T_break", math.nan, math.nan, tb.unit)
+        _step_latency(result, logs, model)
     return result
+
+
+def _step_latency(result, logs, model) -> None:
+    """The steps' latency (:mod:`pmdcid.identify.latency`) as the result's ``delay``: the model
+    with the steps' estimates, simulated on them, against their measured speed."""
+    from pmdcid.identify.latency import step_latency
+    from pmdcid.identify.results import Estimate
+
+    fitted = model.copy()
+    result.apply(fitted)
+    found = step_latency(logs, fitted)
+    if found is not None:
+        result.estimates["delay"] = Estimate("delay", found[0], found[1], "s")
 
 
 def run_fit_mechanical(paths, model_path, mapping=None, km=None, force=False):
