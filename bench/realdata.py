@@ -142,7 +142,7 @@ def predict(model, log) -> float:
 
 def paper_sequence(rig: Rig, km=None):
     """fit-mechanical on the steps, then fit-nonlinear on the rich logs (priors)."""
-    from pmdcid.identify.stages import per_volt
+    from pmdcid.identify.runners import per_volt
     from pmdcid.model import Model
     from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
     from pmdcid.pipeline import _mechanical, _nonlinear
