@@ -239,3 +239,30 @@ def test_drift_is_compared_only_where_it_can_show():
     dp = drift_problem(Problem(runs + [other], plan=holdout_plan(runs + [other])))
     assert [lg.path for lg in dp.logs] == ["step_1.csv", "step_2.csv", "step_3.csv"]
     assert dp.plan == ["fit", "fit", "held"]
+
+
+@pytest.mark.parametrize("lumped", [False, True])
+def test_unidentified_dead_zone_is_said_in_the_models_unit(monkeypatch, lumped):
+    """A dead zone the logs cannot see is written as an interval; its note and estimate speak the
+    model's unit: N m, or V for a per-volt (lumped) model."""
+    from types import SimpleNamespace
+
+    from pmdcid.diagnose import final as fin
+    from pmdcid.diagnose.problem import FitOutcome
+    from pmdcid.identify.results import FitStats
+    from pmdcid.model import Model
+    from pmdcid.model.lumped import mark_lumped
+
+    model = Model()
+    if lumped:
+        mark_lumped(model)
+    out = FitOutcome({"dz": 0.1, "bc": 0.2}, {}, FitStats(10, 1, 1.0, 1))
+    run = SimpleNamespace(problem=None, model=model, fit=lambda vals, free, part: out)
+    monkeypatch.setattr(fin, "dead_zone_range", lambda problem, fo: 0.5)
+    notes: list[str] = []
+    final, free = fin.settle_dead_zone(run, out, ["dz", "bc"], notes)
+    unit = "V" if lumped else "N m"
+    assert free == ["bc"]
+    assert final.estimates["dz"].unit == unit
+    assert final.estimates["dz"].value == pytest.approx(0.25)
+    assert f"0 to 0.5 {unit} fits equally" in notes[0]

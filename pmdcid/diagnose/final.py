@@ -21,6 +21,7 @@ from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.identify.nonlinear import masked_upper
 from pmdcid.identify.results import Estimate
 from pmdcid.model import EFFECTS
+from pmdcid.model.lumped import is_lumped, lumped_unit
 
 #: added effects that can lower the total friction (removed, the last added first, when the
 #: final model's friction is negative somewhere within the logged speeds)
@@ -115,9 +116,10 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
         # midpoint +- its uniform std, as fit-nonlinear does, the others refitted with it
         free = [p for p in free if p != "dz"]
         final = run.fit({**final.values, "dz": 0.5 * upper}, free, "all")
-        final.estimates["dz"] = Estimate("dz", 0.5 * upper, upper / math.sqrt(12.0), "N m")
+        unit = lumped_unit("N m") if is_lumped(run.model) else "N m"
+        final.estimates["dz"] = Estimate("dz", 0.5 * upper, upper / math.sqrt(12.0), unit)
         notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
-                     f"to {upper:.3g} N m fits equally (below the breakaway torque); written "
+                     f"to {upper:.3g} {unit} fits equally (below the breakaway torque); written "
                      "as the interval's midpoint +- its uniform std")
     elif _fits_as_well(problem, final, {"dz": run.vals0["dz"]}):
         # the dead zone shows only at a few switching instants: when the model's own dz (from
