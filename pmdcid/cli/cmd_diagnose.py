@@ -18,7 +18,8 @@ from pmdcid.cli.options import log_options, model_option
               metavar="SUMMARY.json", help="Write the summary (added, candidates, before, "
                                            "after, unexplained) as JSON.")
 @click.option("--effect", "effects", multiple=True, metavar="NAME",
-              help="Search only this catalogue effect (repeatable; default: all).")
+              help="Search only this catalogue effect (repeatable; default: all but "
+                   "lugre, searched only when named).")
 @click.option("--force", is_flag=True,
               help="Overwrite NEW_MODEL / SUMMARY even when they are not pmdcid files, and "
                    "write the model even when the logs look implausible (then a warning).")
