@@ -65,25 +65,37 @@ HOLD_TAU_FRACTION = 0.1
 RAMP_FRACTION = 0.8
 
 
-def hold_warning(logs, J: float, bv: float) -> str | None:
-    """A warning when a log's input changes at nearly every sample (a ramp, a sine) and its
-    sample period exceeds a tenth of the mechanical time constant J/bv [s]: if that input was
-    not held between samples (CONTRACT.md: zero-order hold), the model applies it half a
-    sample late and J absorbs the lag (docs/identification.md: -63 % at 10 Hz)."""
-    if not (J > 0 and bv > 0):
-        return None
-    tau = J / bv
+def hold_matters(log, J: float, bv: float) -> bool:
+    """True when ``log``'s input changes at nearly every sample (a ramp, a sine) and its sample
+    period exceeds :data:`HOLD_TAU_FRACTION` of the mechanical time constant J/bv [s]: read as
+    held (CONTRACT.md: zero-order hold) or as varying between samples, the input then moves the
+    fitted inertia (docs/identification.md: J -63 % at 10 Hz when a continuous ramp is read as
+    held)."""
+    if not (J > 0 and bv > 0) or log.dt <= HOLD_TAU_FRACTION * J / bv:
+        return False
+    du = np.diff(np.asarray(log.u, float))
+    du = du[np.isfinite(du)]
+    return bool(len(du)) and float(np.mean(du != 0)) >= RAMP_FRACTION
+
+
+def hold_warning(logs, J: float, bv: float, ramp=None) -> str | None:
+    """A warning for the first log where :func:`hold_matters`; ``ramp``: the fitted reading of
+    the input between samples (an :class:`~pmdcid.identify.results.Estimate`), when the fit
+    found it."""
     for log in logs:
-        if log.dt <= HOLD_TAU_FRACTION * tau:
+        if not hold_matters(log, J, bv):
             continue
-        du = np.diff(np.asarray(log.u, float))
-        du = du[np.isfinite(du)]
-        if len(du) and float(np.mean(du != 0)) >= RAMP_FRACTION:
-            return (f"{log.path}: the input changes at almost every sample and the sample "
-                    f"period ({log.dt * 1e3:.3g} ms) is over a tenth of the mechanical time "
-                    f"constant J/bv = {tau * 1e3:.3g} ms: the model holds each input value for "
-                    "a whole period; if the drive did not (a continuous ramp or sine logged "
-                    "slowly), J is biased. Log faster, or log the drive's own updates")
+        head = (f"{log.path}: the input changes at almost every sample and the sample period "
+                f"({log.dt * 1e3:.3g} ms) is over a tenth of the mechanical time constant J/bv "
+                f"= {J / bv * 1e3:.3g} ms")
+        if ramp is not None:
+            return (f"{head}: whether the input was held between samples or varied "
+                    "continuously moves J, so the fit also read how it varied: ramp = "
+                    f"{ramp.value:.2g} ± {ramp.stderr:.2g} (0: held, 1: straight to the next "
+                    "sample); J's standard error includes that. Log faster to pin J down")
+        return (f"{head}: the model holds each input value for a whole period; if the drive "
+                "did not (a continuous ramp or sine logged slowly), J is biased. Log faster, "
+                "or log the drive's own updates")
     return None
 
 
@@ -111,7 +123,7 @@ def fit_warnings(fit, est, tscale: float, masked: bool) -> list[str]:
     correlation, dz at 0, no convergence, a residual far above the noise."""
     warns: list[str] = []
     # a masked dz has its own warning (the interval that fits equally)
-    judged = {k: e for k, e in est.items() if not (masked and k == "dz")}
+    judged = {k: e for k, e in est.items() if not (masked and k == "dz") and k != "ramp"}
     bc = est["bc"].value if "bc" in est else 0.0
     w = poorly_determined_warning(judged, max(bc, 0.01 * tscale))
     if w:

@@ -28,7 +28,12 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.identify.grid import batch_cost
-from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
+from pmdcid.identify.identifiability import (
+    fit_warnings,
+    hold_matters,
+    hold_warning,
+    require_motion,
+)
 from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re-exported
     FREE_TAU,
     FREE_V,
@@ -54,7 +59,10 @@ GRID_BV = 7
 #: relative finite-difference steps of the local stage: the switching parameters move events by
 #: whole internal steps, so their steps must span several (a torque ramp of ~1e-3 relative per
 #: internal step on a slow triangle)
-DIFF_STEP = {"J": 1e-3, "bv": 1e-3, "bc": 1e-2, "dz": 1e-2, "tau0": 1e-2}
+DIFF_STEP = {"J": 1e-3, "bv": 1e-3, "bc": 1e-2, "dz": 1e-2, "tau0": 1e-2, "ramp": 0.1}
+#: central-difference steps of the covariance (relative): the input's reading between samples
+#: moves the stick-slip events by fractions of a fine step, so its cost is smooth only over tenths
+COV_STEP = {"ramp": 0.2}
 #: points of the dz profile that tests whether the dead zone is visible at all
 DZ_PROFILE_N = 25
 #: a dead zone must lower the chi-square by more than this fraction to count as identified
@@ -63,6 +71,8 @@ MASK_REL = 1e-3
 #: a misspecified model (an effect not yet added) must not drive the inertia to 0, where the fit
 #: is meaningless and every simulation needs thousands of internal steps
 REFINE_RANGE = 10.0
+#: where the fit starts the input's reading between samples (0 held, 1 linear) when it matters
+RAMP_START = 0.5
 
 
 @dataclass
@@ -99,6 +109,8 @@ class NonlinearResult(ResultProtocol):
     def apply(self, model: Model) -> None:
         """Write the fitted parameters (stage 'fit-nonlinear'); tau0 adds ``torque_offset``."""
         for name, e in self.estimates.items():
+            if name == "ramp":  # how this log's input varied, not a property of the motor
+                continue
             if name == "tau0":
                 model.add_effect("torque_offset")
             model.set(name, e.value, e.stderr, e.unit, stage=STAGE)
@@ -281,9 +293,14 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     bounds = {k: (start[k] / REFINE_RANGE ** (3 if k in guessed else 1),
                   start[k] * REFINE_RANGE)
               for k in ("J", "bv") if k in free and start[k] > 0}
+    if "J" in free and any(hold_matters(lg, start["J"], start.get("bv", math.nan))
+                           for lg in logs):
+        # slow log of a varying input: read it between samples too (simulate/drive.ramp_input)
+        free, ls_free = [*free, "ramp"], [*ls_free, "ramp"]
+        best["ramp"], bounds["ramp"] = RAMP_START, (0.0, 1.0)
     fit = fit_simulation(logs, work, ls_free, signals=signals,
                          start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
-                         diff_step=DIFF_STEP, bounds=bounds,
+                         diff_step=DIFF_STEP, bounds=bounds, cov_step=COV_STEP,
                          priors=prior_terms(prior))
     if "dz" in free and len(free) > 1:
         # check dz at the fitted point: the grid's hint comes from its coarse bc, and a local
@@ -297,7 +314,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
             fit = fit_simulation(logs, work, free, signals=signals,
                                  start={k: start2[k] for k in free}, sigma=sigma,
                                  max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
-                                 priors=prior_terms(prior))
+                                 cov_step=COV_STEP, priors=prior_terms(prior))
             point = {**best, **fit.values()}
             dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
         # identified only if the dead zone improves the fit clearly: by more than two standard
@@ -320,7 +337,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
                      "midpoint ± its uniform std. Fast reversals or steps down reveal it")
     warns.extend(fit_warnings(fit, est, tscale, masked))
     hold = hold_warning(logs, est["J"].value if "J" in est else math.nan,
-                        est["bv"].value if "bv" in est else math.nan)
+                        est["bv"].value if "bv" in est else math.nan, est.get("ramp"))
     if hold:
         warns.append(hold)
     used = {n: prior[n][0] for n in fit.priors}

@@ -42,6 +42,14 @@ def noise_level(x: np.ndarray) -> float:
     return s
 
 
+def _per_parameter(step, free, default: float, extra: int):
+    """A relative step: one for all, or per parameter name (``default`` for the others and for
+    the ``extra`` starting speeds)."""
+    if not isinstance(step, dict):
+        return float(step)
+    return np.array([float(step.get(n, default)) for n in free] + [default] * extra)
+
+
 def _bounds(name: str, user: dict | None) -> tuple[float, float]:
     return user[name] if user and name in user else bounds_of(name)
 
@@ -64,7 +72,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     ``start`` overrides starting values; ``bounds`` maps name -> (lower, upper) in SI units;
     ``sigma`` gives per-log noise std per signal (estimated when omitted). ``diff_step``: relative
     finite-difference step, one for all or per parameter name (default 1e-3). ``cov_step``: relative
-    step of the central differences giving the covariance (standard errors, correlations).
+    step of the central differences giving the covariance (standard errors, correlations), one
+    for all or per parameter name like ``diff_step``.
     ``correlated``: the covariance allows for a residual correlated in time (block sandwich,
     :mod:`.covariance`); False gives the white-residual formula ``(J'J)^-1 redchi``.
     ``priors``: name -> (mean, std) Gaussian terms from earlier stages (``(x - mean)/std`` rows
@@ -119,10 +128,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             out[segments[-1][2]:] = [weight[0] * (x[j] - m) / sd for j, m, sd in prior_rows]
         return out
 
-    if isinstance(diff_step, dict):
-        steps = np.array([float(diff_step.get(n, 1e-3)) for n in free] + [1e-3] * len(moving))
-    else:
-        steps = float(diff_step)
+    steps = _per_parameter(diff_step, free, 1e-3, len(moving))
+    cov_step = _per_parameter(cov_step, free, 1e-2, len(moving))
     weight = [1.0]  # the prior rows' weight: the data's honest information (below)
 
     def run(z0):
@@ -271,12 +278,14 @@ def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
     return Hinv @ (Sd + weight**2 * P) @ Hinv, info
 
 
-def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
-    """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one-sided at a
-    bound); columns that still come out zero fall back to a 5x wider step."""
+def envelope_jacobian(fun, z, f0, lo, hi, rel) -> np.ndarray:
+    """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one for all or
+    one per column; one-sided at a bound); columns that still come out zero fall back to a 5x
+    wider step."""
     J = np.empty((len(f0), len(z)))  # filled column by column: no list of columns to stack
+    rels = np.broadcast_to(np.asarray(rel, float), (len(z),))
     for j in range(len(z)):
-        for r in (rel, 5 * rel):
+        for r in (rels[j], 5 * rels[j]):
             h = r * max(abs(z[j]), 1e-12)
             up, dn = min(z[j] + h, hi[j]), max(z[j] - h, lo[j])
             if up <= dn:

@@ -44,7 +44,7 @@ def check_layout() -> None:
 
 check_layout()
 
-from pmdcid.simulate.drive import late_input, parts_for  # noqa: E402
+from pmdcid.simulate.drive import late_input, parts_for, ramp_input  # noqa: E402
 from pmdcid.simulate.kernel import choose_substeps, run_kernel  # noqa: E402
 from pmdcid.simulate.layout import (  # noqa: E402
     I_STATE,
@@ -141,9 +141,12 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
     latency = float(vals.get("latency", 0.0))
-    if latency > 0.0:  # input_delay: the command applied late, on a finer grid
+    ramp = float(vals.get("ramp", 0.0))  # the input read between samples (drive.ramp_input)
+    if latency > 0.0 or ramp != 0.0:  # input_delay or a ramp reading: on a finer grid
         q = parts_for(choose_substeps(dt, p) if nsub is None else nsub)
-        x = run_kernel(late_input(u, dt, latency, q), dt / q, p, torque_driven, 1, x0)[::q]
+        fine = (late_input(u, dt, latency, q) if ramp == 0.0
+                else ramp_input(u, dt, latency, ramp, q))
+        x = run_kernel(fine, dt / q, p, torque_driven, 1, x0)[::q]
     else:
         x = run_kernel(u, dt, p, torque_driven, nsub, x0)
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}

@@ -15,6 +15,13 @@ linear part); any other is exact at every fine boundary but one per switch, wher
 smeared over one fine interval (its mean kept: a state error second order in dt/q over the time
 constants). The simulated states depend continuously (piecewise linearly) on the latency, which
 a finite-difference Jacobian needs.
+
+The same fine grid serves an input read *between* its samples (``ramp``): a log of a continuously
+varying command (a ramp or sine generated faster than it is logged) does not hold each value for
+a whole period; read as held it is applied half a sample late, which a fit turns into a wrong
+inertia when the sample period is not small against J/bv. :func:`ramp_input` blends the held
+reading (ramp = 0, the contract's zero-order hold) with the linear one (ramp = 1, straight to the
+next sample), again as exact averages over the fine intervals.
 """
 
 from __future__ import annotations
@@ -49,4 +56,27 @@ def late_input(u: np.ndarray, dt: float, latency: float, q: int) -> np.ndarray:
     return np.diff(cum) / (dt / q)
 
 
-__all__ = ["MIN_PARTS", "late_input", "parts_for"]
+def ramp_input(u: np.ndarray, dt: float, latency: float, ramp: float, q: int) -> np.ndarray:
+    """The input ``u`` (sampled at ``dt`` [s]) read between samples as ``(1 - ramp)`` x held
+    plus ``ramp`` x linear toward the next sample [dimensionless blend], applied ``latency``
+    [s] late, as the exact averages over ``q`` fine intervals per sample (length n*q). Before
+    the first sample the input is ``u[0]``; after the last it is held at ``u[-1]``."""
+    u = np.asarray(u, dtype=float)
+    n = len(u)
+    if latency < 0 or not math.isfinite(latency) or not math.isfinite(ramp):
+        raise ValueError(f"latency must be finite and >= 0 and ramp finite, got {latency}, {ramp}")
+    slope = ramp * (np.append(u[1:], u[-1]) - u) / dt  # [unit/s] within each sample period
+    # running integral U(s) of the applied input: piecewise quadratic, exact at every edge
+    whole = np.concatenate(([0.0], np.cumsum(u * dt + 0.5 * slope * dt * dt)))
+    edges = np.arange(n * q + 1) * (dt / q) - latency
+    k = np.clip(np.floor(edges / dt).astype(np.int64), 0, n - 1)
+    s = edges - k * dt
+    cum = whole[k] + u[k] * s + 0.5 * slope[k] * s * s
+    before = edges < 0.0
+    cum[before] = u[0] * edges[before]
+    after = edges > n * dt
+    cum[after] = whole[n] + u[-1] * (edges[after] - n * dt)
+    return np.diff(cum) / (dt / q)
+
+
+__all__ = ["MIN_PARTS", "late_input", "parts_for", "ramp_input"]

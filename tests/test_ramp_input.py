@@ -1,0 +1,53 @@
+"""The input read between its samples (simulate/drive.ramp_input): exact averages of a blend of
+the held and the linear reading, on the fine grid the late input uses."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pmdcid.simulate.drive import late_input, ramp_input
+
+
+def _u(seed: int, n: int = 40) -> np.ndarray:
+    return np.random.default_rng(seed).normal(0.0, 2.0, n)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000), st.floats(0.0, 0.05), st.integers(1, 12))
+def test_held_reading_is_the_late_input(seed, latency, q):
+    u = _u(seed)
+    got = ramp_input(u, 0.01, latency, 0.0, q)
+    assert np.max(np.abs(got - late_input(u, 0.01, latency, q))) < 1e-12 * np.ptp(u) * 10
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000), st.integers(1, 12))
+def test_linear_reading_holds_each_fine_intervals_mean(seed, q):
+    """ramp = 1: the fine interval j of sample k holds u_k + (u_k+1 - u_k) (j + 1/2)/q, the
+    mean of the straight line between the samples; after the last sample the input is held."""
+    u = _u(seed)
+    nxt = np.append(u[1:], u[-1])
+    frac = (np.arange(q) + 0.5) / q
+    want = (u[:, None] + (nxt - u)[:, None] * frac[None, :]).ravel()
+    got = ramp_input(u, 0.01, 0.0, 1.0, q)
+    assert np.max(np.abs(got - want)) < 1e-9 * np.ptp(u)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 10_000), st.floats(0.0, 1.0), st.integers(1, 6), st.integers(2, 8))
+def test_a_latency_of_whole_fine_intervals_shifts_the_blend(seed, ramp, shift, q):
+    u = _u(seed)
+    dt = 0.01
+    base = ramp_input(u, dt, 0.0, ramp, q)
+    late = ramp_input(u, dt, shift * dt / q, ramp, q)
+    np.testing.assert_allclose(late[shift:], base[:-shift], atol=1e-9 * np.ptp(u))
+    np.testing.assert_allclose(late[:shift], u[0], atol=1e-9 * np.ptp(u))
+
+
+def test_blend_is_linear_in_ramp():
+    u = _u(3)
+    a, b = ramp_input(u, 0.02, 0.003, 0.0, 8), ramp_input(u, 0.02, 0.003, 1.0, 8)
+    mid = ramp_input(u, 0.02, 0.003, 0.3, 8)
+    np.testing.assert_allclose(mid, 0.7 * a + 0.3 * b, atol=1e-9 * np.ptp(u))
