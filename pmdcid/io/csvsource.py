@@ -142,4 +142,22 @@ def column_specs(cols: list[str], mapping, canonical, p: str):
             raise LogError(f"column mapping {canon}={missing[0]}: no column '{missing[0]}' "
                            f"(columns are {short_list(cols)})", p)
         specs[canon] = spec
+    _annotated_specs(cols, specs, p)
     return specs, skipped
+
+
+def _annotated_specs(cols: list[str], specs: dict, p: str) -> None:
+    """Add the canonical columns whose headers say quantity and unit (:mod:`.headers`), with a
+    note naming the conversion, where neither a column of that name nor a mapping gives them."""
+    from pmdcid.errors import warn
+    from pmdcid.io.headers import claimed
+    from pmdcid.io.mapping import ColumnSpec
+
+    used = {r for spec in specs.values() for r in spec.refs}
+    said = []
+    for canon, (col, factor) in claimed([c for c in cols if c not in used], specs).items():
+        specs[canon] = ColumnSpec(canon, col, factor, text=f"{canon}={col}")
+        said.append(f"'{col}' as {canon}" + ("" if factor == 1.0 else f" x {factor:.6g}"))
+    if said:
+        warn(f"column(s) read by the quantity and unit their headers name: {', '.join(said)} "
+             "(map a column with -c to read it otherwise)", p)
