@@ -624,6 +624,14 @@ CASES: list[Case] = [
     C("diag-unknown-effect", combine(STEP, MODEL),
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--effect", "warp_drive"],
       2, r"unknown effect 'warp_drive'"),
+    C("diag-log-too-short", combine(MODEL, text("step.csv", "t,v,omega\n0,0,0\n0.01,1,0.1\n"
+                                                        "0.02,1,0.3\n0.03,1,0.4\n")),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
+      r"^error: step\.csv: too short to judge an effect: 4 samples"),
+    C("diag-log-without-measurement", combine(MODEL, table("step.csv", {
+        "t": T1K, "v": np.ones(3000)})),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
+      r"^error: step\.csv: no log carries current, speed or angle"),
     C("diag-rpm-as-rad-per-s", combine(MODEL, _step_log("step.csv", omega_scale=60 / (2 * np.pi))),
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
       r"^error: step\.csv: .*omega looks like rpm.*--force"),

@@ -61,6 +61,8 @@ class FitOutcome:
     n: dict[str, int] = field(default_factory=dict)
 
 
+#: fewest samples of the longest log: fewer cannot tell an effect from the noise
+MIN_SAMPLES = 50
 #: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)
 MAX_SUBSTEPS = 16
 #: the cap with LuGre on: its bristle spring is held over a step, stable only for steps below
@@ -117,8 +119,14 @@ class Problem:
                     sigma = max(sigma, derivative_noise_gain(log.dt, fc, 1)
                                 * noise_std(np.asarray(log["theta"], float)))
                 self.channels.append(Channel(k, s, idx, x[idx], sigma, fit, fc))
+        names = ", ".join(lg.path for lg in self.logs)
         if not self.channels:
-            raise LogError("no log carries current, speed or angle to compare the model with")
+            raise LogError("no log carries current, speed or angle to compare the model with",
+                           names)
+        if max(log.n for log in self.logs) < MIN_SAMPLES:
+            raise LogError(f"too short to judge an effect: {max(log.n for log in self.logs)} "
+                           f"samples at most (diagnose needs a log of at least {MIN_SAMPLES})",
+                           names)
         self.blocked = [log.blocked for log in self.logs]
         # each log from the state its first samples measured (a log that starts turning is
         # never credited to an effect); a blocked rotor from rest
