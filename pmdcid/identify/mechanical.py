@@ -156,6 +156,23 @@ def _finite(x):
     return x if math.isfinite(x) else None
 
 
+def _why_no_step(steps) -> str:
+    """Why none of ``steps`` gave a speed response fit-mechanical can use, in the user's terms."""
+    notes = {s.note for s in steps}
+    if "plateau too short" in notes:
+        return ("the input is not held long enough for the speed to settle (record longer "
+                "plateaus)")
+    if not steps:
+        return ("the input holds no step (fit-mechanical needs voltage steps held until the "
+                "speed settles)")
+    if notes == {"coasts to rest"}:
+        return ("every step lets the rotor coast to rest (a step to 0 V or into the dead zone): "
+                "fit-mechanical needs steps that drive it to a steady speed; fit-nonlinear and "
+                "identify can use a coast-down log")
+    return ("no step moves the rotor: fit-mechanical needs steps above the dead zone (larger "
+            "voltages)")
+
+
 def fit_mechanical(logs, model: Model, km: float | None = None, *,
                    joint: bool = True) -> MechanicalResult:
     """Fit the free-speed step logs (``t``, ``v``, ``omega``; one or more steps each, from rest
@@ -197,12 +214,7 @@ def fit_mechanical(logs, model: Model, km: float | None = None, *,
     _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:
-        short = [s for s in steps if s.note == "plateau too short"]
-        raise FitError("no usable step: " + ("the input is not held long enough for the speed "
-                                             "to settle (record longer plateaus)" if short else
-                                             "no step moves the rotor: fit-mechanical needs "
-                                             "steps above the dead zone (larger voltages)"),
-                       ", ".join(lg.path for lg in logs))
+        raise FitError("no usable step: " + _why_no_step(steps), ", ".join(lg.path for lg in logs))
     ndata = sum(s.ndata for s in moving)
     chisqr = sum(s.chisqr for s in moving)
     ke = model.value("ke") if "back_emf" in model.effects and model.has("ke") else 0.0
