@@ -124,11 +124,13 @@ def test_slowly_logged_ramp_input_is_read_between_samples():
     assert not any("changes at almost every sample" in w for w in res1.warnings)
 
 
-def test_slowly_logged_held_input_keeps_an_honest_inertia():
-    """A drive that really holds each 10 Hz sample (simulated from the slow samples): the data
-    hardly tell the two readings apart at this noise, so J's standard error widens to cover
-    both, and the truth lies within 3 of them."""
-    log, m, vals = _slow_triangle(100, held=True, seed=13)
+@pytest.mark.parametrize("step", [100, 30])
+def test_slowly_logged_held_input_keeps_an_honest_inertia(step):
+    """A drive that really holds each 10 Hz (33 Hz) sample, simulated from the slow samples:
+    J's standard error carries what the data leave open of the reading, and the truth lies
+    within 3 of them (a free ramp parameter stopped 6 standard errors off at 33 Hz; the profile
+    in identify/hold.py does not)."""
+    log, m, vals = _slow_triangle(step, held=True, seed=13)
     res = fit_nonlinear([log], m)
     J = res.estimates["J"]
     assert abs(J.value - vals["J"]) < 3 * J.stderr, (J, vals["J"])

@@ -4,6 +4,7 @@ the held and the linear reading, on the fine grid the late input uses."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -51,3 +52,18 @@ def test_blend_is_linear_in_ramp():
     a, b = ramp_input(u, 0.02, 0.003, 0.0, 8), ramp_input(u, 0.02, 0.003, 1.0, 8)
     mid = ramp_input(u, 0.02, 0.003, 0.3, 8)
     np.testing.assert_allclose(mid, 0.7 * a + 0.3 * b, atol=1e-9 * np.ptp(u))
+
+
+def test_profile_minimum_and_width():
+    """A parabolic profile: its minimum and the half-width where it rises by the scale; a
+    profile falling steeply from one end: the lowest end, not a least-squares compromise; a
+    flat one: the uniform spread of the range."""
+    from pmdcid.identify.hold import RAMPS, parabola_minimum
+
+    x = np.array(RAMPS)
+    m, w = parabola_minimum(x, 1000 + 400 * (x - 0.6) ** 2, 1.0)
+    assert m == pytest.approx(0.6, abs=1e-9) and w == pytest.approx(0.05, rel=1e-9)
+    m, _ = parabola_minimum(x, np.array([2451.0, 1116.9, 1103.1, 1095.4, 1092.3]), 1.0)
+    assert m == 1.0
+    m, w = parabola_minimum(x, np.full(5, 7.0), 1.0)
+    assert w == pytest.approx(1 / np.sqrt(12))

@@ -23,17 +23,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.identify.grid import batch_cost
-from pmdcid.identify.identifiability import (
-    fit_warnings,
-    hold_matters,
-    hold_warning,
-    require_motion,
-)
+from pmdcid.identify.hold import hold_profile
+from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
 from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re-exported
     FREE_TAU,
     FREE_V,
@@ -59,10 +56,7 @@ GRID_BV = 7
 #: relative finite-difference steps of the local stage: the switching parameters move events by
 #: whole internal steps, so their steps must span several (a torque ramp of ~1e-3 relative per
 #: internal step on a slow triangle)
-DIFF_STEP = {"J": 1e-3, "bv": 1e-3, "bc": 1e-2, "dz": 1e-2, "tau0": 1e-2, "ramp": 0.1}
-#: central-difference steps of the covariance (relative): the input's reading between samples
-#: moves the stick-slip events by fractions of a fine step, so its cost is smooth only over tenths
-COV_STEP = {"ramp": 0.2}
+DIFF_STEP = {"J": 1e-3, "bv": 1e-3, "bc": 1e-2, "dz": 1e-2, "tau0": 1e-2}
 #: points of the dz profile that tests whether the dead zone is visible at all
 DZ_PROFILE_N = 25
 #: a dead zone must lower the chi-square by more than this fraction to count as identified
@@ -71,8 +65,6 @@ MASK_REL = 1e-3
 #: a misspecified model (an effect not yet added) must not drive the inertia to 0, where the fit
 #: is meaningless and every simulation needs thousands of internal steps
 REFINE_RANGE = 10.0
-#: where the fit starts the input's reading between samples (0 held, 1 linear) when it matters
-RAMP_START = 0.5
 
 
 @dataclass
@@ -240,6 +232,15 @@ def masked_upper(dzs, cost, thr) -> float:
     return float(dzs[max(j - 1, 0)])
 
 
+def _chisqr_and_J(logs, work, free, signals, start, sigma, max_nfev, bounds, prior,
+                  ramp: float) -> tuple[float, float]:
+    """The local fit with the input read at ``ramp`` between samples: (chi-square, J)."""
+    f = fit_simulation(logs, work, free, signals=signals, start={k: start[k] for k in free},
+                       sigma=sigma, max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
+                       priors=prior_terms(prior), overrides={"ramp": ramp})
+    return f.stats.chisqr, f.estimates["J"].value if "J" in f.estimates else 0.0
+
+
 def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool = False,
                   grid: bool = True, max_nfev: int = 200,
                   priors: bool = True) -> NonlinearResult:
@@ -293,15 +294,15 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     bounds = {k: (start[k] / REFINE_RANGE ** (3 if k in guessed else 1),
                   start[k] * REFINE_RANGE)
               for k in ("J", "bv") if k in free and start[k] > 0}
-    if "J" in free and any(hold_matters(lg, start["J"], start.get("bv", math.nan))
-                           for lg in logs):
-        # slow log of a varying input: read it between samples too (simulate/drive.ramp_input)
-        free, ls_free = [*free, "ramp"], [*ls_free, "ramp"]
-        best["ramp"], bounds["ramp"] = RAMP_START, (0.0, 1.0)
+    # how a slow log's input varied between samples, when it matters (.hold)
+    prof = hold_profile(logs, start, free, partial(
+        _chisqr_and_J, logs, work, ls_free, signals, best, sigma, max_nfev, bounds, prior))
+    held = {"ramp": prof.value} if prof else {}
+    base_vals = [{**b, **held} for b in base_vals]
     fit = fit_simulation(logs, work, ls_free, signals=signals,
                          start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
-                         diff_step=DIFF_STEP, bounds=bounds, cov_step=COV_STEP,
-                         priors=prior_terms(prior))
+                         diff_step=DIFF_STEP, bounds=bounds,
+                         priors=prior_terms(prior), overrides=held)
     if "dz" in free and len(free) > 1:
         # check dz at the fitted point: the grid's hint comes from its coarse bc, and a local
         # stage may stop where dz = 0 (a bound) or in a side valley. If some dz on the profile
@@ -314,7 +315,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
             fit = fit_simulation(logs, work, free, signals=signals,
                                  start={k: start2[k] for k in free}, sigma=sigma,
                                  max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
-                                 cov_step=COV_STEP, priors=prior_terms(prior))
+                                 priors=prior_terms(prior), overrides=held)
             point = {**best, **fit.values()}
             dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
         # identified only if the dead zone improves the fit clearly: by more than two standard
@@ -335,6 +336,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
                      f"{est['bc'].value if 'bc' in est else point.get('bc', 0):.3g} N m: the rotor "
                      "only moves while the torque exceeds bc); written as the interval's "
                      "midpoint ± its uniform std. Fast reversals or steps down reveal it")
+    if prof:
+        est.update(prof.estimates(est.get("J")))
     warns.extend(fit_warnings(fit, est, tscale, masked))
     hold = hold_warning(logs, est["J"].value if "J" in est else math.nan,
                         est["bv"].value if "bv" in est else math.nan, est.get("ramp"))

@@ -65,7 +65,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
                    diff_step: float | dict[str, float] = 1e-3, nsub: int | None = None,
                    cov_step: float = 1e-2, correlated: bool = True,
                    priors: dict[str, tuple[float, float]] | None = None,
-                   initial: bool = True) -> SimFitResult:
+                   initial: bool = True,
+                   overrides: dict[str, float] | None = None) -> SimFitResult:
     """Fit ``free`` parameters of ``model`` by simulation error on ``logs``.
 
     Other parameters stay at the model's values (effects not in ``model.effects`` off).
@@ -79,13 +80,15 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     ``priors``: name -> (mean, std) Gaussian terms from earlier stages (``(x - mean)/std`` rows
     added to the residual; see docs/identification.md). ``initial``: each log starts from its
     measured first samples (:mod:`.initial`), a log that starts turning has its starting speed
-    fitted too; False starts every log from rest.
+    fitted too; False starts every log from rest. ``overrides``: values held for every log's
+    simulation beyond the model's (e.g. fit-nonlinear's ``ramp``, how the input varied between
+    samples, :mod:`pmdcid.simulate.drive`).
     Returns a :class:`SimFitResult`; the model is not modified.
     """
     free = list(free)
     if not free:
         raise FitError("nothing to fit: no free parameters")
-    base = [param_values(model, log.drive == "tau") for log in logs]
+    base = [{**param_values(model, log.drive == "tau"), **(overrides or {})} for log in logs]
     sig_list = sigma or []
     starts = _initial_states(logs, sig_list, initial)
     moving = [k for k, x in enumerate(starts) if moving_start(x)]

@@ -141,11 +141,13 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
     latency = float(vals.get("latency", 0.0))
-    ramp = float(vals.get("ramp", 0.0))  # the input read between samples (drive.ramp_input)
-    if latency > 0.0 or ramp != 0.0:  # input_delay or a ramp reading: on a finer grid
+    # the input read between samples (drive.ramp_input): when a fit reads it, every value
+    # (0 included) runs on the fine grid, so the cost is continuous in it
+    ramp = vals.get("ramp")
+    if latency > 0.0 or ramp is not None:  # input_delay or a ramp reading: on a finer grid
         q = parts_for(choose_substeps(dt, p) if nsub is None else nsub)
-        fine = (late_input(u, dt, latency, q) if ramp == 0.0
-                else ramp_input(u, dt, latency, ramp, q))
+        fine = (late_input(u, dt, latency, q) if ramp is None
+                else ramp_input(u, dt, latency, float(ramp), q))
         x = run_kernel(fine, dt / q, p, torque_driven, 1, x0)[::q]
     else:
         x = run_kernel(u, dt, p, torque_driven, nsub, x0)
