@@ -237,12 +237,18 @@ def _joint(logs, steps, reps, warns) -> ElectricalResult:
     r_se = cf.se("G") / g**2
     L = tau * r
     L_se = L * math.hypot(cf.se("tau") / tau, r_se / r)
+    tau_se = cf.se("tau")
+    if tau < MIN_TAU_SAMPLES * dtmin:
+        # the rise ends within a few samples, and a step between two samples looks faster: the
+        # data only bound tau_e to [0, 3 dt]; its uniform spread, not the fit's small error
+        tau_se = max(tau_se, MIN_TAU_SAMPLES * dtmin / math.sqrt(12.0))
+        L_se = max(L_se, r * tau_se)
     chisqr = float(cf.sigma**2 * max(cf.ndata - len(x0), 1))
     stats = FitStats(cf.ndata, len(x0) - (0 if distinct else 1), chisqr, 0, cf.success)
     est = {
         "R": Estimate("R", r, r_se, "ohm"),
         "L": Estimate("L", L, L_se, "H"),
-        "tau_e": Estimate("tau_e", tau, cf.se("tau"), "s"),
+        "tau_e": Estimate("tau_e", tau, tau_se, "s"),
         "i0": Estimate("i0", c, cf.se("i0") if distinct else math.nan, "A", vary=distinct),
     }
     if distinct and abs(c) > INTERCEPT_SIGMAS * cf.se("i0"):
@@ -255,5 +261,6 @@ def _joint(logs, steps, reps, warns) -> ElectricalResult:
                      "drop, sensor offset) cannot be checked; R = V/i_ss assumes it is zero")
     if tau < MIN_TAU_SAMPLES * dtmin:
         warns.append(f"joint tau_e = {tau * 1e3:.3g} ms is under {MIN_TAU_SAMPLES:g} sample "
-                     "periods: L is not identifiable from these logs")
+                     "periods: L is not identifiable from these logs (its standard error is the "
+                     f"spread of 0 to {MIN_TAU_SAMPLES:g} sample periods)")
     return ElectricalResult(est, reps, stats, warns)
