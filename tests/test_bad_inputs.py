@@ -671,6 +671,8 @@ CASES: list[Case] = [
       r"--guess needs --vmax"),
     C("plan-check-without-logs", MODEL, ["plan", "--check", "-m", "model.json"], 2,
       r"--check needs the LOGs"),
+    C("plan-budget-too-large", MODEL, ["plan", "-m", "model.json", "--budget", "1e9", "-o",
+                                       "out"], 2, r"--budget 1e\+09 s at --rate 1000 Hz"),
     C("plan-missing-model", lambda d: None, ["plan", "-m", "nope.json", "--vmax", "2", "-o", "out"],
       1, r"^error: nope\.json: no such model file"),
     C("plan-model-lacks-J", model(only=("R", "L", "km")),

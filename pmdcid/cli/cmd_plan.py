@@ -10,6 +10,9 @@ import click
 from pmdcid.cli import main
 from pmdcid.cli.options import FiniteFloat, log_options
 
+#: largest budget x rate a plan simulates (samples): 2e7 is 5.5 h at 1 kHz, ~1 GB of sensitivities
+MAX_PLAN_SAMPLES = 2e7
+
 
 @main.command("plan")
 @click.argument("logs", nargs=-1, metavar="[LOG...]", type=click.Path(dir_okay=False))
@@ -57,6 +60,10 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
     if guess and vmax is None and taumax is None:
         raise click.UsageError("--guess needs --vmax (or --taumax): the largest input your rig "
                                "may take")
+    if budget * rate > MAX_PLAN_SAMPLES:
+        raise click.UsageError(f"--budget {budget:g} s at --rate {rate:g} Hz is "
+                               f"{budget * rate:.3g} samples per profile set: at most "
+                               f"{MAX_PLAN_SAMPLES:.0e} (a shorter --budget or a lower --rate)")
     settings = Settings(umax=vmax if vmax is not None else taumax,
                         speed_max=speed_max if speed_max is not None else math.inf,
                         rate=rate, budget=budget, noise_omega=noise_omega, noise_i=noise_i,
@@ -78,6 +85,8 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
     write_plan(plan, out_dir, command)
     click.echo(f"wrote {len(plan.profiles)} profiles ({plan.seconds:.1f} s) and plan.json, "
                f"plan.md into {out_dir}")
+    for note in plan.notes:
+        click.echo(f"note: {note}", err=True)
     for n in plan.names:
         se = plan.stderr[n]
         rel = plan.relative()[n]
