@@ -162,6 +162,9 @@ def test_simulate_x0_and_time_column_kept(tmp_path):
     r = run(main, ["simulate", str(inp), "-m", str(model), "-o", str(tmp_path / "x.csv"),
                    "--x0", "speed=3"])
     assert r.exit_code == 2 and "omega, i, theta" in r.output
+    r = run(main, ["simulate", str(inp), "-m", str(model), "-o", str(tmp_path / "x.csv"),
+                   "--x0", "omega=1,omega=2"])
+    assert r.exit_code == 2 and "omega is given twice" in r.output
 
 
 def test_identify_a_whole_rig_on_the_fixtures(tmp_path):

@@ -126,5 +126,7 @@ def parse_x0(ctx, param, value):
             x = math.nan
         if not math.isfinite(x):
             raise click.BadParameter(f"{part.strip()!r}: the value must be a finite number")
+        if name in out:
+            raise click.BadParameter(f"{name} is given twice")
         out[name] = x
     return out
