@@ -217,3 +217,22 @@ def test_back_emf_in_the_model_is_taken_out_of_bv(rng, paper_values):
     for k in ("bv", "bc", "J"):
         assert res.estimates[k].value == pytest.approx(vals[k], rel=0.03), k
     assert any("back-EMF" in w for w in res.warnings)
+
+
+def test_a_poorly_determined_inductance_widens_the_inertia_error(paper_values):
+    """An L 80 % low (a slow blocked-rotor log) moves the steps' J by several of its standard
+    errors when L's error is small; when L's error says it is poorly determined, the steps are
+    fitted again over L ± its error and J's error covers the truth, with a warning."""
+    rng = np.random.default_rng(31)
+    vals = paper_values
+    logs = step_logs(vals, rng)
+    m = _electrical(vals)
+    m.set("L", 0.2 * vals["L"], 0.002 * vals["L"], "H", stage="fit-electrical")
+    sure = fit_mechanical(logs, m).estimates["J"]
+    assert abs(sure.value - vals["J"]) > 3 * sure.stderr  # the error without L's share
+    m.set("L", 0.2 * vals["L"], 1.0 * vals["L"], "H", stage="fit-electrical")
+    res = fit_mechanical(logs, m)
+    J = res.estimates["J"]
+    assert J.value == sure.value
+    assert abs(J.value - vals["J"]) < 2 * J.stderr
+    assert any("poorly determined" in w and "J " in w for w in res.warnings)

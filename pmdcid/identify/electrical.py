@@ -240,9 +240,10 @@ def _joint(logs, steps, reps, warns) -> ElectricalResult:
     tau_se = cf.se("tau")
     if tau < MIN_TAU_SAMPLES * dtmin:
         # the rise ends within a few samples, and a step between two samples looks faster: the
-        # data only bound tau_e to [0, 3 dt]; its uniform spread, not the fit's small error
-        tau_se = max(tau_se, MIN_TAU_SAMPLES * dtmin / math.sqrt(12.0))
-        L_se = max(L_se, r * tau_se)
+        # data only bound tau_e to [0, 3 dt]; its uniform spread, not the fit's error (small,
+        # or huge where a rise within one sample leaves the fit degenerate)
+        tau_se = MIN_TAU_SAMPLES * dtmin / math.sqrt(12.0)
+        L_se = r * tau_se
     chisqr = float(cf.sigma**2 * max(cf.ndata - len(x0), 1))
     stats = FitStats(cf.ndata, len(x0) - (0 if distinct else 1), chisqr, 0, cf.success)
     est = {

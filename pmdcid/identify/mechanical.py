@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.identify.inductance import carry_inductance_error
 from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-exported
     MOVE_SIGMAS,
     SETTLE_TAUS,
@@ -180,8 +181,15 @@ def fit_mechanical(logs, model: Model, km: float | None = None, *,
 
     Needs R and L in ``model`` (fit-electrical) and km from ``km`` [N m/A] or the model.
     Raises :class:`~pmdcid.errors.ModelError` when they are missing, :class:`FitError` when no
-    step moves the rotor.
+    step moves the rotor. When the model's L is poorly determined, the steps are fitted again at
+    L minus and plus its standard error and half the spread of J, bv, bc enters their errors.
     """
+    res = _fit_mechanical(logs, model, km, joint)
+    carry_inductance_error(res, model, lambda m: _fit_mechanical(logs, m, km, joint).estimates)
+    return res
+
+
+def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
     model.require("R", "L", stage="fit-mechanical")
     km_given = km is not None
     if km is None:
