@@ -45,7 +45,10 @@ def envelope_indices(t: np.ndarray, y: np.ndarray, columns: int) -> np.ndarray:
                          bins)]
     if nan.any():
         keep.append(_first_where(nan, bins))
-    return np.unique(np.concatenate(keep))
+    mask = np.zeros(n, bool)
+    for k in keep:
+        mask[k] = True
+    return np.flatnonzero(mask)
 
 
 def pixel_bins(t: np.ndarray, columns: int) -> np.ndarray:
@@ -66,8 +69,8 @@ def pixel_bins(t: np.ndarray, columns: int) -> np.ndarray:
 def _first_where(mask: np.ndarray, bins: np.ndarray) -> np.ndarray:
     """Per bin, the first index where ``mask`` holds (bins without one give nothing)."""
     idx = np.flatnonzero(mask)
-    _, first = np.unique(bins[idx], return_index=True)
-    return idx[first]
+    b = bins[idx]  # sorted, as bins and idx are
+    return idx[np.r_[True, b[1:] != b[:-1]]] if len(idx) else idx
 
 
 def decimate(t: np.ndarray, y: np.ndarray, columns: int) -> tuple[np.ndarray, np.ndarray]:

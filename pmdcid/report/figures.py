@@ -83,10 +83,8 @@ def _empty(fig, axes) -> None:
         ax.title.set_fontsize(rcParams["axes.titlesize"])
         ax.set_xlabel("")
         ax.set_ylabel("")
-        if ax.get_xscale() != "linear":
-            ax.set_xscale("linear")
-        if ax.get_yscale() != "linear":
-            ax.set_yscale("linear")
+        ax.set_xscale("linear")  # also the default tick locators and formatters
+        ax.set_yscale("linear")
         ax.dataLim = Bbox.null()
         ax.ignore_existing_data_limits = True
         ax.set_autoscale_on(True)
@@ -96,10 +94,32 @@ def _empty(fig, axes) -> None:
         ax._request_autoscale_view()
 
 
+def _freeze_ticks(fig) -> None:
+    """Fix each linear axis' ticks and labels at what its locator and formatter give now.
+
+    Drawing asks an axis for its ticks several times (the axis, its label's position, the
+    title's); once fixed, each asks a list instead of rerunning the locator and formatter.
+    The same ticks and labels (and offset text) are drawn. Call when the figure is complete.
+    """
+    from matplotlib.ticker import FixedFormatter, FixedLocator
+
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            if axis.get_scale() != "linear":
+                continue
+            locs = axis.get_majorticklocs()
+            fmt = axis.get_major_formatter()
+            fixed = FixedFormatter(fmt.format_ticks(locs))
+            fixed.set_offset_string(fmt.get_offset())
+            axis.set_major_locator(FixedLocator(locs))
+            axis.set_major_formatter(fixed)
+
+
 def _png(fig) -> bytes:
     """The figure as PNG: Agg's pixels as RGB, zlib level :data:`PNG_LEVEL`."""
     from PIL import Image
 
+    _freeze_ticks(fig)
     fig.canvas.draw()
     img = Image.frombuffer("RGBA", fig.canvas.get_width_height(),
                            fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1).convert("RGB")
