@@ -13,7 +13,13 @@ import pytest
 from pmdcid.io import read_log, write_log
 from pmdcid.report import figures
 from pmdcid.report.compare import compare_log
-from pmdcid.report.decimate import POINTS_PER_COLUMN, envelope_indices, pixel_bins
+from pmdcid.report.decimate import (
+    POINTS_PER_COLUMN,
+    SCATTER_POINTS,
+    envelope_indices,
+    pixel_bins,
+    scatter_indices,
+)
 from pmdcid.simulate import neutral_values
 from pmdcid.synth import PAPER, PAPER_NOISE, synth_log, triangle, truth_model
 
@@ -88,6 +94,22 @@ def test_nan_samples_stay_gaps(rng):
     full, kept = _bin_extremes(y, bins, 1000), _bin_extremes(y[k], bins[k], 1000)
     np.testing.assert_array_equal(kept[0], full[0])
     np.testing.assert_array_equal(kept[1], full[1])
+
+
+def test_scatter_keeps_the_cloud_and_its_outliers(rng):
+    n = 120_000
+    e = rng.standard_normal(n)
+    e[[1234, 98_765]] = [9.0, -7.0]  # two outliers a uniform sample would miss
+    e[5000:5010] = np.nan
+    k = scatter_indices(e)
+    assert {1234, 98_765} <= set(k.tolist())
+    assert np.nanmax(e[k]) == 9.0 and np.nanmin(e[k]) == -7.0
+    assert len(k) < 1.1 * SCATTER_POINTS  # a sample, plus the few points beyond its range
+    # the density survives: the drawn cloud has the spread of the full one (an envelope of
+    # each pixel column's extremes would give about 3x the standard deviation)
+    assert np.nanstd(e[k]) == pytest.approx(np.nanstd(e), rel=0.1)
+    short = rng.standard_normal(2 * SCATTER_POINTS)
+    np.testing.assert_array_equal(scatter_indices(short), np.arange(len(short)))
 
 
 # ---- figures -------------------------------------------------------------------------------

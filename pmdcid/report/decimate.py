@@ -7,6 +7,10 @@ lowest, highest and last sample, in time order, so that spikes, steps and stick-
 look the same as with every sample drawn. A striding decimation (every k-th sample) would drop
 a one-sample spike; this keeps it. NaN samples stay gaps (one NaN of each bin that holds any is
 kept). The indices select real samples: the drawn points are a subset of the log's.
+
+A scatter (residual against speed) shows a distribution, which an envelope would misdraw as
+two bands of extremes: :func:`scatter_indices` draws a uniform sample plus every outlier
+beyond the sample's range.
 """
 
 from __future__ import annotations
@@ -77,3 +81,28 @@ def decimate(t: np.ndarray, y: np.ndarray, columns: int) -> tuple[np.ndarray, np
     """``(t[k], y[k])`` with ``k = envelope_indices(t, y, columns)``: the line to draw."""
     k = envelope_indices(t, y, columns)
     return np.asarray(t)[k], np.asarray(y)[k]
+
+
+#: most points a scatter draws from its uniform sample (a cloud's density needs no more)
+SCATTER_POINTS = 4000
+
+
+def scatter_indices(y: np.ndarray, limit: int = SCATTER_POINTS) -> np.ndarray:
+    """Indices of the points of a scatter of ``y`` (against anything) to draw.
+
+    A scatter shows a distribution, so an envelope (which keeps only extremes) would paint
+    false bands; instead every k-th sample (at most about ``limit``) keeps the density, and
+    every sample above or below that sample's range is added so that outliers and spikes
+    still show. All indices when ``len(y) <= 2 * limit``; NaN samples draw nothing.
+    """
+    y = np.asarray(y, float)
+    n = len(y)
+    if n <= 2 * limit:
+        return np.arange(n)
+    mask = np.zeros(n, bool)
+    mask[::max(1, n // limit)] = True
+    sample = y[mask]
+    sample = sample[~np.isnan(sample)]
+    if len(sample):
+        mask |= (y > sample.max()) | (y < sample.min())
+    return np.flatnonzero(mask)

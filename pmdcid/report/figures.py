@@ -13,7 +13,7 @@ import io
 
 import numpy as np
 
-from pmdcid.report.decimate import envelope_indices
+from pmdcid.report.decimate import envelope_indices, scatter_indices
 
 DPI = 100
 #: zlib level of the PNGs: 3 is ~2x faster to encode than PIL's 6 for files ~5 % larger
@@ -214,9 +214,8 @@ def residual_figure(cmp, pool: FigurePool | None = None) -> bytes:
     e = sim.get(s) - log[s]
     fig, axes = _new(2, 2, 6.3, top=0.7, pool=pool)
     ax = axes[0, 0]
-    # the scatter shows the same samples as the line: each pixel column's extremes in time
-    st = envelope_indices(log.t, e, _columns(ax))
-    ax.plot(log.t[st], e[st], color="tab:purple", lw=0.7)
+    _line(ax, log.t, e, color="tab:purple", lw=0.7)
+    st = scatter_indices(e)  # the scatters: a uniform sample plus every outlier beyond it
     ax.set_xlabel("time [s]")
     ax.set_ylabel(f"residual sim-meas [{m['unit']}]")
     ax.set_title(f"{s} residual against time", fontsize=9)
