@@ -67,7 +67,6 @@ def _build(nrows, ncols, height, left, wspace, top):
 
 def _empty(fig, axes) -> None:
     """Back to the state :func:`_build` leaves, except the axes' tick objects."""
-    from matplotlib import rcParams
     from matplotlib.transforms import Bbox
 
     if fig._suptitle is not None:
@@ -78,20 +77,16 @@ def _empty(fig, axes) -> None:
             a.remove()
         if ax.legend_ is not None:
             ax.legend_.remove()
-        for title in (ax.title, ax._left_title, ax._right_title):
-            title.set_text("")
-        ax.title.set_fontsize(rcParams["axes.titlesize"])
+        ax.set_title("")  # and the title's default font
         ax.set_xlabel("")
         ax.set_ylabel("")
-        ax.set_xscale("linear")  # also the default tick locators and formatters
+        ax.set_xscale("linear")  # and the default tick locators and formatters
         ax.set_yscale("linear")
-        ax.dataLim = Bbox.null()
+        ax.dataLim = Bbox.null()  # the next plots set the limits as on new axes
         ax.ignore_existing_data_limits = True
-        ax.set_autoscale_on(True)
         ax.set_xlim(0, 1)
         ax.set_ylim(0, 1)
         ax.set_autoscale_on(True)
-        ax._request_autoscale_view()
 
 
 def _freeze_ticks(fig) -> None:
