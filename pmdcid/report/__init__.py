@@ -186,10 +186,11 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
         summary = rec if isinstance(rec, dict) and "added" in rec else None
     figs: dict[str, bytes] = {}
     say("report: figures")
+    pool = figures.FigurePool()  # the per-log figures reuse one figure per layout
     for c in cmps:
         c.metrics["figures"] = [f"{c.name}_overlay.png", f"{c.name}_residual.png"]
-        figs[c.metrics["figures"][0]] = figures.overlay_figure(c)
-        figs[c.metrics["figures"][1]] = figures.residual_figure(c)
+        figs[c.metrics["figures"][0]] = figures.overlay_figure(c, pool)
+        figs[c.metrics["figures"][1]] = figures.residual_figure(c, pool)
     figs["fit.png"] = figures.fit_figure([(c.name, c.metrics["signals"]) for c in cmps])
     ba = _before_after(logs, names, model, before_model)
     if ba is not None:
