@@ -40,6 +40,9 @@ BLOCK_TAUS = 4.0
 MIN_TAUS = 50.0
 #: Sokal's window constant: sum the autocorrelation up to the first lag W >= C * tau(W)
 SOKAL_C = 5.0
+#: rows of the Jacobian weighted by the residual at a time in the block sums (bounded memory on
+#: long logs; each block's sum is the same whatever the chunk)
+CHUNK_ROWS = 1 << 16
 
 
 @dataclass
@@ -120,9 +123,12 @@ def block_covariance(jac: np.ndarray, resid: np.ndarray, segments, white_cov: np
     for parts in logs.values():
         m = min(b - a for a, b in parts) // block  # whole blocks of this log
         g = np.zeros((m, p))
+        step = max(1, CHUNK_ROWS // block)  # whole blocks at a time: no n x p temporary
         for a, _ in parts:  # every signal of the log adds to the same time blocks
-            rows = slice(a, a + m * block)
-            g += (jac[rows] * r[rows, None]).reshape(m, block, p).sum(axis=1)
+            for c in range(0, m, step):
+                k = min(step, m - c)
+                rows = slice(a + c * block, a + (c + k) * block)
+                g[c:c + k] += (jac[rows] * r[rows, None]).reshape(k, block, p).sum(axis=1)
         sums.append(g)
     G = np.concatenate(sums) if sums else np.zeros((0, p))
     nb = len(G)

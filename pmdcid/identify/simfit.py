@@ -126,8 +126,10 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     weight = [1.0]  # the prior rows' weight: the data's honest information (below)
 
     def run(z0):
-        return solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
-                     max_nfev=max_nfev, what="simulation-error fit")
+        s = solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
+                  max_nfev=max_nfev, what="simulation-error fit", rows=nrows)
+        s.jac = None  # unused here (the covariance takes wider central differences): frees m x n
+        return s
 
     sol = run(x0 / scale)
     nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them
@@ -245,13 +247,14 @@ def _covariance(Jm, fun, nd, segments, redchi, correlated, weight=1.0):
     the data score's covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision
     and ``w`` their weight (the prior means' own variance, scaled like their rows).
 
-    Computed with the Jacobian's columns scaled to unit norm and scaled back (the same
-    covariance): parameters of very different sizes (LuGre's sigma0 ~ 1e2 N m/rad beside
-    bc ~ 1e-3 N m) would otherwise give J'J a condition number past the pseudo-inverse's
-    cut-off, which then zeroes the small direction's variance."""
+    Computed with the Jacobian's columns scaled to unit norm (``Jm`` is scaled in place) and
+    scaled back (the same covariance): parameters of very different sizes (LuGre's sigma0 ~
+    1e2 N m/rad beside bc ~ 1e-3 N m) would otherwise give J'J a condition number past the
+    pseudo-inverse's cut-off, which then zeroes the small direction's variance."""
     norms = np.linalg.norm(Jm, axis=0)
     d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
-    cov, info = _scaled_covariance(Jm * d, fun, nd, segments, redchi, correlated, weight)
+    Jm *= d  # in place: the caller's matrix, not used after (no m x n copy on long logs)
+    cov, info = _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight)
     return cov * np.outer(d, d), info
 
 
