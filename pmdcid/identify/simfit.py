@@ -20,6 +20,7 @@ from pmdcid.identify.covariance import block_covariance
 from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
+from pmdcid.identify.tall import BLOCK_ROWS, TALL_ROWS
 from pmdcid.model import Model
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.simulate import param_values, simulate_values
@@ -251,11 +252,22 @@ def _covariance(Jm, fun, nd, segments, redchi, correlated, weight=1.0):
     scaled back (the same covariance): parameters of very different sizes (LuGre's sigma0 ~
     1e2 N m/rad beside bc ~ 1e-3 N m) would otherwise give J'J a condition number past the
     pseudo-inverse's cut-off, which then zeroes the small direction's variance."""
-    norms = np.linalg.norm(Jm, axis=0)
+    norms = _column_norms(Jm)
     d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
     Jm *= d  # in place: the caller's matrix, not used after (no m x n copy on long logs)
     cov, info = _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight)
     return cov * np.outer(d, d), info
+
+
+def _column_norms(J: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each column; on a tall matrix a block of rows at a time (no m x n
+    square), which agrees with ``np.linalg.norm(J, axis=0)`` to rounding."""
+    if len(J) < TALL_ROWS:
+        return np.linalg.norm(J, axis=0)
+    ss = np.zeros(J.shape[1])
+    for a in range(0, len(J), BLOCK_ROWS):
+        ss += np.einsum("ij,ij->j", J[a:a + BLOCK_ROWS], J[a:a + BLOCK_ROWS])
+    return np.sqrt(ss)
 
 
 def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
