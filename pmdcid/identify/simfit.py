@@ -24,6 +24,7 @@ from pmdcid.identify.tall import BLOCK_ROWS, TALL_ROWS
 from pmdcid.model import Model
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.simulate import param_values, simulate_values
+from pmdcid.simulate.layout import NSTATE
 
 
 def noise_level(x: np.ndarray) -> float:
@@ -95,13 +96,17 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             out[k][1] = x[npar + j]
         return out
 
+    bufs = [np.empty((len(log.t), NSTATE)) for log in logs]  # the kernel's, reused
+
     def sims(x):
+        """Each log's simulation at ``x``; its arrays are valid until the next call."""
         out = []
         xs = state(x)
         for k, log in enumerate(logs):
             vals = dict(base[k])
             vals.update(dict(zip(free, x[:npar], strict=True)))
-            out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k]))
+            out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k],
+                                       bufs[k]))
         return out
 
     nrows = segments[-1][2] + len(prior_rows)

@@ -39,6 +39,9 @@ EXPORTS = {
     "batch_cost": ("pmdcid.identify.grid", "_batch_cost",
                    "f8[::1](f8[::1], f8[:,::1], f8[:,:,:,::1], f8[:,:,:,::1], i8, b1, f8[::1], "
                    "f8[::1], f8, f8, f8, f8[::1])"),
+    "run_into": ("pmdcid.simulate.kernel", "_run_into",
+                 "f8[:,::1](f8[::1], f8[::1], f8[:,:,::1], f8[:,:,::1], i8, b1, f8[::1], "
+                 "f8[:,::1])"),
 }
 _LOADED: list = []
 
