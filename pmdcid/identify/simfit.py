@@ -96,7 +96,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             out[k][1] = x[npar + j]
         return out
 
-    bufs = [np.empty((len(log.t), NSTATE)) for log in logs]  # the kernel's, reused
+    bufs: list[np.ndarray | None] = [None] * len(logs)  # the kernel's, reused; None: freed
 
     def sims(x):
         """Each log's simulation at ``x``; its arrays are valid until the next call."""
@@ -105,6 +105,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         for k, log in enumerate(logs):
             vals = dict(base[k])
             vals.update(dict(zip(free, x[:npar], strict=True)))
+            if bufs[k] is None:
+                bufs[k] = np.empty((len(log.t), NSTATE))
             out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k],
                                        bufs[k]))
         return out
@@ -158,6 +160,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     with blas_single_thread():
         Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale, cov_step)
         Jm /= scale[None, :]
+    bufs[:] = [None] * len(logs)  # no simulation until the last: freed for the covariance
     try:
         cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -306,7 +309,10 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
             zu[j], zd[j] = up, dn
             fu = fun(zu) if up > z[j] else f0
             fd = fun(zd) if dn < z[j] else f0
-            J[:, j] = (fu - fd) / (up - dn)
+            d = fu - fd  # then divided in place: one temporary of the residual's length
+            d /= up - dn
+            J[:, j] = d
+            del d
             if np.any(J[:, j] != 0):
                 break
     return J

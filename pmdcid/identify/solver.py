@@ -92,6 +92,7 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     except ValueError as exc:
         raise FitError(f"{what} failed: {exc}") from None
     jac = sol.jac if tall else sol.jac / scale[None, :]
+    fd._JT = fd._last = None  # scipy's wrappers keep fd in reference cycles: free its arrays now
     return Solution(sol.x, np.asarray(scale, float), sol.fun, jac, int(sol.nfev),
                     bool(sol.success), str(sol.message))
 
