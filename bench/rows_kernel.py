@@ -113,8 +113,9 @@ def kernel_scaling_rows(setup: Setup, quick: bool) -> list[Row]:
     for factor in (1, 4, 16):
         s, steps = got[factor], calls[factor][1]
         ratio = s.median / got[1].median
+        cpu = s.cpu_median / got[1].cpu_median if got[1].cpu_median else float("nan")
         rows.append(Row(f"scaling: kernel at {factor}x ({setup.seconds * factor:.0f} s)", s,
-                        "s", f"{ratio:.2f}x the 1x time (linear: {factor}x)",
+                        "s", f"{ratio:.2f}x the 1x time (CPU {cpu:.2f}x; linear: {factor}x)",
                         "<= 18x" if factor == 16 else "", ratio <= 18.0 if factor == 16 else None,
                         f"{s.median / steps * 1e9:.1f} ns per step; measured in turns; "
                         "one reused output buffer, as in a fit"))
