@@ -133,3 +133,22 @@ def test_compiled_cache_is_stamped_with_its_sources():
     from pmdcid.simulate.cache import invalidate_if_stale
 
     assert invalidate_if_stale() is False
+
+
+def test_output_buffer_gives_the_same_states_and_is_reused(paper_values):
+    from pmdcid.simulate import param_vector
+    from pmdcid.simulate.kernel import run_kernel
+    from pmdcid.simulate.layout import NSTATE
+
+    t = np.arange(20000) / 1000.0
+    u = triangle(t, 2.0, 10.0)
+    p = param_vector(paper_values)
+    ref = run_kernel(u, 1e-3, p)
+    buf = np.full((len(t), NSTATE), np.nan)
+    got = run_kernel(u, 1e-3, p, out=buf)
+    assert got is buf and got.tobytes() == ref.tobytes()
+    sim = simulate_values(t, 0.5 * u, paper_values, out=buf)  # the buffer's next use
+    assert sim.omega.tobytes() == simulate_values(t, 0.5 * u, paper_values).omega.tobytes()
+    assert not np.array_equal(buf, ref)  # overwritten: a caller keeping a result must copy it
+    with pytest.raises(ValueError, match="C-contiguous"):
+        run_kernel(u, 1e-3, p, out=np.empty((len(t), NSTATE)).T.copy().T)

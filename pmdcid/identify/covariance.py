@@ -40,6 +40,12 @@ BLOCK_TAUS = 4.0
 MIN_TAUS = 50.0
 #: Sokal's window constant: sum the autocorrelation up to the first lag W >= C * tau(W)
 SOKAL_C = 5.0
+#: rows of the Jacobian weighted by the residual at a time in the block sums (bounded memory on
+#: long logs; each block's sum is the same whatever the chunk)
+CHUNK_ROWS = 1 << 16
+#: residuals at least this long (a 17-minute log at 1 kHz) have their power spectrum formed in
+#: place (:func:`integrated_time`): the same to rounding, without two more spectrum-sized arrays
+LEAN_SAMPLES = 1 << 20
 
 
 @dataclass
@@ -74,17 +80,26 @@ def integrated_time(r: np.ndarray) -> float:
     """Integrated autocorrelation time [samples] of a residual, 1 for white noise (Sokal's
     window: tau = 1 + 2 sum_{k=1..W} rho_k at the first W >= 5 tau)."""
     x = np.asarray(r, float)
-    x = x[np.isfinite(x)]
+    x = x[np.isfinite(x)]  # a copy: changed in place below
     n = len(x)
     if n:
-        x = x - x.mean()
+        x -= x.mean()
     if n < 4 or not np.any(x):
         return 1.0
     nfft = 1 << int(2 * n - 1).bit_length()
     f = np.fft.rfft(x, nfft)
-    acf = np.fft.irfft(f * np.conj(f), nfft)[:n]
-    acf = acf / acf[0]
-    tau = 2.0 * np.cumsum(acf) - 1.0  # tau(W) = 1 + 2 sum_{k=1..W} rho_k
+    del x
+    if n < LEAN_SAMPLES:
+        f = f * np.conj(f)
+    else:  # a long residual: the power spectrum in place, a chunk at a time (bounded memory)
+        for a in range(0, len(f), CHUNK_ROWS):
+            f[a:a + CHUNK_ROWS] *= np.conj(f[a:a + CHUNK_ROWS])
+    acf = np.fft.irfft(f, nfft)[:n]
+    del f
+    acf /= acf[0]
+    tau = np.cumsum(acf)  # tau(W) = 1 + 2 sum_{k=1..W} rho_k
+    tau *= 2.0
+    tau -= 1.0
     w = np.arange(n)
     ok = w >= SOKAL_C * tau
     W = int(np.argmax(ok)) if ok.any() else n - 1
@@ -120,9 +135,12 @@ def block_covariance(jac: np.ndarray, resid: np.ndarray, segments, white_cov: np
     for parts in logs.values():
         m = min(b - a for a, b in parts) // block  # whole blocks of this log
         g = np.zeros((m, p))
+        step = max(1, CHUNK_ROWS // block)  # whole blocks at a time: no n x p temporary
         for a, _ in parts:  # every signal of the log adds to the same time blocks
-            rows = slice(a, a + m * block)
-            g += (jac[rows] * r[rows, None]).reshape(m, block, p).sum(axis=1)
+            for c in range(0, m, step):
+                k = min(step, m - c)
+                rows = slice(a + c * block, a + (c + k) * block)
+                g[c:c + k] += (jac[rows] * r[rows, None]).reshape(k, block, p).sum(axis=1)
         sums.append(g)
     G = np.concatenate(sums) if sums else np.zeros((0, p))
     nb = len(G)

@@ -1,11 +1,12 @@
 """Many simulations in one compiled call: the global stage of the simulation-error fits.
 
-:func:`batch_cost` runs the shared kernel (:func:`pmdcid.simulate.kernel._run`, unchanged) for
-every parameter set of a batch inside one numba ``prange`` loop (threads share the sets) and
+:func:`batch_cost` runs the shared kernel (:func:`pmdcid.simulate.kernel._run_into`, unchanged)
+for every parameter set of a batch inside one numba ``prange`` loop (threads share the sets) and
 returns, per set, the weighted sum of squared errors against the measured speed and angle:
 ``sum(((omega_sim + omega0 - omega_meas)/sigma_omega)^2) + sum(((theta_sim - theta_meas)/
 sigma_theta)^2)``. Nothing of size (sets x samples) is kept, so a grid of hundreds of sets on a
-120 s, 1 kHz log needs no more memory than a few simulations.
+120 s, 1 kHz log needs no more memory than a few simulations: one state buffer per thread,
+reused set after set (fresh arrays of a long log cost page faults every set).
 
 Sensor delay and a late input (input_delay) are not applied here (only the speed offset): the
 grid is a starting point; the least-squares stage that follows uses the full simulation.
@@ -18,30 +19,42 @@ import math
 import numpy as np
 
 from pmdcid.simulate import aot, param_vector
-from pmdcid.simulate.kernel import _run, choose_substeps, discretize
-from pmdcid.simulate.layout import KM, LINEAR, OMEGA_STATE, THETA_STATE, L, R, state_vector
+from pmdcid.simulate.kernel import _run_into, choose_substeps, discretize
+from pmdcid.simulate.layout import (
+    KM,
+    LINEAR,
+    NSTATE,
+    OMEGA_STATE,
+    THETA_STATE,
+    L,
+    R,
+    state_vector,
+)
 from pmdcid.simulate.lazyjit import njit, prange
 
 
 @njit(parallel=True, cache=True)
 def _batch_cost(u, P, Phi, Gam, nsub, torque_driven, w_meas, th_meas, sw, sth,
-                omega0, x0):  # pragma: no cover - compiled
+                omega0, x0, bufs):  # pragma: no cover - compiled
     m = P.shape[0]
     n = u.shape[0]
+    nb = bufs.shape[0]
     cost = np.empty(m)
-    for j in prange(m):
-        out = _run(u, P[j], Phi[j], Gam[j], nsub, torque_driven, x0)
-        c = 0.0
-        for k in range(n):
-            if sw > 0.0:
-                r = (out[k, OMEGA_STATE] + omega0 - w_meas[k]) / sw
-                if math.isfinite(r):
-                    c += r * r
-            if sth > 0.0:
-                r = (out[k, THETA_STATE] - th_meas[k]) / sth
-                if math.isfinite(r):
-                    c += r * r
-        cost[j] = c
+    for j0 in range(0, m, nb):  # nb sets at a time, each into its own buffer (reused)
+        for jj in prange(min(nb, m - j0)):
+            j = j0 + jj
+            out = _run_into(u, P[j], Phi[j], Gam[j], nsub, torque_driven, x0, bufs[jj])
+            c = 0.0
+            for k in range(n):
+                if sw > 0.0:
+                    r = (out[k, OMEGA_STATE] + omega0 - w_meas[k]) / sw
+                    if math.isfinite(r):
+                        c += r * r
+                if sth > 0.0:
+                    r = (out[k, THETA_STATE] - th_meas[k]) / sth
+                    if math.isfinite(r):
+                        c += r * r
+            cost[j] = c
     return cost
 
 
@@ -76,6 +89,16 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     omega0 = float(vals_list[0].get("omega0", 0.0))
     ahead = aot.load()  # the ahead-of-time build (one thread) when current, else numba's JIT
     fn = ahead.batch_cost if ahead is not None else _batch_cost
+    bufs = np.empty((min(_threads(ahead), len(P)), log.n, NSTATE))  # one simulation per thread
     return fn(np.ascontiguousarray(log.u, float), P, Phi, Gam, int(nsub), bool(torque), w, th,
               float(sigma.get("omega", 0.0)), float(sigma.get("theta", 0.0)), omega0,
-              state_vector(x0))
+              state_vector(x0), bufs)
+
+
+def _threads(ahead) -> int:
+    """Sets simulated at once: numba's threads under the JIT, one ahead of time."""
+    if ahead is not None:
+        return 1
+    import numba
+
+    return max(1, int(numba.get_num_threads()))

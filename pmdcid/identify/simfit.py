@@ -20,9 +20,11 @@ from pmdcid.identify.covariance import block_covariance
 from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
+from pmdcid.identify.tall import BLOCK_ROWS, TALL_ROWS
 from pmdcid.model import Model
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.simulate import param_values, simulate_values
+from pmdcid.simulate.layout import NSTATE
 
 
 def noise_level(x: np.ndarray) -> float:
@@ -106,13 +108,19 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             out[k][1] = x[npar + j]
         return out
 
+    bufs: list[np.ndarray | None] = [None] * len(logs)  # the kernel's, reused; None: freed
+
     def sims(x):
+        """Each log's simulation at ``x``; its arrays are valid until the next call."""
         out = []
         xs = state(x)
         for k, log in enumerate(logs):
             vals = dict(base[k])
             vals.update(dict(zip(free, x[:npar], strict=True)))
-            out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k]))
+            if bufs[k] is None:
+                bufs[k] = np.empty((len(log.t), NSTATE))
+            out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k],
+                                       bufs[k]))
         return out
 
     nrows = segments[-1][2] + len(prior_rows)
@@ -136,8 +144,10 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     weight = [1.0]  # the prior rows' weight: the data's honest information (below)
 
     def run(z0):
-        return solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
-                     max_nfev=max_nfev, what="simulation-error fit")
+        s = solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
+                  max_nfev=max_nfev, what="simulation-error fit", rows=nrows)
+        s.jac = None  # unused here (the covariance takes wider central differences): frees m x n
+        return s
 
     sol = run(x0 / scale)
     nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them
@@ -160,6 +170,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     with blas_single_thread():
         Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale, cov_step)
         Jm /= scale[None, :]
+    bufs[:] = [None] * len(logs)  # no simulation until the last: freed for the covariance
     try:
         cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -255,14 +266,26 @@ def _covariance(Jm, fun, nd, segments, redchi, correlated, weight=1.0):
     the data score's covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision
     and ``w`` their weight (the prior means' own variance, scaled like their rows).
 
-    Computed with the Jacobian's columns scaled to unit norm and scaled back (the same
-    covariance): parameters of very different sizes (LuGre's sigma0 ~ 1e2 N m/rad beside
-    bc ~ 1e-3 N m) would otherwise give J'J a condition number past the pseudo-inverse's
-    cut-off, which then zeroes the small direction's variance."""
-    norms = np.linalg.norm(Jm, axis=0)
+    Computed with the Jacobian's columns scaled to unit norm (``Jm`` is scaled in place) and
+    scaled back (the same covariance): parameters of very different sizes (LuGre's sigma0 ~
+    1e2 N m/rad beside bc ~ 1e-3 N m) would otherwise give J'J a condition number past the
+    pseudo-inverse's cut-off, which then zeroes the small direction's variance."""
+    norms = _column_norms(Jm)
     d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
-    cov, info = _scaled_covariance(Jm * d, fun, nd, segments, redchi, correlated, weight)
+    Jm *= d  # in place: the caller's matrix, not used after (no m x n copy on long logs)
+    cov, info = _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight)
     return cov * np.outer(d, d), info
+
+
+def _column_norms(J: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each column; on a tall matrix a block of rows at a time (no m x n
+    square), which agrees with ``np.linalg.norm(J, axis=0)`` to rounding."""
+    if len(J) < TALL_ROWS:
+        return np.linalg.norm(J, axis=0)
+    ss = np.zeros(J.shape[1])
+    for a in range(0, len(J), BLOCK_ROWS):
+        ss += np.einsum("ij,ij->j", J[a:a + BLOCK_ROWS], J[a:a + BLOCK_ROWS])
+    return np.sqrt(ss)
 
 
 def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
@@ -298,7 +321,10 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel) -> np.ndarray:
             zu[j], zd[j] = up, dn
             fu = fun(zu) if up > z[j] else f0
             fd = fun(zd) if dn < z[j] else f0
-            J[:, j] = (fu - fd) / (up - dn)
+            d = fu - fd  # then divided in place: one temporary of the residual's length
+            d /= up - dn
+            J[:, j] = d
+            del d
             if np.any(J[:, j] != 0):
                 break
     return J

@@ -61,7 +61,8 @@ def scale_of(x0: np.ndarray, typical: np.ndarray | float = 1.0) -> np.ndarray:
 
 
 def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None = None,
-          x_scale="jac", what: str = "fit", fills: bool = False) -> Solution:
+          x_scale="jac", what: str = "fit", fills: bool = False,
+          rows: int | None = None) -> Solution:
     """Minimise ``sum(fun_z(z)**2)`` over ``lo_z <= z <= hi_z`` from ``z0`` (scaled vector).
 
     ``diff_step``: relative finite-difference step (one, or one per parameter; scipy's default
@@ -70,20 +71,30 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     ``what`` names the fit in the error raised when scipy refuses the problem. ``fills``:
     ``fun_z(z, out=row)`` writes the residual into ``row`` (saves a copy per evaluation). The
     Jacobian is scipy's forward differences, computed into one preallocated matrix
-    (:mod:`.fdjac`): the same numbers as ``jac="2-point"``.
+    (:mod:`.fdjac`): the same numbers as ``jac="2-point"``. ``rows``: the residual's length
+    when known; a residual of :data:`.tall.TALL_ROWS` rows or more is compressed to n+1 rows
+    before the solver sees it (:mod:`.tall`: the same steps to rounding, in bounded memory).
     """
     from pmdcid.identify.fdjac import ForwardJacobian
+    from pmdcid.identify.tall import TALL_ROWS, Compressed
 
     z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
     fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills)
+    tall = (Compressed(fd) if rows is not None and rows >= TALL_ROWS and fd.jac is fd
+            else None)
+    fun, jac = (tall.fun, tall.jac) if tall else (fd.fun, fd.jac)
     try:
         with blas_single_thread():
-            sol = _least_squares(fd.fun, z0, (lo_z, hi_z), diff_step, max_nfev, x_scale,
-                                 fd.jac)
+            sol = _least_squares(fun, z0, (lo_z, hi_z), diff_step, max_nfev, x_scale, jac)
+            if tall:  # the full residual and Jacobian at the solution (the Jacobian in place)
+                sol.fun, sol.jac = tall.full(sol.x)
+                sol.jac /= scale[None, :]
     except ValueError as exc:
         raise FitError(f"{what} failed: {exc}") from None
-    return Solution(sol.x, np.asarray(scale, float), sol.fun, sol.jac / scale[None, :],
-                    int(sol.nfev), bool(sol.success), str(sol.message))
+    jac = sol.jac if tall else sol.jac / scale[None, :]
+    fd._JT = fd._last = None  # scipy's wrappers keep fd in reference cycles: free its arrays now
+    return Solution(sol.x, np.asarray(scale, float), sol.fun, jac, int(sol.nfev),
+                    bool(sol.success), str(sol.message))
 
 
 def _least_squares(fun, z0, bounds, diff_step, max_nfev, x_scale, jac="2-point"):

@@ -107,6 +107,8 @@ def numeric_column(df, src: str, p: str, strict: bool = True) -> np.ndarray:
     (``strict``) or NaN. ``df`` is a DataFrame or a :class:`pmdcid.io.plain.PlainFrame`."""
     raw = df[src]
     if isinstance(raw, np.ndarray):  # a PlainFrame's column: plain float64 numbers
+        if raw.base is None and raw.dtype == float:  # a column stored alone (chunked read)
+            return raw
         return np.array(raw, dtype=float)  # a copy: no view keeps the whole table alive
     import pandas as pd
 

@@ -218,6 +218,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
 
     mapping = mapping or ColumnMap()
     data, extra, skipped = frame_columns(df, mapping, p)
+    del df  # the table is no longer needed: freed before the checks' temporaries
     return validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
 
 
@@ -225,8 +226,13 @@ def _read_frame(src, nskip: int, p: str):
     """The data rows of log ``p`` as a pandas DataFrame (any CSV pandas reads)."""
     import pandas as pd
 
+    from pmdcid.io.chunked import CHUNKED_BYTES, read_chunked
     from pmdcid.io.csvsource import separator_hint
 
+    if isinstance(src.handle, str) and os.path.getsize(src.handle) > CHUNKED_BYTES:
+        df = read_chunked(src, nskip)  # a large log: the same numbers in bounded memory
+        if df is not None:
+            return df
     try:
         df = pd.read_csv(src.handle, skiprows=nskip, skipinitialspace=True, low_memory=False,
                          encoding="utf-8-sig", encoding_errors="replace", sep=src.sep,

@@ -26,9 +26,10 @@ _PLAIN = b"0123456789+-.eE,\r\n"
 
 class PlainFrame:
     """The few parts of a DataFrame that :func:`pmdcid.io.build.frame_columns` uses: ``columns``,
-    ``len()`` and ``frame[name]`` (a float64 column)."""
+    ``len()`` and ``frame[name]`` (a float64 column). ``values``: a 2-D array (a row per
+    sample) or a list of 1-D arrays, one per column (:mod:`pmdcid.io.chunked`)."""
 
-    def __init__(self, columns: list[str], values: np.ndarray):
+    def __init__(self, columns: list[str], values: np.ndarray | list[np.ndarray]):
         self._values = values
         self.columns = columns
 
@@ -42,9 +43,11 @@ class PlainFrame:
         self._index = {c: j for j, c in enumerate(self._columns)}
 
     def __len__(self) -> int:
-        return self._values.shape[0]
+        return len(self._values[0]) if isinstance(self._values, list) else self._values.shape[0]
 
     def __getitem__(self, name: str) -> np.ndarray:
+        if isinstance(self._values, list):
+            return self._values[self._index[name]]
         return self._values[:, self._index[name]]
 
 

@@ -133,10 +133,14 @@ def param_vector(vals: dict[str, float]) -> np.ndarray:
 
 def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
                     torque_driven: bool = False, nsub: int | None = None,
-                    x0=None) -> SimResult:
+                    x0=None, out: np.ndarray | None = None) -> SimResult:
     """Simulate with parameter values ``vals`` (see :func:`param_values`) from ``x0`` =
     (i [A], omega [rad/s], theta [rad]) at ``t[0]`` (default: rest; effect states such as
-    LuGre's bristle deflection start at 0 unless a full state vector is given)."""
+    LuGre's bristle deflection start at 0 unless a full state vector is given).
+
+    ``out``: the kernel's state buffer (:func:`pmdcid.simulate.kernel.run_kernel`), reused by
+    a caller that simulates the same log many times; the result's arrays may be views of it,
+    valid until the next call with the same buffer."""
     t = np.asarray(t, dtype=float)
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
@@ -150,7 +154,7 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
                 else ramp_input(u, dt, latency, float(ramp), q))
         x = run_kernel(fine, dt / q, p, torque_driven, 1, x0)[::q]
     else:
-        x = run_kernel(u, dt, p, torque_driven, nsub, x0)
+        x = run_kernel(u, dt, p, torque_driven, nsub, x0, out)
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}
     w, theta = x[:, OMEGA_STATE], x[:, THETA_STATE]
     om, th = apply_sensors(t, w, theta, sensor)

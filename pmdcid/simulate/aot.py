@@ -38,7 +38,10 @@ EXPORTS = {
     "expm_small": ("pmdcid.simulate.kernel", "expm_small", "f8[:,::1](f8[:,::1])"),
     "batch_cost": ("pmdcid.identify.grid", "_batch_cost",
                    "f8[::1](f8[::1], f8[:,::1], f8[:,:,:,::1], f8[:,:,:,::1], i8, b1, f8[::1], "
-                   "f8[::1], f8, f8, f8, f8[::1])"),
+                   "f8[::1], f8, f8, f8, f8[::1], f8[:,:,::1])"),
+    "run_into": ("pmdcid.simulate.kernel", "_run_into",
+                 "f8[:,::1](f8[::1], f8[::1], f8[:,:,::1], f8[:,:,::1], i8, b1, f8[::1], "
+                 "f8[:,::1])"),
 }
 _LOADED: list = []
 

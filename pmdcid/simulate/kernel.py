@@ -208,7 +208,12 @@ def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compile
     """States (n, NSTATE) at the sample instants from ``x0`` (the base triple or a full state):
     the stick-slip loop, or the LuGre loop when LuGre is on (two loops: the stick-slip one, the
     hot path of every fit, stays free of LuGre's branches)."""
-    out = np.empty((u.shape[0], NSTATE))
+    return _run_into(u, p, Phi, Gam, nsub, torque_driven, x0, np.empty((u.shape[0], NSTATE)))
+
+
+@njit(cache=True)
+def _run_into(u, p, Phi, Gam, nsub, torque_driven, x0, out):  # pragma: no cover - compiled
+    """:func:`_run` writing the states into ``out`` (n, NSTATE), which it returns."""
     z0 = x0[3] if x0.shape[0] > 3 else 0.0
     if lugre_on(p):
         _run_lugre(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out)
@@ -379,13 +384,17 @@ def check_work(n: int, dt: float, nsub: int, p: np.ndarray) -> None:
 
 
 def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = False,
-               nsub: int | None = None, x0=None) -> np.ndarray:
+               nsub: int | None = None, x0=None, out: np.ndarray | None = None) -> np.ndarray:
     """Simulate from ``x0`` (default rest) under the zero-order-held input ``u`` sampled at ``dt``.
 
     Returns an (n, NSTATE) array of the states :data:`pmdcid.simulate.layout.STATES` (i [A],
     omega [rad/s], theta [rad], then effect states: LuGre's z [rad]) at the sample instants; row
     k is the state at t_k, before input u[k] is applied over [t_k, t_k + dt). ``x0``: the base
     triple or a full state (:func:`pmdcid.simulate.layout.state_vector`).
+
+    ``out``: a C-contiguous float (n, NSTATE) array to write the states into and return (a fit
+    simulating the same log many times reuses one: no fresh pages of a large array to fault in
+    every call). Whatever the caller keeps of a previous result in ``out`` is overwritten.
     """
     if nsub is None:
         nsub = choose_substeps(dt, p)
@@ -393,9 +402,13 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
     h = dt / nsub
     Phi, Gam = discretize_cached(p, h, torque_driven)
     x = state_vector(x0)
-    return _compiled("run")(np.ascontiguousarray(u, dtype=float),
-                            np.ascontiguousarray(p, dtype=float), Phi, Gam, int(nsub),
-                            bool(torque_driven), x)
+    u = np.ascontiguousarray(u, dtype=float)
+    p = np.ascontiguousarray(p, dtype=float)
+    if out is None:
+        return _compiled("run")(u, p, Phi, Gam, int(nsub), bool(torque_driven), x)
+    if out.shape != (len(u), NSTATE) or out.dtype != float or not out.flags.c_contiguous:
+        raise ValueError(f"out must be a C-contiguous float array of shape {(len(u), NSTATE)}")
+    return _compiled("run_into")(u, p, Phi, Gam, int(nsub), bool(torque_driven), x, out)
 
 
 def _compiled(name: str):
@@ -404,7 +417,7 @@ def _compiled(name: str):
     ahead = aot.load()
     if ahead is not None:
         return getattr(ahead, name)
-    return {"run": _run, "expm_small": expm_small}[name]
+    return {"run": _run, "expm_small": expm_small, "run_into": _run_into}[name]
 
 
 __all__ = ["LUGRE_STEPS", "MAX_STEPS", "WorkBoundError", "bounded_for", "check_work",
