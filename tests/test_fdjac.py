@@ -60,3 +60,61 @@ def test_fit_bit_identical_to_scipy_2_point_and_recovers_truth(monkeypatch):
         assert ours.estimates[n].stderr == ref.estimates[n].stderr
         assert ours.estimates[n].value == pytest.approx(truth[n], rel=0.05)
     assert ours.stats.nfev == ref.stats.nfev
+
+
+def _kernel_resid(paper):
+    """A residual that simulates (the compiled kernel, run from the pool's threads)."""
+    from pmdcid.simulate import simulate_values
+    from pmdcid.synth import triangle
+
+    t = np.arange(6000) * 1e-3
+    u = triangle(t, 2.0, 3.0)
+    names = ("J", "bv", "bc", "dz")
+    base = simulate_values(t, u, paper).omega
+
+    def resid(x, out=None):
+        sim = simulate_values(t, u, {**paper, **dict(zip(names, x, strict=True))}).omega
+        f = sim - base + 0.01
+        if out is None:
+            return f
+        out[:] = f
+        return out
+
+    return resid, np.array([paper[n] for n in names]) * 1.1
+
+
+@pytest.mark.parametrize("fills", [False, True])
+def test_parallel_columns_bit_identical_to_serial(monkeypatch, paper_values, fills):
+    resid, x = _kernel_resid(paper_values)
+    lb, ub = np.zeros(4), x * 10
+    serial = ForwardJacobian(resid, 1e-2, lb, ub, fills=fills)(x.copy()).copy()
+    monkeypatch.setattr(fdjac, "workers", lambda: 2)  # a pool even on a 1-CPU machine
+    assert fdjac._pool() is not None
+    par = ForwardJacobian(resid, 1e-2, lb, ub, fills=fills, parallel=True)(x.copy())
+    assert np.abs(serial).max() > 0
+    assert par.tobytes(order="F") == serial.tobytes(order="F")
+
+
+def test_threads_follow_affinity_and_env(monkeypatch):
+    monkeypatch.delenv("PMDCID_THREADS", raising=False)
+    cpus = len(__import__("os").sched_getaffinity(0))
+    assert fdjac.workers() == cpus
+    monkeypatch.setenv("PMDCID_THREADS", "1")
+    assert fdjac.workers() == 1 and fdjac._pool() is None
+    monkeypatch.setenv("PMDCID_THREADS", "64")
+    assert fdjac.workers() == cpus  # never more threads than CPUs
+    monkeypatch.setenv("PMDCID_THREADS", "many")
+    assert fdjac.workers() == cpus
+
+
+def test_error_in_a_column_reaches_the_caller(monkeypatch):
+    monkeypatch.setattr(fdjac, "workers", lambda: 2)
+
+    def resid(x):
+        if x[1] != 1.0:
+            raise ValueError("column 1 failed")
+        return np.ones(3) * x.sum()
+
+    fd = ForwardJacobian(resid, 1e-3, [-5, -5, -5], [5, 5, 5], parallel=True)
+    with pytest.raises(ValueError, match="column 1 failed"):
+        fd(np.array([1.0, 1.0, 1.0]))

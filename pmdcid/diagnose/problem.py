@@ -229,7 +229,7 @@ class Problem:
 
         steps = np.array([SWITCH_STEP if n in SWITCHING else 1e-3 for n in free])
         sol = solve(resid, x0 / scale, lo / scale, hi / scale, scale=scale, diff_step=steps,
-                    max_nfev=max_nfev, what="diagnose refit")
+                    max_nfev=max_nfev, what="diagnose refit", parallel=True)
         out = with_x(sol.z)
         stats = FitStats(len(sol.fun), len(free), float(np.sum(sol.fun**2)), sol.nfev,
                          sol.success, sol.message)

@@ -10,9 +10,18 @@ the same memory layout) with each evaluation written straight into its row of on
 allocated once per solve. The fits' results are bit for bit those of ``jac="2-point"``
 (``tests/test_fdjac.py``); when scipy's step helpers are not importable (a later scipy
 renamed them), :meth:`ForwardJacobian.jac` is ``"2-point"`` itself.
+
+The columns are independent simulations: with ``parallel``, they run on a small thread pool
+(:func:`workers` threads: the CPUs this process may use, ``PMDCID_THREADS`` to cap or turn it
+off with 1). The compiled kernel releases Python's lock (:mod:`pmdcid.simulate.aot`), so two
+columns simulate at once on a 2-core machine. Each column is written into its own row by the
+same code as serially: the Jacobian is bit for bit the same for any number of threads.
 """
 
 from __future__ import annotations
+
+import os
+import threading
 
 import numpy as np
 
@@ -28,9 +37,10 @@ class ForwardJacobian:
     default when None) inside bounds ``lb``, ``ub`` of the solver's vector. With ``fills``,
     ``resid(x, out=row)`` writes the residual into ``row`` (an m-vector)."""
 
-    def __init__(self, resid, rel_step, lb, ub, fills: bool = False):
+    def __init__(self, resid, rel_step, lb, ub, fills: bool = False, parallel: bool = False):
         self.resid = resid
         self.fills = fills
+        self.parallel = parallel
         self.rel_step = rel_step
         self.lb = np.asarray(lb, float)
         self.ub = np.asarray(ub, float)
@@ -56,7 +66,8 @@ class ForwardJacobian:
         if self._JT is None or self._JT.shape != (n, m):
             self._JT = np.empty((n, m))
         JT = self._JT  # scipy fills the transpose and returns its .T: the same layout here
-        for i in range(n):
+
+        def column(i):
             x1 = np.copy(x0)
             x1[i] = x0[i] + h[i]
             row = JT[i]
@@ -66,7 +77,51 @@ class ForwardJacobian:
             else:
                 np.subtract(np.atleast_1d(self.resid(x1)), f0, out=row)
             np.divide(row, (x0[i] + h[i]) - x0[i], out=row)
+
+        pool = _pool() if self.parallel and n > 1 else None
+        if pool is None:
+            for i in range(n):
+                column(i)
+        else:
+            for done in [pool.submit(column, i) for i in range(n)]:
+                done.result()  # in column order: the first error is raised, as serially
         return JT.T
 
 
-__all__ = ["ForwardJacobian"]
+def workers() -> int:
+    """Threads for the Jacobian's columns: the CPUs this process may run on
+    (``os.sched_getaffinity``), at most ``PMDCID_THREADS`` when set (1: serial)."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover - platforms without affinity
+        n = os.cpu_count() or 1
+    env = os.environ.get("PMDCID_THREADS", "").strip()
+    if env:
+        try:
+            n = min(n, max(1, int(env)))
+        except ValueError:
+            pass
+    return max(1, n)
+
+
+_POOL: list = []
+_POOL_LOCK = threading.Lock()
+
+
+def _pool():
+    """The process's thread pool for Jacobian columns, or None when :func:`workers` is 1 (or
+    the caller is itself one of the pool's threads: no nested pools)."""
+    if threading.current_thread().name.startswith("pmdcid-jac"):
+        return None
+    n = workers()
+    if n < 2:
+        return None
+    with _POOL_LOCK:
+        if not _POOL or _POOL[0][0] != n:
+            from concurrent.futures import ThreadPoolExecutor
+
+            _POOL[:] = [(n, ThreadPoolExecutor(n, thread_name_prefix="pmdcid-jac"))]
+        return _POOL[0][1]
+
+
+__all__ = ["ForwardJacobian", "workers"]

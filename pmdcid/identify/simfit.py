@@ -127,7 +127,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
 
     def run(z0):
         return solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
-                     max_nfev=max_nfev, what="simulation-error fit")
+                     max_nfev=max_nfev, what="simulation-error fit", parallel=True)
 
     sol = run(x0 / scale)
     nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them

@@ -61,7 +61,8 @@ def scale_of(x0: np.ndarray, typical: np.ndarray | float = 1.0) -> np.ndarray:
 
 
 def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None = None,
-          x_scale="jac", what: str = "fit", fills: bool = False) -> Solution:
+          x_scale="jac", what: str = "fit", fills: bool = False,
+          parallel: bool = False) -> Solution:
     """Minimise ``sum(fun_z(z)**2)`` over ``lo_z <= z <= hi_z`` from ``z0`` (scaled vector).
 
     ``diff_step``: relative finite-difference step (one, or one per parameter; scipy's default
@@ -70,12 +71,14 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     ``what`` names the fit in the error raised when scipy refuses the problem. ``fills``:
     ``fun_z(z, out=row)`` writes the residual into ``row`` (saves a copy per evaluation). The
     Jacobian is scipy's forward differences, computed into one preallocated matrix
-    (:mod:`.fdjac`): the same numbers as ``jac="2-point"``.
+    (:mod:`.fdjac`): the same numbers as ``jac="2-point"``. ``parallel``: its columns run on
+    threads (``fun_z`` must then be safe to call from several threads at once: no shared
+    scratch buffers); the same numbers for any thread count.
     """
     from pmdcid.identify.fdjac import ForwardJacobian
 
     z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
-    fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills)
+    fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills, parallel=parallel)
     try:
         with blas_single_thread():
             sol = _least_squares(fd.fun, z0, (lo_z, hi_z), diff_step, max_nfev, x_scale,

@@ -22,6 +22,7 @@ stays at its start and every other state is bit-for-bit the 3-state kernel's.
 from __future__ import annotations
 
 import math
+import threading
 from contextlib import contextmanager
 
 import numpy as np
@@ -142,6 +143,7 @@ def discretize(p: np.ndarray, h: float, torque_driven: bool) -> tuple[np.ndarray
 
 _DISCRETE: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 _DISCRETE_SIZE = 64
+_DISCRETE_LOCK = threading.Lock()
 
 
 def discretize_cached(p: np.ndarray, h: float, torque_driven: bool):
@@ -154,9 +156,11 @@ def discretize_cached(p: np.ndarray, h: float, torque_driven: bool):
     key = (tuple(float(p[k]) for k in LINEAR), float(h), bool(torque_driven))
     hit = _DISCRETE.get(key)
     if hit is None:
-        if len(_DISCRETE) >= _DISCRETE_SIZE:
-            _DISCRETE.pop(next(iter(_DISCRETE)))
-        hit = _DISCRETE[key] = discretize(p, h, torque_driven)
+        hit = discretize(p, h, torque_driven)
+        with _DISCRETE_LOCK:  # fits simulate from several threads (identify/fdjac.py)
+            while len(_DISCRETE) >= _DISCRETE_SIZE:
+                _DISCRETE.pop(next(iter(_DISCRETE)))
+            _DISCRETE[key] = hit
     return hit
 
 
@@ -204,7 +208,7 @@ def _linear_step(Phi, Gam, m, i, w, th, fe, fm):  # pragma: no cover - compiled
     return i1, w1, th1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compiled
     """States (n, NSTATE) at the sample instants from ``x0`` (the base triple or a full state):
     the stick-slip loop, or the LuGre loop when LuGre is on (two loops: the stick-slip one, the
