@@ -8,6 +8,7 @@ import pytest
 from ident_util import perturbed_truth, triangle_log
 from scipy.optimize._numdiff import approx_derivative
 
+import pmdcid.identify.cpus as cpus
 import pmdcid.identify.fdjac as fdjac
 from pmdcid.identify.fdjac import ForwardJacobian
 from pmdcid.identify.simfit import fit_simulation
@@ -88,27 +89,14 @@ def test_parallel_columns_bit_identical_to_serial(monkeypatch, paper_values, fil
     resid, x = _kernel_resid(paper_values)
     lb, ub = np.zeros(4), x * 10
     serial = ForwardJacobian(resid, 1e-2, lb, ub, fills=fills)(x.copy()).copy()
-    monkeypatch.setattr(fdjac, "workers", lambda: 2)  # a pool even on a 1-CPU machine
-    assert fdjac._pool() is not None
+    monkeypatch.setattr(cpus, "workers", lambda: 2)  # threads even on a 1-CPU machine
     par = ForwardJacobian(resid, 1e-2, lb, ub, fills=fills, parallel=True)(x.copy())
     assert np.abs(serial).max() > 0
     assert par.tobytes(order="F") == serial.tobytes(order="F")
 
 
-def test_threads_follow_affinity_and_env(monkeypatch):
-    monkeypatch.delenv("PMDCID_THREADS", raising=False)
-    cpus = len(__import__("os").sched_getaffinity(0))
-    assert fdjac.workers() == cpus
-    monkeypatch.setenv("PMDCID_THREADS", "1")
-    assert fdjac.workers() == 1 and fdjac._pool() is None
-    monkeypatch.setenv("PMDCID_THREADS", "64")
-    assert fdjac.workers() == cpus  # never more threads than CPUs
-    monkeypatch.setenv("PMDCID_THREADS", "many")
-    assert fdjac.workers() == cpus
-
-
 def test_error_in_a_column_reaches_the_caller(monkeypatch):
-    monkeypatch.setattr(fdjac, "workers", lambda: 2)
+    monkeypatch.setattr(cpus, "workers", lambda: 2)
 
     def resid(x):
         if x[1] != 1.0:

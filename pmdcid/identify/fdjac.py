@@ -11,19 +11,17 @@ allocated once per solve. The fits' results are bit for bit those of ``jac="2-po
 (``tests/test_fdjac.py``); when scipy's step helpers are not importable (a later scipy
 renamed them), :meth:`ForwardJacobian.jac` is ``"2-point"`` itself.
 
-The columns are independent simulations: with ``parallel``, they run on a small thread pool
-(:func:`workers` threads: the CPUs this process may use, ``PMDCID_THREADS`` to cap or turn it
-off with 1). The compiled kernel releases Python's lock (:mod:`pmdcid.simulate.aot`), so two
-columns simulate at once on a 2-core machine. Each column is written into its own row by the
-same code as serially: the Jacobian is bit for bit the same for any number of threads.
+The columns are independent simulations: with ``parallel``, they are shared with the spare
+CPUs (:func:`pmdcid.identify.cpus.pmap`; ``PMDCID_THREADS=1`` turns it off). Each column is
+written into its own row by the same code as serially: the Jacobian is bit for bit the same
+for any number of threads.
 """
 
 from __future__ import annotations
 
-import os
-import threading
-
 import numpy as np
+
+from pmdcid.identify.cpus import pmap
 
 try:  # scipy's own step rule: the steps must be exactly those of jac="2-point"
     from scipy.optimize._numdiff import _adjust_scheme_to_bounds, _compute_absolute_step
@@ -78,50 +76,9 @@ class ForwardJacobian:
                 np.subtract(np.atleast_1d(self.resid(x1)), f0, out=row)
             np.divide(row, (x0[i] + h[i]) - x0[i], out=row)
 
-        pool = _pool() if self.parallel and n > 1 else None
-        if pool is None:
-            for i in range(n):
-                column(i)
-        else:
-            for done in [pool.submit(column, i) for i in range(n)]:
-                done.result()  # in column order: the first error is raised, as serially
+        pmap(column, range(n), self.parallel)
         return JT.T
 
 
-def workers() -> int:
-    """Threads for the Jacobian's columns: the CPUs this process may run on
-    (``os.sched_getaffinity``), at most ``PMDCID_THREADS`` when set (1: serial)."""
-    try:
-        n = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover - platforms without affinity
-        n = os.cpu_count() or 1
-    env = os.environ.get("PMDCID_THREADS", "").strip()
-    if env:
-        try:
-            n = min(n, max(1, int(env)))
-        except ValueError:
-            pass
-    return max(1, n)
 
-
-_POOL: list = []
-_POOL_LOCK = threading.Lock()
-
-
-def _pool():
-    """The process's thread pool for Jacobian columns, or None when :func:`workers` is 1 (or
-    the caller is itself one of the pool's threads: no nested pools)."""
-    if threading.current_thread().name.startswith("pmdcid-jac"):
-        return None
-    n = workers()
-    if n < 2:
-        return None
-    with _POOL_LOCK:
-        if not _POOL or _POOL[0][0] != n:
-            from concurrent.futures import ThreadPoolExecutor
-
-            _POOL[:] = [(n, ThreadPoolExecutor(n, thread_name_prefix="pmdcid-jac"))]
-        return _POOL[0][1]
-
-
-__all__ = ["ForwardJacobian", "workers"]
+__all__ = ["ForwardJacobian"]
