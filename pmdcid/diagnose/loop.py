@@ -188,7 +188,8 @@ def screen(run: Run, cur: FitOutcome, pool: list[str]) -> list[Screen]:
     """Every effect of ``pool`` screened against the residual of ``cur``."""
     sims = run.problem.simulate_all(cur.values)
     scr = Screener(run.problem, cur.values, context(run.problem, cur.values, sims), run.base_free)
-    return [scr.screen(EFFECTS[e]) for e in pool]
+    pmap(scr.base_column, run.base_free)  # shared by every effect's screen: made first
+    return pmap(lambda e: scr.screen(EFFECTS[e]), pool)
 
 
 def _screen_reason(s: Screen, ranked: list[Screen], refit_top: int) -> str:

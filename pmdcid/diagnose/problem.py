@@ -48,6 +48,17 @@ class Channel:
     #: the speed was derived from the angle (filter + derivative, cut-off [Hz]): the simulated
     #: speed is derived the same way before the comparison
     derived_cutoff: float | None = None
+    _parts: dict = field(default_factory=dict, repr=False)
+
+    def part(self, part: str) -> tuple[np.ndarray, np.ndarray]:
+        """(log sample indices, measured values) of ``part`` ('fit', 'held', 'all'), made once:
+        every residual evaluation of a fit selects them (issue #16: Python time per call)."""
+        got = self._parts.get(part)
+        if got is None:
+            keep = (slice(None) if part == "all" else self.fit if part == "fit"
+                    else ~self.fit)
+            got = self._parts[part] = (self.idx[keep], self.meas[keep])
+        return got
 
 
 @dataclass
@@ -147,15 +158,17 @@ class Problem:
     def simulate_all(self, vals: dict[str, float]) -> list[SimResult]:
         return [self.simulate(vals, k) for k in range(len(self.logs))]
 
-    def simulated(self, sims: list[SimResult], ch: Channel) -> np.ndarray:
-        """The simulated counterpart of channel ``ch`` at its samples: a derived speed compares
-        with the simulated angle's speed derived by the same zero-phase filter and derivative
-        (an unfiltered simulated speed would differ at every stick-slip edge)."""
+    def simulated(self, sims: list[SimResult], ch: Channel, idx=None) -> np.ndarray:
+        """The simulated counterpart of channel ``ch`` at its samples (or at the samples ``idx``
+        of the log): a derived speed compares with the simulated angle's speed derived by the
+        same zero-phase filter and derivative (an unfiltered simulated speed would differ at
+        every stick-slip edge)."""
         sim = sims[ch.log]
+        idx = ch.idx if idx is None else idx
         if ch.derived_cutoff is not None:
             log = self.logs[ch.log]
-            return speed_from_position(sim.theta, log.dt, ch.derived_cutoff)[ch.idx]
-        return sim.get(ch.signal)[ch.idx]
+            return speed_from_position(sim.theta, log.dt, ch.derived_cutoff)[idx]
+        return sim.get(ch.signal)[idx]
 
     def residual(self, sims: list[SimResult], ch: Channel) -> np.ndarray:
         """Simulated - measured at channel ``ch``'s samples (the sign of every fit of pmdcid,
@@ -169,9 +182,12 @@ class Problem:
         """
         out = []
         for ch in self.channels:
-            r = self.residual(sims, ch) / ch.sigma
-            r = np.where(np.isfinite(r), r, 0.0)
-            out.append(r if part == "all" else r[ch.fit] if part == "fit" else r[~ch.fit])
+            idx, meas = ch.part(part)
+            sim = self.simulated(sims, ch, idx)
+            r = np.subtract(sim, meas, out=sim if sim.base is None else None)
+            r /= ch.sigma
+            r[~np.isfinite(r)] = 0.0
+            out.append(r)
         return np.concatenate(out)
 
     def chi2(self, vals: dict[str, float]) -> dict[str, float]:

@@ -17,6 +17,7 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
+from pmdcid.identify.cpus import pmap
 from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
@@ -273,9 +274,12 @@ def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
 
 def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
     """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one-sided at a
-    bound); columns that still come out zero fall back to a 5x wider step."""
+    bound); columns that still come out zero fall back to a 5x wider step. The columns are
+    shared with the spare CPUs (:func:`pmdcid.identify.cpus.pmap`): ``fun`` must be safe to
+    call from several threads; the same bits for any number of threads."""
     J = np.empty((len(f0), len(z)))  # filled column by column: no list of columns to stack
-    for j in range(len(z)):
+
+    def column(j):
         for r in (rel, 5 * rel):
             h = r * max(abs(z[j]), 1e-12)
             up, dn = min(z[j] + h, hi[j]), max(z[j] - h, lo[j])
@@ -289,6 +293,8 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel: float) -> np.ndarray:
             J[:, j] = (fu - fd) / (up - dn)
             if np.any(J[:, j] != 0):
                 break
+
+    pmap(column, range(len(z)))
     return J
 
 
