@@ -57,8 +57,19 @@ class Channel:
         if got is None:
             keep = (slice(None) if part == "all" else self.fit if part == "fit"
                     else ~self.fit)
-            got = self._parts[part] = (self.idx[keep], self.meas[keep])
+            got = self._parts[part] = (as_slice(self.idx[keep]), self.meas[keep])
         return got
+
+
+def as_slice(idx: np.ndarray):
+    """``idx`` (increasing sample indices) as a slice when evenly spaced (a channel's strided
+    samples, or a prefix or suffix of them): selecting by a slice is a view, not a gather."""
+    if len(idx) == 0:
+        return slice(0, 0)
+    step = int(idx[1] - idx[0]) if len(idx) > 1 else 1
+    if step > 0 and np.array_equal(idx, np.arange(idx[0], idx[-1] + 1, step)):
+        return slice(int(idx[0]), int(idx[-1]) + 1, step)
+    return idx
 
 
 @dataclass
