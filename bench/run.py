@@ -29,6 +29,7 @@ from bench.rows_kernel import (  # noqa: E402
 )
 from bench.rows_pipeline import demo_rows, diagnose_rows, fit_rows, startup_rows  # noqa: E402
 from bench.rows_process import process_rows, scaling_rows  # noqa: E402
+from bench.rows_speed import diagnose_scaling_rows, identify_rows  # noqa: E402
 from bench.table import Row, machine, markdown, write_docs  # noqa: E402
 
 LEGEND = ("B1 = scipy `solve_ivp` LSODA (rtol 1e-6, atol 1e-9, tanh-smoothed Coulomb friction "
@@ -67,10 +68,12 @@ def main(argv: list[str] | None = None) -> int:
         rows += step("fit-nonlinear", lambda: fit_rows(b1, args.quick, tmp))
         rows += step("diagnose", lambda: diagnose_rows(b1, args.quick))
         rows += step("demo", lambda: demo_rows(b1, args.quick, tmp))
+        rows += step("identify", lambda: identify_rows(args.quick, tmp))
         rows += step("start-up", lambda: startup_rows(args.quick))
         rows += step("whole processes", lambda: process_rows(args.quick, tmp))
         rows += step("command scaling", lambda: scaling_rows(args.quick, tmp))
         rows += step("kernel scaling", lambda: kernel_scaling_rows(setup, args.quick))
+        rows += step("diagnose scaling", lambda: diagnose_scaling_rows(args.quick, tmp))
     total = time.perf_counter() - t0
 
     text = "\n\n".join([markdown(rows), LEGEND, machine() + f" `make bench` took {total:.0f} s"

@@ -1,7 +1,14 @@
+import os
+
 import numpy as np
 import pytest
 
 from pmdcid.synth import PAPER
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # pytest -n already runs a worker per CPU: the fits' Jacobian threads would oversubscribe
+    # (identify/fdjac.py; tests/test_fdjac.py runs the threads itself). Children inherit it.
+    os.environ.setdefault("PMDCID_THREADS", "1")
 
 
 @pytest.fixture

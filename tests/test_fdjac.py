@@ -8,6 +8,7 @@ import pytest
 from ident_util import perturbed_truth, triangle_log
 from scipy.optimize._numdiff import approx_derivative
 
+import pmdcid.identify.cpus as cpus
 import pmdcid.identify.fdjac as fdjac
 from pmdcid.identify.fdjac import ForwardJacobian
 from pmdcid.identify.simfit import fit_simulation
@@ -60,3 +61,48 @@ def test_fit_bit_identical_to_scipy_2_point_and_recovers_truth(monkeypatch):
         assert ours.estimates[n].stderr == ref.estimates[n].stderr
         assert ours.estimates[n].value == pytest.approx(truth[n], rel=0.05)
     assert ours.stats.nfev == ref.stats.nfev
+
+
+def _kernel_resid(paper):
+    """A residual that simulates (the compiled kernel, run from the pool's threads)."""
+    from pmdcid.simulate import simulate_values
+    from pmdcid.synth import triangle
+
+    t = np.arange(6000) * 1e-3
+    u = triangle(t, 2.0, 3.0)
+    names = ("J", "bv", "bc", "dz")
+    base = simulate_values(t, u, paper).omega
+
+    def resid(x, out=None):
+        sim = simulate_values(t, u, {**paper, **dict(zip(names, x, strict=True))}).omega
+        f = sim - base + 0.01
+        if out is None:
+            return f
+        out[:] = f
+        return out
+
+    return resid, np.array([paper[n] for n in names]) * 1.1
+
+
+@pytest.mark.parametrize("fills", [False, True])
+def test_parallel_columns_bit_identical_to_serial(monkeypatch, paper_values, fills):
+    resid, x = _kernel_resid(paper_values)
+    lb, ub = np.zeros(4), x * 10
+    serial = ForwardJacobian(resid, 1e-2, lb, ub, fills=fills)(x.copy()).copy()
+    monkeypatch.setattr(cpus, "workers", lambda: 2)  # threads even on a 1-CPU machine
+    par = ForwardJacobian(resid, 1e-2, lb, ub, fills=fills, parallel=True)(x.copy())
+    assert np.abs(serial).max() > 0
+    assert par.tobytes(order="F") == serial.tobytes(order="F")
+
+
+def test_error_in_a_column_reaches_the_caller(monkeypatch):
+    monkeypatch.setattr(cpus, "workers", lambda: 2)
+
+    def resid(x):
+        if x[1] != 1.0:
+            raise ValueError("column 1 failed")
+        return np.ones(3) * x.sum()
+
+    fd = ForwardJacobian(resid, 1e-3, [-5, -5, -5], [5, 5, 5], parallel=True)
+    with pytest.raises(ValueError, match="column 1 failed"):
+        fd(np.array([1.0, 1.0, 1.0]))

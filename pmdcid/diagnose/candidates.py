@@ -18,6 +18,7 @@ import numpy as np
 from pmdcid.diagnose.problem import FitOutcome, bounds_of
 from pmdcid.diagnose.residuals import error_table, pooled
 from pmdcid.diagnose.rules import at_bound, failed_refit
+from pmdcid.identify.cpus import pmap
 from pmdcid.model import EFFECTS
 from pmdcid.model.signatures import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
 
@@ -108,19 +109,24 @@ def _neutral(name: str) -> dict[str, float]:
 def refit_starts(run, screen, cur: FitOutcome, free: list[str]) -> tuple[FitOutcome, int]:
     """The best refit of ``free`` (fit part) over the starts; returns it and the starts used."""
     name = screen.effect
-    tries = [run.robust_fit({**cur.values, **screen.start}, free)]
+    starts = [lambda: run.robust_fit({**cur.values, **screen.start}, free)]
     off = _neutral(name)
     if all(math.isfinite(v) for v in off.values()):
         held = {p: screen.start[p] for p in EFFECTS[name].held if p in screen.start}
-        tries.append(run.fit({**cur.values, **off, **held}, free))
+        starts.append(lambda: run.fit({**cur.values, **off, **held}, free))
+    tries = pmap(_call, starts)  # independent refits: on the spare CPUs (identify/cpus.py)
     best = min(tries, key=lambda f: f.chi2["fit"])
     if failed_refit(best.chi2["fit"], cur.chi2["fit"]):
         own = set(effect_free(name))
-        for f in RETRY_FACTORS:
-            start = {k: (v * f if k in own else v) for k, v in screen.start.items()}
-            tries.append(run.fit({**cur.values, **start}, free))
+        retry = [{k: (v * f if k in own else v) for k, v in screen.start.items()}
+                 for f in RETRY_FACTORS]
+        tries += pmap(lambda start: run.fit({**cur.values, **start}, free), retry)
         best = min(tries, key=lambda f: f.chi2["fit"])
     return best, len(tries)
+
+
+def _call(fn):
+    return fn()
 
 
 def degenerate(name: str, fo: FitOutcome, limits: dict) -> str | None:

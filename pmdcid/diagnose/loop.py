@@ -45,6 +45,7 @@ from pmdcid.diagnose.screen import Screen, Screener
 from pmdcid.diagnose.shape import residual_shapes
 from pmdcid.diagnose.starts import grid_start, profile_best
 from pmdcid.errors import ModelError
+from pmdcid.identify.cpus import pmap
 from pmdcid.identify.results import ResultProtocol
 from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import EFFECTS, Model
@@ -187,7 +188,8 @@ def screen(run: Run, cur: FitOutcome, pool: list[str]) -> list[Screen]:
     """Every effect of ``pool`` screened against the residual of ``cur``."""
     sims = run.problem.simulate_all(cur.values)
     scr = Screener(run.problem, cur.values, context(run.problem, cur.values, sims), run.base_free)
-    return [scr.screen(EFFECTS[e]) for e in pool]
+    pmap(scr.base_column, run.base_free)  # shared by every effect's screen: made first
+    return pmap(lambda e: scr.screen(EFFECTS[e]), pool)
 
 
 def _screen_reason(s: Screen, ranked: list[Screen], refit_top: int) -> str:
@@ -254,7 +256,11 @@ def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_round
         cands = []
         for s in ranked:
             run.say(f"diagnose round {rnd}: refitting {s.effect}")
-            c, ref = evaluate(run, s, cur, effect_free(s.effect) + cur_free, rnd)
+        # the candidates' refits are independent: shared with the spare CPUs (identify/cpus.py;
+        # the same results in the same order for any number of threads)
+        done = pmap(lambda s, cur=cur, free=cur_free, rnd=rnd:
+                    evaluate(run, s, cur, effect_free(s.effect) + free, rnd), ranked)
+        for s, (c, ref) in zip(ranked, done, strict=True):
             seen[s.effect] = c
             history.append(c)
             cands.append(c)

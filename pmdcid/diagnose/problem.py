@@ -48,6 +48,28 @@ class Channel:
     #: the speed was derived from the angle (filter + derivative, cut-off [Hz]): the simulated
     #: speed is derived the same way before the comparison
     derived_cutoff: float | None = None
+    _parts: dict = field(default_factory=dict, repr=False)
+
+    def part(self, part: str) -> tuple[np.ndarray, np.ndarray]:
+        """(log sample indices, measured values) of ``part`` ('fit', 'held', 'all'), made once:
+        every residual evaluation of a fit selects them (issue #16: Python time per call)."""
+        got = self._parts.get(part)
+        if got is None:
+            keep = (slice(None) if part == "all" else self.fit if part == "fit"
+                    else ~self.fit)
+            got = self._parts[part] = (as_slice(self.idx[keep]), self.meas[keep])
+        return got
+
+
+def as_slice(idx: np.ndarray):
+    """``idx`` (increasing sample indices) as a slice when evenly spaced (a channel's strided
+    samples, or a prefix or suffix of them): selecting by a slice is a view, not a gather."""
+    if len(idx) == 0:
+        return slice(0, 0)
+    step = int(idx[1] - idx[0]) if len(idx) > 1 else 1
+    if step > 0 and np.array_equal(idx, np.arange(idx[0], idx[-1] + 1, step)):
+        return slice(int(idx[0]), int(idx[-1]) + 1, step)
+    return idx
 
 
 @dataclass
@@ -155,15 +177,17 @@ class Problem:
     def simulate_all(self, vals: dict[str, float]) -> list[SimResult]:
         return [self.simulate(vals, k) for k in range(len(self.logs))]
 
-    def simulated(self, sims: list[SimResult], ch: Channel) -> np.ndarray:
-        """The simulated counterpart of channel ``ch`` at its samples: a derived speed compares
-        with the simulated angle's speed derived by the same zero-phase filter and derivative
-        (an unfiltered simulated speed would differ at every stick-slip edge)."""
+    def simulated(self, sims: list[SimResult], ch: Channel, idx=None) -> np.ndarray:
+        """The simulated counterpart of channel ``ch`` at its samples (or at the samples ``idx``
+        of the log): a derived speed compares with the simulated angle's speed derived by the
+        same zero-phase filter and derivative (an unfiltered simulated speed would differ at
+        every stick-slip edge)."""
         sim = sims[ch.log]
+        idx = ch.idx if idx is None else idx
         if ch.derived_cutoff is not None:
             log = self.logs[ch.log]
-            return speed_from_position(sim.theta, log.dt, ch.derived_cutoff)[ch.idx]
-        return sim.get(ch.signal)[ch.idx]
+            return speed_from_position(sim.theta, log.dt, ch.derived_cutoff)[idx]
+        return sim.get(ch.signal)[idx]
 
     def residual(self, sims: list[SimResult], ch: Channel) -> np.ndarray:
         """Simulated - measured at channel ``ch``'s samples (the sign of every fit of pmdcid,
@@ -177,9 +201,12 @@ class Problem:
         """
         out = []
         for ch in self.channels:
-            r = self.residual(sims, ch) / ch.sigma
-            r = np.where(np.isfinite(r), r, 0.0)
-            out.append(r if part == "all" else r[ch.fit] if part == "fit" else r[~ch.fit])
+            idx, meas = ch.part(part)
+            sim = self.simulated(sims, ch, idx)
+            r = np.subtract(sim, meas, out=sim if sim.base is None else None)
+            r /= ch.sigma
+            r[~np.isfinite(r)] = 0.0
+            out.append(r)
         return np.concatenate(out)
 
     def chi2(self, vals: dict[str, float]) -> dict[str, float]:
@@ -237,7 +264,7 @@ class Problem:
 
         steps = np.array([SWITCH_STEP if n in SWITCHING else 1e-3 for n in free])
         sol = solve(resid, x0 / scale, lo / scale, hi / scale, scale=scale, diff_step=steps,
-                    max_nfev=max_nfev, what="diagnose refit")
+                    max_nfev=max_nfev, what="diagnose refit", parallel=True)
         out = with_x(sol.z)
         stats = FitStats(len(sol.fun), len(free), float(np.sum(sol.fun**2)), sol.nfev,
                          sol.success, sol.message)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.diagnose.problem import Problem
+from pmdcid.identify.cpus import pmap
 from pmdcid.model.effects import Effect
 from pmdcid.model.residual import ResidualContext
 
@@ -89,7 +90,7 @@ class Screener:
         d = np.column_stack(inter) if inter else None
         rss_d, _ = _rss(d, self.r0)
         for probe in effect.signature(self.ctx):
-            cols = [self.column(ov) for ov in probe.columns]
+            cols = pmap(self.column, probe.columns)
             if not any(np.any(c) for c in cols):
                 continue
             x = np.column_stack(cols + inter)

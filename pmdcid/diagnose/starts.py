@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pmdcid.identify.cpus import pmap
+
 #: grid points per axis
 GRID_N = 5
 #: bv factors tried around the start
@@ -37,19 +39,26 @@ def grid_start(problem, vals: dict[str, float], free, torque_scale: float,
     sw = [n for n in ("bc", "dz") if n in free]
     if sw:
         axes = np.meshgrid(*(_axis(n, vals, torque_scale) for n in sw), indexing="ij")
-        for point in zip(*(a.ravel() for a in axes), strict=True):
-            trial = {**best, **dict(zip(sw, point, strict=True))}
-            c = problem.chi2(trial)[part]
-            if c < best_c:
-                best, best_c = trial, c
+        # every trial sets all of ``sw``: it does not depend on the best point so far, so the
+        # trials are simulated side by side and then compared in order, as one by one
+        trials = [{**best, **dict(zip(sw, point, strict=True))}
+                  for point in zip(*(a.ravel() for a in axes), strict=True)]
+        best, best_c = _lowest(problem, trials, part, best, best_c)
     if "bv" in free and best.get("bv", 0.0) > 0:
         bv0 = best["bv"]
-        for f in BV_FACTORS:
-            trial = {**best, "bv": bv0 * f}
-            c = problem.chi2(trial)[part]
-            if c < best_c:
-                best, best_c = trial, c
+        trials = [{**best, "bv": bv0 * f} for f in BV_FACTORS]
+        best, best_c = _lowest(problem, trials, part, best, best_c)
     return best
+
+
+def _lowest(problem, trials, part, best, best_c):
+    """The first trial of lowest ``part`` chi-square if below ``best_c``, else ``best``; the
+    trials simulated on the spare CPUs (:func:`pmdcid.identify.cpus.pmap`)."""
+    costs = pmap(lambda v: problem.chi2(v)[part], trials)
+    for trial, c in zip(trials, costs, strict=True):
+        if c < best_c:
+            best, best_c = trial, c
+    return best, best_c
 
 
 
@@ -84,11 +93,8 @@ def profile_best(problem, vals: dict[str, float], free, part: str = "all") -> di
             xs = v * np.linspace(1 - PROFILE_SPAN, 1 + PROFILE_SPAN, PROFILE_N)
         else:
             continue
-        for x in xs:
-            trial = {**best, name: float(x)}
-            c = problem.chi2(trial)[part]
-            if c < best_c:
-                best, best_c = trial, c
+        best, best_c = _lowest(problem, [{**best, name: float(x)} for x in xs], part, best,
+                               best_c)
     return best
 
 
@@ -102,7 +108,7 @@ def profile_stderr(problem, vals: dict[str, float], name: str, redchi: float,
     if not v > 0:
         return float("nan")
     xs = v * np.linspace(1 - span, 1 + span, n)
-    c = np.array([problem.chi2({**vals, name: float(x)})["all"] for x in xs])
+    c = np.array(pmap(lambda x: problem.chi2({**vals, name: float(x)})["all"], xs))
     ok = xs[c - c.min() <= max(redchi, 1.0)]
     return float(max(0.5 * (ok.max() - ok.min()), xs[1] - xs[0]))
 

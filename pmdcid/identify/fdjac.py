@@ -10,11 +10,18 @@ the same memory layout) with each evaluation written straight into its row of on
 allocated once per solve. The fits' results are bit for bit those of ``jac="2-point"``
 (``tests/test_fdjac.py``); when scipy's step helpers are not importable (a later scipy
 renamed them), :meth:`ForwardJacobian.jac` is ``"2-point"`` itself.
+
+The columns are independent simulations: with ``parallel``, they are shared with the spare
+CPUs (:func:`pmdcid.identify.cpus.pmap`; ``PMDCID_THREADS=1`` turns it off). Each column is
+written into its own row by the same code as serially: the Jacobian is bit for bit the same
+for any number of threads.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from pmdcid.identify.cpus import pmap
 
 try:  # scipy's own step rule: the steps must be exactly those of jac="2-point"
     from scipy.optimize._numdiff import _adjust_scheme_to_bounds, _compute_absolute_step
@@ -28,9 +35,10 @@ class ForwardJacobian:
     default when None) inside bounds ``lb``, ``ub`` of the solver's vector. With ``fills``,
     ``resid(x, out=row)`` writes the residual into ``row`` (an m-vector)."""
 
-    def __init__(self, resid, rel_step, lb, ub, fills: bool = False):
+    def __init__(self, resid, rel_step, lb, ub, fills: bool = False, parallel: bool = False):
         self.resid = resid
         self.fills = fills
+        self.parallel = parallel
         self.rel_step = rel_step
         self.lb = np.asarray(lb, float)
         self.ub = np.asarray(ub, float)
@@ -56,7 +64,8 @@ class ForwardJacobian:
         if self._JT is None or self._JT.shape != (n, m):
             self._JT = np.empty((n, m))
         JT = self._JT  # scipy fills the transpose and returns its .T: the same layout here
-        for i in range(n):
+
+        def column(i):
             x1 = np.copy(x0)
             x1[i] = x0[i] + h[i]
             row = JT[i]
@@ -66,7 +75,10 @@ class ForwardJacobian:
             else:
                 np.subtract(np.atleast_1d(self.resid(x1)), f0, out=row)
             np.divide(row, (x0[i] + h[i]) - x0[i], out=row)
+
+        pmap(column, range(n), self.parallel)
         return JT.T
+
 
 
 __all__ = ["ForwardJacobian"]

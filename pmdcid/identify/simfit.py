@@ -11,12 +11,14 @@ finite-difference steps large enough to step over the kernel's event quantisatio
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Sequence
 
 import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
+from pmdcid.identify.cpus import pmap
 from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
@@ -108,22 +110,28 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
             out[k][1] = x[npar + j]
         return out
 
-    bufs: list[np.ndarray | None] = [None] * len(logs)  # the kernel's, reused; None: freed
+    # the kernel's state buffers, reused across simulations: one set per thread (the Jacobian's
+    # columns may run on several), dropped before the covariance
+    bufs: dict[int, list] = {}
 
     def sims(x):
-        """Each log's simulation at ``x``; its arrays are valid until the next call."""
+        """Each log's simulation at ``x``; its arrays are valid until this thread's next call."""
         out = []
         xs = state(x)
+        mine = bufs.setdefault(threading.get_ident(), [None] * len(logs))
         for k, log in enumerate(logs):
             vals = dict(base[k])
             vals.update(dict(zip(free, x[:npar], strict=True)))
-            if bufs[k] is None:
-                bufs[k] = np.empty((len(log.t), NSTATE))
+            if mine[k] is None:
+                mine[k] = np.empty((len(log.t), NSTATE))
             out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k],
-                                       bufs[k]))
+                                       mine[k]))
         return out
 
     nrows = segments[-1][2] + len(prior_rows)
+    # columns on threads, each with its own kernel buffers: not for a tall residual, whose
+    # buffers per thread would cost more memory than the threads save time
+    parallel = nrows < TALL_ROWS
 
     def resid(z, out=None):
         """(simulated - measured) / sigma per block, then the prior rows; into ``out``."""
@@ -145,7 +153,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
 
     def run(z0):
         s = solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
-                  max_nfev=max_nfev, what="simulation-error fit", rows=nrows)
+                  max_nfev=max_nfev, what="simulation-error fit", rows=nrows, parallel=parallel)
         s.jac = None  # unused here (the covariance takes wider central differences): frees m x n
         return s
 
@@ -156,7 +164,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         # the noise, correlated in time, the logs carry far less information than that weight
         # says: the priors are weighed against the data's honest information, the reduced
         # chi-square times the correlated-residual inflation squared (docs/identification.md)
-        w = _data_discount(resid, sol, nd, segments, lo / scale, hi / scale, cov_step)
+        w = _data_discount(resid, sol, nd, segments, lo / scale, hi / scale, cov_step,
+                               parallel)
         if w > 1.5:
             weight[0] = w
             sol = run(sol.z)
@@ -168,9 +177,10 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     # parameter like dz (a zero column, hence a zero standard error): the covariance uses
     # central differences over a wider step, the slope of the cost's smooth envelope.
     with blas_single_thread():
-        Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale, cov_step)
+        Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale, cov_step,
+                                parallel)
         Jm /= scale[None, :]
-    bufs[:] = [None] * len(logs)  # no simulation until the last: freed for the covariance
+    bufs.clear()  # no simulation until the last: freed for the covariance
     try:
         cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -244,13 +254,13 @@ def _initial_states(logs, sig_list, initial: bool) -> list[np.ndarray]:
     return out
 
 
-def _data_discount(resid, sol, nd, segments, lo, hi, cov_step) -> float:
+def _data_discount(resid, sol, nd, segments, lo, hi, cov_step, parallel=True) -> float:
     """sqrt(reduced chi-square) x the correlated-residual inflation of the data rows at ``sol``
     (>= 1): by how much the noise weights overstate the logs' information."""
     r = sol.fun[:nd]
     redchi = float(np.sum(r**2)) / max(nd - len(sol.z), 1)
     with blas_single_thread():
-        Jd = envelope_jacobian(resid, sol.z, sol.fun, lo, hi, cov_step)[:nd]
+        Jd = envelope_jacobian(resid, sol.z, sol.fun, lo, hi, cov_step, parallel)[:nd]
     try:
         white = white_covariance(Jd, r)
         _, info = block_covariance(Jd, r, segments, white)
@@ -304,13 +314,16 @@ def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
     return Hinv @ (Sd + weight**2 * P) @ Hinv, info
 
 
-def envelope_jacobian(fun, z, f0, lo, hi, rel) -> np.ndarray:
+def envelope_jacobian(fun, z, f0, lo, hi, rel, parallel: bool = True) -> np.ndarray:
     """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one for all or
     one per column; one-sided at a bound); columns that still come out zero fall back to a 5x
-    wider step."""
+    wider step. With ``parallel`` the columns are shared with the spare CPUs
+    (:func:`pmdcid.identify.cpus.pmap`): ``fun`` must be safe to call from several threads;
+    the same bits for any number of threads."""
     J = np.empty((len(f0), len(z)))  # filled column by column: no list of columns to stack
     rels = np.broadcast_to(np.asarray(rel, float), (len(z),))
-    for j in range(len(z)):
+
+    def column(j):
         for r in (rels[j], 5 * rels[j]):
             h = r * max(abs(z[j]), 1e-12)
             up, dn = min(z[j] + h, hi[j]), max(z[j] - h, lo[j])
@@ -327,6 +340,8 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel) -> np.ndarray:
             del d
             if np.any(J[:, j] != 0):
                 break
+
+    pmap(column, range(len(z)), parallel)
     return J
 
 

@@ -62,7 +62,7 @@ def scale_of(x0: np.ndarray, typical: np.ndarray | float = 1.0) -> np.ndarray:
 
 def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None = None,
           x_scale="jac", what: str = "fit", fills: bool = False,
-          rows: int | None = None) -> Solution:
+          rows: int | None = None, parallel: bool = False) -> Solution:
     """Minimise ``sum(fun_z(z)**2)`` over ``lo_z <= z <= hi_z`` from ``z0`` (scaled vector).
 
     ``diff_step``: relative finite-difference step (one, or one per parameter; scipy's default
@@ -74,12 +74,14 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     (:mod:`.fdjac`): the same numbers as ``jac="2-point"``. ``rows``: the residual's length
     when known; a residual of :data:`.tall.TALL_ROWS` rows or more is compressed to n+1 rows
     before the solver sees it (:mod:`.tall`: the same steps to rounding, in bounded memory).
+    ``parallel``: the Jacobian's columns run on threads (``fun_z`` must then be safe to call from
+    several threads at once: no shared scratch buffers); the same numbers for any thread count.
     """
     from pmdcid.identify.fdjac import ForwardJacobian
     from pmdcid.identify.tall import TALL_ROWS, Compressed
 
     z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
-    fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills)
+    fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills, parallel=parallel)
     tall = (Compressed(fd) if rows is not None and rows >= TALL_ROWS and fd.jac is fd
             else None)
     fun, jac = (tall.fun, tall.jac) if tall else (fd.fun, fd.jac)

@@ -95,6 +95,7 @@ def build(out_dir: Path = HERE) -> Path:
     stamp.unlink(missing_ok=True)
     functions = jit()  # every module imported and its placeholders swapped for numba's
     materialize()
+    _release_gil_in_wrappers()
     cc = CC(NAME)
     cc.output_dir = str(out_dir)
     cc.verbose = False
@@ -103,6 +104,31 @@ def build(out_dir: Path = HERE) -> Path:
     cc.compile()
     stamp.write_text(digest() + "\n")
     return Path(cc.output_file)
+
+
+def _release_gil_in_wrappers() -> None:
+    """Make ``numba.pycc`` compile its Python wrappers as ``nogil=True`` does for the JIT: the
+    kernel then runs without Python's lock, so that threads (the finite-difference Jacobian's
+    columns, :mod:`pmdcid.identify.fdjac`) simulate on both cores. ``pycc`` has no option for
+    it; its compile flags are numba's ``Flags``, whose ``release_gil`` the wrapper honours. A
+    numba where this fails builds a module that holds the lock: correct, one core."""
+    try:
+        from numba.core.compiler import Flags
+        from numba.pycc import compiler
+
+        if getattr(compiler.Flags, "_pmdcid_nogil", False):
+            return
+
+        class NoGilFlags(Flags):
+            _pmdcid_nogil = True
+
+            def __init__(self, *args, **kwargs):
+                super().__init__(*args, **kwargs)
+                self.release_gil = True
+
+        compiler.Flags = NoGilFlags
+    except (ImportError, AttributeError):  # pragma: no cover - a numba laid out otherwise
+        pass
 
 
 def main() -> int:

@@ -22,6 +22,7 @@ stays at its start and every other state is bit-for-bit the 3-state kernel's.
 from __future__ import annotations
 
 import math
+import threading
 from contextlib import contextmanager
 
 import numpy as np
@@ -53,6 +54,7 @@ from pmdcid.simulate.terms import (
     dead_zone,
     dead_zone_engaged,
     drive_voltage,
+    friction_guarded,
     load_torque,
     lugre_held_friction,
     lugre_on,
@@ -141,6 +143,7 @@ def discretize(p: np.ndarray, h: float, torque_driven: bool) -> tuple[np.ndarray
 
 _DISCRETE: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 _DISCRETE_SIZE = 64
+_DISCRETE_LOCK = threading.Lock()
 
 
 def discretize_cached(p: np.ndarray, h: float, torque_driven: bool):
@@ -153,9 +156,11 @@ def discretize_cached(p: np.ndarray, h: float, torque_driven: bool):
     key = (tuple(float(p[k]) for k in LINEAR), float(h), bool(torque_driven))
     hit = _DISCRETE.get(key)
     if hit is None:
-        if len(_DISCRETE) >= _DISCRETE_SIZE:
-            _DISCRETE.pop(next(iter(_DISCRETE)))
-        hit = _DISCRETE[key] = discretize(p, h, torque_driven)
+        hit = discretize(p, h, torque_driven)
+        with _DISCRETE_LOCK:  # fits simulate from several threads (identify/fdjac.py)
+            while len(_DISCRETE) >= _DISCRETE_SIZE:
+                _DISCRETE.pop(next(iter(_DISCRETE)))
+            _DISCRETE[key] = hit
     return hit
 
 
@@ -203,7 +208,7 @@ def _linear_step(Phi, Gam, m, i, w, th, fe, fm):  # pragma: no cover - compiled
     return i1, w1, th1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compiled
     """States (n, NSTATE) at the sample instants from ``x0`` (the base triple or a full state):
     the stick-slip loop, or the LuGre loop when LuGre is on (two loops: the stick-slip one, the
@@ -217,15 +222,21 @@ def _run_into(u, p, Phi, Gam, nsub, torque_driven, x0, out):  # pragma: no cover
     z0 = x0[3] if x0.shape[0] > 3 else 0.0
     if lugre_on(p):
         _run_lugre(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out)
+    elif friction_guarded(p):
+        _run_stick(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out, True)
     else:
-        _run_stick(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out)
+        _run_stick(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out, False)
     return out
 
 
-@njit(cache=True)
-def _run_stick(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out):  # pragma: no cover
+@njit(cache=True, inline="always")
+def _run_stick(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out,
+               guarded):  # pragma: no cover
     """The stick-slip loop: true stiction, a rotor at rest stays at rest (module docstring).
-    LuGre is off: its bristle deflection z is not integrated (stays at its start)."""
+    LuGre is off: its bristle deflection z is not integrated (stays at its start).
+    ``guarded``: :func:`pmdcid.simulate.terms.friction_guarded`, passed as a constant so that
+    the loop is compiled twice, once without the friction curve and its positivity hold (on
+    the critical path of every step: ~8 ns of 20)."""
     n = u.shape[0]
     Lh = p[L]
     Jm = p[J]
@@ -263,7 +274,7 @@ def _run_stick(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out):  # pragma
                 direction = sgn(net)
             else:
                 direction = sgn(w)
-            fric = sliding_friction(p, w, direction)
+            fric = sliding_friction(p, w, direction, guarded)
             m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, Lh, Jm)
             i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
             if tentative and w1 * direction <= 0.0:

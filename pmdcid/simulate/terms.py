@@ -117,7 +117,21 @@ def friction_curve(p, speed: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def sliding_friction(p, omega: float, direction: float) -> float:
+def friction_guarded(p) -> bool:
+    """True when :func:`sliding_friction` needs its friction curve and its positivity hold.
+
+    False when the curve is off (fcw4 <= 0) and every friction term is non-negative in the
+    sliding direction (bc, fs, bq, bv >= 0, dbv = 0): then the curve adds nothing and the hold
+    can never act, so skipping both gives the same value. The kernel evaluates this once per
+    simulation: the two terms sit on the step's critical path (speed -> friction -> speed) and
+    cost about 8 ns of a 20 ns step when evaluated every step (issue #16).
+    """
+    return not (p[FCW1 + CURVE_KNOTS - 1] <= 0.0 and p[BC] >= 0.0 and p[FS] >= 0.0
+                and p[BQ] >= 0.0 and p[BV] >= 0.0 and p[DBV] == 0.0)
+
+
+@njit(cache=True, inline="always")
+def sliding_friction(p, omega: float, direction: float, guarded: bool = True) -> float:
     """Friction torque [N m] while sliding in ``direction`` (+1/-1), less the viscous bv*omega.
 
     Coulomb bc, Stribeck fs*exp(-(omega/ws)^2), quadratic drag bq*omega*|omega|, the
@@ -126,7 +140,8 @@ def sliding_friction(p, omega: float, direction: float) -> float:
 
     The total with the viscous part never opposes ``direction``: where the terms would sum to a
     friction that drives the rotor (a negative quadratic drag past the logged speeds), the total
-    is held at zero (frictionless) instead.
+    is held at zero (frictionless) instead. ``guarded`` False (:func:`friction_guarded` of the
+    same ``p``) skips the curve and the hold, which then cannot change the value.
     """
     f = direction * p[BC]
     if p[FS] > 0.0:
@@ -134,9 +149,10 @@ def sliding_friction(p, omega: float, direction: float) -> float:
         f += direction * p[FS] * math.exp(-r * r)
     f += p[BQ] * omega * abs(omega)
     f += p[DBV] * abs(omega)
-    f += direction * friction_curve(p, abs(omega))
-    if direction * (f + p[BV] * omega) < 0.0:
-        f = -p[BV] * omega
+    if guarded:
+        f += direction * friction_curve(p, abs(omega))
+        if direction * (f + p[BV] * omega) < 0.0:
+            f = -p[BV] * omega
     return f
 
 
@@ -201,6 +217,6 @@ def load_torque(p, theta: float) -> float:
 
 __all__ = [
     "armature_voltage", "bristle_rate", "bristle_step", "dead_zone", "dead_zone_engaged",
-    "drive_voltage", "friction_curve", "load_torque", "lugre_held_friction", "lugre_on", "sgn",
-    "sliding_friction", "static_friction", "steady_friction_level", "BV",
+    "drive_voltage", "friction_curve", "friction_guarded", "load_torque", "lugre_held_friction",
+    "lugre_on", "sgn", "sliding_friction", "static_friction", "steady_friction_level", "BV",
 ]

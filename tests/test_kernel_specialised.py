@@ -1,0 +1,41 @@
+"""The stick-slip loop compiled twice (issue #16): without the friction curve and its
+positivity hold when the model cannot need them, with them otherwise; both give the same states."""
+
+import numpy as np
+import pytest
+
+from pmdcid.simulate import param_vector, simulate_values
+from pmdcid.simulate.terms import friction_guarded
+from pmdcid.synth import staircase, triangle
+
+#: the friction curve switched on with every value 0: the guarded loop, the same friction
+ZERO_CURVE = {"fcw1": 0.5, "fcw2": 2.0, "fcw3": 5.0, "fcw4": 20.0, "fc1": 0.0, "fc2": 0.0,
+              "fc3": 0.0}
+
+
+def _guarded(vals) -> bool:
+    return bool(friction_guarded.py_func(param_vector(vals)))
+
+
+def test_plain_model_takes_the_unguarded_loop(paper_values):
+    assert not _guarded(paper_values)
+    assert not _guarded({**paper_values, "fs": 3e-3, "ws": 0.15, "bq": 1e-7})
+
+
+@pytest.mark.parametrize("extra", [{"fcw4": 20.0}, {"bq": -1e-7}, {"dbv": 1e-4}, {"bc": -1e-3},
+                                   {"fs": -1e-3}, {"bv": -1e-4}])
+def test_terms_that_can_act_take_the_guarded_loop(paper_values, extra):
+    assert _guarded({**paper_values, **extra})
+
+
+@pytest.mark.parametrize("extra", [{}, {"fs": 3e-3, "ws": 0.15}, {"ca": 1e-3, "cn": 7.0}])
+def test_both_loops_give_the_same_states(paper_values, extra, rng):
+    vals = {**paper_values, **extra}
+    t = np.arange(30000) * 1e-3
+    v = triangle(t, 2.0, 10.0) + staircase(t, 0.3, 0.7, rng)
+    assert _guarded({**vals, **ZERO_CURVE}) and not _guarded(vals)
+    plain = simulate_values(t, v, vals, nsub=3)
+    guarded = simulate_values(t, v, {**vals, **ZERO_CURVE}, nsub=3)
+    assert np.count_nonzero(plain.omega == 0.0) > 100  # stick-slip was exercised
+    for s in ("i", "omega", "theta"):
+        np.testing.assert_array_equal(plain.get(s), guarded.get(s))
