@@ -28,11 +28,11 @@ def shift_curve(padded: np.ndarray, meas: np.ndarray, a: int, b: int, kmax: int)
     """Mean squared error of a simulation delayed by k samples against ``meas[a:b]``, for k =
     -kmax..kmax; ``padded`` is the simulation with kmax edge samples added at each end (the
     rotor held its first and last state outside the log). One FFT correlation."""
-    from scipy.signal import correlate
+    from pmdcid.identify.filters import correlate_valid
 
     seg = padded[a:b + 2 * kmax]
     w = meas[a:b]
-    cross = correlate(seg, w, mode="valid", method="fft")[::-1]  # index k + kmax
+    cross = correlate_valid(seg, w)[::-1]  # index k + kmax
     c2 = np.concatenate(([0.0], np.cumsum(seg * seg)))
     width = b - a
     starts = np.arange(2 * kmax, -1, -1)  # delay k reads seg[kmax - k : kmax - k + width]

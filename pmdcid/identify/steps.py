@@ -200,13 +200,13 @@ def strejc(t: np.ndarray, y: np.ndarray, step: StepInfo, settle_fraction: float 
             a, b = ys[j - 1], ys[j]
             tau = tt[j - 1] + (1 - math.exp(-1) - a) / (b - a) * dt if b != a else tt[j]
     # inflection tangent: slope by a local quadratic (Savitzky-Golay) over ~0.3 tau
-    from scipy.signal import savgol_filter
+    from pmdcid.identify.filters import savgol
 
     w = max(5, int(round(0.3 * tau / dt)) | 1) if math.isfinite(tau) else 5
     w = min(w, len(yn) - (1 - len(yn) % 2))
     if w >= 5:
-        yw = savgol_filter(yn, w, 2, mode="interp")
-        slope = savgol_filter(yn, w, 2, deriv=1, delta=dt, mode="interp")
+        yw = savgol(yn, w, 2)
+        slope = savgol(yn, w, 2, deriv=1, delta=dt)
     else:
         yw, slope = yn, np.gradient(yn, dt)
     span = np.nonzero(yw < 0.9)[0]
@@ -310,12 +310,12 @@ def despike(y: np.ndarray, sigmas: float = 20.0) -> tuple[np.ndarray, np.ndarray
     serial glitch) replaced by that median. Returns (cleaned copy, indices replaced). A spike is
     more than ``sigmas`` robust std of the signal's deviation from its running median, and more
     than a fifth of the signal's range away from it (a step edge is not a spike)."""
-    from scipy.signal import medfilt
+    from pmdcid.identify.filters import medfilt5
 
     y = np.asarray(y, float)
     if len(y) < 5:
         return y.copy(), np.zeros(0, int)
-    med = medfilt(y, 5)
+    med = medfilt5(y)
     dev = y - med
     sd = 1.4826 * float(np.median(np.abs(dev)))
     rng = float(np.percentile(med, 99) - np.percentile(med, 1))
