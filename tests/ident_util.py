@@ -49,3 +49,27 @@ def triangle_log(vals, rng, periods=2, period=20.0, amplitude=2.0, noise=PAPER_N
     t = np.arange(int(periods * period * 1000)) / 1000.0
     cols, _ = synth_log(t, triangle(t, amplitude, period), vals, noise, rng)
     return as_log("triangle", t, cols, "triangle")
+
+
+def triangle_fit_problem(seed: int = 1616):
+    """A short noisy triangle and a model 15 % off in J, bv, bc, dz: (truth, log, model, free),
+    the problem the solver's own tests fit (fdjac, tall)."""
+    from pmdcid.model import Model
+
+    rng = np.random.default_rng(seed)
+    truth = perturbed_truth(rng)
+    log = triangle_log(truth, rng, periods=1, period=10.0)
+    free = ["J", "bv", "bc", "dz"]
+    model = Model()
+    for k in ("R", "L", "km", *free):
+        model.set(k, truth[k] * (1.15 if k in free else 1.0), stage="start")
+    return truth, log, model, free
+
+
+def extreme_numbers(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n, 3) numbers across 600 decades, with negative zeros and small integers mixed in: what
+    the CSV readers' agreement tests write in many formats."""
+    x = rng.standard_normal((n, 3)) * 10.0 ** rng.integers(-300, 300, (n, 3))
+    x[::7, 1] = -0.0
+    x[::11, 2] = rng.integers(-5, 5, len(x[::11, 2]))
+    return x

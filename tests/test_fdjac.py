@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ident_util import perturbed_truth, triangle_log
+from ident_util import triangle_fit_problem
 from scipy.optimize._numdiff import approx_derivative
 
 import pmdcid.identify.cpus as cpus
 import pmdcid.identify.fdjac as fdjac
 from pmdcid.identify.fdjac import ForwardJacobian
 from pmdcid.identify.simfit import fit_simulation
-from pmdcid.model import Model
 
 
 def _toy(x, out=None):
@@ -45,13 +44,7 @@ def _fit(log, model, free):
 
 
 def test_fit_bit_identical_to_scipy_2_point_and_recovers_truth(monkeypatch):
-    rng = np.random.default_rng(1616)
-    truth = perturbed_truth(rng)
-    log = triangle_log(truth, rng, periods=1, period=10.0)
-    free = ["J", "bv", "bc", "dz"]
-    model = Model()
-    for k in ("R", "L", "km", *free):
-        model.set(k, truth[k] * (1.15 if k in free else 1.0), stage="start")
+    truth, log, model, free = triangle_fit_problem()
     ours = _fit(log, model, free)
     monkeypatch.setattr(fdjac, "_compute_absolute_step", None)  # scipy's own "2-point"
     assert ForwardJacobian(None, 1e-3, [0], [1]).jac == "2-point"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from ident_util import extreme_numbers
 from test_read_plain import CASES, FIXTURES, _read, _same
 
 import pmdcid.io.chunked as chunked
@@ -52,9 +53,7 @@ def test_chunked_read_only_where_it_agrees(name, tmp_path, monkeypatch):
 def test_random_numbers_in_chunks_and_more_rows_than_the_head_shows(tmp_path, monkeypatch):
     rng = np.random.default_rng(1616)
     n = 5000
-    x = rng.standard_normal((n, 3)) * 10.0 ** rng.integers(-300, 300, (n, 3))
-    x[::7, 1] = -0.0
-    x[::11, 2] = rng.integers(-5, 5, len(x[::11, 2]))
+    x = extreme_numbers(rng, n)
     rows = [f"{k * 0.001:.9g},{k % 9 - 4.5},{a:.17g},{b:.6e},{c:.25g}"
             for k, (a, b, c) in enumerate(x)]
     short = [f"{(k + n) * 0.001:.9g},1,2,-0.5,3" for k in range(40000)]  # after the head

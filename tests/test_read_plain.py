@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ident_util import extreme_numbers
 
 import pmdcid.io.plain as plain
 from pmdcid.errors import PmdcidError
@@ -103,9 +104,7 @@ def test_numpy_path_only_where_it_agrees(name, tmp_path, monkeypatch):
 def test_random_numbers_in_many_formats_agree(tmp_path, monkeypatch):
     rng = np.random.default_rng(16)
     n = 3000
-    x = rng.standard_normal((n, 3)) * 10.0 ** rng.integers(-300, 300, (n, 3))
-    x[::7, 1] = -0.0
-    x[::11, 2] = rng.integers(-5, 5, len(x[::11, 2]))
+    x = extreme_numbers(rng, n)
     rows = [f"{k * 0.001:.9g},{a:.17g},{b:.6e},{c:.12f},{a:.25g},{b:.3g}"
             for k, (a, b, c) in enumerate(x)]
     path = tmp_path / "log.csv"

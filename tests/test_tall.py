@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ident_util import perturbed_truth, triangle_log
+from ident_util import triangle_fit_problem
 
 import pmdcid.identify.tall as tall
 from pmdcid.identify.simfit import fit_simulation
 from pmdcid.identify.solver import solve
-from pmdcid.model import Model
 
 
 def test_compressed_jacobian_keeps_the_normal_equations():
@@ -50,13 +49,7 @@ def test_toy_problem_same_answer_as_uncompressed():
 
 
 def test_simulation_fit_same_answer_as_uncompressed(monkeypatch):
-    rng = np.random.default_rng(1616)
-    truth = perturbed_truth(rng)
-    log = triangle_log(truth, rng, periods=1, period=10.0)
-    free = ["J", "bv", "bc", "dz"]
-    model = Model()
-    for k in ("R", "L", "km", *free):
-        model.set(k, truth[k] * (1.15 if k in free else 1.0), stage="start")
+    truth, log, model, free = triangle_fit_problem()
 
     def fit():
         return fit_simulation([log], model, free, signals=("omega", "theta"), max_nfev=30)
