@@ -310,11 +310,12 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
         raise LogError("output folder does not exist: create it first", str(folder))
     if not folder.is_dir():
         raise LogError("is a file, not a folder: cannot write outputs under it", str(folder))
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
-    except OSError as exc:
-        raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
-    outputs.IN_FLIGHT.add(tmp)
+    with outputs.sigterm_deferred():  # registered before a SIGTERM can leave it behind
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
+        except OSError as exc:
+            raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
+        outputs.IN_FLIGHT.add(tmp)
     try:
         with os.fdopen(fd, "wb" if binary else "w") as fh:
             fill(fh)

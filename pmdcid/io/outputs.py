@@ -46,16 +46,17 @@ class Transaction:
         if not os.path.exists(real):
             self.backups[real] = None
             return
-        fd, bak = tempfile.mkstemp(prefix=f".{os.path.basename(real)}.", suffix=".undo.tmp",
-                                   dir=os.path.dirname(real) or ".")
-        os.close(fd)
-        os.unlink(bak)
-        try:
-            os.link(real, bak)
-        except OSError:
-            shutil.copy2(real, bak)
-        IN_FLIGHT.add(bak)
-        self.backups[real] = bak
+        with sigterm_deferred():  # the backup is registered before a SIGTERM can act
+            fd, bak = tempfile.mkstemp(prefix=f".{os.path.basename(real)}.",
+                                       suffix=".undo.tmp", dir=os.path.dirname(real) or ".")
+            os.close(fd)
+            os.unlink(bak)
+            try:
+                os.link(real, bak)
+            except OSError:
+                shutil.copy2(real, bak)
+            IN_FLIGHT.add(bak)
+            self.backups[real] = bak
 
     def created_dir(self, path: str) -> None:
         self.dirs.append(os.path.realpath(path))
@@ -108,6 +109,22 @@ def transaction():
 
 def current() -> Transaction | None:
     return _CURRENT[-1] if _CURRENT else None
+
+
+@contextmanager
+def sigterm_deferred():
+    """SIGTERM held back for the block (main thread, POSIX): a temporary file created and
+    registered in :data:`IN_FLIGHT` inside it is never left behind by a SIGTERM arriving between
+    the two (the signal is delivered, and the file removed, once the block ends)."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = mask(signal.SIG_BLOCK, {signal.SIGTERM})
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, old)
 
 
 class Terminated(Exception):
