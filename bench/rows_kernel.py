@@ -41,8 +41,9 @@ def _kernel_call(setup: Setup, factor: int = 1, buffered: bool = False):
     """(one run_kernel call, its internal steps); ``buffered``: into one reused output buffer,
     as a fit's simulations are (``run_kernel(out=)``)."""
     from pmdcid.simulate import param_vector
-    from pmdcid.simulate.kernel import choose_substeps, run_kernel
+    from pmdcid.simulate.kernel import run_kernel
     from pmdcid.simulate.layout import NSTATE
+    from pmdcid.simulate.substeps import choose_substeps
 
     t, u = setup.input(factor)
     dt = 1.0 / setup.rate

@@ -283,7 +283,7 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
     from pmdcid.io import read_logs
     from pmdcid.io.outputs import locked
     from pmdcid.model import load_model, save_model
-    from pmdcid.simulate.kernel import bounded_for
+    from pmdcid.simulate.substeps import bounded_for
 
     for p in paths:
         if os.path.exists(p) and os.path.exists(model_path) and os.path.samefile(p, model_path):

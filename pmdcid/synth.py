@@ -117,7 +117,7 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
     vals = param_values(model, torque)
     rng = np.random.default_rng(seed)
     has_noise = noise.i > 0 or noise.omega > 0 or noise.encoder > 0
-    from pmdcid.simulate.kernel import bounded_for
+    from pmdcid.simulate.substeps import bounded_for
 
     with np.errstate(over="ignore", invalid="ignore"), bounded_for(model_path):
         cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque,

@@ -19,8 +19,9 @@ from pmdcid.identify.simfit import fit_simulation
 from pmdcid.io.build import log_from_arrays
 from pmdcid.model import EFFECTS, load_model
 from pmdcid.simulate import neutral_values, param_values, param_vector, simulate_values
-from pmdcid.simulate.kernel import choose_substeps, lugre_step, run_kernel
+from pmdcid.simulate.kernel import run_kernel
 from pmdcid.simulate.layout import NSTATE, STATE_OWNERS, STATES, Z_STATE
+from pmdcid.simulate.substeps import choose_substeps, lugre_step
 from pmdcid.synth import PAPER, truth_model
 
 J, BV, BC = PAPER["J"], PAPER["bv"], PAPER["bc"]
@@ -221,7 +222,7 @@ def test_diagnose_names_lugre_only_when_asked():
 
 
 def test_absurd_bristle_stiffness_is_one_clear_error():
-    from pmdcid.simulate.kernel import WorkBoundError
+    from pmdcid.simulate.substeps import WorkBoundError
 
     vals = lugre_vals(sigma0=1e12, sigma1=0.0)
     with pytest.raises(WorkBoundError, match="LuGre's bristles"):

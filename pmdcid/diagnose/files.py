@@ -52,7 +52,7 @@ def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, e
     from pmdcid.io.logs import atomic_write_text
     from pmdcid.io.outputs import check_overwrite, locked
     from pmdcid.model import load_model, save_model
-    from pmdcid.simulate.kernel import bounded_for
+    from pmdcid.simulate.substeps import bounded_for
 
     for p in paths:
         if _same(p, out_path):

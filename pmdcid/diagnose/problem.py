@@ -28,8 +28,8 @@ from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import SimResult, param_vector, simulate_values
-from pmdcid.simulate.kernel import choose_substeps
 from pmdcid.simulate.layout import SIGMA0
+from pmdcid.simulate.substeps import choose_substeps
 
 #: static friction that holds a blocked rotor [N m]
 BLOCKED = 1e300
@@ -88,7 +88,7 @@ MIN_SAMPLES = 50
 #: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)
 MAX_SUBSTEPS = 16
 #: the cap with LuGre on: its bristle spring is held over a step, stable only for steps below
-#: :func:`pmdcid.simulate.kernel.lugre_step`
+#: :func:`pmdcid.simulate.substeps.lugre_step`
 LUGRE_MAX_SUBSTEPS = 256
 #: positive base parameters are refitted within this factor of their starting value
 BASE_RANGE = 30.0

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from pmdcid.simulate import aot, param_vector
-from pmdcid.simulate.kernel import _run_into, choose_substeps, discretize
+from pmdcid.simulate.kernel import _run_into, discretize
 from pmdcid.simulate.layout import (
     KM,
     LINEAR,
@@ -31,6 +31,7 @@ from pmdcid.simulate.layout import (
     state_vector,
 )
 from pmdcid.simulate.lazyjit import njit, prange
+from pmdcid.simulate.substeps import choose_substeps
 
 
 @njit(parallel=True, cache=True)

@@ -26,7 +26,7 @@ from pmdcid.io.outputs import locked
 from pmdcid.model import load_model, save_model
 from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.simulate import logs_for
-from pmdcid.simulate.kernel import bounded_for
+from pmdcid.simulate.substeps import bounded_for
 
 
 def _load(paths, model_path, mapping):

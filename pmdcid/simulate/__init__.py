@@ -45,7 +45,7 @@ def check_layout() -> None:
 check_layout()
 
 from pmdcid.simulate.drive import late_input, parts_for, ramp_input  # noqa: E402
-from pmdcid.simulate.kernel import choose_substeps, run_kernel  # noqa: E402
+from pmdcid.simulate.kernel import run_kernel  # noqa: E402
 from pmdcid.simulate.layout import (  # noqa: E402
     I_STATE,
     INDEX,
@@ -55,6 +55,7 @@ from pmdcid.simulate.layout import (  # noqa: E402
     THETA_STATE,
 )
 from pmdcid.simulate.sensors import apply_sensors  # noqa: E402
+from pmdcid.simulate.substeps import choose_substeps  # noqa: E402
 
 
 @dataclass
@@ -167,7 +168,7 @@ def simulate(t: np.ndarray, u: np.ndarray, model: Model, torque_driven: bool = F
              x0=None) -> SimResult:
     """Simulate ``model`` under input ``u`` (V, or N m if ``torque_driven``; V for a lumped
     model) at ``t``, from ``x0`` = (i, omega, theta) (default rest)."""
-    from pmdcid.simulate.kernel import bounded_for
+    from pmdcid.simulate.substeps import bounded_for
 
     vals = param_values(model, torque_driven, overrides)
     with bounded_for(model.path):

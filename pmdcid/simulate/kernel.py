@@ -23,11 +23,9 @@ from __future__ import annotations
 
 import math
 import threading
-from contextlib import contextmanager
 
 import numpy as np
 
-from pmdcid.errors import ModelError
 from pmdcid.simulate import aot
 from pmdcid.simulate.layout import (
     BC,
@@ -47,6 +45,7 @@ from pmdcid.simulate.layout import (
     state_vector,
 )
 from pmdcid.simulate.lazyjit import njit
+from pmdcid.simulate.substeps import check_work, choose_substeps
 from pmdcid.simulate.terms import (
     armature_voltage,
     bristle_rate,
@@ -320,80 +319,6 @@ def _run_lugre(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out):  # pragma
             th = th1
 
 
-#: internal steps per mechanical time constant. The linear dynamics are exact at any step (the
-#: matrix exponential), but a stop or a breakaway is placed to within one internal step, an
-#: error of about h / tau of the transient (2 %): measured on a fast motor (tau = 10 ms), the
-#: speed's RMS error against a 200-substep reference halves with each halving of h
-STEPS_PER_TAU = 50.0
-#: most internal steps (samples x substeps) one simulation may take: minutes of compute. Past it
-#: the input is wrong (J = 1e-12, time in microseconds, a 1e300 s sample period), not the motor
-MAX_STEPS = 5e8
-
-
-class WorkBoundError(ModelError):
-    """A simulation would take more than :data:`MAX_STEPS` internal steps (message says why)."""
-
-
-@contextmanager
-def bounded_for(model_path):
-    """Name ``model_path`` in a :class:`WorkBoundError` raised inside the block."""
-    try:
-        yield
-    except WorkBoundError as exc:
-        if exc.path is not None or model_path is None:
-            raise
-        raise WorkBoundError(str(exc), str(model_path)) from None
-
-
-def choose_substeps(dt: float, p: np.ndarray, h_max: float | None = None) -> int:
-    """Internal steps per sample: h <= min(1 ms, tau_mech / 50) unless ``h_max`` [s] is given;
-    tau_mech = J / (bv + km ke / R) [s], the back-EMF's damping included. With LuGre on, also
-    h <= :func:`lugre_step` (its spring and micro-damping are held over a step)."""
-    if h_max is None:
-        h_max = 1e-3
-        damping = p[BV] + (p[KM] * p[KE] / p[R] if p[R] > 0 else 0.0)
-        if damping > 0 and p[J] > 0:
-            h_max = min(h_max, p[J] / damping / STEPS_PER_TAU)
-        if p[SIGMA0] > 0:
-            h_max = min(h_max, lugre_step(p))
-    return max(1, int(math.ceil(dt / h_max - 1e-9)))
-
-
-#: internal steps per radian of the bristles' presliding oscillation sqrt(sigma0/J), and per
-#: micro-damping time J/sigma1: the spring force sigma0 z and sigma1's a z part are held over a
-#: step, stable for h sqrt(sigma0/J) < 2 and h sigma1/J < 1; 20 keeps the presliding period's
-#: error near (h w_n)^2/24 = 1e-4
-LUGRE_STEPS = 20.0
-
-
-def lugre_step(p: np.ndarray) -> float:
-    """Largest internal step [s] for LuGre: sqrt(J/sigma0)/20 and J/(20 sigma1). The bristle
-    deflection's own time constant g/(sigma0 |omega|) needs no bound: z is stepped exactly."""
-    h = math.sqrt(p[J] / p[SIGMA0]) / LUGRE_STEPS if p[J] > 0 else math.inf
-    if p[SIGMA1] > 0 and p[J] > 0:
-        h = min(h, p[J] / p[SIGMA1] / LUGRE_STEPS)
-    return h
-
-
-def check_work(n: int, dt: float, nsub: int, p: np.ndarray) -> None:
-    """Raise :class:`WorkBoundError` when ``n`` samples of ``nsub`` substeps exceed the bound."""
-    steps = float(n) * float(nsub)
-    if steps <= MAX_STEPS:
-        return
-    if p[SIGMA0] > 0 and lugre_step(p) < dt / float(nsub) * 1.5:
-        raise WorkBoundError(
-            f"the simulation would take {steps:.2g} internal steps (limit {MAX_STEPS:.0e}): "
-            f"LuGre's bristles (sigma0 = {p[SIGMA0]:.3g} N m/rad, sigma1 = {p[SIGMA1]:.3g} "
-            f"N m s/rad) need steps of {lugre_step(p):.2g} s: check sigma0, sigma1 and J")
-    damping = p[BV] + (p[KM] * p[KE] / p[R] if p[R] > 0 else 0.0)
-    tau = p[J] / damping if damping > 0 else math.inf
-    raise WorkBoundError(
-        f"the simulation would take {steps:.2g} internal steps ({n} samples x {float(nsub):.2g} "
-        f"substeps; limit {MAX_STEPS:.0e}): a sample period of {dt:.3g} s is "
-        f"{dt / tau:.2g} x the time constant J/(bv+km^2/R) = {tau:.3g} s: check J (value, unit) "
-        "or the time unit (t in ms or us? -c t=COLUMN*ms)")
-
-
 def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = False,
                nsub: int | None = None, x0=None, out: np.ndarray | None = None) -> np.ndarray:
     """Simulate from ``x0`` (default rest) under the zero-order-held input ``u`` sampled at ``dt``.
@@ -431,6 +356,4 @@ def _compiled(name: str):
     return {"run": _run, "expm_small": expm_small, "run_into": _run_into}[name]
 
 
-__all__ = ["LUGRE_STEPS", "MAX_STEPS", "WorkBoundError", "bounded_for", "check_work",
-           "choose_substeps", "discretize", "discretize_cached", "lugre_step", "run_kernel",
-           "system_matrix", "FS", "BC"]
+__all__ = ["discretize", "discretize_cached", "run_kernel", "system_matrix", "FS", "BC"]
