@@ -118,7 +118,10 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         """Each log's simulation at ``x``; its arrays are valid until this thread's next call."""
         out = []
         xs = state(x)
-        mine = bufs.setdefault(threading.get_ident(), [None] * len(logs))
+        tid = threading.get_ident()
+        mine = bufs.get(tid)
+        if mine is None:  # this thread's first simulation of the fit
+            mine = bufs.setdefault(tid, [None] * len(logs))
         for k, log in enumerate(logs):
             vals = dict(base[k])
             vals.update(dict(zip(free, x[:npar], strict=True)))
