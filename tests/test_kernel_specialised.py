@@ -39,3 +39,22 @@ def test_both_loops_give_the_same_states(paper_values, extra, rng):
     assert np.count_nonzero(plain.omega == 0.0) > 100  # stick-slip was exercised
     for s in ("i", "omega", "theta"):
         np.testing.assert_array_equal(plain.get(s), guarded.get(s))
+
+
+def test_stribeck_skips_only_an_exponential_that_is_exactly_zero(paper_values):
+    """stribeck_excess skips exp(-(omega/ws)^2) past EXP_ZERO (glibc's slow underflow path):
+    the same bits as the plain formula at every speed, the cut-off region included."""
+    import math
+
+    from pmdcid.simulate.terms import EXP_ZERO, stribeck_excess
+
+    ws, fs = 0.15, 3e-3
+    p = param_vector({**paper_values, "fs": fs, "ws": ws})
+    edge = math.sqrt(EXP_ZERO) * ws
+    speeds = np.concatenate([np.linspace(0.0, 2 * edge, 4001),
+                             edge * (1 + np.arange(-50, 50) * 1e-6), [1e3, 1e300, np.inf]])
+    for w in np.concatenate([speeds, -speeds]):
+        r = w / ws
+        assert stribeck_excess.py_func(p, w) == fs * math.exp(-r * r)
+    assert math.isnan(stribeck_excess.py_func(p, math.nan))
+    assert stribeck_excess.py_func(param_vector({**paper_values, "fs": 0.0}), 0.1) == 0.0
