@@ -109,7 +109,7 @@ def _neutral(name: str) -> dict[str, float]:
 def refit_starts(run, screen, cur: FitOutcome, free: list[str]) -> tuple[FitOutcome, int]:
     """The best refit of ``free`` (fit part) over the starts; returns it and the starts used."""
     name = screen.effect
-    starts = [lambda: run.robust_fit({**cur.values, **screen.start}, free)]
+    starts = [lambda: run.robust_fit({**cur.values, **screen.base, **screen.start}, free)]
     off = _neutral(name)
     if all(math.isfinite(v) for v in off.values()):
         held = {p: screen.start[p] for p in EFFECTS[name].held if p in screen.start}

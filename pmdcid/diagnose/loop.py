@@ -43,7 +43,7 @@ from pmdcid.diagnose.residuals import (
 from pmdcid.diagnose.rules import Rules, judge, same_rows
 from pmdcid.diagnose.screen import Screen, Screener
 from pmdcid.diagnose.shape import residual_shapes
-from pmdcid.diagnose.starts import grid_start, profile_best
+from pmdcid.diagnose.starts import grid_start, profile_best, staged_fit
 from pmdcid.errors import ModelError
 from pmdcid.identify.cpus import pmap
 from pmdcid.identify.results import ResultProtocol
@@ -102,8 +102,6 @@ def _free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[s
     return [p for p in dict.fromkeys(out) if math.isfinite(vals.get(p, math.nan))]
 
 
-
-
 class Run:
     """One diagnose run's shared state: the problem, the start, the rules, the refits."""
 
@@ -124,7 +122,9 @@ class Run:
         self.held_ref: list[dict[str, float]] | None = None
 
     def fit(self, start, free, part="fit", nfev=None) -> FitOutcome:
-        return self.problem.fit(start, free, part, nfev or self.max_nfev, self.typ, self.limits)
+        """Local refit of ``free`` from ``start`` (:func:`staged_fit`)."""
+        return staged_fit(self.problem, start, free, part, nfev or self.max_nfev, self.typ,
+                          self.limits)
 
     def robust_fit(self, start, free, part="fit", nfev=None) -> FitOutcome:
         """Grid start over the friction, local fit, then a profile polish of bc and dz (the cost
