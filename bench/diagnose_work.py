@@ -7,8 +7,9 @@
 Runs ``pipeline.identify`` without diagnose to get the model diagnose starts from, then
 ``diagnose`` on the same logs as ``identify`` does, on one thread (``PMDCID_THREADS=1``) so that
 the counts and CPU time do not depend on the machine's spare cores. A simulation is one
-``Problem.simulate_all`` (every log once). The count is machine-independent: compare it before
-and after a change to diagnose's search. Not a test: nothing here asserts a number.
+``Problem.simulate_all`` (every log once, or as far as the fitted part needs). The count is
+machine-independent: compare it before and after a change to diagnose's search. Not a test:
+nothing here asserts a number.
 """
 
 from __future__ import annotations
@@ -49,9 +50,9 @@ def main(argv=None) -> int:
     simulate_all = problem.Problem.simulate_all
     least_squares = solver._least_squares
 
-    def counted(self, vals):
+    def counted(self, vals, part="all"):
         count[0] += 1
-        return simulate_all(self, vals)
+        return simulate_all(self, vals, part)
 
     def traced(fun, z0, *a, **k):
         costs = []

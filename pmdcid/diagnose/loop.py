@@ -134,7 +134,7 @@ class Run:
                       part, nfev)
         pol = profile_best(problem, fo.values, free, part)
         thr = 4.0 * max(fo.chi2[part] / max(problem.count(part), 1), 1.0)
-        if problem.chi2(pol)[part] < fo.chi2[part] - thr:
+        if problem.cost(pol, part) < fo.chi2[part] - thr:
             fo = self.fit(pol, free, part, nfev)
         return fo
 

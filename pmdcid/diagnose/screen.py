@@ -58,7 +58,7 @@ class Screener:
         self.vals = vals
         self.ctx = ctx
         self.base_free = base_free
-        self.r0 = problem.weighted(problem.simulate_all(vals), "fit")
+        self.r0 = problem.weighted(problem.simulate_all(vals, "fit"), "fit")
         self.chi2 = float(self.r0 @ self.r0)
         self.n = len(self.r0)
         self._base_cols: dict[str, np.ndarray | None] = {}
@@ -67,7 +67,7 @@ class Screener:
         """Weighted change of the residual when ``overrides`` are applied, sign flipped
         (``r0 - r``: minus the change of the simulated signals): regressing ``r0`` on such
         columns gives the fraction of each override that removes the residual."""
-        sims = self.problem.simulate_all({**self.vals, **overrides})
+        sims = self.problem.simulate_all({**self.vals, **overrides}, "fit")
         return self.r0 - self.problem.weighted(sims, "fit")
 
     def base_step(self, name: str) -> float:

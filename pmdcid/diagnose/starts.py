@@ -35,7 +35,7 @@ def grid_start(problem, vals: dict[str, float], free, torque_scale: float,
     """Best of ``vals`` and a coarse grid over the free ones of bc, dz, then bv (chi-square of
     ``part``); returns the values to start a local refit from."""
     best = dict(vals)
-    best_c = problem.chi2(best)[part]
+    best_c = problem.cost(best, part)
     sw = [n for n in ("bc", "dz") if n in free]
     if sw:
         axes = np.meshgrid(*(_axis(n, vals, torque_scale) for n in sw), indexing="ij")
@@ -54,7 +54,7 @@ def grid_start(problem, vals: dict[str, float], free, torque_scale: float,
 def _lowest(problem, trials, part, best, best_c):
     """The first trial of lowest ``part`` chi-square if below ``best_c``, else ``best``; the
     trials simulated on the spare CPUs (:func:`pmdcid.identify.cpus.pmap`)."""
-    costs = pmap(lambda v: problem.chi2(v)[part], trials)
+    costs = pmap(lambda v: problem.cost(v, part), trials)
     for trial, c in zip(trials, costs, strict=True):
         if c < best_c:
             best, best_c = trial, c
@@ -79,7 +79,7 @@ def profile_best(problem, vals: dict[str, float], free, part: str = "all") -> di
     between; a local fit can stop a few percent away from a cliff it never felt.
     """
     best = dict(vals)
-    best_c = problem.chi2(best)[part]
+    best_c = problem.cost(best, part)
     for name in ("bc", "dz"):
         if name not in free:
             continue

@@ -134,16 +134,20 @@ def param_vector(vals: dict[str, float]) -> np.ndarray:
 
 def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
                     torque_driven: bool = False, nsub: int | None = None,
-                    x0=None, out: np.ndarray | None = None) -> SimResult:
+                    x0=None, out: np.ndarray | None = None, *,
+                    dt: float | None = None) -> SimResult:
     """Simulate with parameter values ``vals`` (see :func:`param_values`) from ``x0`` =
     (i [A], omega [rad/s], theta [rad]) at ``t[0]`` (default: rest; effect states such as
     LuGre's bristle deflection start at 0 unless a full state vector is given).
 
     ``out``: the kernel's state buffer (:func:`pmdcid.simulate.kernel.run_kernel`), reused by
     a caller that simulates the same log many times; the result's arrays may be views of it,
-    valid until the next call with the same buffer."""
+    valid until the next call with the same buffer. ``dt``: the sample period [s] (default:
+    from ``t``); a caller simulating the first samples of a log passes the whole log's, so
+    that the states are bit for bit the first ones of the whole log's simulation."""
     t = np.asarray(t, dtype=float)
-    dt = float((t[-1] - t[0]) / (len(t) - 1))
+    if dt is None:
+        dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
     latency = float(vals.get("latency", 0.0))
     # the input read between samples (drive.ramp_input): when a fit reads it, every value
