@@ -1,0 +1,117 @@
+"""What diagnose hands back: the result object, the model it writes, the summary
+(CONTRACT.md's keys and more) with the errors before and after, on the logs held out whole
+too, and the residual's shape when it is still not white."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from pmdcid.diagnose.candidates import Candidate, effect_free
+from pmdcid.diagnose.drive import drive_warnings
+from pmdcid.diagnose.folds import floor_of
+from pmdcid.diagnose.problem import FitOutcome
+from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, pooled, whiteness
+from pmdcid.diagnose.shape import residual_shapes
+from pmdcid.identify.results import ResultProtocol
+from pmdcid.model import EFFECTS, Model
+from pmdcid.model.params import copy_model_into
+
+STAGE = "diagnose"
+
+
+@dataclass
+class DiagnoseResult(ResultProtocol):
+    """The new model, the summary (CONTRACT.md), per-log errors and the candidates."""
+
+    model: Model
+    summary: dict
+    candidates: list[Candidate]
+    paths: list[str]
+    before: list[dict[str, float]]
+    after: list[dict[str, float]]
+    history: list[Candidate] = field(default_factory=list)
+
+    def table(self) -> str:
+        from pmdcid.diagnose.table import format_table
+
+        return format_table(self)
+
+    def rows(self) -> list[tuple[str, float, float, str]]:
+        """The new model's parameters."""
+        return self.model.rows()
+
+    def apply(self, model: Model) -> None:
+        """Make ``model`` the diagnosed model: its parameters, effects and records."""
+        copy_model_into(self.model, model)
+
+
+def write_model(new: Model, final: FitOutcome, free: list[str], added: list[str]) -> None:
+    """The added effects and every refitted estimate into ``new``."""
+    for e in added:
+        new.add_effect(e)
+        for p in EFFECTS[e].held:
+            new.set(p, final.values[p], stage=STAGE)
+    for name, est in final.estimates.items():
+        new.set(name, est.value, est.stderr, est.unit, stage=STAGE)
+
+
+def heldout_errors(run, base: FitOutcome, final_vals: dict[str, float],
+                   added: list[str]) -> list[dict]:
+    """Speed (and current) NRMSE of every log held out whole: the base refitted on the fit part
+    against the final effects refitted on the fit part (neither saw these logs)."""
+    held = run.problem.held_logs
+    if not held:
+        return []
+    after_vals = base.values
+    if added:
+        after_vals = run.fit(final_vals, run.base_free + [p for e in added
+                                                          for p in effect_free(e)]).values
+    b = error_table(run.problem, run.problem.simulate_all(base.values))
+    a = error_table(run.problem, run.problem.simulate_all(after_vals))
+    return [{"log": run.problem.logs[k].path, "before": b[k], "after": a[k]} for k in held]
+
+
+def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
+              added: list[str], seen: dict[str, Candidate], history: list[Candidate],
+              notes: list[str]) -> DiagnoseResult:
+    """The summary (CONTRACT.md's keys and more), the residual's shape when unexplained."""
+    problem = run.problem
+    before = error_table(problem, problem.simulate_all(run.vals0))
+    final_sims = problem.simulate_all(final_vals)
+    after = error_table(problem, final_sims) if added else before
+    white = whiteness(problem, final_sims)
+    unexplained = any(w.structured for w in white)
+    shapes: list[dict] = []
+    if unexplained:
+        dp = drift_problem(problem)
+        if dp is not None:
+            notes.extend(drift_notes(dp, final_vals, run.max_nfev))
+        shapes = residual_shapes(problem, final_sims,
+                                 floor_of(run.floors), pooled(after)["omega_nrmse"])
+    cands = sorted(seen.values(), key=lambda c: (not c.chosen, c.delta_bic))
+    new.extra.setdefault("fits", {})[STAGE] = {
+        "logs": [log.path for log in problem.logs], "added": list(added)}
+    summary = {
+        "added": list(added),
+        "candidates": [c.to_json() for c in cands],
+        "before": pooled(before),
+        "after": pooled(after),
+        "unexplained": bool(unexplained),
+        "residual_shape": shapes,
+        "notes": notes,
+        "warnings": drive_warnings(problem, final_sims, final_vals, added),
+        "holdout": [{"log": log.path, "part": p} for log, p in zip(problem.logs, problem.plan,
+                                                                    strict=True)],
+        "heldout": heldout_errors(run, base, final_vals, added),
+        "repeatability": [f.to_json() for f in run.floors],
+        "logs": [{"path": log.path, "before": b, "after": a}
+                 for log, b, a in zip(problem.logs, before, after, strict=True)],
+        "whiteness": [{"log": problem.logs[w.log].path, "signal": w.signal,
+                       "std_over_noise": w.ratio, "rho1": w.rho1, "ljung_box_p": w.p_value,
+                       "structured": w.structured} for w in white],
+    }
+    return DiagnoseResult(new, summary, cands, [log.path for log in problem.logs], before, after,
+                          history)
+
+
+__all__ = ["DiagnoseResult", "heldout_errors", "summarise", "write_model"]
