@@ -259,8 +259,11 @@ def _diagnose(res: IdentifyResult, logs, say=None) -> None:
     from pmdcid.diagnose.loop import diagnose
     from pmdcid.simulate import logs_for
 
+    joint = [out for name, out in res.stages if name.startswith("joint")]
+    ramp = getattr(joint[-1], "estimates", {}).get("ramp") if joint else None
     try:
-        out = diagnose(logs_for(logs, res.model), res.model, progress=say)
+        out = diagnose(logs_for(logs, res.model), res.model, progress=say,
+                       ramp=ramp.value if ramp is not None else None)
     except PmdcidError as exc:
         res.notes.append(f"diagnose: skipped: {exc}")
         return

@@ -66,6 +66,29 @@ def triangle_fit_problem(seed: int = 1616):
     return truth, log, model, free
 
 
+def slow_triangle(step: int, held: bool, seed: int):
+    """The paper's motor under its 40 s triangle, logged every ``step`` ms: the input generated
+    at 1 kHz (a continuous ramp as far as a slow log can tell) or, ``held``, simulated from the
+    slow samples themselves (a drive that holds each logged value: the contract's reading)."""
+    from pmdcid.model import Model
+    from pmdcid.simulate import simulate_values
+
+    vals = {**neutral_values(), **PAPER}
+    rng = np.random.default_rng(seed)
+    tf = np.arange(120_000) / 1000.0
+    u = triangle(tf, 2.0, 40.0)
+    t, us = tf[::step], u[::step]
+    sim = simulate_values(t, us, vals) if held else simulate_values(tf, u, vals)
+    idx = slice(None) if held else slice(None, None, step)
+    n = len(t)
+    cols = {"v": us, "i": sim.i[idx] + rng.normal(0, 4e-3, n),
+            "omega": sim.omega[idx] + rng.normal(0, 4e-3, n)}
+    m = Model()
+    for k in ("R", "L", "km", "J", "bv", "bc", "dz"):
+        m.set(k, vals[k] * (1.1 if k in ("J", "bv", "bc") else 1.0))
+    return as_log("ramp.csv", t, cols), m, vals
+
+
 def extreme_numbers(rng: np.random.Generator, n: int) -> np.ndarray:
     """(n, 3) numbers across 600 decades, with negative zeros and small integers mixed in: what
     the CSV readers' agreement tests write in many formats."""

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from ident_util import as_log
+from ident_util import as_log, slow_triangle
 
 from pmdcid.errors import FitError
 from pmdcid.identify.identifiability import poorly_determined
@@ -82,35 +82,13 @@ def test_fit_nonlinear_starts_quasi_static_when_inverse_dynamics_fails(monkeypat
         assert res.estimates[k].value == pytest.approx(vals[k], rel=0.03), k
 
 
-def _slow_triangle(step: int, held: bool, seed: int):
-    """The paper's motor under its 40 s triangle, logged every ``step`` ms: the input generated
-    at 1 kHz (a continuous ramp as far as a slow log can tell) or, ``held``, simulated from the
-    slow samples themselves (a drive that holds each logged value: the contract's reading)."""
-    from pmdcid.synth import triangle
-
-    vals = {**neutral_values(), **PAPER}
-    rng = np.random.default_rng(seed)
-    tf = np.arange(120_000) / 1000.0
-    u = triangle(tf, 2.0, 40.0)
-    t, us = tf[::step], u[::step]
-    sim = simulate_values(t, us, vals) if held else simulate_values(tf, u, vals)
-    idx = slice(None) if held else slice(None, None, step)
-    n = len(t)
-    cols = {"v": us, "i": sim.i[idx] + rng.normal(0, 4e-3, n),
-            "omega": sim.omega[idx] + rng.normal(0, 4e-3, n)}
-    m = Model()
-    for k in ("R", "L", "km", "J", "bv", "bc", "dz"):
-        m.set(k, vals[k] * (1.1 if k in ("J", "bv", "bc") else 1.0))
-    return as_log("ramp.csv", t, cols), m, vals
-
-
 def test_slowly_logged_ramp_input_is_read_between_samples():
     """The triangle generated continuously and logged at 10 Hz (J/bv = 0.1 s): read as held,
     the input acts half a sample late and J absorbed the lag (-63 %, a 4 % standard error).
     The fit now also reads how the input varied between samples (``ramp``): J within 5 % and
     within 3 standard errors, ramp near 1 (linear), the stage says so, and the model file gets
     no ``ramp`` (a property of the log, not the motor). At 1 kHz nothing changes."""
-    log, m, vals = _slow_triangle(100, held=False, seed=11)
+    log, m, vals = slow_triangle(100, held=False, seed=11)
     res = fit_nonlinear([log], m)
     J = res.estimates["J"]
     assert abs(J.value - vals["J"]) < min(0.05 * vals["J"], 3 * J.stderr), (J, vals["J"])
@@ -118,7 +96,7 @@ def test_slowly_logged_ramp_input_is_read_between_samples():
     assert any("ramp =" in w for w in res.warnings), res.warnings
     res.apply(m)
     assert "ramp" not in m.parameters
-    fast, m1, _ = _slow_triangle(1, held=False, seed=12)
+    fast, m1, _ = slow_triangle(1, held=False, seed=12)
     res1 = fit_nonlinear([fast], m1)
     assert "ramp" not in res1.estimates
     assert not any("changes at almost every sample" in w for w in res1.warnings)
@@ -130,7 +108,7 @@ def test_slowly_logged_held_input_keeps_an_honest_inertia(step):
     J's standard error carries what the data leave open of the reading, and the truth lies
     within 3 of them (a free ramp parameter stopped 6 standard errors off at 33 Hz; the profile
     in identify/hold.py does not)."""
-    log, m, vals = _slow_triangle(step, held=True, seed=13)
+    log, m, vals = slow_triangle(step, held=True, seed=13)
     res = fit_nonlinear([log], m)
     J = res.estimates["J"]
     assert abs(J.value - vals["J"]) < 3 * J.stderr, (J, vals["J"])

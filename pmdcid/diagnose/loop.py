@@ -27,6 +27,7 @@ import numpy as np
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
+from pmdcid.diagnose.hold import read_slow_inputs
 from pmdcid.diagnose.named import generalises, prefer_named, with_named
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import context, error_table, typical_scales
@@ -75,12 +76,17 @@ class Run:
         torque_only = all(log.drive == "tau" for log in problem.logs)
         self.vals0 = param_values(model, torque_driven=torque_only)
         self.base_free = _free_base(problem, self.vals0, model)
-        self.ctx0 = context(problem, self.vals0, problem.simulate_all(self.vals0))
+        self.refresh()
+        self.floors = repeatability(problem.logs)
+        self.held_ref: list[dict[str, float]] | None = None
+
+    def refresh(self) -> None:
+        """The start's residual context, typical scales and the effects' limits (again after
+        the problem's input readings changed)."""
+        self.ctx0 = context(self.problem, self.vals0, self.problem.simulate_all(self.vals0))
         self.typ = typical_scales(self.ctx0)
         self.limits = {k: v for e in EFFECTS.values() if e.limits
                        for k, v in e.limits(self.ctx0).items()}
-        self.floors = repeatability(problem.logs)
-        self.held_ref: list[dict[str, float]] | None = None
 
     def fit(self, start, free, part="fit", nfev=None) -> FitOutcome:
         """Local refit of ``free`` from ``start`` (:func:`staged_fit`)."""
@@ -250,18 +256,20 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
              bic_threshold: float = -10.0, heldout_threshold: float = -10.0,
              max_nfev: int = 40, max_rounds: int = 4, min_z: float = 5.0,
              min_gain: float = 0.01, max_rise: float = 0.05,
-             progress=None) -> DiagnoseResult:
+             progress=None, ramp: float | None = None) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
     ``effects`` restricts the catalogue searched (default: every effect screened by default,
     i.e. all but ``lugre``, not already in the model).
     The input model is not modified. ``progress(msg)`` is called as each round starts and
-    before each candidate's refit.
+    before each candidate's refit. ``ramp``: how slowly logged, continuously varying inputs
+    varied between samples (fit-nonlinear's reading; :mod:`pmdcid.diagnose.hold`), profiled
+    here when such a log is given without it.
     """
     rules = Rules(bic_threshold, heldout_threshold, min_z, min_gain, max_rise)
     with blas_single_thread():
         return _diagnose(logs, model, effects, split, max_samples, refit_top, rules,
-                         max_nfev, max_rounds, progress or (lambda msg: None))
+                         max_nfev, max_rounds, progress or (lambda msg: None), ramp)
 
 
 def _pool(problem: Problem, model: Model, effects) -> list[str]:
@@ -276,12 +284,13 @@ def _pool(problem: Problem, model: Model, effects) -> list[str]:
 
 
 def _diagnose(logs, model, effects, split, max_samples, refit_top, rules, max_nfev,
-              max_rounds, say) -> DiagnoseResult:
+              max_rounds, say, ramp=None) -> DiagnoseResult:
     problem = Problem(logs, split, max_samples, holdout_plan(logs))
     pool = _pool(problem, model, effects)
     run = Run(problem, model, rules, max_nfev)
     run.say = say
     notes: list[str] = []
+    read_slow_inputs(run, ramp, notes)
     base = baseline(run)
     cur, added, seen, history = search(run, base, pool, refit_top, max_rounds, notes)
     new = model.copy()

@@ -155,10 +155,17 @@ class Problem:
         self.blocked = [log.blocked for log in self.logs]
         self.needs = {part: [self._needed(k, part) for k in range(len(self.logs))]
                       for part in ("fit", "held", "all")}
+        #: log -> how its input varied between samples (``ramp``; :mod:`pmdcid.diagnose.hold`)
+        self.readings: dict[int, float] = {}
         # each log from the state its first samples measured (a log that starts turning is
         # never credited to an effect); a blocked rotor from rest
         self.x0 = [np.zeros(3) if b else initial_state(log)
                    for log, b in zip(self.logs, self.blocked, strict=True)]
+
+    def set_readings(self, readings: dict[int, float]) -> None:
+        """Read the input of each log ``k`` in ``readings`` at ramp ``readings[k]`` between
+        samples (0 held, 1 straight to the next sample); the other logs held."""
+        self.readings = dict(readings)
 
     def _needed(self, k: int, part: str) -> int:
         """Samples of log ``k`` to simulate for the residual of ``part``: every sample for
@@ -197,6 +204,8 @@ class Problem:
         log = self.logs[k]
         if self.blocked[k]:
             vals = {**vals, "bc": BLOCKED, "sigma0": 0.0}  # held by stiction, not bristles
+        if k in self.readings:
+            vals = {**vals, "ramp": self.readings[k]}
         return simulate_capped(log.t, log.u, vals, log.drive == "tau", self.x0[k], upto)
 
     def simulate_all(self, vals: dict[str, float], part: str = "all") -> list:
