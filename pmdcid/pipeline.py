@@ -259,11 +259,13 @@ def _diagnose(res: IdentifyResult, logs, say=None) -> None:
     from pmdcid.diagnose.loop import diagnose
     from pmdcid.simulate import logs_for
 
+    # how the joint fit read slow inputs between samples: its ramp, or held (0) when it read
+    # none (J not free there, or no slow log): diagnose refits under the same reading
     joint = [out for name, out in res.stages if name.startswith("joint")]
     ramp = getattr(joint[-1], "estimates", {}).get("ramp") if joint else None
     try:
         out = diagnose(logs_for(logs, res.model), res.model, progress=say,
-                       ramp=ramp.value if ramp is not None else None)
+                       ramp=ramp.value if ramp is not None else 0.0)
     except PmdcidError as exc:
         res.notes.append(f"diagnose: skipped: {exc}")
         return

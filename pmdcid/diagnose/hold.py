@@ -7,8 +7,9 @@ wrong inertia, and the search turns it into an effect nobody has (on the paper's
 triangle logged at 10 Hz, diagnose added ``input_delay`` and rewrote J). The logs where the
 reading matters (:func:`pmdcid.identify.identifiability.hold_matters`) are simulated with the
 input read at ``ramp`` (0 held, 1 straight to the next sample; the other logs stay held): the
-value identify's joint fit found when it is given, else a profile of the base refit over
-:data:`pmdcid.identify.hold.RAMPS`, as fit-nonlinear does.
+value identify's joint fit found when it is given (0, held, when it read none: its J came
+from the steps), else a profile of the base refit over :data:`pmdcid.identify.hold.RAMPS`, as
+fit-nonlinear does.
 """
 
 from __future__ import annotations
@@ -30,10 +31,11 @@ def slow_logs(problem, vals: dict[str, float]) -> list[int]:
 
 def read_slow_inputs(run, ramp: float | None, notes: list[str]) -> None:
     """Set how the slow logs' inputs varied between samples (``ramp`` when given, else
-    profiled); a note says which logs and what reading. Nothing when no log is slow."""
+    profiled); a note says which logs and what reading. Nothing when no log is slow or
+    ``ramp`` is 0 (held, as the logs are read by default)."""
     problem = run.problem
     slow = slow_logs(problem, run.vals0)
-    if not slow:
+    if not slow or ramp == 0.0:  # 0: held, the contract's reading
         return
     how = "identify's joint fit"
     if ramp is None or not math.isfinite(ramp):
