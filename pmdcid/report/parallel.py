@@ -19,7 +19,6 @@ from __future__ import annotations
 import pickle
 import sys
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -72,10 +71,15 @@ class FigureDrawer:
 
         self._procs, self._conns, self._senders, self._counter = [], [], [], None
         self._next = 0  # the next shared job when the caller claims alone
+        self._receivers: list[threading.Thread] = []
+        self._results = None
         n = spare_workers(n_jobs)
         if not n:
             return
+        import queue
+
         ctx = mp.get_context("spawn")
+        self._results = queue.SimpleQueue()
         try:
             self._counter = ctx.Value("q", 0)  # the next shared job to claim
             for _ in range(n):
@@ -86,6 +90,10 @@ class FigureDrawer:
                 theirs.close()  # the worker's end lives in the worker only: EOF when it ends
                 self._procs.append(proc)
                 self._conns.append(ours)
+                # its results are read as they come: a full pipe would stop the worker
+                t = threading.Thread(target=_receive, args=(ours, self._results), daemon=True)
+                t.start()
+                self._receivers.append(t)
         except Exception:  # noqa: BLE001 - no worker today: whatever started helps, or serial
             if not self._procs:
                 self._counter = None
@@ -150,22 +158,22 @@ class FigureDrawer:
         return k if k < n else None
 
     def _collect(self, shared: list[int], out: list) -> None:
-        """Receive the workers' PNGs until every shared job is answered or no worker can."""
-        from multiprocessing.connection import wait
+        """Take the workers' PNGs until every shared job is answered or no worker can."""
+        import queue
 
         waiting = {k for k in shared if out[k] is None}
-        conns = list(self._conns)
-        last = time.monotonic()
-        while waiting and conns and time.monotonic() - last < STALL_SECONDS:
-            for conn in wait(conns, timeout=LOCK_WAIT):
-                try:
-                    j, png = conn.recv()
-                except (EOFError, OSError, pickle.UnpicklingError):  # the worker is gone
-                    conns.remove(conn)
-                    continue
-                out[shared[j]] = png
-                waiting.discard(shared[j])
-                last = time.monotonic()
+        live = len(self._receivers)
+        while waiting and live:
+            try:
+                got = self._results.get(timeout=STALL_SECONDS)
+            except queue.Empty:  # a worker stalled: the caller draws the rest
+                return
+            if got is None:  # a worker ended
+                live -= 1
+                continue
+            j, png = got
+            out[shared[j]] = png
+            waiting.discard(shared[j])
 
     def close(self) -> None:
         """Stop the workers (done or not) and wait for them; idempotent."""
@@ -178,11 +186,11 @@ class FigureDrawer:
             if p.is_alive():  # pragma: no cover - SIGTERM ignored
                 p.kill()
                 p.join()
-        for t in self._senders:  # their peers are gone: a blocked send fails now
+        for t in self._senders + self._receivers:  # their peers are gone: they end now
             t.join()
         for conn in self._conns:
             conn.close()
-        self._senders, self._conns, self._counter = [], [], None
+        self._senders, self._receivers, self._conns, self._counter = [], [], [], None
 
 
 def _take(counter, n: int, stuck: Callable[[], bool]) -> int | None:
@@ -215,6 +223,17 @@ def _send(conn, payload: bytes) -> None:
         conn.send_bytes(payload)
     except (OSError, ValueError):  # the worker ended first: the caller draws its share
         pass
+
+
+def _receive(conn, results) -> None:
+    """Put each (index, PNG) a worker sends into ``results``, then None when it ends."""
+    try:
+        while True:
+            results.put(conn.recv())
+    except Exception:  # noqa: BLE001 - EOF, a reset pipe, a torn message: the worker is done
+        pass
+    finally:
+        results.put(None)
 
 
 def _start_quietly(proc) -> None:
