@@ -71,6 +71,7 @@ class FigureDrawer:
 
         self._procs, self._conns, self._senders, self._counter = [], [], [], None
         self._next = 0  # the next shared job when the caller claims alone
+        self._used = False
         self._receivers: list[threading.Thread] = []
         self._results = None
         n = spare_workers(n_jobs)
@@ -97,6 +98,9 @@ class FigureDrawer:
         except Exception:  # noqa: BLE001 - no worker today: whatever started helps, or serial
             if not self._procs:
                 self._counter = None
+        except BaseException:  # Ctrl-C while starting: no worker outlives this
+            self.close()
+            raise
 
     def __enter__(self):
         return self
@@ -105,9 +109,13 @@ class FigureDrawer:
         self.close()
 
     def draw(self, jobs: list[FigureJob]) -> dict[str, bytes]:
-        """``{job.name: PNG}`` in job order, the same bytes whoever draws them."""
+        """``{job.name: PNG}`` in job order, the same bytes whoever draws them. The workers
+        serve one list of jobs: a second call draws in this process."""
         from pmdcid.report.figures import FigurePool
 
+        if self._used:
+            self.close()
+        self._used = True
         pool = FigurePool()
         out: list = [None] * len(jobs)
         shared = self._share(jobs)
