@@ -21,11 +21,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _logs(tmp_path, rng):
-    """Four short logs of three kinds (triangle, steps, blocked rotor): 10 figures."""
+    """Three short logs of three kinds (triangle, step, blocked rotor): 8 figures."""
     vals = {**neutral_values(), **PAPER}
     out = []
-    for name, n, kind, amp in (("tri", 4000, "triangle", 1.5), ("step_a", 1500, "step", 1.0),
-                               ("step_b", 1500, "step", 2.0), ("blk", 800, "blocked", 1.0)):
+    for name, n, kind, amp in (("tri", 4000, "triangle", 1.5), ("step", 1500, "step", 1.0),
+                               ("blk", 800, "blocked", 1.0)):
         t = np.arange(n) * 1e-3
         if kind == "triangle":
             u = triangle(t, amp, 2.0)
