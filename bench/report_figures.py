@@ -4,6 +4,8 @@
     .venv/bin/python bench/report_figures.py --set demo       # the demo's: triangle + 5 steps
     .venv/bin/python bench/report_figures.py --set triangle   # `pmdcid report` on one 120 s log
     .venv/bin/python bench/report_figures.py --without pool,png,ticks,envelope
+    .venv/bin/python bench/report_figures.py --serial         # no worker (PMDCID_THREADS=1)
+    .venv/bin/python bench/report_figures.py --set triangle --min-jobs 4   # a worker anyway
 
 ``make_report`` in a warm process (imports and the kernel loaded by a first report), the
 model = fixtures/hidden/truth.json (it carries an effect, so the before/after figure is drawn).
@@ -11,13 +13,17 @@ Prints the median and min of wall and CPU (process) time over ``--runs``. ``--wi
 speed-ups off for an ablation, in this process only: ``pool`` (a new figure per log),
 ``png`` (matplotlib's ``savefig``, RGBA, zlib 6), ``ticks`` (locators rerun at every query),
 ``envelope`` (every k-th sample, at most 4000 points per line: the drawing before the
-envelope). Not a test: nothing here asserts a time.
+envelope). By default the figures are also drawn by a worker process on the spare CPU
+(report/parallel.py; started anew by every report, as in a command); ``--serial`` draws in this
+process only, ``--min-jobs`` changes the number of figures from which a worker is started.
+CPU is this process's only: a worker's is not in it. Not a test: nothing here asserts a time.
 """
 
 from __future__ import annotations
 
 import argparse
 import io
+import os
 import statistics
 import sys
 import tempfile
@@ -56,7 +62,16 @@ def main(argv=None) -> int:
     ap.add_argument("--set", choices=sorted(SETS), default="identify")
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--without", default="", help="comma list of pool, png, ticks, envelope")
+    ap.add_argument("--serial", action="store_true", help="no worker process (PMDCID_THREADS=1)")
+    ap.add_argument("--min-jobs", type=int, default=None,
+                    help="figures from which a worker is started (report/parallel.MIN_JOBS)")
     args = ap.parse_args(argv)
+    if args.serial:
+        os.environ["PMDCID_THREADS"] = "1"
+    if args.min_jobs is not None:
+        from pmdcid.report import parallel
+
+        parallel.MIN_JOBS = args.min_jobs
     from pmdcid.io import read_log
     from pmdcid.model import load_model
     from pmdcid.report import make_report
@@ -79,7 +94,8 @@ def main(argv=None) -> int:
             cpus.append(time.process_time() - c0)
         size = sum((Path(res.out_dir) / f).stat().st_size for f in res.figures)
     print(f"make_report, {args.set} set ({len(logs)} logs, {len(res.figures)} figures, "
-          f"{size / 1e6:.2f} MB of PNG), without: {','.join(sorted(parts)) or '-'}: "
+          f"{size / 1e6:.2f} MB of PNG), {'serial' if args.serial else 'worker'}, "
+          f"without: {','.join(sorted(parts)) or '-'}: "
           f"wall median {statistics.median(walls):.2f} s (min {min(walls):.2f}), "
           f"CPU median {statistics.median(cpus):.2f} s (min {min(cpus):.2f}), {args.runs} runs")
     return 0

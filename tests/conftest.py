@@ -29,7 +29,7 @@ SLOW_MODULES = {
     "test_api", "test_demo", "test_diagnose", "test_diagnose_real", "test_drive_effects",
     "test_emps", "test_export_native", "test_friction_curve", "test_lugre", "test_outputs_safety",
     "test_plan", "test_read_log_hypothesis", "test_real_rigs", "test_real_rigs_synthetic",
-    "test_real_steps", "test_report", "test_report_browser",
+    "test_real_steps", "test_report", "test_report_browser", "test_report_parallel",
 }
 
 

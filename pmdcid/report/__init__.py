@@ -168,33 +168,28 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     ``progress(msg)`` is called before each log's simulation and before the figures.
     """
     from pmdcid import __version__
-    from pmdcid.report import figures, html
+    from pmdcid.report import html
     from pmdcid.report.compare import compare_log, mean_errors, unique_names
     from pmdcid.report.metrics import LOW_SPEED_FRACTION, MAX_LAG
+    from pmdcid.report.parallel import FigureDrawer
 
     if not logs:
         raise LogError("no log files given")
     check_out_dir(out_dir)
     names = unique_names(logs)
     say = progress or (lambda msg: None)
-    cmps = []
-    for k, (log, name) in enumerate(zip(logs, names, strict=True)):
-        say(f"report: simulating {name} ({k + 1}/{len(logs)})")
-        cmps.append(compare_log(log, model, name))
+    # started before the simulations: the workers' imports overlap them (report/parallel.py)
+    with FigureDrawer(2 * len(logs) + 2) as drawer:
+        cmps = []
+        for k, (log, name) in enumerate(zip(logs, names, strict=True)):
+            say(f"report: simulating {name} ({k + 1}/{len(logs)})")
+            cmps.append(compare_log(log, model, name))
+        ba = _before_after(logs, names, model, before_model)
+        say("report: figures")
+        figs = drawer.draw(figure_jobs(cmps, ba, names))
     if summary is None:
         rec = model.extra.get("diagnose") or model.extra.get("fits", {}).get("diagnose")
         summary = rec if isinstance(rec, dict) and "added" in rec else None
-    figs: dict[str, bytes] = {}
-    say("report: figures")
-    pool = figures.FigurePool()  # the per-log figures reuse one figure per layout
-    for c in cmps:
-        c.metrics["figures"] = [f"{c.name}_overlay.png", f"{c.name}_residual.png"]
-        figs[c.metrics["figures"][0]] = figures.overlay_figure(c, pool)
-        figs[c.metrics["figures"][1]] = figures.residual_figure(c, pool)
-    figs["fit.png"] = figures.fit_figure([(c.name, c.metrics["signals"]) for c in cmps])
-    ba = _before_after(logs, names, model, before_model)
-    if ba is not None:
-        figs["before_after.png"] = figures.before_after_figure(names, ba["before"], ba["after"])
     metrics = _clean({
         "version": __version__,
         "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
@@ -223,6 +218,28 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     write_bytes_atomic(metrics_path, (json.dumps(metrics, indent=1) + "\n").encode())
     write_bytes_atomic(html_path, page.encode("utf-8"))
     return ReportResult(str(out), str(html_path), str(metrics_path), metrics, sorted(figs))
+
+
+def figure_jobs(cmps, ba: dict | None, names: list[str]) -> list:
+    """The report's figures as jobs (report/parallel.py): each log's overlay and residual (one
+    reused figure per layout), the fit per log, the error before and after when there is one."""
+    from pmdcid.report import figures
+    from pmdcid.report.compare import figure_view
+    from pmdcid.report.parallel import FigureJob
+
+    jobs = []
+    for c in cmps:
+        c.metrics["figures"] = [f"{c.name}_overlay.png", f"{c.name}_residual.png"]
+        view, size = figure_view(c)
+        args = (view,)  # one tuple for both: sent once
+        jobs += [FigureJob(c.metrics["figures"][0], figures.overlay_figure, args, True, size),
+                 FigureJob(c.metrics["figures"][1], figures.residual_figure, args, True, size)]
+    jobs.append(FigureJob("fit.png", figures.fit_figure,
+                          ([(c.name, c.metrics["signals"]) for c in cmps],)))
+    if ba is not None:
+        jobs.append(FigureJob("before_after.png", figures.before_after_figure,
+                              (names, ba["before"], ba["after"])))
+    return jobs
 
 
 def _refuse_overwriting_inputs(out_dir, names, inputs) -> None:

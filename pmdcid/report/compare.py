@@ -33,6 +33,22 @@ class LogComparison:
     metrics: dict
 
 
+def figure_view(cmp: LogComparison) -> tuple[LogComparison, int]:
+    """A copy of ``cmp`` holding only what the figures draw (the columns compared, the speed,
+    the input; the sensor-read simulation), to send to a figure worker; and its number of
+    array elements. The figures drawn from it are those drawn from ``cmp``."""
+    import dataclasses
+
+    log = cmp.log
+    keep = {*cmp.signals, log.drive, *(["omega"] if log.has("omega") else [])}
+    slim = dataclasses.replace(log, data={c: log[c] for c in log.data if c in keep}, extra={},
+                               t_file=None, skipped={}, issues=[])
+    none = np.empty(0)  # the rotor's own speed and angle: not drawn
+    sim = SimResult(cmp.sim.t, cmp.sim.i, cmp.sim.omega, cmp.sim.theta, none, none)
+    size = len(log.t) * (2 + len(slim.data) + 3)
+    return dataclasses.replace(cmp, log=slim, sim=sim, low=None), size
+
+
 def simulate_for(log, model: Model) -> SimResult:
     """Simulate ``model`` on the log's input from the state its first samples measured
     (:mod:`pmdcid.identify.initial`: rest unless it starts turning); a blocked rotor is held
