@@ -79,19 +79,28 @@ def _count_main_draws(monkeypatch) -> list:
     return drawn
 
 
-def test_worker_draws_the_serial_bytes(serial, two_cpus, monkeypatch, tmp_path):
-    logs, model, want = serial
-    drawn = _count_main_draws(monkeypatch)
+def _caller_waits_for_the_worker(monkeypatch, claims: int, must: bool) -> None:
+    """Patch the caller's claim to wait (at most 120 s) until the worker has claimed ``claims``
+    figures: ``must``, fail if it never does; else give up when a worker has died."""
     real_claim = parallel.FigureDrawer._claim
 
-    def claim_after_the_worker(self, n):  # the caller waits until the worker has claimed one
+    def wait(self, n):
         deadline = time.monotonic() + 120
-        while self._counter is not None and self._counter.value == 0:
-            assert time.monotonic() < deadline, "the worker never claimed a figure"
+        while self._counter is not None and self._counter.value < claims:
+            if must:
+                assert time.monotonic() < deadline, "the worker never claimed a figure"
+            elif time.monotonic() > deadline or not all(p.is_alive() for p in self._procs):
+                break
             time.sleep(0.01)
         return real_claim(self, n)
 
-    monkeypatch.setattr(parallel.FigureDrawer, "_claim", claim_after_the_worker)
+    monkeypatch.setattr(parallel.FigureDrawer, "_claim", wait)
+
+
+def test_worker_draws_the_serial_bytes(serial, two_cpus, monkeypatch, tmp_path):
+    logs, model, want = serial
+    drawn = _count_main_draws(monkeypatch)
+    _caller_waits_for_the_worker(monkeypatch, 1, must=True)
     make_report(logs, model, tmp_path / "par")
     assert multiprocessing.active_children() == []
     got = _pngs(tmp_path / "par")
@@ -132,17 +141,7 @@ def test_a_failing_worker_still_gives_the_whole_report(serial, two_cpus, monkeyp
     else:  # a job the worker cannot be sent: the caller draws everything
         monkeypatch.setattr(figures, "fit_figure", lambda rows: _real_fit(rows))
     if how in ("dies", "fails"):  # let the worker take figures first
-        real_claim = parallel.FigureDrawer._claim
-
-        def late(self, n):
-            deadline = time.monotonic() + 120
-            while self._counter is not None and self._counter.value < 3:
-                if time.monotonic() > deadline or not all(p.is_alive() for p in self._procs):
-                    break
-                time.sleep(0.01)
-            return real_claim(self, n)
-
-        monkeypatch.setattr(parallel.FigureDrawer, "_claim", late)
+        _caller_waits_for_the_worker(monkeypatch, 3, must=False)
     make_report(logs, model, tmp_path / "out")
     assert multiprocessing.active_children() == []
     got = _pngs(tmp_path / "out")
