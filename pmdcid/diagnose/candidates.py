@@ -18,6 +18,7 @@ import numpy as np
 from pmdcid.diagnose.problem import FitOutcome, bounds_of
 from pmdcid.diagnose.residuals import error_table, pooled
 from pmdcid.diagnose.rules import at_bound, failed_refit
+from pmdcid.diagnose.testable import HeldoutTest, heldout_test
 from pmdcid.identify.cpus import pmap
 from pmdcid.model import EFFECTS
 from pmdcid.model.signatures import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
@@ -50,6 +51,8 @@ class Candidate:
     rise: float | None = None  # largest relative rise of a held-out log's speed NRMSE
     rise_log: str | None = None
     starts: int = 0
+    #: what the held-out data can say about the effect (:mod:`pmdcid.diagnose.testable`)
+    test: HeldoutTest | None = None
 
     @property
     def counted(self) -> bool:
@@ -66,6 +69,8 @@ class Candidate:
                 "round": self.round, "chosen": self.chosen, "size_sigmas": num(self.z),
                 "chi2_drop_fit": num(self.gain_fit), "chi2_drop_heldout": num(self.gain_held),
                 "heldout_log_rise": num(self.rise), "starts": self.starts,
+                "heldout_distinct_chi2": num(self.test.distinct) if self.test else None,
+                "heldout_confirmed_chi2": num(self.test.confirmed) if self.test else None,
                 "parameters": {k: num(v) for k, v in self.values.items()}}
 
 
@@ -191,6 +196,13 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
         why = degenerate(name, fo, run.limits) or unphysical(fo, run.ctx0)
         if why:
             c.status, c.reason = "degenerate", why + "; not counted"
+        elif eff.implausible and (why := eff.implausible(fo.values, run.ctx0, run.vals0)):
+            c.status, c.reason = "implausible", why + "; not counted"
+        else:
+            floor = max(run.rules.min_z ** 2, run.rules.min_gain * ref["held"]) if n_held else 1.0
+            others = [p for p in free if p not in eff.param_names]
+            c.test = heldout_test(run.problem, fo.values, name, others,
+                                  run.ctx0.torque_scale, floor)
     return c, {"values": ref_vals, "chi2": ref}
 
 

@@ -8,16 +8,21 @@ A candidate is first *checked* (is its refit evidence at all?), then *judged* ag
 - **degenerate**: a parameter of the effect ends at a bound (the refit ran out of room: the
   effect stands in for something else), or the row is identical to another candidate's (two
   effects the logs cannot tell apart). Never counted.
-- the rules, in order: ΔBIC on the fit part below ``bic``; the held-out likelihood ratio below
-  ``heldout``; the effect's size at least ``min_z`` standard errors; the chi-square drop at
-  least ``min_gain`` of the excess on both parts; the speed NRMSE of no log held out whole rising
-  by more than ``max_rise`` (relative). The first rule a candidate fails is its reason.
+- the rules, in order: ΔBIC on the fit part below ``bic``; the held-out data able to test the
+  effect at all (:mod:`pmdcid.diagnose.testable`: one log at one operating point cannot test a
+  delay or a speed law; such an effect is *possible, not testable with these logs*) and bearing
+  out what they can tell; the held-out likelihood ratio below ``heldout``; the effect's size at
+  least ``min_z`` standard errors; the chi-square drop at least ``min_gain`` of the excess on
+  both parts; the speed NRMSE of no log held out whole rising by more than ``max_rise``
+  (relative). The first rule a candidate fails is its reason.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+from pmdcid.model import EFFECTS
 
 #: a refit above the model it extends by more than this share of its chi-square has failed
 FAILED_REL = 1e-6
@@ -60,6 +65,9 @@ def judge(c, rules: Rules) -> tuple[bool, str]:
     if not c.delta_bic < rules.bic:
         return False, f"ΔBIC {c.delta_bic:+.1f} ≥ {rules.bic:g}"
     pre = f"ΔBIC {c.delta_bic:+.0f} but "
+    untested = _untested(c)
+    if untested:
+        return False, untested
     if c.heldout is not None and not c.heldout < rules.heldout:
         return False, pre + (f"held-out Δ {c.heldout:+.1f} ≥ {rules.heldout:g} (no gain on "
                              "data it was not fitted on)")
@@ -79,6 +87,26 @@ def judge(c, rules: Rules) -> tuple[bool, str]:
                   f"{_pct(gf)} / {_pct(gh)}")
 
 
+UNTESTABLE = "possible, not testable with these logs"
+
+
+def _untested(c) -> str | None:
+    """Why the held-out data cannot test or do not bear out candidate ``c`` (None: they do)."""
+    t = c.test
+    if t is None:
+        return None
+    if not t.testable:
+        return (f"{UNTESTABLE}: on the data held out it changes nothing the other parameters "
+                f"could not (distinguishable χ² {t.distinct:.3g} < {t.floor:.3g}; ΔBIC "
+                f"{c.delta_bic:+.0f} on the fit part); to test it, record "
+                f"{EFFECTS[c.effect].record or 'other operating points'}")
+    if not t.confirms:
+        return (f"ΔBIC {c.delta_bic:+.0f} but the held-out data do not bear it out: of the "
+                f"χ² {t.distinct:.3g} by which they can tell it from the other parameters, "
+                f"{t.confirmed:.3g} is gained")
+    return None
+
+
 def same_rows(cands) -> dict[str, str]:
     """Candidates (of one round, refitted and counted) whose rows are identical to another's:
     effect -> the effect it duplicates (both of a pair are named)."""
@@ -95,4 +123,4 @@ def same_rows(cands) -> dict[str, str]:
     return out
 
 
-__all__ = ["Rules", "at_bound", "failed_refit", "judge", "same_rows"]
+__all__ = ["UNTESTABLE", "Rules", "at_bound", "failed_refit", "judge", "same_rows"]

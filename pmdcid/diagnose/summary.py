@@ -11,6 +11,7 @@ from pmdcid.diagnose.drive import drive_warnings
 from pmdcid.diagnose.folds import floor_of
 from pmdcid.diagnose.problem import FitOutcome
 from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, pooled, whiteness
+from pmdcid.diagnose.rules import UNTESTABLE
 from pmdcid.diagnose.shape import residual_shapes
 from pmdcid.identify.results import ResultProtocol
 from pmdcid.model import EFFECTS, Model
@@ -71,6 +72,12 @@ def heldout_errors(run, base: FitOutcome, final_vals: dict[str, float],
     return [{"log": run.problem.logs[k].path, "before": b[k], "after": a[k]} for k in held]
 
 
+def untestable(cands: list[Candidate]) -> list[dict]:
+    """Effects the fit part supports that no held-out data here can test: what to record."""
+    return [{"effect": c.effect, "record": EFFECTS[c.effect].record, "reason": c.reason}
+            for c in cands if c.reason.startswith(UNTESTABLE)]
+
+
 def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
               added: list[str], seen: dict[str, Candidate], history: list[Candidate],
               notes: list[str]) -> DiagnoseResult:
@@ -97,6 +104,7 @@ def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
         "before": pooled(before),
         "after": pooled(after),
         "unexplained": bool(unexplained),
+        "untestable": untestable(cands),
         "residual_shape": shapes,
         "notes": notes,
         "warnings": drive_warnings(problem, final_sims, final_vals, added),
@@ -114,4 +122,4 @@ def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
                           history)
 
 
-__all__ = ["DiagnoseResult", "heldout_errors", "summarise", "write_model"]
+__all__ = ["DiagnoseResult", "heldout_errors", "summarise", "untestable", "write_model"]

@@ -39,6 +39,9 @@ def format_table(res) -> str:
                 se = f" ± {par.stderr:.2g}" if math.isfinite(par.stderr) else ""
                 pars.append(f"{p} = {par.value:.5g}{se} {par.unit}".rstrip())
         lines.append(f"  {e}: " + "; ".join(pars))
+    for u in s.get("untestable", []):
+        lines.append(f"possible, not testable with these logs: {u['effect']} (record "
+                     f"{u['record']})")
     for note in s.get("notes", []):
         lines.append(f"note: {note}")
     for warning in s.get("warnings", []):

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 from pmdcid.errors import ModelError
 from pmdcid.model import signatures as sg
+from pmdcid.model import sizes
 from pmdcid.model.spec import BASE_PARAMS, ParamSpec
 
 
@@ -59,6 +60,12 @@ class Effect:
     states: tuple[str, ...] = ()
     #: screened by ``pmdcid diagnose`` unless ``--effect`` names the effects to search
     screened: bool = True
+    #: what to record so that held-out data can test the effect (said when the logs given
+    #: cannot: :mod:`pmdcid.diagnose.testable`)
+    record: str = ""
+    #: optional ``implausible(values, ctx, start) -> str | None``: why a refitted size is not
+    #: physical for these logs (a delay of many samples, a sensor bias the size of the speed)
+    implausible: Callable | None = field(default=None, compare=False, hash=False)
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -115,6 +122,7 @@ register(Effect(
     "electrical",
     ("bv", "J"),
     **sg.linear("ke", sg.back_emf_probe),
+    record='currents logged at several speeds (steps to different voltages)',
 ))
 register(Effect(
     "stribeck",
@@ -128,6 +136,7 @@ register(Effect(
     signature=sg.stribeck_signature,
     guess=sg.stribeck_guess,
     limits=sg.stribeck_limits,
+    record='slow reversals or breakaways from rest in a log of their own (a slow triangle)',
 ))
 register(Effect(
     "quadratic_drag",
@@ -141,6 +150,8 @@ register(Effect(
     ("bv",),
     **sg.linear("bq", sg.quadratic_probe, positive=False),
     limits=sg.quadratic_drag_limits,
+    record=('steady speeds spanning the range, in logs of their own (a staircase of levels or '
+            'steps to several voltages)'),
 ))
 register(Effect(
     "torque_offset",
@@ -151,6 +162,7 @@ register(Effect(
     "mechanical",
     ("bc",),
     **sg.linear("tau0", sg.torque_probe, positive=False),
+    record='motion in both directions (steps of both signs, a triangle through zero)',
 ))
 register(Effect(
     "cogging",
@@ -165,6 +177,7 @@ register(Effect(
     signature=sg.cogging_signature,
     guess=sg.cogging_guess,
     held=("cn",),
+    record='slow, steady runs over several revolutions',
 ))
 register(Effect(
     "sensor_delay",
@@ -174,6 +187,8 @@ register(Effect(
     "sensor",
     (),
     **sg.linear("delay", sg.delay_probe),
+    record='input edges or reversals in logs of their own (steps at other levels, a square wave)',
+    implausible=sizes.delay_too_long,
 ))
 register(Effect(
     "speed_offset",
@@ -184,6 +199,8 @@ register(Effect(
     (),
     **sg.linear("omega0", sg.speed_probe, positive=False),
     requires=("omega",),
+    record='rest and motion in both directions (steps of both signs, rest recorded before each)',
+    implausible=sizes.speed_bias_too_large,
 ))
 register(Effect(
     "voltage_saturation",
@@ -194,6 +211,7 @@ register(Effect(
     (),
     signature=sg.saturation_signature,
     guess=sg.saturation_guess,
+    record="inputs near and below the drive's limit in separate logs",
 ))
 register(Effect(
     "brush_drop",
@@ -204,6 +222,8 @@ register(Effect(
     "electrical",
     ("R",),
     **sg.linear("vb", sg.voltage_probe),
+    record='currents at several small voltages (blocked-rotor steps at several levels)',
+    implausible=sizes.moves_resistance,
 ))
 
 
@@ -220,6 +240,7 @@ register(Effect(
     ("bv", "tau0"),
     **sg.linear("dbv", sg.viscous_probe, positive=False),
     limits=sg.viscous_asymmetry_limits,
+    record='steady speeds in both directions at several levels',
 ))
 
 
@@ -251,6 +272,7 @@ register(Effect(
     held=CURVE_SPEEDS,
     limits=sg.friction_curve_limits,
     size_params=CURVE_VALUES,
+    record='steady speeds spanning the range, in logs of their own (a staircase of levels)',
 ))
 
 register(Effect(
@@ -268,6 +290,7 @@ register(Effect(
     (),
     **sg.linear("latency", sg.delay_probe),
     requires=("i",),
+    record='input edges in logs of their own, with the current logged',
 ))
 
 register(Effect(
@@ -288,4 +311,5 @@ register(Effect(
     guess=sg.lugre_guess,
     states=("z",),
     screened=False,
+    record='slow reversals with the angle resolved well below bc/sigma0',
 ))

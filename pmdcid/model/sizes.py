@@ -1,0 +1,57 @@
+"""Physical bounds on the size of an effect, beyond its parameters' declared bounds.
+
+A refit may move an effect to a size no motor or sensor has, because there it stands in for
+something else the model lacks: a "sensor delay" of ten samples standing for a slower mechanical
+response, a "brush drop" that pays for it by cutting R by a factor, a "speed-sensor bias" of the
+size of the speed. Each function answers why a size is not physical for these logs (a reason in
+words) or None. ``values``: the refit's parameters; ``ctx``: the residual context
+(:class:`pmdcid.model.residual.ResidualContext`: scales and the shortest sample period
+``dt`` [s]); ``start``: the parameter values before diagnose.
+"""
+
+from __future__ import annotations
+
+import math
+
+#: a logged speed or angle is read late by at most this many sample periods (filters, an
+#: encoder's counting window); more is a dynamic the model lacks
+MAX_DELAY_SAMPLES = 5
+#: a speed-sensor bias beyond this share of the typical speed is not a bias
+MAX_SPEED_BIAS = 0.1
+#: a brush drop must not move the armature resistance by more than this factor
+MAX_R_FACTOR = 1.5
+
+
+def delay_too_long(values: dict[str, float], ctx, start: dict[str, float]) -> str | None:
+    """A sensor delay of more than :data:`MAX_DELAY_SAMPLES` sample periods."""
+    delay, dt = values.get("delay", 0.0), ctx.dt
+    if dt > 0 and delay > MAX_DELAY_SAMPLES * dt:
+        return (f"implausible: a sensor delay of {delay:.3g} s is {delay / dt:.0f} samples; a "
+                f"logged speed or angle is read at most a few samples late "
+                f"(≤ {MAX_DELAY_SAMPLES}), so it stands in for a slower response the model "
+                "lacks")
+    return None
+
+
+def speed_bias_too_large(values: dict[str, float], ctx, start: dict[str, float]) -> str | None:
+    """A speed-sensor bias beyond :data:`MAX_SPEED_BIAS` of the typical speed."""
+    w0, scale = abs(values.get("omega0", 0.0)), ctx.speed_scale
+    if scale > 0 and w0 > MAX_SPEED_BIAS * scale:
+        return (f"implausible: a speed-sensor bias of {w0:.3g} rad/s is "
+                f"{100 * w0 / scale:.0f} % of the typical speed ({scale:.3g} rad/s): not a "
+                "sensor's offset")
+    return None
+
+
+def moves_resistance(values: dict[str, float], ctx, start: dict[str, float]) -> str | None:
+    """A brush drop whose refit moved R by more than :data:`MAX_R_FACTOR`."""
+    r0, r1 = start.get("R", math.nan), values.get("R", math.nan)
+    if r0 > 0 and r1 > 0 and max(r0 / r1, r1 / r0) > MAX_R_FACTOR:
+        return (f"implausible: the brush drop moved R from {r0:.4g} to {r1:.4g} ohm (a factor "
+                f"{max(r0 / r1, r1 / r0):.2g} > {MAX_R_FACTOR:g}): it pays for itself with the "
+                "resistance")
+    return None
+
+
+__all__ = ["MAX_DELAY_SAMPLES", "MAX_R_FACTOR", "MAX_SPEED_BIAS", "delay_too_long",
+           "moves_resistance", "speed_bias_too_large"]
