@@ -18,6 +18,7 @@ from pmdcid.errors import LogError
 from pmdcid.io import ColumnMap, read_log, write_log
 from pmdcid.model import Model, load_model
 from pmdcid.simulate import SimResult, input_is_torque, param_values, simulate_values
+from pmdcid.simulate.initial import initial_state, true_start
 
 #: the paper's Table II parameters, km from its Table I (SI units)
 PAPER = {"R": 2.3724, "L": 17.7933e-3, "km": 50.2e-3, "J": 3.10442e-3, "bv": 0.0314,
@@ -121,7 +122,7 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
 
     with np.errstate(over="ignore", invalid="ignore"), bounded_for(model_path):
         cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque,
-                            blocked, x0=start_state(log, x0), input_name=log.drive)
+                            blocked, x0=start_state(log, x0, vals), input_name=log.drive)
     for name, col in cols.items():  # a NaN current (torque-driven) is legitimate, inf is not
         if np.isinf(col).any() or np.nanmax(np.abs(col), initial=0.0) >= 1e30:
             std = {"i": noise.i, "omega": noise.omega}.get(name, 0.0)
@@ -138,23 +139,27 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
     return str(output)
 
 
-def start_state(log, x0: dict[str, float] | str | None) -> np.ndarray:
+def start_state(log, x0: dict[str, float] | str | None,
+                vals: dict[str, float] | None = None) -> np.ndarray:
     """The state (i [A], omega [rad/s], theta [rad]) a simulation of ``log``'s input starts
-    from: rest (None), given values (missing ones 0), or ``"measured"``: the log's own
-    measured columns at its first sample (each one it lacks: 0)."""
+    from: rest (None), given values (missing ones 0), or ``"measured"``: the state the log's
+    first samples measured, read exactly as the fits and diagnose read it
+    (:func:`pmdcid.simulate.initial.initial_state`: the first current and angle, the mean of
+    the first speeds, a start within noise of rest exactly at rest) and taken back through the
+    model's sensor effects (``vals``: a speed sensor's bias), so that ``simulate --x0
+    measured`` reproduces the errors the fits and diagnose report on the same log."""
     if x0 is None:
         return np.zeros(3)
     if isinstance(x0, str):
         if x0 != "measured":
             raise LogError(f"--x0 {x0!r}: give 'measured' or omega=VAL,i=VAL,theta=VAL")
-        out = np.zeros(3)
-        for k, name in enumerate(("i", "omega", "theta")):
-            if log.compares(name):
-                first = np.asarray(log[name], float)[:1]
-                if first.size and np.isfinite(first[0]):
-                    out[k] = float(first[0])
-        return out
+        out = initial_state(log)
+        if log.blocked:
+            out[1] = 0.0
+        return true_start(out, vals or {})
     return np.array([float(x0.get(n, 0.0)) for n in ("i", "omega", "theta")])
+
+
 def simulate_files(input_paths: list[str], model_path, out_dir, echo=None, **opts) -> list[str]:
     """``pmdcid simulate IN1 IN2 ... -o DIR``: :func:`simulate_file` for each input into
     ``DIR/<input's file name>`` (DIR created if missing), in one process: the start-up of a

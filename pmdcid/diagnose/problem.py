@@ -20,7 +20,6 @@ import numpy as np
 
 from pmdcid.errors import FitError, LogError
 from pmdcid.identify.covariance import CovarianceInfo, block_covariance
-from pmdcid.identify.initial import initial_state
 from pmdcid.identify.results import Estimate, FitStats
 from pmdcid.identify.simfit import envelope_jacobian, noise_level
 from pmdcid.identify.solver import scale_of, solve, white_covariance
@@ -28,6 +27,7 @@ from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import SimResult, param_vector, simulate_values
+from pmdcid.simulate.initial import initial_state, true_start
 from pmdcid.simulate.layout import SIGMA0
 from pmdcid.simulate.substeps import choose_substeps
 
@@ -206,7 +206,8 @@ class Problem:
             vals = {**vals, "bc": BLOCKED, "sigma0": 0.0}  # held by stiction, not bristles
         if k in self.readings:
             vals = {**vals, "ramp": self.readings[k]}
-        return simulate_capped(log.t, log.u, vals, log.drive == "tau", self.x0[k], upto)
+        return simulate_capped(log.t, log.u, vals, log.drive == "tau",
+                               true_start(self.x0[k], vals), upto)
 
     def simulate_all(self, vals: dict[str, float], part: str = "all") -> list:
         """Every log simulated with ``vals``; for ``part`` 'fit' or 'held' only as far as that

@@ -10,6 +10,8 @@ right valley. Costs a few dozen simulations of the logs.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from pmdcid.identify.cpus import pmap
@@ -127,18 +129,39 @@ def staged_fit(problem, start: dict[str, float], free, part: str, budget: int,
 
 
 def profile_stderr(problem, vals: dict[str, float], name: str, redchi: float,
-                   span: float = 0.2, n: int = 41) -> float:
-    """Standard error [unit of ``name``] of a switching parameter from its profile: half the
-    width of the values within a chi-square rise of ``redchi`` (one standard error) of the best,
-    others held; at least one scan step. The Jacobian's error is meaningless where the cost
-    is flat between events (it comes out 0)."""
+                   span: float = 0.2, n: int = 41, zooms: int = 4) -> float:
+    """Standard error [unit of ``name``] of a switching parameter from its profile (others
+    held): the half-width at which the chi-square rises by ``redchi`` (one standard error),
+    from a parabola through the scanned points within four times that rise of the best. The
+    Jacobian's error is meaningless where the cost is flat between events (it comes out 0).
+    Where fewer than five points fall in that band the scan is repeated ten times narrower
+    around the best value (at most ``zooms`` times), so the result is the profile's width, not
+    the scan's step (a floor of 1 % of the value was printed as a standard error before); NaN
+    when even the finest scan cannot resolve it."""
     v = vals[name]
     if not v > 0:
         return float("nan")
-    xs = v * np.linspace(1 - span, 1 + span, n)
-    c = np.array(pmap(lambda x: problem.chi2({**vals, name: float(x)})["all"], xs))
-    ok = xs[c - c.min() <= max(redchi, 1.0)]
-    return float(max(0.5 * (ok.max() - ok.min()), xs[1] - xs[0]))
+    rise = max(redchi, 1.0)
+    centre, half = v, span * v
+    for _ in range(zooms + 1):
+        xs = centre + np.linspace(-half, half, n if half == span * v else 21)
+        xs = xs[xs > 0]
+        c = np.array(pmap(lambda x: problem.chi2({**vals, name: float(x)})["all"], xs))
+        band = c - c.min() <= 4.0 * rise
+        if band.sum() >= 5:
+            return _parabola_halfwidth(xs[band], c[band], rise)
+        centre, half = float(xs[int(np.argmin(c))]), half / 10
+    return float("nan")
+
+
+def _parabola_halfwidth(x: np.ndarray, c: np.ndarray, rise: float) -> float:
+    """Half-width at a rise of ``rise`` of the parabola fitted to (x, c); where the points do
+    not curve upwards, half the spread of the points within that rise."""
+    a = float(np.polyfit(x - x.mean(), c, 2)[0])
+    if a > 0:
+        return float(math.sqrt(rise / a))
+    ok = x[c - c.min() <= rise]
+    return float(0.5 * (ok.max() - ok.min()))
 
 
 __all__ = ["grid_start", "profile_best", "profile_stderr", "staged_fit"]

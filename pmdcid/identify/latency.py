@@ -53,8 +53,8 @@ def step_latency(logs, model) -> tuple[float, float] | None:
     """(latency [s], its white-noise standard error [s]) of the measured speed behind
     ``model`` simulated on ``logs`` (module docstring), including a ``sensor_delay`` the model
     already has; None when it is under :data:`MIN_SAMPLES` samples or no log measures a speed."""
-    from pmdcid.identify.initial import initial_state
     from pmdcid.simulate import input_is_torque, param_values, simulate_values
+    from pmdcid.simulate.initial import initial_state
 
     use = [lg for lg in logs if lg.has("omega") and "omega" not in lg.derived and lg.n > 20]
     if not use:

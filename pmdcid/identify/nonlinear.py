@@ -176,7 +176,7 @@ def _axis(name: str, start: dict[str, float], tscale: float) -> np.ndarray:
 def _cost(logs, base_vals, sets, signals, sigma) -> np.ndarray:
     """Weighted squared simulation error of each parameter set, summed over the logs (each
     from its measured initial state, :mod:`.initial`)."""
-    from pmdcid.identify.initial import initial_state
+    from pmdcid.simulate.initial import initial_state
 
     total = np.zeros(len(sets))
     for k, lg in enumerate(logs):

@@ -19,13 +19,13 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
 from pmdcid.identify.cpus import pmap
-from pmdcid.identify.initial import initial_state, moving_start
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
 from pmdcid.identify.tall import BLOCK_ROWS, TALL_ROWS
 from pmdcid.model import Model
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.simulate import param_values, simulate_values
+from pmdcid.simulate.initial import initial_state, moving_start
 from pmdcid.simulate.layout import NSTATE
 
 

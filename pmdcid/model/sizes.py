@@ -13,23 +13,38 @@ from __future__ import annotations
 
 import math
 
-#: a logged speed or angle is read late by at most this many sample periods (filters, an
-#: encoder's counting window); more is a dynamic the model lacks
+#: a logged speed or angle is read late by a few sample periods (an encoder's counting window,
+#: a filter) ...
 MAX_DELAY_SAMPLES = 5
+#: ... or by a transport latency that stays a small share of the mechanical time constant: a
+#: delay of the order of the time constant competes with the inertia for the same lag
+MAX_DELAY_SHARE = 0.25
 #: a speed-sensor bias beyond this share of the typical speed is not a bias
 MAX_SPEED_BIAS = 0.1
 #: a brush drop must not move the armature resistance by more than this factor
 MAX_R_FACTOR = 1.5
 
 
+def mechanical_time_constant(values: dict[str, float]) -> float:
+    """J over the total viscous damping [s]: J/(bv + km ke/R) (per volt, bv already holds ke);
+    NaN when J or the damping is unknown."""
+    j, bv = values.get("J", math.nan), values.get("bv", math.nan)
+    km, ke, r = values.get("km", 0.0), values.get("ke", 0.0), values.get("R", math.nan)
+    damping = bv + (km * ke / r if r > 0 and km > 0 and ke > 0 else 0.0)
+    return j / damping if j > 0 and damping > 0 else math.nan
+
+
 def delay_too_long(values: dict[str, float], ctx, start: dict[str, float]) -> str | None:
-    """A sensor delay of more than :data:`MAX_DELAY_SAMPLES` sample periods."""
+    """A sensor delay beyond both :data:`MAX_DELAY_SAMPLES` sample periods and
+    :data:`MAX_DELAY_SHARE` of the mechanical time constant."""
     delay, dt = values.get("delay", 0.0), ctx.dt
-    if dt > 0 and delay > MAX_DELAY_SAMPLES * dt:
-        return (f"implausible: a sensor delay of {delay:.3g} s is {delay / dt:.0f} samples; a "
-                f"logged speed or angle is read at most a few samples late "
-                f"(≤ {MAX_DELAY_SAMPLES}), so it stands in for a slower response the model "
-                "lacks")
+    tau = mechanical_time_constant(values)
+    limit = max(MAX_DELAY_SAMPLES * dt, MAX_DELAY_SHARE * tau if math.isfinite(tau) else 0.0)
+    if dt > 0 and delay > limit:
+        return (f"implausible: a sensor delay of {delay:.3g} s ({delay / dt:.0f} samples, "
+                f"{delay / tau:.2g} of the mechanical time constant {tau:.3g} s) stands in for "
+                f"a slower response the model lacks; a sensor reads at most a few samples or "
+                f"{MAX_DELAY_SHARE:g} of the time constant late")
     return None
 
 
@@ -53,5 +68,6 @@ def moves_resistance(values: dict[str, float], ctx, start: dict[str, float]) -> 
     return None
 
 
-__all__ = ["MAX_DELAY_SAMPLES", "MAX_R_FACTOR", "MAX_SPEED_BIAS", "delay_too_long",
-           "moves_resistance", "speed_bias_too_large"]
+__all__ = ["MAX_DELAY_SAMPLES", "MAX_DELAY_SHARE", "MAX_R_FACTOR", "MAX_SPEED_BIAS",
+           "delay_too_long", "mechanical_time_constant", "moves_resistance",
+           "speed_bias_too_large"]

@@ -51,15 +51,15 @@ def figure_view(cmp: LogComparison) -> tuple[LogComparison, int]:
 
 def simulate_for(log, model: Model) -> SimResult:
     """Simulate ``model`` on the log's input from the state its first samples measured
-    (:mod:`pmdcid.identify.initial`: rest unless it starts turning); a blocked rotor is held
+    (:mod:`pmdcid.simulate.initial`: rest unless it starts turning); a blocked rotor is held
     still; a lumped model takes the voltage through the torque path."""
-    from pmdcid.identify.initial import initial_state
+    from pmdcid.simulate.initial import initial_state, true_start
 
     torque = input_is_torque(log, model)
     blocked = log.blocked
     over = {"bc": BLOCKED_BC, "sigma0": 0.0} if blocked else None  # stiction holds it
     vals = param_values(model, torque, over)
-    x0 = initial_state(log)
+    x0 = true_start(initial_state(log), vals)
     if blocked:
         x0[1] = 0.0
     return simulate_values(log.t, log.u, vals, torque, x0=x0)

@@ -88,9 +88,23 @@ def initial_state(log, sigma_omega: float | None = None) -> np.ndarray:
     return np.array([i0, start_speed(log, sigma_omega), th0])
 
 
+def true_start(x0: np.ndarray, vals: dict[str, float]) -> np.ndarray:
+    """The kernel's starting state from a measured one, ``x0`` (:func:`initial_state`), for a
+    model with parameter values ``vals``: a speed sensor's bias (``omega0``, speed_offset) is
+    in the measured speed, not in the rotor's, so a moving start is taken back by it (a start
+    at rest stays exactly at rest). A sensor delay needs nothing: the kernel's delayed reading
+    holds the first state before t0, as the measurement does."""
+    w0 = float(vals.get("omega0", 0.0))
+    if x0[1] == 0.0 or w0 == 0.0 or not math.isfinite(w0):
+        return x0
+    out = np.array(x0, float)
+    out[1] -= w0
+    return out
+
+
 def moving_start(x0: np.ndarray) -> bool:
     """True when the log starts turning (its starting speed is then fitted)."""
     return x0[1] != 0.0
 
 
-__all__ = ["initial_state", "moving_start", "start_speed"]
+__all__ = ["initial_state", "moving_start", "start_speed", "true_start"]

@@ -1,0 +1,87 @@
+"""diagnose adds an effect only where held-out data can test it (pmdcid/diagnose/testable.py,
+model/sizes.py): one step log at one operating point adds nothing; the same effect is added
+once a log at other operating points is given."""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+import pytest
+
+from pmdcid.api import diagnose, identify
+from pmdcid.io import Log
+from pmdcid.model import sizes
+from pmdcid.simulate import param_values
+from pmdcid.synth import NoiseSpec, synth_log, truth_model
+
+#: a bench motor (SI, back-EMF), logged as voltage and speed at 100 Hz (a lumped model)
+MOTOR = {"R": 1.0, "L": 2e-3, "km": 0.05, "ke": 0.05, "J": 5e-4, "bv": 1e-5, "bc": 2e-3,
+         "dz": 3e-3, "bq": 1e-6}
+DT = 0.01
+
+
+def _log(name, t, u, vals, rng, x0=None) -> Log:
+    cols, _ = synth_log(t, u, vals, NoiseSpec(omega=0.5), rng, x0=x0)
+    return Log.from_arrays(t, v=cols["v"], omega=cols["omega"], theta=cols["theta"], name=name)
+
+
+def step_log(vals, rng) -> Log:
+    """5 -> 15 V at 1 s, the log starting at the 5 V steady speed (it starts turning)."""
+    t = np.arange(0.0, 4.0, DT)
+    u = np.where(t >= 1.0, 15.0, 5.0)
+    km, r = MOTOR["km"], MOTOR["R"]
+    w0 = 5.0 * (km / r) / (km * km / r + MOTOR["bv"])  # near the steady speed: it starts moving
+    return _log("step_5_15V", t, u, vals, rng, x0=np.array([0.0, w0, 0.0]))
+
+
+def staircase_log(vals, rng) -> Log:
+    t = np.arange(0.0, 8.0, DT)
+    levels = np.array([8.0, 18.0, 12.0, 24.0, 6.0, 16.0, 22.0, 10.0])
+    return _log("staircase", t, levels[np.minimum((t // 1).astype(int), 7)], vals, rng)
+
+
+@pytest.fixture(scope="module")
+def rig():
+    rng = np.random.default_rng(11)
+    vals = param_values(truth_model(MOTOR, ["back_emf", "quadratic_drag"]))
+    step, stair = step_log(vals, rng), staircase_log(vals, rng)
+    model = identify([step], diagnose=False, progress=False).model
+    return step, stair, model
+
+
+def test_one_step_log_adds_nothing_it_cannot_test(rig):
+    step, _, model = rig
+    res = diagnose([step], model, progress=False)
+    assert res.summary["added"] == [], res.table()
+    untestable = {u["effect"]: u for u in res.summary["untestable"]}
+    # the drag is in the data, and the fit part sees it: said, with what to record
+    assert "quadratic_drag" in untestable, res.table()
+    assert "steady speeds" in untestable["quadratic_drag"]["record"]
+    assert "possible, not testable with these logs" in res.table()
+
+
+def test_logs_at_other_operating_points_confirm_the_effect(rig):
+    step, stair, model = rig
+    res = diagnose([step, stair], model, progress=False)
+    assert "quadratic_drag" in res.summary["added"], res.table()
+    bq = res.model.parameters["bq"]
+    true_bq = MOTOR["bq"] * MOTOR["R"] / MOTOR["km"]  # per volt
+    assert abs(bq.value - true_bq) <= max(3 * bq.stderr, 0.02 * true_bq), (bq, true_bq)
+
+
+def _ctx(dt=0.01, speed=100.0):
+    return types.SimpleNamespace(dt=dt, speed_scale=speed)
+
+
+def test_physical_bounds_of_effect_sizes():
+    vals = {"J": 1e-2, "bv": 0.05}  # a 0.2 s mechanical time constant (per volt)
+    assert sizes.mechanical_time_constant(vals) == pytest.approx(0.2)
+    assert sizes.delay_too_long({**vals, "delay": 0.03}, _ctx(), {}) is None  # 3 samples
+    assert sizes.delay_too_long({**vals, "delay": 0.045}, _ctx(dt=1e-3), {}) is None
+    why = sizes.delay_too_long({**vals, "delay": 0.105}, _ctx(), {})
+    assert why and "10 samples" in why
+    assert sizes.speed_bias_too_large({"omega0": 5.0}, _ctx(), {}) is None
+    assert "74 %" in sizes.speed_bias_too_large({"omega0": -74.5}, _ctx(), {})
+    assert sizes.moves_resistance({"R": 2.0}, _ctx(), {"R": 2.16}) is None
+    assert "factor 3.5" in sizes.moves_resistance({"R": 0.62}, _ctx(), {"R": 2.16})
