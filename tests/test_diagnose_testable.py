@@ -81,7 +81,7 @@ def test_physical_bounds_of_effect_sizes():
     assert sizes.delay_too_long({**vals, "delay": 0.045}, _ctx(dt=1e-3), {}) is None
     why = sizes.delay_too_long({**vals, "delay": 0.105}, _ctx(), {})
     assert why and "10 samples" in why
-    assert sizes.speed_bias_too_large({"omega0": 5.0}, _ctx(), {}) is None
+    assert sizes.speed_bias_too_large({"omega0": 30.0}, _ctx(), {}) is None
     assert "74 %" in sizes.speed_bias_too_large({"omega0": -74.5}, _ctx(), {})
     assert sizes.moves_resistance({"R": 2.0}, _ctx(), {"R": 2.16}) is None
     assert "factor 3.5" in sizes.moves_resistance({"R": 0.62}, _ctx(), {"R": 2.16})

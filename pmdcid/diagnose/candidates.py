@@ -200,7 +200,7 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
             c.status, c.reason = "implausible", why + "; not counted"
         else:
             floor = max(run.rules.min_z ** 2, run.rules.min_gain * ref["held"]) if n_held else 1.0
-            others = [p for p in free if p not in eff.param_names]
+            others = [p for p in free if p in eff.interacts]
             c.test = heldout_test(run.problem, fo.values, name, others,
                                   run.ctx0.torque_scale, floor)
     return c, {"values": ref_vals, "chi2": ref}

@@ -10,8 +10,9 @@ The test, linearised at the candidate's refit (values ``fo``, effect switched on
 
 - ``d``: the effect's own change of the held-out residual (effect on minus effect off, the
   other parameters as refitted), weighted by the noise (each sample one unit of chi-square);
-- ``B``: the held-out sensitivities of every other free parameter (base and effects already
-  added);
+- ``B``: the held-out sensitivities of the free base parameters that can stand in for the
+  effect (``Effect.interacts``: bv for a drag law, bc for a load torque, bc and bv for a speed
+  bias; none for a delay, whose signature needs edges or reversals to show at all);
 - *distinct* = ``|P d|^2``, ``P`` projecting out the columns of ``B``: the chi-square by which
   the held-out data can tell the effect, at its fitted size, from any re-adjustment of the
   others. Below ``floor`` the effect is *not testable with these logs*.

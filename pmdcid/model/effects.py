@@ -35,6 +35,10 @@ class Effect:
     doc: str
     params: tuple[ParamSpec, ...]
     acts_on: str  # "electrical" | "mechanical" | "sensor" | "input"
+    #: the base parameters it interacts with: refitted with it, and those that can stand in
+    #: for it where the data hold only part of what it acts on (one speed level cannot tell a
+    #: drag law from bv): :mod:`pmdcid.diagnose.testable` projects them out of its held-out
+    #: signature
     interacts: tuple[str, ...] = ()
     #: optional hooks filled in by the diagnose stage: residual signature and starting guess
     hooks: dict[str, Callable] = field(default_factory=dict, compare=False, hash=False)
@@ -196,7 +200,7 @@ register(Effect(
     "residual, visible at rest; angle unaffected.",
     (ParamSpec("omega0", "rad/s", "speed sensor bias", 0.0, -1e6, 1e6),),
     "sensor",
-    (),
+    ("bc", "bv"),
     **sg.linear("omega0", sg.speed_probe, positive=False),
     requires=("omega",),
     record='rest and motion in both directions (steps of both signs, rest recorded before each)',

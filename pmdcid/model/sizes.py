@@ -19,8 +19,8 @@ MAX_DELAY_SAMPLES = 5
 #: ... or by a transport latency that stays a small share of the mechanical time constant: a
 #: delay of the order of the time constant competes with the inertia for the same lag
 MAX_DELAY_SHARE = 0.25
-#: a speed-sensor bias beyond this share of the typical speed is not a bias
-MAX_SPEED_BIAS = 0.1
+#: a speed-sensor bias of this share of the typical speed or more is not a bias
+MAX_SPEED_BIAS = 0.5
 #: a brush drop must not move the armature resistance by more than this factor
 MAX_R_FACTOR = 1.5
 
