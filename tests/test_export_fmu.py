@@ -166,3 +166,39 @@ def test_names_are_escaped(tmp_path):
 def test_c_string_and_comment_escapes():
     assert fmu.c_string('a"b\\c\n?é') == '"a\\"b\\\\c\\012\\077\\303\\251"'
     assert fmu.c_comment("x*/y/*z@@w\né") == "x* /y/ *z@ @w??"
+
+
+def test_reset_starts_again_and_parameters_are_fixed_after_initialisation(tmp_path):
+    """fmi2Reset brings the FMU back to rest with the exported parameters; a parameter set in
+    step mode is refused (variability fixed)."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import FMU2Slave
+
+    write_model(tmp_path / "m.json", "v")
+    path = export(tmp_path)
+    desc = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in desc.modelVariables}
+    slave = FMU2Slave(guid=desc.guid, unzipDirectory=extract(str(path)),
+                      modelIdentifier=desc.coSimulation.modelIdentifier, instanceName="m")
+    slave.instantiate()
+
+    def run():
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        out = []
+        for k in range(200):
+            slave.setReal([vr["v"]], [1.5])
+            slave.doStep(k * 1e-3, 1e-3)
+            out.append(slave.getReal([vr["i"], vr["omega"], vr["theta"]]))
+        return np.array(out)
+
+    first = run()
+    with pytest.raises(FMICallException):
+        slave.setReal([vr["J"]], [1.0])
+    slave.reset()
+    again = run()
+    slave.terminate()
+    slave.freeInstance()
+    assert np.array_equal(first, again) and first[-1, 1] > 0.1
