@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -163,7 +164,8 @@ def outputs_for(fmt: str, output: str) -> list[Path]:
     return [out]
 
 
-def _render(fmt: str, spec: ExportSpec, paths: list[Path], note) -> list:
+def _render(fmt: str, spec: ExportSpec, paths: list[Path],
+            note: Callable[[str], None]) -> list[str | bytes]:
     """The texts (or bytes) of the files ``fmt`` writes at ``paths``."""
     if fmt == "python-control":
         from pmdcid.export.pycontrol import render
@@ -190,7 +192,7 @@ def _render(fmt: str, spec: ExportSpec, paths: list[Path], note) -> list:
 
 
 def export_model(model_path: str, fmt: str, output: str, force: bool = False,
-                 note=None) -> list[str]:
+                 note: Callable[[str], None] | None = None) -> list[str]:
     """``pmdcid export``: write ``fmt`` code for the model in ``model_path``; returns the paths.
     ``note(line)`` receives what the format approximates (MuJoCo), one line each."""
     from pmdcid.io.logs import atomic_write

@@ -84,8 +84,9 @@ def approximations(spec: ExportSpec) -> list[str]:
     v = spec.values
     out = []
     if _on(spec, "dz", "dz_offset") or (_on(spec, "dz_slope") and uses_dcmotor(spec)):
+        unit = "V (per-volt model)" if spec.drive == "lumped" else "N m"
         out.append(f"dead_zone: MuJoCo has no dead zone on the motor torque; omitted (torque "
-                   f"below dz = {v['dz']:.4g} N m passes, not zero)")
+                   f"below dz = {v['dz']:.4g} {unit} passes, not zero)")
     if uses_dcmotor(spec) and v["km"] != v["ke"]:
         out.append(f"back_emf: dcmotor has one motor constant K = sqrt(km ke) = "
                    f"{math.sqrt(v['km'] * v['ke']):.6g} for torque and back-EMF")
