@@ -82,3 +82,29 @@ def rel_error(y, ref):
 
 def dt_of(t):
     return float((t[-1] - t[0]) / (len(t) - 1))
+
+
+#: a measured log (../shared/data/real, read in place: never copied into the repository): the
+#: FRA233 rig's +-12 V sine through zero speed, 30 s at 1 kHz
+REAL_LOG = FIX.parents[2] / "shared" / "data" / "real" / "fra233-2025-pboon" / "sine_1.csv"
+#: a model of about that rig's size (R and L as the group measured them; km = ke from the
+#: 21 rad/s per V slope; bc from the 1.5-2 V it needs to start), voltage-driven, no dead zone
+RIG = {"R": 3.18, "L": 2.84e-3, "km": 0.045, "ke": 0.045, "J": 2e-5, "bv": 5e-5, "bc": 0.02,
+       "dz": 0.0}
+
+
+def real_input():
+    """(t, v) of :data:`REAL_LOG`; the test is skipped when ../shared is absent."""
+    import pytest
+
+    if not REAL_LOG.exists():
+        pytest.skip(f"no measured log at {REAL_LOG}")
+    log = read_log(REAL_LOG)
+    return log.t, log.u
+
+
+def rig_model(path):
+    """:data:`RIG` with its back-EMF, saved at ``path``."""
+    m = truth_model(dict(RIG), ["back_emf"])
+    save_model(m, path)
+    return m

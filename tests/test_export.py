@@ -146,7 +146,8 @@ def test_model_lacking_parameters(tmp_path):
 
 @pytest.mark.parametrize("fmt,name,other", [("python-control", "out.py", None),
                                             ("c", "out.c", "out.h"),
-                                            ("matlab", "out.m", "run_out.m")])
+                                            ("matlab", "out.m", "run_out.m"),
+                                            ("mujoco", "out.xml", None)])
 def test_does_not_overwrite_foreign_files(tmp_path, fmt, name, other):
     write_model(tmp_path / "model.json")
     for victim in [name] + ([other] if other else []):
