@@ -243,21 +243,24 @@ def _chisqr_and_J(logs, work, free, signals, start, sigma, max_nfev, bounds, pri
 
 def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool = False,
                   grid: bool = True, max_nfev: int = 200,
-                  priors: bool = True) -> NonlinearResult:
+                  priors: bool = True, noise_model: int = 0) -> NonlinearResult:
     """Fit J, bv, bc, dz (voltage logs) or J, bv, bc, tau0 (torque logs) by simulation error.
 
     ``free``: parameters to fit (subset of J, bv, bc, dz, tau0); ``signals``: measured signals
     in the cost (default: the measured speed and angle present); ``dead_zone``: also fit dz on
     torque-driven logs. R, L, km (voltage logs) and the model's other parameters are held.
     ``priors``: combine with the estimates earlier stages wrote (:func:`stage_priors`); False
-    lets these logs alone decide. The model is not modified: call :meth:`NonlinearResult.apply`.
+    lets these logs alone decide. ``noise_model``: the local stage's AR noise model order (0:
+    white; closed-loop logs, :func:`pmdcid.identify.simfit.fit_simulation`).
+    The model is not modified: call :meth:`NonlinearResult.apply`.
     """
     with blas_single_thread():
-        return _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev, priors)
+        return _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev, priors,
+                              noise_model)
 
 
 def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
-                   priors=True) -> NonlinearResult:
+                   priors=True, noise_model=0) -> NonlinearResult:
     t_start = time.perf_counter()
     check_logs(logs)
     prior = stage_priors(model, KNOWN_FREE, STAGE) if priors else {}
@@ -302,7 +305,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     fit = fit_simulation(logs, work, ls_free, signals=signals,
                          start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
                          diff_step=DIFF_STEP, bounds=bounds,
-                         priors=prior_terms(prior), overrides=held)
+                         priors=prior_terms(prior), overrides=held, noise_model=noise_model)
     if "dz" in free and len(free) > 1:
         # check dz at the fitted point: the grid's hint comes from its coarse bc, and a local
         # stage may stop where dz = 0 (a bound) or in a side valley. If some dz on the profile
@@ -315,7 +318,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
             fit = fit_simulation(logs, work, free, signals=signals,
                                  start={k: start2[k] for k in free}, sigma=sigma,
                                  max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
-                                 priors=prior_terms(prior), overrides=held)
+                                 priors=prior_terms(prior), overrides=held,
+                                 noise_model=noise_model)
             point = {**best, **fit.values()}
             dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
         # identified only if the dead zone improves the fit clearly: by more than two standard
