@@ -82,6 +82,10 @@ class NonlinearResult(ResultProtocol):
     warnings: list[str] = field(default_factory=list)
     #: name -> the stage whose estimate entered as a prior (see :func:`stage_priors`)
     prior_from: dict[str, str] = field(default_factory=dict)
+    #: closed-loop logs: which route the fit took and why (:class:`.closedfit.Route`)
+    route: object = None
+    #: the controller route: the logged-output fit it started from
+    open_loop: object = None
 
     @property
     def stats(self):
@@ -112,6 +116,8 @@ class NonlinearResult(ResultProtocol):
             "logs": self.paths, "signals": list(self.signals),
             "nrmse": self.nrmse, "redchi": self.stats.redchi, "ndata": self.stats.ndata,
             "sigma": self.fit.sigma,
+            "route": None if self.route is None else {"name": self.route.name,
+                                                      "why": self.route.why},
             "bc_dz_correlation": r if math.isfinite(r) else None,
             "covariance": self.fit.covariance.as_dict() if self.fit.covariance else None,
             "priors": {n: {"from": s, "value": self.fit.priors[n][0],
@@ -124,6 +130,8 @@ class NonlinearResult(ResultProtocol):
         lines = [f"fit-nonlinear: simulation error on {', '.join(self.signals)} "
                  f"({len(self.paths)} log(s); grid {self.grid_sets} sets, then least squares)",
                  ""]
+        if self.route is not None:
+            lines[1:1] = [self.route.line()]
         lines += format_estimates(list(self.estimates.values()))
         if self.prior_from:
             by = {}

@@ -60,7 +60,13 @@ def _bounds(name: str, user: dict | None) -> tuple[float, float]:
 
 
 def available_signals(log, signals: Sequence[str]) -> list[str]:
-    return [s for s in signals if log.compares(s)]
+    """The ``signals`` a log can be compared on; ``u`` is its input column (a closed-loop
+    simulation computes it: :mod:`pmdcid.simulate.closedloop`)."""
+    return [s for s in signals if s == "u" or log.compares(s)]
+
+
+def _measured(log, s: str) -> np.ndarray:
+    return log.u if s == "u" else log[s]
 
 
 def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "theta"),
@@ -288,7 +294,7 @@ def _residual_plan(logs, signals, sig_list):
     for k, log in enumerate(logs):
         given = sig_list[k] if k < len(sig_list) else {}
         for s in available_signals(log, signals):
-            meas = log[s]
+            meas = _measured(log, s)
             plan.append((k, s, meas, float(given.get(s, noise_level(meas)))))
             row = segments[-1][2] if segments else 0
             segments.append((k, row, row + len(meas)))

@@ -41,14 +41,21 @@ class ClosedLoopResult(SimResult):
         return getattr(self, name)
 
 
-def reference_of(log, spec: ControllerSpec) -> np.ndarray:
-    """The log's set-point column named by ``spec.reference`` (canonical or extra column)."""
+def reference_of(log, spec: ControllerSpec, key: str = "reference") -> np.ndarray:
+    """The log's column named by the spec's ``reference`` (or ``feedforward``), canonical or
+    extra."""
+    name = getattr(spec, key)
     for src in (log.data, log.extra):
-        if spec.reference in src:
-            return np.asarray(src[spec.reference], float)
+        if name in src:
+            return np.asarray(src[name], float)
     have = ", ".join(list(log.data) + list(log.extra)) or "none"
-    raise LogError(f"the controller's reference column '{spec.reference}' is not in the log "
-                   f"(it has {have}); name it with the spec's reference=COLUMN", log.path)
+    raise LogError(f"the controller's {key} column '{name}' is not in the log (it has "
+                   f"{have}); name it with the spec's {key}=COLUMN", log.path)
+
+
+def feedforward_of(log, spec: ControllerSpec) -> np.ndarray | None:
+    """The spec's feedforward column of ``log`` (None when the spec has none)."""
+    return None if spec.feedforward is None else reference_of(log, spec, "feedforward")
 
 
 def controller_ticks(t: np.ndarray, spec: ControllerSpec) -> np.ndarray:
@@ -68,7 +75,8 @@ def controller_ticks(t: np.ndarray, spec: ControllerSpec) -> np.ndarray:
 def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: np.ndarray,
                          torque_driven: bool = False, x0=None, *, nsub: int | None = None,
                          logged_u: np.ndarray | None = None,
-                         noise: np.ndarray | None = None) -> ClosedLoopResult:
+                         noise: np.ndarray | None = None,
+                         feedforward: np.ndarray | None = None) -> ClosedLoopResult:
     """Simulate the motor ``vals`` (:func:`pmdcid.simulate.param_values`) under ``spec`` at
     instants ``t`` [s] from ``x0``, the set-point ``ref`` (the measured signal's unit).
 
@@ -76,6 +84,7 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
     starts the integrator (a loop running before the log began). ``noise``: added to the
     measurement the controller reads at each sample (a synthetic log's sensor noise, fed back
     as a real loop feeds it back); the result's measured signal then includes it.
+    ``feedforward``: added to the controller's output after its limits (controller units).
     """
     t = np.asarray(t, float)
     ref = np.asarray(ref, float)
@@ -86,7 +95,8 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
     ticks = controller_ticks(t, spec)
     x = np.empty((len(t), NSTATE))
     x[0] = state_vector(x0)
-    u = _run_loop(t, p, spec, ref, torque_driven, x, ticks, logged_u, noise, vals, nsub)
+    ff = np.zeros(len(t)) if feedforward is None else np.asarray(feedforward, float)
+    u = _run_loop(t, p, spec, (ref, ff), torque_driven, x, ticks, logged_u, noise, vals, nsub)
     sensor = {"delay": float(vals.get("delay", 0.0)), "omega0": float(vals.get("omega0", 0.0))}
     om, th = apply_sensors(t, x[:, OMEGA_STATE], x[:, THETA_STATE], sensor)
     if noise is not None:
@@ -114,8 +124,10 @@ def _measured(t, x, k, spec, vals, noise) -> float:
     return y
 
 
-def _run_loop(t, p, spec, ref, torque_driven, x, ticks, logged_u, noise, vals, nsub):
-    """Fill ``x`` (n, NSTATE) sample by sample; returns the controller output held at each."""
+def _run_loop(t, p, spec, inputs, torque_driven, x, ticks, logged_u, noise, vals, nsub):
+    """Fill ``x`` (n, NSTATE) sample by sample; returns the controller output held at each
+    (``inputs``: the reference and the feedforward)."""
+    ref, ff = inputs
     n = len(t)
     ctrl = ControllerState(spec)
     u = np.empty(n)
@@ -132,11 +144,12 @@ def _run_loop(t, p, spec, ref, torque_driven, x, ticks, logged_u, noise, vals, n
             ts = _period(t, k, ticks, spec)
             y = _measured(t, x, k, spec, vals, noise)
             if first:
-                lg = None if logged_u is None else float(logged_u[0]) / spec.scale
+                lg = None if logged_u is None else float(logged_u[0]) / spec.scale - ff[0]
                 out = ctrl.start(float(ref[k]), y, ts, lg)
                 first = False
             else:
                 out = ctrl.step(float(ref[k]), y, ts)
+            out += ff[k]
         u[k] = out
         if k + 1 < n:
             h = float(t[k + 1] - t[k])

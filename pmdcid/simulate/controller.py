@@ -21,7 +21,9 @@ commas (``type=PI,kp=0.05,ki=2,umax=7.4``). Keys (docs/cli.md, "Closed-loop logs
   step: a loop that ignores its own period; ki is then per step);
 - ``quantum``: the output's resolution, rounded down (an integer PWM count; default 0: none);
 - ``scale``: the plant input per unit of controller output (EMPS: the drive gain 35.15 N/V;
-  default 1); limits and quantum apply to the controller's own output.
+  default 1); limits and quantum apply to the controller's own output;
+- ``feedforward``: a log column added to the controller's output after its limits (EMPS's
+  validation pulses, ``pulse_in_vir_units``; default none).
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ class ControllerSpec:
     integrate: str = "time"
     quantum: float = 0.0
     scale: float = 1.0
+    feedforward: str | None = None
 
     @property
     def gains(self) -> tuple[float, float, float]:
@@ -148,7 +151,7 @@ def _value(key: str, val):
             raise ControllerError(f"controller {key} {val!r}: choose among "
                                   f"{', '.join(_CHOICES[key])}")
         return v
-    if key == "reference":
+    if key in ("reference", "feedforward"):
         return str(val).strip()
     if key == "dfilter":
         taps = val if isinstance(val, list) else str(val).strip("[] ").split(";")
