@@ -7,8 +7,10 @@
 - **controller** (``--controller SPEC``): the closed loop is simulated from the logged reference
   (:mod:`pmdcid.simulate.closedloop`) and the motor's parameters fitted to the measured output
   and the logged controller output together (DIDIM-like: the EMPS authors fit the closed loop's
-  simulated torque), started from the logged-output route. Its residual has no input noise at
-  all: the simulated loop's input is computed, not read.
+  simulated torque), started from the logged-output route. By default the residual is the
+  controller output alone (the authors' input-error criterion): a loop holds its output on the
+  reference whatever the motor, so the output's residual says little and, weighted by its small
+  noise, would outweigh the input's; the measured signals are added on request (``signals``).
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ from pmdcid.identify.nonlinear import (
     NonlinearResult,
     fit_nonlinear,
 )
+from pmdcid.identify.nonlinear_setup import REFERENCE_COLUMNS
+from pmdcid.identify.nonlinear_setup import closed_loop_logs as setup_closed
 from pmdcid.identify.priors import prior_terms, stage_priors
 from pmdcid.identify.simfit import fit_simulation, noise_level
 from pmdcid.identify.solver import blas_single_thread
@@ -34,8 +38,6 @@ from pmdcid.simulate.controller import ControllerSpec
 STAGE = "fit-nonlinear"
 #: AR order of the noise model on closed-loop logs fitted on their logged output
 AR_ORDER = 2
-#: the set-point columns that mark a log as closed loop when no --controller names one
-REFERENCE_COLUMNS = ("omega_ref", "theta_ref")
 
 
 @dataclass
@@ -51,8 +53,7 @@ class Route:
 
 def closed_loop_logs(logs, spec: ControllerSpec | None = None) -> bool:
     """True when the logs carry a set-point column (the spec's, or a usual one)."""
-    names = (spec.reference,) if spec is not None else REFERENCE_COLUMNS
-    return any(n in lg.extra or n in lg.data for lg in logs for n in names)
+    return setup_closed(logs, (spec.reference,) if spec is not None else REFERENCE_COLUMNS)
 
 
 def noise_model_for(logs, spec: ControllerSpec | None = None) -> int:
@@ -84,18 +85,20 @@ def fit_closed_loop(logs, model: Model, spec: ControllerSpec, free=None, signals
                     priors: bool = True, max_nfev: int = 100) -> NonlinearResult:
     """The controller route: fit-nonlinear's logged-output fit (the start), then the closed
     loop simulated from each log's reference through ``spec`` and fitted by simulation error
-    on the measured ``signals`` and the logged controller output. Returns a
+    on the logged controller output (and the measured ``signals`` when given). Returns a
     :class:`NonlinearResult` whose ``route`` says so. The model is not modified."""
     for lg in logs:  # a missing reference column: one clear error before any fit
         reference_of(lg, spec)
         feedforward_of(lg, spec)
     first = fit_nonlinear(logs, model, free=free, signals=signals, priors=priors,
                           noise_model=noise_model_for(logs, spec))
+    measured = tuple(signals) if signals else ()
     with blas_single_thread():
-        return _refit(logs, model, spec, first, priors, max_nfev)
+        return _refit(logs, model, spec, first, measured, priors, max_nfev)
 
 
-def _refit(logs, model, spec, first: NonlinearResult, priors, max_nfev) -> NonlinearResult:
+def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
+           max_nfev) -> NonlinearResult:
     masked = any("dz is not identifiable" in w for w in first.warnings)
     free = [n for n in first.estimates if n != "ramp" and not (n == "dz" and masked)]
     start = {n: first.estimates[n].value for n in free}
@@ -105,13 +108,13 @@ def _refit(logs, model, spec, first: NonlinearResult, priors, max_nfev) -> Nonli
             work.set(n, e.value, stage="start")
     if "tau0" in first.estimates:
         work.add_effect("torque_offset")
-    signals = tuple(first.signals)
-    sigma = [_sigma(lg, signals) for lg in logs]
+    signals = (*measured, "u")
+    sigma = [_sigma(lg, measured) for lg in logs]
     bounds = {k: (start[k] / REFINE_RANGE, start[k] * REFINE_RANGE)
               for k in ("J", "bv") if k in start and start[k] > 0}
     prior = stage_priors(model, free, STAGE) if priors else {}
     try:
-        fit = fit_simulation(logs, work, free, signals=(*signals, "u"), start=start,
+        fit = fit_simulation(logs, work, free, signals=signals, start=start,
                              sigma=sigma, max_nfev=max_nfev, diff_step=DIFF_STEP,
                              bounds=bounds, priors=prior_terms(prior),
                              simulator=loop_simulator(spec))
@@ -121,9 +124,9 @@ def _refit(logs, model, spec, first: NonlinearResult, priors, max_nfev) -> Nonli
     if masked:
         est["dz"] = first.estimates["dz"]
     route = Route("controller", f"--controller given: the loop simulated from the logged "
-                  f"reference '{spec.reference}' ({spec.describe()}); fitted on "
-                  f"{', '.join(signals)} and the logged controller output")
-    res = NonlinearResult(est, fit, (*signals, "u"), first.paths, first.start, start, 0,
+                  f"reference '{spec.reference}' ({spec.describe()}); fitted on the logged "
+                  f"controller output{''.join(', ' + s for s in measured)}")
+    res = NonlinearResult(est, fit, signals, first.paths, first.start, start, 0,
                           first.seconds, list(first.warnings),
                           {n: prior[n][0] for n in fit.priors})
     res.route = route
