@@ -1,6 +1,6 @@
 """Closed-loop rigs: micromouse-pid and EMPS with their controllers known (``--controller``).
 
-    python -m bench.closedloop            # both rigs: the figures of docs/real-data.md, emps.md
+    python -m bench.closedloop [micromouse|emps]   # the figures of docs/real-data.md, emps.md
 
 - **micromouse-pid** (../shared/data/real/micromouse-pid, loop-timed 2-13 ms): fitted on the
   1 ms and 10 ms controller periods, predicting the 2 ms and 5 ms runs; held-out speed NRMSE of
@@ -99,9 +99,10 @@ def micromouse(folder: Path = MICROMOUSE) -> dict:
     return out
 
 
-def emps_errors(log, values: dict, spec) -> tuple[float, float]:
-    """Closed-loop relative errors [%] of ``values`` on ``log``: position (all samples) and
-    velocity (the benchmark's filtered speed, first 49 samples left out)."""
+def emps_errors(log, values: dict, spec) -> tuple[float, float, float]:
+    """Closed-loop relative errors [%] of ``values`` on ``log``: position (all samples),
+    velocity (the benchmark's filtered speed, first 49 samples left out) and force (the
+    simulated controller's against the logged, all samples)."""
     from pmdcid.identify.openloop import EMPS_SKIP, measured_speed
     from pmdcid.simulate import neutral_values
     from pmdcid.simulate.closedloop import feedforward_of, reference_of, simulate_closed_loop
@@ -113,7 +114,8 @@ def emps_errors(log, values: dict, spec) -> tuple[float, float]:
     pos = 100 * np.linalg.norm(sim.theta - q) / np.linalg.norm(q)
     v = measured_speed(log)[EMPS_SKIP:]
     vel = 100 * np.linalg.norm(sim.omega_true[EMPS_SKIP:] - v) / np.linalg.norm(v)
-    return float(pos), float(vel)
+    force = 100 * np.linalg.norm(sim.u - log.u) / np.linalg.norm(log.u)
+    return float(pos), float(vel), float(force)
 
 
 def emps(folder: Path = EMPS) -> dict:
@@ -137,17 +139,19 @@ def emps(folder: Path = EMPS) -> dict:
     return out
 
 
-def main() -> int:
-    if MICROMOUSE.is_dir():
+def main(argv=None) -> int:
+    only = (argv if argv is not None else sys.argv[1:])[:1]
+    if MICROMOUSE.is_dir() and only in ([], ["micromouse"]):
         for k, v in micromouse().items():
             print(f"micromouse {k:28s} " + "  ".join(f"{x:.3f}" for x in v)
                   + f"   mean {np.mean(v):.3f}")
-    if EMPS.is_dir():
+    if EMPS.is_dir() and only in ([], ["emps"]):
         for label, r in emps().items():
             vals = ", ".join(f"{k} {v:.5g}" for k, v in r["values"].items())
             print(f"EMPS {label}: {vals}")
             for f in ("estimation", "validation"):
-                print(f"  {f}: position {r[f][0]:.4f} %, velocity {r[f][1]:.3f} %")
+                print(f"  {f}: position {r[f][0]:.4f} %, velocity {r[f][1]:.3f} %, "
+                      f"force {r[f][2]:.2f} %")
     return 0
 
 
