@@ -251,5 +251,5 @@ class ControllerState:
     def _limit(self, u: float) -> float:
         q = self.spec.quantum
         if q > 0:
-            u = q * math.floor(u / q + 1e-9)
+            u = q * math.floor(u / q + 1e-6)  # a millionth of a count: rounding, not a level
         return min(max(u, self.spec.umin), self.spec.umax)
