@@ -11,6 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from pmdcid.cli import main
+from pmdcid.errors import LogError
 from pmdcid.identify.runners import stage_nonlinear
 from pmdcid.io import write_log
 from pmdcid.io.logs import Log
@@ -75,6 +76,37 @@ def test_closed_loop_is_the_open_loop_kernel_on_its_own_output():
     ol = simulate_values(log.t, sim.u, vals, True)
     assert np.array_equal(ol.omega, sim.omega) and np.array_equal(ol.theta, sim.theta)
     assert np.max(np.abs(sim.omega - log.extra["omega_ref"])[-500:]) < 0.5  # it tracks
+
+
+def test_loop_timed_samples_are_stepped_as_logged():
+    """A loop-timed log (2-13 ms apart): each period stepped with its own length. A P loop on a
+    linear first-order motor (no friction) has the exact recursion w+ = a w + (1 - a) u / bv,
+    a = exp(-h bv / J), u = kp (r - w): the loop matches it to rounding."""
+    rng = np.random.default_rng(11)
+    t = np.concatenate([[0.0], np.cumsum(rng.integers(2, 14, 300) * 1e-3)])
+    ref = np.where(t < 1.0, 20.0, -10.0)
+    vals = param_values(_model({"J": 0.01, "bv": 0.1, "bc": 0.0}), True)
+    spec = controller_from_dict({"type": "P", "kp": 0.4})
+    sim = simulate_closed_loop(t, vals, spec, ref, True)
+    w = np.zeros(len(t))
+    for k in range(len(t) - 1):
+        a = np.exp(-(t[k + 1] - t[k]) * 0.1 / 0.01)
+        w[k + 1] = a * w[k] + (1 - a) * 0.4 * (ref[k] - w[k]) / 0.1
+    assert np.max(np.abs(sim.omega - w)) < 1e-9 * np.max(np.abs(w))
+    assert np.allclose(sim.u, 0.4 * (ref - w))
+
+
+def test_a_controller_period_holds_its_output():
+    """``period`` = 3 samples: the output changes only every third sample."""
+    t = np.arange(300) * 1e-3
+    spec = controller_from_dict({"type": "PI", "kp": 0.5, "ki": 5.0, "period": 3e-3})
+    sim = simulate_closed_loop(t, param_values(_model(), True), spec, np.full(300, 10.0), True)
+    steps = np.flatnonzero(np.diff(sim.u)) + 1
+    assert len(steps) > 20 and np.all(steps % 3 == 0)
+    with pytest.raises(LogError, match="whole number of samples"):
+        simulate_closed_loop(t, param_values(_model(), True),
+                             controller_from_dict({"type": "P", "kp": 1, "period": 2.5e-3}),
+                             np.zeros(300), True)
 
 
 def test_spec_inline_json_and_file(tmp_path):
@@ -169,8 +201,6 @@ def test_controller_route_recovers_the_motor():
 def test_a_missing_reference_column_is_one_clear_error():
     log, spec = closed_loop_log(np.random.default_rng(1), n=500)
     other = controller_from_dict({**PI, "reference": "speed_target"})
-    from pmdcid.errors import LogError
-
     with pytest.raises(LogError, match="speed_target"):
         _fit(log, controller=other)
 
