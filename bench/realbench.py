@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench import realdata  # noqa: E402
+from bench import closedloop, realdata  # noqa: E402
 
 BEGIN, END = "<!-- realbench:begin -->", "<!-- realbench:end -->"
 LABELS = ("paper", "identify")
@@ -42,6 +42,46 @@ def run(args) -> list[dict]:
         res["seconds"] = time.perf_counter() - t0
         print(table([res]).split("\n\n")[0], file=sys.stderr, flush=True)
         out.append(res)
+    if args.rig in (None, "micromouse-pid") and closedloop.MICROMOUSE.is_dir():
+        out.append(micromouse(args))
+    return out
+
+
+def micromouse(args) -> dict:
+    """micromouse-pid (loop-timed, closed loop): fitted on the 1 and 10 ms controller periods,
+    the 2 and 5 ms runs held out, each simulated from its logged command (bench/closedloop.py;
+    the controller route's figures are printed there). 'paper' is fit-nonlinear on the logged
+    output (no steps in these logs), 'identify' the whole pipeline; logs put on a uniform grid
+    by closedloop.uniform until pmdcid.io reads loop-timed logs."""
+    from pmdcid.identify.runners import per_volt, stage_nonlinear
+    from pmdcid.model import Model
+    from pmdcid.model.lumped import mark_lumped
+    from pmdcid.pipeline import identify
+
+    t0 = time.perf_counter()
+    print("... micromouse-pid", file=sys.stderr, flush=True)
+    fit = [closedloop.uniform(closedloop.read_loop_timed(closedloop.MICROMOUSE / n))
+           for n in closedloop.FIT]
+    paper = Model()
+    mark_lumped(paper)
+    res = stage_nonlinear(fit, paper)
+    per_volt(res)
+    res.apply(paper)
+    models = {"paper": paper,
+              "identify": identify(fit, Model(), run_diagnose=not args.no_diagnose).model}
+    lin = realdata.fit_linear(fit)
+    rows = []
+    for name in closedloop.HELD:
+        lg = closedloop.uniform(closedloop.read_loop_timed(closedloop.MICROMOUSE / name))
+        row = {"log": name, "protocol": "other period", "floor": float("nan"),
+               "linear": realdata.nrmse(realdata.linear_sim(lin, lg), lg["omega"])}
+        row.update({k: realdata.predict(m, lg) for k, m in models.items()})
+        rows.append(row)
+    out = {"rig": "micromouse-pid", "why": micromouse.__doc__.split(":")[0],
+           "fit": list(closedloop.FIT), "rows": rows, "linear_params": lin.tolist()}
+    out["mean"] = realdata.summarise(out, LABELS)
+    out["lag"] = []
+    out["seconds"] = time.perf_counter() - t0
     return out
 
 

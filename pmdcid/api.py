@@ -83,12 +83,16 @@ def fit_mechanical(logs, model, *, km: float | None = None):
     return res
 
 
-def fit_nonlinear(logs, model, *, free=None, signals=None, priors: bool = True):
+def fit_nonlinear(logs, model, *, free=None, signals=None, priors: bool = True,
+                  controller=None):
     """J, bv, bc, dz (tau0 for torque logs) by simulation error, as ``pmdcid fit-nonlinear``.
 
     ``free``: the parameters to fit (names, e.g. ``["J", "bc"]``; the others are held at the
     model's values); ``signals``: the measured signals in the cost (e.g. ``("omega",)``);
-    ``priors``: combine with the estimates earlier stages wrote into the model.
+    ``priors``: combine with the estimates earlier stages wrote into the model;
+    ``controller``: closed-loop logs' controller (a spec as ``--controller`` takes it, a dict of
+    its keys, or a :class:`~pmdcid.simulate.controller.ControllerSpec`): the loop is simulated
+    from the logged reference and fitted (docs/identification.md, "Closed-loop logs").
     Returns a :class:`~pmdcid.identify.nonlinear.NonlinearResult`."""
     from pmdcid.identify.runners import lumped_if_wanted, per_volt, stage_nonlinear
     from pmdcid.model.lumped import is_lumped
@@ -100,6 +104,18 @@ def fit_nonlinear(logs, model, *, free=None, signals=None, priors: bool = True):
         opts["free"] = [free] if isinstance(free, str) else list(free)
     if signals is not None:
         opts["signals"] = (signals,) if isinstance(signals, str) else tuple(signals)
+    if controller is not None:
+        from pmdcid.simulate.controller import (
+            ControllerSpec,
+            controller_from_dict,
+            parse_controller,
+        )
+
+        if isinstance(controller, dict):
+            controller = controller_from_dict(controller)
+        elif not isinstance(controller, ControllerSpec):
+            controller = parse_controller(str(controller))
+        opts["controller"] = controller
     res = stage_nonlinear(logs, work, **opts)
     if is_lumped(work):
         per_volt(res)

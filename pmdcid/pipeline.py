@@ -135,13 +135,14 @@ def classify(log) -> LogPlan:
 
 
 def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool = True,
-             priors: bool = True, progress=None) -> IdentifyResult:
+             priors: bool = True, progress=None, controller=None) -> IdentifyResult:
     """Identify a whole rig from ``logs`` starting from ``model`` (may be empty).
 
     ``km`` [N m/A]: the datasheet torque constant. ``run_diagnose``: search the effect catalogue
     on every log after the joint fit. ``priors``: later stages combine with earlier estimates.
-    ``progress(msg)``: called before each stage. Returns an :class:`IdentifyResult` (the model
-    given is not modified).
+    ``progress(msg)``: called before each stage. ``controller``: the controller spec of
+    closed-loop logs (:mod:`pmdcid.identify.closedfit`), passed to the nonlinear fits.
+    Returns an :class:`IdentifyResult` (the model given is not modified).
     """
     say = progress or (lambda msg: None)
     work = model.copy()
@@ -176,9 +177,9 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         _stage(res, "fit-mechanical", groups["step"], _mechanical)
     if groups["rich"] and groups["step"] and _has_mech(res.model):
         say("fit-nonlinear")
-        _stage(res, "fit-nonlinear", groups["rich"], _nonlinear(priors))
+        _stage(res, "fit-nonlinear", groups["rich"], _nonlinear(priors, controller))
     say("joint fit")
-    _stage(res, "joint fit (all moving logs)", moving, _nonlinear(False))
+    _stage(res, "joint fit (all moving logs)", moving, _nonlinear(False, controller))
     if not res.stages:
         raise FitError("no stage could use these logs: " + "; ".join(res.notes))
     if run_diagnose and any(name.startswith("joint") for name, _ in res.stages):
@@ -246,11 +247,11 @@ def _mechanical(logs, model):
     return fit_mechanical(logs, model)
 
 
-def _nonlinear(priors: bool):
+def _nonlinear(priors: bool, controller=None):
     def run(logs, model):
         from pmdcid.identify.runners import stage_nonlinear
 
-        return stage_nonlinear(logs, model, priors=priors)
+        return stage_nonlinear(logs, model, priors=priors, controller=controller)
 
     return run
 
@@ -276,7 +277,7 @@ def _diagnose(res: IdentifyResult, logs, say=None) -> None:
 
 
 def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_diagnose=True,
-                 priors=True, progress=None, force=False) -> IdentifyResult:
+                 priors=True, progress=None, force=False, controller=None) -> IdentifyResult:
     """``pmdcid identify`` on files: read, identify, write MODEL atomically, then the report.
 
     The plausibility gate (:mod:`pmdcid.identify.plausibility`) checks the logs before and the
@@ -308,7 +309,7 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
     gate(logs, force, value("km", km), value("R"))
     with bounded_for(model_path):
         res = identify(logs, model, km=km, run_diagnose=run_diagnose, priors=priors,
-                       progress=progress)
+                       progress=progress, controller=controller)
     res.model.extra.setdefault("fits", {})["identify"] = {
         "logs": {p.path: {"kind": p.kind, "why": p.why} for p in res.plan},
         "stages": [name for name, _ in res.stages], "notes": res.notes}

@@ -93,6 +93,33 @@ def synth_log(t, u, vals: dict[str, float], noise: NoiseSpec, rng: np.random.Gen
     return cols, sim
 
 
+def closed_loop_log(log, vals: dict[str, float], spec, noise: NoiseSpec,
+                    rng: np.random.Generator | None, torque_driven: bool, x0=None):
+    """The closed loop of ``spec`` on ``log``'s reference (:mod:`pmdcid.simulate.closedloop`):
+    columns as :func:`synth_log`'s with the input the simulated controller's output and the
+    reference kept. The speed noise (when ``spec`` acts on the speed) is fed back through the
+    controller, as a real loop feeds its sensor's noise back."""
+    from pmdcid.simulate.closedloop import feedforward_of, reference_of, simulate_closed_loop
+
+    ref = reference_of(log, spec)
+    fb = None
+    if rng is not None and noise.omega > 0 and spec.measured == "omega":
+        fb = rng.normal(0.0, noise.omega, log.n)
+    sim = simulate_closed_loop(log.t, vals, spec, ref, torque_driven, x0, logged_u=log.u,
+                               noise=fb, feedforward=feedforward_of(log, spec))
+    meas = {"i": sim.i, "omega": sim.omega, "theta": sim.theta}
+    if rng is not None:
+        extra = NoiseSpec(noise.i, 0.0 if fb is not None else noise.omega, noise.encoder)
+        meas = add_noise(sim, extra, rng)
+        if fb is not None:
+            meas["omega"] = sim.omega  # its noise is in already, the loop saw it
+    cols = {log.drive: sim.u, spec.reference: ref}
+    if not torque_driven:
+        cols["i"] = meas["i"]
+    cols["omega"], cols["theta"] = meas["omega"], meas["theta"]
+    return cols, sim
+
+
 def _is_ours(path: str) -> bool:
     try:
         with open(path) as fh:
@@ -104,8 +131,11 @@ def _is_ours(path: str) -> bool:
 
 def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = None,
                   noise: NoiseSpec = NoiseSpec(), seed: int | None = None, blocked: bool = False,
-                  force: bool = False, x0: dict[str, float] | str | None = None) -> str:
-    """``pmdcid simulate``: read INPUT's t and v/tau, simulate MODEL, write OUT (atomically)."""
+                  force: bool = False, x0: dict[str, float] | str | None = None,
+                  controller=None) -> str:
+    """``pmdcid simulate``: read INPUT's t and v/tau, simulate MODEL, write OUT (atomically).
+    ``controller`` (a :class:`~pmdcid.simulate.controller.ControllerSpec`): the closed loop
+    from INPUT's reference instead, its input column the simulated controller's output."""
     for src, what in ((input_path, "input log"), (model_path, "model file")):
         if os.path.exists(output) and os.path.exists(src) and os.path.samefile(src, output):
             raise LogError(f"output would overwrite the {what}; choose another -o", output)
@@ -121,8 +151,12 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
     from pmdcid.simulate.substeps import bounded_for
 
     with np.errstate(over="ignore", invalid="ignore"), bounded_for(model_path):
-        cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque,
-                            blocked, x0=start_state(log, x0, vals), input_name=log.drive)
+        if controller is not None:
+            cols, _ = closed_loop_log(log, vals, controller, noise, rng if has_noise else None,
+                                      torque, start_state(log, x0, vals))
+        else:
+            cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque,
+                                blocked, x0=start_state(log, x0, vals), input_name=log.drive)
     for name, col in cols.items():  # a NaN current (torque-driven) is legitimate, inf is not
         if np.isinf(col).any() or np.nanmax(np.abs(col), initial=0.0) >= 1e30:
             std = {"i": noise.i, "omega": noise.omega}.get(name, 0.0)
@@ -135,6 +169,8 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
     if has_noise:
         meta["noise"] = f"i={noise.i} A, omega={noise.omega} rad/s, encoder={noise.encoder}"
         meta["seed"] = str(seed)
+    if controller is not None:
+        meta["controller"] = controller.describe()
     write_log(output, log.t if log.t_file is None else log.t_file, cols, meta)
     return str(output)
 

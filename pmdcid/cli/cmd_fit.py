@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import main
-from pmdcid.cli.options import FiniteFloat, log_options, model_option
+from pmdcid.cli.options import FiniteFloat, controller_option, log_options, model_option
 from pmdcid.model.spec import BASE_PARAMS
 
 #: --km within the bounds the model file accepts (a model the tool writes it must read back)
@@ -78,14 +78,19 @@ def fit_mechanical_cmd(logs, model_path, km, force, mapping):
 @click.option("--no-prior", is_flag=True,
               help="Use these logs alone (default: combine them with the estimates earlier "
                    "stages wrote, each a Gaussian prior of its standard error).")
+@controller_option("Closed-loop logs: the controller that ran them (JSON file, or inline "
+                   "type=PI,kp=..,ki=..,umax=..; docs/cli.md). The loop is simulated from the "
+                   "logged reference and fitted; without it the logged output is fitted.")
 @FORCE
 @log_options
-def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, no_prior, force, mapping):
+def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, no_prior, controller, force,
+                      mapping):
     """Triangular-input (or any rich) logs -> bc, bv, dz, J refined, by simulation error."""
     from pmdcid.identify.runners import run_fit_nonlinear
 
     _show(run_fit_nonlinear(list(logs), model_path, mapping, force=force, free=free,
-                            signals=signals, dead_zone=dead_zone, priors=not no_prior),
+                            signals=signals, dead_zone=dead_zone, priors=not no_prior,
+                            controller=controller),
           model_path)
 
 

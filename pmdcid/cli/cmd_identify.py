@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import main
-from pmdcid.cli.options import FiniteFloat, log_options, model_option
+from pmdcid.cli.options import FiniteFloat, controller_option, log_options, model_option
 
 
 @main.command("identify")
@@ -21,8 +21,11 @@ from pmdcid.cli.options import FiniteFloat, log_options, model_option
                    "earlier stages determined).")
 @click.option("--force", is_flag=True,
               help="Write the model even when the plausibility checks refuse the logs' units.")
+@controller_option("Closed-loop logs: the controller that ran them (see fit-nonlinear); the "
+                   "rich logs' fits simulate the loop from the logged reference.")
 @log_options
-def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, mapping):
+def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, controller,
+                 mapping):
     """A whole rig: sort the logs, run every stage that applies, a joint fit, diagnose, and
     the report into DIR."""
     from pmdcid.pipeline import run_identify
@@ -30,7 +33,7 @@ def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, ma
 
     res = run_identify(list(logs), model_path, out_dir, mapping, km=km,
                        run_diagnose=not no_diagnose, priors=not no_prior,
-                       progress=stage_lines(), force=force)
+                       progress=stage_lines(), force=force, controller=controller)
     click.echo(res.table())
     for w in res.warnings:
         click.echo(f"warning: {w}", err=True)

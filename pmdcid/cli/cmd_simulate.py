@@ -5,7 +5,13 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import main
-from pmdcid.cli.options import FiniteFloat, log_options, model_option, parse_x0
+from pmdcid.cli.options import (
+    FiniteFloat,
+    controller_option,
+    log_options,
+    model_option,
+    parse_x0,
+)
 
 
 @main.command("simulate")
@@ -29,16 +35,21 @@ from pmdcid.cli.options import FiniteFloat, log_options, model_option, parse_x0
               metavar="measured|omega=VAL,i=VAL,theta=VAL",
               help="Initial state (SI; any subset, the rest 0), or 'measured': INPUT's own "
                    "measured omega, theta, i at its first sample. Default: rest.")
+@controller_option("Simulate the closed loop of this controller (JSON file or inline "
+                   "type=PI,kp=..; docs/cli.md) from INPUT's reference column: the output's "
+                   "input column is the simulated controller's, --noise-omega is fed back.")
 @log_options
 def simulate_cmd(input_logs, model_path, output, noise_i, noise_omega, encoder, seed, blocked,
-                 force, x0, mapping):
+                 force, x0, controller, mapping):
     """Predict what the sensors read for INPUT's t and v (or tau), from rest unless --x0."""
     import os
 
     from pmdcid.synth import NoiseSpec, simulate_file, simulate_files
 
     opts = dict(mapping=mapping, noise=NoiseSpec(noise_i, noise_omega, encoder), seed=seed,
-                blocked=blocked, force=force, x0=x0)
+                blocked=blocked, force=force, x0=x0, controller=controller)
+    if controller is not None:
+        click.echo(f"closed loop: {controller.describe()}")
     if len(input_logs) == 1:
         if os.path.isdir(output):
             raise click.BadParameter(f"{output!r} is a folder: with one INPUT, -o names the "

@@ -130,3 +130,23 @@ def parse_x0(ctx, param, value):
             raise click.BadParameter(f"{name} is given twice")
         out[name] = x
     return out
+
+
+def controller_option(help_text: str):
+    """``--controller SPEC``: a P/PI/PID spec, a JSON file or inline (``type=PI,kp=..``;
+    :mod:`pmdcid.simulate.controller`). A bad file is exit 1 naming it; bad text exit 2."""
+
+    def parse(ctx, param, value):
+        if value is None:
+            return None
+        from pmdcid.simulate.controller import ControllerError, parse_controller
+
+        try:
+            return parse_controller(value)
+        except ControllerError as exc:
+            if exc.path is not None:
+                raise
+            raise click.BadParameter(str(exc)) from None
+
+    return click.option("--controller", callback=parse, default=None, metavar="SPEC",
+                        help=help_text)

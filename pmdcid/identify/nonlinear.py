@@ -82,6 +82,10 @@ class NonlinearResult(ResultProtocol):
     warnings: list[str] = field(default_factory=list)
     #: name -> the stage whose estimate entered as a prior (see :func:`stage_priors`)
     prior_from: dict[str, str] = field(default_factory=dict)
+    #: closed-loop logs: which route the fit took and why (:class:`.closedfit.Route`)
+    route: object = None
+    #: the controller route: the logged-output fit it started from
+    open_loop: object = None
 
     @property
     def stats(self):
@@ -112,6 +116,8 @@ class NonlinearResult(ResultProtocol):
             "logs": self.paths, "signals": list(self.signals),
             "nrmse": self.nrmse, "redchi": self.stats.redchi, "ndata": self.stats.ndata,
             "sigma": self.fit.sigma,
+            "route": None if self.route is None else {"name": self.route.name,
+                                                      "why": self.route.why},
             "bc_dz_correlation": r if math.isfinite(r) else None,
             "covariance": self.fit.covariance.as_dict() if self.fit.covariance else None,
             "priors": {n: {"from": s, "value": self.fit.priors[n][0],
@@ -124,6 +130,8 @@ class NonlinearResult(ResultProtocol):
         lines = [f"fit-nonlinear: simulation error on {', '.join(self.signals)} "
                  f"({len(self.paths)} log(s); grid {self.grid_sets} sets, then least squares)",
                  ""]
+        if self.route is not None:
+            lines[1:1] = [self.route.line()]
         lines += format_estimates(list(self.estimates.values()))
         if self.prior_from:
             by = {}
@@ -243,21 +251,24 @@ def _chisqr_and_J(logs, work, free, signals, start, sigma, max_nfev, bounds, pri
 
 def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool = False,
                   grid: bool = True, max_nfev: int = 200,
-                  priors: bool = True) -> NonlinearResult:
+                  priors: bool = True, noise_model: int = 0) -> NonlinearResult:
     """Fit J, bv, bc, dz (voltage logs) or J, bv, bc, tau0 (torque logs) by simulation error.
 
     ``free``: parameters to fit (subset of J, bv, bc, dz, tau0); ``signals``: measured signals
     in the cost (default: the measured speed and angle present); ``dead_zone``: also fit dz on
     torque-driven logs. R, L, km (voltage logs) and the model's other parameters are held.
     ``priors``: combine with the estimates earlier stages wrote (:func:`stage_priors`); False
-    lets these logs alone decide. The model is not modified: call :meth:`NonlinearResult.apply`.
+    lets these logs alone decide. ``noise_model``: the local stage's AR noise model order (0:
+    white; closed-loop logs, :func:`pmdcid.identify.simfit.fit_simulation`).
+    The model is not modified: call :meth:`NonlinearResult.apply`.
     """
     with blas_single_thread():
-        return _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev, priors)
+        return _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev, priors,
+                              noise_model)
 
 
 def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
-                   priors=True) -> NonlinearResult:
+                   priors=True, noise_model=0) -> NonlinearResult:
     t_start = time.perf_counter()
     check_logs(logs)
     prior = stage_priors(model, KNOWN_FREE, STAGE) if priors else {}
@@ -302,7 +313,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     fit = fit_simulation(logs, work, ls_free, signals=signals,
                          start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
                          diff_step=DIFF_STEP, bounds=bounds,
-                         priors=prior_terms(prior), overrides=held)
+                         priors=prior_terms(prior), overrides=held, noise_model=noise_model)
     if "dz" in free and len(free) > 1:
         # check dz at the fitted point: the grid's hint comes from its coarse bc, and a local
         # stage may stop where dz = 0 (a bound) or in a side valley. If some dz on the profile
@@ -315,7 +326,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
             fit = fit_simulation(logs, work, free, signals=signals,
                                  start={k: start2[k] for k in free}, sigma=sigma,
                                  max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
-                                 priors=prior_terms(prior), overrides=held)
+                                 priors=prior_terms(prior), overrides=held,
+                                 noise_model=noise_model)
             point = {**best, **fit.values()}
             dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
         # identified only if the dead zone improves the fit clearly: by more than two standard

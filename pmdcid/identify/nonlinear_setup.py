@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from pmdcid.errors import FitError, ModelError
 from pmdcid.model import Model
 
@@ -55,6 +57,8 @@ def start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set
             idm = fit_inverse_dynamics(tau_logs, model)
             start.update({k: v for k, v in idm.values().items() if math.isfinite(v)})
             warns.extend(idm.warnings)
+            if closed_loop_logs(tau_logs):
+                start.update(closed_loop_start(tau_logs, model, start))
         except FitError as exc:
             try:
                 start.update(fit_quasi_static(tau_logs, model))
@@ -86,6 +90,49 @@ def start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set
         start["dz"] = float(tb) if isinstance(tb, (int, float)) and tb > 0 else start["bc"]
     start.setdefault("tau0", 0.0)
     return start, guessed
+
+
+#: the set-point columns that mark a log as closed loop (:mod:`.closedfit`)
+REFERENCE_COLUMNS = ("omega_ref", "theta_ref")
+
+
+def closed_loop_logs(logs, names=REFERENCE_COLUMNS) -> bool:
+    """True when any log carries one of the set-point columns ``names``."""
+    return any(n in lg.extra or n in lg.data for lg in logs for n in names)
+
+
+def closed_loop_start(logs, model: Model, idm: dict[str, float]) -> dict[str, float]:
+    """Closed-loop logs: inverse dynamics regresses the torque on a speed and an acceleration
+    whose noise the controller fed back into that torque (biased: bv 1e-4 of its value on a PI
+    loop with 1 rad/s of speed noise, tests/test_closedloop.py). The quasi-static friction
+    (torque against the speed at the samples, no acceleration) with inverse dynamics' J
+    competes with it by simulation error; the lower wins."""
+    from pmdcid.identify.grid import batch_cost
+    from pmdcid.identify.inverse_dynamics import fit_quasi_static
+    from pmdcid.identify.simfit import noise_level
+    from pmdcid.simulate import param_values
+    from pmdcid.simulate.initial import initial_state
+
+    try:
+        qs = {**idm, **fit_quasi_static(logs, model)}
+    except FitError:
+        return idm
+    qs["bc"] = max(qs["bc"], 0.0)
+    if not (qs["bv"] > 0 and idm.get("J", 0.0) > 0):
+        return idm
+    sets = [idm, qs]
+    cost = np.zeros(2)
+    try:
+        base = param_values(model, True, {"J": idm["J"]})
+    except ModelError:
+        return idm
+    for lg in logs:
+        if not lg.has("omega"):
+            return idm
+        sig = noise_level(lg["omega"])
+        cost += batch_cost(lg, [{**base, **{k: v for k, v in c.items() if k in base}}
+                                for c in sets], {"omega": sig}, x0=initial_state(lg, sig))
+    return sets[int(np.argmin(cost))] if np.all(np.isfinite(cost)) else idm
 
 
 def _earlier_mechanics(model: Model) -> bool:

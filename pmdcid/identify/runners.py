@@ -124,14 +124,31 @@ def stage_mechanical(logs, model, km=None):
     return fit_mechanical(logs, model, km=km)
 
 
-def stage_nonlinear(logs, model, **opts):
+def stage_nonlinear(logs, model, controller=None, **opts):
     """fit-nonlinear as the command runs it: a lumped model's logs seen as torque-driven
-    (:func:`~pmdcid.simulate.logs_for`), J, bv, bc, dz free unless ``free`` says otherwise."""
+    (:func:`~pmdcid.simulate.logs_for`), J, bv, bc, dz free unless ``free`` says otherwise.
+    Closed-loop logs (:mod:`pmdcid.identify.closedfit`): with ``controller`` (a
+    :class:`~pmdcid.simulate.controller.ControllerSpec`) the loop is simulated from the logged
+    reference; without, the logged output is fitted with a noise model."""
+    from pmdcid.identify.closedfit import (
+        closed_loop_logs,
+        fit_closed_loop,
+        logged_output_route,
+        noise_model_for,
+    )
     from pmdcid.identify.nonlinear import fit_nonlinear
 
     if is_lumped(model) and not opts.get("free"):
         opts["free"] = ["J", "bv", "bc", "dz"]
-    return fit_nonlinear(logs_for(logs, model), model, **opts)
+    seen = logs_for(logs, model)
+    if controller is not None:
+        opts.pop("dead_zone", None)
+        return fit_closed_loop(seen, model, controller, **opts)
+    opts.setdefault("noise_model", noise_model_for(seen))
+    res = fit_nonlinear(seen, model, **opts)
+    if closed_loop_logs(seen):
+        res.route = logged_output_route(seen)
+    return res
 
 
 def lumped_mechanical(logs, model, fit):

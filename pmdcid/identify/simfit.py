@@ -15,6 +15,7 @@ import threading
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.signal import lfilter
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
@@ -59,7 +60,13 @@ def _bounds(name: str, user: dict | None) -> tuple[float, float]:
 
 
 def available_signals(log, signals: Sequence[str]) -> list[str]:
-    return [s for s in signals if log.compares(s)]
+    """The ``signals`` a log can be compared on; ``u`` is its input column (a closed-loop
+    simulation computes it: :mod:`pmdcid.simulate.closedloop`)."""
+    return [s for s in signals if s == "u" or log.compares(s)]
+
+
+def _measured(log, s: str) -> np.ndarray:
+    return log.u if s == "u" else log[s]
 
 
 def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "theta"),
@@ -70,7 +77,8 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
                    cov_step: float = 1e-2, correlated: bool = True,
                    priors: dict[str, tuple[float, float]] | None = None,
                    initial: bool = True,
-                   overrides: dict[str, float] | None = None) -> SimFitResult:
+                   overrides: dict[str, float] | None = None,
+                   simulator=None, noise_model: int = 0) -> SimFitResult:
     """Fit ``free`` parameters of ``model`` by simulation error on ``logs``.
 
     Other parameters stay at the model's values (effects not in ``model.effects`` off).
@@ -87,6 +95,12 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     fitted too; False starts every log from rest. ``overrides``: values held for every log's
     simulation beyond the model's (e.g. fit-nonlinear's ``ramp``, how the input varied between
     samples, :mod:`pmdcid.simulate.drive`).
+    ``simulator``: ``f(log, vals, x0)`` -> a result with ``.get(signal)`` replacing the
+    open-loop simulation of each log (the closed loop, :mod:`pmdcid.simulate.closedloop`).
+    ``noise_model``: order p of an autoregressive noise model (0: white, as by default): after a
+    first fit each residual block's AR(p) whitening filter is estimated and the fit repeated on
+    the filtered residual (prediction error; :func:`ar_whitener`), so that noise coloured in
+    time that a controller fed back into the input cannot be explained by the model.
     Returns a :class:`SimFitResult`; the model is not modified.
     """
     free = list(free)
@@ -125,6 +139,9 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         for k, log in enumerate(logs):
             vals = dict(base[k])
             vals.update(dict(zip(free, x[:npar], strict=True)))
+            if simulator is not None:
+                out.append(simulator(log, vals, xs[k]))
+                continue
             if mine[k] is None:
                 mine[k] = np.empty((len(log.t), NSTATE))
             out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k],
@@ -136,16 +153,15 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     # buffers per thread would cost more memory than the threads save time
     parallel = nrows < TALL_ROWS
 
+    whiten: list = [None] * len(plan)  # per block: the AR whitening filter, once estimated
+
     def resid(z, out=None):
-        """(simulated - measured) / sigma per block, then the prior rows; into ``out``."""
+        """(simulated - measured) / sigma per block (whitened when a noise model is on), then
+        the prior rows; into ``out``."""
         x = z * scale
         ss = sims(x)
         out = np.empty(nrows) if out is None else out
-        for (k, s, meas, sd), (_, a, b) in zip(plan, segments, strict=True):
-            r = out[a:b]
-            np.subtract(ss[k].get(s), meas, out=r)
-            np.divide(r, sd, out=r)
-            r[~np.isfinite(r)] = 0.0
+        _fill_blocks(out, ss, plan, segments, whiten)
         if prior_rows:
             out[segments[-1][2]:] = [weight[0] * (x[j] - m) / sd for j, m, sd in prior_rows]
         return out
@@ -162,6 +178,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
 
     sol = run(x0 / scale)
     nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them
+    sol = _with_noise_model(run, sol, segments, whiten, noise_model)
     if prior_rows:
         # the data rows are weighted by the noise; when the model leaves a residual many times
         # the noise, correlated in time, the logs carry far less information than that weight
@@ -205,6 +222,46 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     return res
 
 
+def _with_noise_model(run, sol, segments, whiten: list, order: int):
+    """With an AR noise model (``order`` > 0): each block's whitening filter estimated from the
+    residual at ``sol`` (into ``whiten``), the fit run again from there, twice; else ``sol``."""
+    for _ in range(2 if order > 0 else 0):
+        whiten[:] = [ar_whitener(sol.fun[a:b], order, w) for (_, a, b), w
+                     in zip(segments, whiten, strict=True)]
+        sol = run(sol.z)
+    return sol
+
+
+def _fill_blocks(out, ss, plan, segments, whiten) -> None:
+    """The data rows of the residual into ``out``: (simulated - measured) / sigma per block,
+    whitened by the block's filter when it has one, non-finite rows 0."""
+    for j, ((k, s, meas, sd), (_, a, b)) in enumerate(zip(plan, segments, strict=True)):
+        r = out[a:b]
+        np.subtract(ss[k].get(s), meas, out=r)
+        np.divide(r, sd, out=r)
+        r[~np.isfinite(r)] = 0.0
+        if whiten[j] is not None:
+            r[:] = lfilter(whiten[j], [1.0], r)
+
+
+def ar_whitener(r: np.ndarray, order: int, before=None) -> np.ndarray | None:
+    """The filter ``A(q) = 1 + a1 q^-1 + ... + ap q^-p`` that whitens the residual block ``r``
+    (least squares on its own past; ``before``: the filter ``r`` was already whitened by,
+    undone first, so that the filter is estimated on the raw residual). None when the block is
+    too short, the filter not invertible, or the block already white (every |a_j| < 1e-3)."""
+    if before is not None:  # r is whitened by ``before``: undo it to estimate on the raw block
+        r = lfilter([1.0], before, r)
+    n = len(r)
+    if n < 20 * max(order, 1):
+        return None
+    X = np.column_stack([r[order - j - 1:n - j - 1] for j in range(order)])
+    coef, *_ = np.linalg.lstsq(X, r[order:], rcond=None)
+    a = np.concatenate([[1.0], -coef])
+    if not np.all(np.isfinite(a)) or np.max(np.abs(np.roots(a))) >= 0.999:
+        return None  # not invertible: keep the block white
+    return a if np.max(np.abs(coef)) > 1e-3 else None
+
+
 def _per_log(plan, final, nlogs: int):
     """Per log: signal -> NRMSE of the final simulation, and signal -> the noise std used."""
     errs: list[dict[str, float]] = [dict() for _ in range(nlogs)]
@@ -237,7 +294,7 @@ def _residual_plan(logs, signals, sig_list):
     for k, log in enumerate(logs):
         given = sig_list[k] if k < len(sig_list) else {}
         for s in available_signals(log, signals):
-            meas = log[s]
+            meas = _measured(log, s)
             plan.append((k, s, meas, float(given.get(s, noise_level(meas)))))
             row = segments[-1][2] if segments else 0
             segments.append((k, row, row + len(meas)))

@@ -1,0 +1,143 @@
+"""Closed-loop logs: the two routes of fit-nonlinear (docs/identification.md, "Closed-loop logs").
+
+- **logged output** (no ``--controller``): the motor is fitted on the controller's logged output
+  as on any log; the noise the loop feeds back into that input is met by an autoregressive noise
+  model (:func:`noise_model_for`): the residual is whitened before the cost, so noise coloured
+  in time is not explained by the motor (prediction error, consistent in closed loop).
+- **controller** (``--controller SPEC``): the closed loop is simulated from the logged reference
+  (:mod:`pmdcid.simulate.closedloop`) and the motor's parameters fitted to the measured output
+  and the logged controller output together (DIDIM-like: the EMPS authors fit the closed loop's
+  simulated torque), started from the logged-output route. By default the residual is the
+  controller output alone (the authors' input-error criterion): a loop holds its output on the
+  reference whatever the motor, so the output's residual says little and, weighted by its small
+  noise, would outweigh the input's; the measured signals are added on request (``signals``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pmdcid.errors import FitError
+from pmdcid.identify.nonlinear import (
+    DIFF_STEP,
+    REFINE_RANGE,
+    NonlinearResult,
+    fit_nonlinear,
+)
+from pmdcid.identify.nonlinear_setup import REFERENCE_COLUMNS
+from pmdcid.identify.nonlinear_setup import closed_loop_logs as setup_closed
+from pmdcid.identify.priors import prior_terms, stage_priors
+from pmdcid.identify.simfit import fit_simulation, noise_level
+from pmdcid.identify.solver import blas_single_thread
+from pmdcid.model import Model
+from pmdcid.simulate.closedloop import feedforward_of, reference_of, simulate_closed_loop
+from pmdcid.simulate.controller import ControllerSpec
+
+STAGE = "fit-nonlinear"
+#: AR order of the noise model on closed-loop logs fitted on their logged output
+AR_ORDER = 2
+
+
+@dataclass
+class Route:
+    """Which route a fit took and why (printed by the commands)."""
+
+    name: str  # "logged output" or "controller"
+    why: str
+
+    def line(self) -> str:
+        return f"route: {self.name} ({self.why})"
+
+
+def closed_loop_logs(logs, spec: ControllerSpec | None = None) -> bool:
+    """True when the logs carry a set-point column (the spec's, or a usual one)."""
+    return setup_closed(logs, (spec.reference,) if spec is not None else REFERENCE_COLUMNS)
+
+
+def noise_model_for(logs, spec: ControllerSpec | None = None) -> int:
+    """AR order for the logged-output route: :data:`AR_ORDER` on closed-loop logs, else 0."""
+    return AR_ORDER if closed_loop_logs(logs, spec) else 0
+
+
+def logged_output_route(logs, spec=None) -> Route:
+    if closed_loop_logs(logs, spec):
+        return Route("logged output", "closed-loop logs (a set-point column) without "
+                     "--controller: fitted on the controller's logged output, with an AR("
+                     f"{AR_ORDER}) noise model so that the sensor noise the loop feeds back "
+                     "into it is not fitted")
+    return Route("logged output", "open-loop logs: the logged input drives the model")
+
+
+def loop_simulator(spec: ControllerSpec):
+    """``f(log, vals, x0)`` for :func:`fit_simulation`: the closed loop on the log's reference,
+    the integrator started at the log's first controller output."""
+
+    def sim(log, vals, x0):
+        return simulate_closed_loop(log.t, vals, spec, reference_of(log, spec),
+                                    log.drive == "tau", x0, logged_u=log.u,
+                                    feedforward=feedforward_of(log, spec))
+    return sim
+
+
+def fit_closed_loop(logs, model: Model, spec: ControllerSpec, free=None, signals=None,
+                    priors: bool = True, max_nfev: int = 100) -> NonlinearResult:
+    """The controller route: fit-nonlinear's logged-output fit (the start), then the closed
+    loop simulated from each log's reference through ``spec`` and fitted by simulation error
+    on the logged controller output (and the measured ``signals`` when given). Returns a
+    :class:`NonlinearResult` whose ``route`` says so. The model is not modified."""
+    for lg in logs:  # a missing reference column: one clear error before any fit
+        reference_of(lg, spec)
+        feedforward_of(lg, spec)
+    first = fit_nonlinear(logs, model, free=free, signals=signals, priors=priors,
+                          noise_model=noise_model_for(logs, spec))
+    measured = tuple(signals) if signals else ()
+    with blas_single_thread():
+        return _refit(logs, model, spec, first, measured, priors, max_nfev)
+
+
+def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
+           max_nfev) -> NonlinearResult:
+    masked = any("dz is not identifiable" in w for w in first.warnings)
+    free = [n for n in first.estimates if n != "ramp" and not (n == "dz" and masked)]
+    start = {n: first.estimates[n].value for n in free}
+    work = model.copy()
+    for n, e in first.estimates.items():
+        if n != "ramp":
+            work.set(n, e.value, stage="start")
+    if "tau0" in first.estimates:
+        work.add_effect("torque_offset")
+    signals = (*measured, "u")
+    sigma = [_sigma(lg, measured) for lg in logs]
+    bounds = {k: (start[k] / REFINE_RANGE, start[k] * REFINE_RANGE)
+              for k in ("J", "bv") if k in start and start[k] > 0}
+    prior = stage_priors(model, free, STAGE) if priors else {}
+    try:
+        fit = fit_simulation(logs, work, free, signals=signals, start=start,
+                             sigma=sigma, max_nfev=max_nfev, diff_step=DIFF_STEP,
+                             bounds=bounds, priors=prior_terms(prior),
+                             simulator=loop_simulator(spec))
+    except FitError as exc:
+        raise FitError(f"closed-loop fit failed: {exc}") from None
+    est = dict(fit.estimates)
+    if masked:
+        est["dz"] = first.estimates["dz"]
+    route = Route("controller", f"--controller given: the loop simulated from the logged "
+                  f"reference '{spec.reference}' ({spec.describe()}); fitted on the logged "
+                  f"controller output{''.join(', ' + s for s in measured)}")
+    res = NonlinearResult(est, fit, signals, first.paths, first.start, start, 0,
+                          first.seconds, list(first.warnings),
+                          {n: prior[n][0] for n in fit.priors})
+    res.route = route
+    res.open_loop = first
+    return res
+
+
+def _sigma(log, signals) -> dict[str, float]:
+    """Noise std per signal; the controller output's is at least 2 % of its spread (a quantised
+    output's second differences are mostly 0, which would weigh it without limit)."""
+    out = {s: noise_level(log[s]) for s in signals if log.has(s)}
+    u = np.asarray(log.u, float)
+    out["u"] = max(noise_level(u), 0.02 * float(np.std(u)) or 1e-12)
+    return out

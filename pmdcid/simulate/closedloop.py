@@ -1,0 +1,183 @@
+"""The closed loop: a motor model under a known digital controller, from the logged reference.
+
+Each controller period the controller (:mod:`pmdcid.simulate.controller`) reads the simulated
+measurement (sensor effects applied: ``speed_offset``, ``sensor_delay`` read from the states
+already simulated) against the reference, and its output is held over the period while the one
+kernel (:func:`pmdcid.simulate.kernel.run_kernel`'s compiled loop, unchanged) steps the motor
+through it. No second integrator: the kernel is called once per period with the input held.
+
+Times may be non-uniform (a loop-timed log: one row per controller step, 2–13 ms apart): each
+period is stepped with its own length (its discretisation cached by length).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pmdcid.errors import LogError, ModelError
+from pmdcid.simulate import SimResult, param_vector
+from pmdcid.simulate.controller import ControllerSpec, ControllerState
+from pmdcid.simulate.kernel import _compiled, discretize_cached
+from pmdcid.simulate.layout import I_STATE, NSTATE, OMEGA_STATE, THETA_STATE, state_vector
+from pmdcid.simulate.sensors import apply_sensors
+from pmdcid.simulate.substeps import check_work, choose_substeps
+
+
+@dataclass
+class ClosedLoopResult(SimResult):
+    """:class:`SimResult` plus ``u``: the plant input the controller applied at each sample
+    (the log's input unit: V, or N m; ``scale`` × the controller's output) and ``ctrl``, the
+    controller's own output."""
+
+    u: np.ndarray | None = None
+    ctrl: np.ndarray | None = None
+
+    def get(self, name: str) -> np.ndarray:
+        if name in ("v", "tau", "u"):
+            return self.u
+        return getattr(self, name)
+
+
+def reference_of(log, spec: ControllerSpec, key: str = "reference") -> np.ndarray:
+    """The log's column named by the spec's ``reference`` (or ``feedforward``), canonical or
+    extra."""
+    name = getattr(spec, key)
+    for src in (log.data, log.extra):
+        if name in src:
+            return np.asarray(src[name], float)
+    have = ", ".join(list(log.data) + list(log.extra)) or "none"
+    raise LogError(f"the controller's {key} column '{name}' is not in the log (it has "
+                   f"{have}); name it with the spec's {key}=COLUMN", log.path)
+
+
+def feedforward_of(log, spec: ControllerSpec) -> np.ndarray | None:
+    """The spec's feedforward column of ``log`` (None when the spec has none)."""
+    return None if spec.feedforward is None else reference_of(log, spec, "feedforward")
+
+
+def controller_ticks(t: np.ndarray, spec: ControllerSpec) -> np.ndarray:
+    """Sample indices where the controller updates: every sample, or every ``period``
+    (a whole number of samples of a uniform log)."""
+    n = len(t)
+    if spec.period is None:
+        return np.arange(n)
+    dt = float((t[-1] - t[0]) / (n - 1))
+    m = spec.period / dt
+    if abs(m - round(m)) > 0.01 * m or round(m) < 1:
+        raise LogError(f"the controller period {spec.period:g} s is not a whole number of "
+                       f"samples ({dt:g} s apart)")
+    return np.arange(0, n, int(round(m)))
+
+
+def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: np.ndarray,
+                         torque_driven: bool = False, x0=None, *, nsub: int | None = None,
+                         logged_u: np.ndarray | None = None,
+                         noise: np.ndarray | None = None,
+                         feedforward: np.ndarray | None = None) -> ClosedLoopResult:
+    """Simulate the motor ``vals`` (:func:`pmdcid.simulate.param_values`) under ``spec`` at
+    instants ``t`` [s] from ``x0``, the set-point ``ref`` (the measured signal's unit).
+
+    ``logged_u``: the log's own controller output (plant input units), whose first value
+    starts the integrator (a loop running before the log began). ``noise``: added to the
+    measurement the controller reads at each sample (a synthetic log's sensor noise, fed back
+    as a real loop feeds it back); the result's measured signal then includes it.
+    ``feedforward``: added to the controller's output after its limits (controller units).
+    """
+    t = np.asarray(t, float)
+    ref = np.asarray(ref, float)
+    if float(vals.get("latency", 0.0)) > 0.0 or vals.get("ramp") is not None:
+        raise ModelError("input_delay (latency) and a ramp reading are not simulated in closed "
+                         "loop; simulate without --controller")
+    p = param_vector(vals)
+    ticks = controller_ticks(t, spec)
+    x = np.empty((len(t), NSTATE))
+    x[0] = state_vector(x0)
+    ff = np.zeros(len(t)) if feedforward is None else np.asarray(feedforward, float)
+    u = _run_loop(t, p, spec, (ref, ff), torque_driven, x, ticks, logged_u, noise, vals, nsub)
+    sensor = {"delay": float(vals.get("delay", 0.0)), "omega0": float(vals.get("omega0", 0.0))}
+    om, th = apply_sensors(t, x[:, OMEGA_STATE], x[:, THETA_STATE], sensor)
+    if noise is not None:
+        if spec.measured == "omega":
+            om = om + noise
+        else:
+            th = th + noise
+    i = np.full(len(t), np.nan) if torque_driven else x[:, I_STATE].copy()
+    return ClosedLoopResult(t, i, om, th, x[:, OMEGA_STATE].copy(), x[:, THETA_STATE].copy(),
+                            u=u * spec.scale, ctrl=u)
+
+
+def _measured(t, x, k, spec, vals, noise) -> float:
+    """What the controller reads at sample k: the sensor's view of the states so far."""
+    col = OMEGA_STATE if spec.measured == "omega" else THETA_STATE
+    d = float(vals.get("delay", 0.0))
+    if d > 0.0:
+        y = float(np.interp(t[k] - d, t[:k + 1], x[:k + 1, col], left=x[0, col]))
+    else:
+        y = float(x[k, col])
+    if spec.measured == "omega":
+        y += float(vals.get("omega0", 0.0))
+    if noise is not None:
+        y += float(noise[k])
+    return y
+
+
+def _run_loop(t, p, spec, inputs, torque_driven, x, ticks, logged_u, noise, vals, nsub):
+    """Fill ``x`` (n, NSTATE) sample by sample; returns the controller output held at each
+    (``inputs``: the reference and the feedforward)."""
+    ref, ff = inputs
+    n = len(t)
+    ctrl = ControllerState(spec)
+    u = np.empty(n)
+    run = _compiled("run_into")
+    buf = np.empty((2, NSTATE))
+    hold = np.empty(2)
+    steps: dict[float, tuple] = {}
+    is_tick = np.zeros(n, bool)
+    is_tick[ticks] = True
+    first = True
+    out = 0.0
+    for k in range(n):
+        if is_tick[k]:
+            ts = _period(t, k, ticks, spec)
+            y = _measured(t, x, k, spec, vals, noise)
+            if first:
+                lg = None if logged_u is None else float(logged_u[0]) / spec.scale - ff[0]
+                out = ctrl.start(float(ref[k]), y, ts, lg)
+                first = False
+            else:
+                out = ctrl.step(float(ref[k]), y, ts)
+            out += ff[k]
+        u[k] = out
+        if k + 1 < n:
+            h = float(t[k + 1] - t[k])
+            Phi, Gam, m = _stepper(steps, p, h, torque_driven, nsub)
+            hold[:] = out * spec.scale
+            run(hold, p, Phi, Gam, m, bool(torque_driven), x[k], buf)
+            x[k + 1] = buf[1]
+    return u
+
+
+def _period(t, k, ticks, spec) -> float:
+    """Length of the controller's period starting at sample k [s]."""
+    if spec.period is not None:
+        return float(spec.period)
+    if k + 1 < len(t):
+        return float(t[k + 1] - t[k])
+    return float(t[k] - t[k - 1]) if k > 0 else 1.0
+
+
+def _stepper(cache, p, h, torque_driven, nsub):
+    """(Phi, Gamma, substeps) for a period of ``h`` seconds, cached by its length."""
+    key = round(h, 12)
+    hit = cache.get(key)
+    if hit is None:
+        if not h > 0 or not math.isfinite(h):
+            raise LogError(f"time does not increase ({h:g} s between two samples)")
+        m = nsub or choose_substeps(h, p)
+        check_work(2, h, m, p)
+        Phi, Gam = discretize_cached(p, h / m, torque_driven)
+        hit = cache[key] = (Phi, Gam, int(m))
+    return hit
