@@ -18,12 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from pmdcid.errors import LogError, short_list
+from pmdcid.io.clock import JITTER_TOL  # noqa: F401 - the one definition, re-exported here
 from pmdcid.io.mapping import ColumnMap
 
 UNITS = {"t": "s", "v": "V", "tau": "N m", "i": "A", "omega": "rad/s", "theta": "rad"}
 
-#: largest relative deviation of one sample period from the median still taken as uniform
-JITTER_TOL = 0.02
 #: NaN cells are interpolated (with a warning) up to this fraction of a column ...
 NAN_MAX_FRACTION = 0.01
 #: ... and this many consecutive samples
@@ -54,6 +53,11 @@ class Log:
     skipped: dict[str, str] = field(default_factory=dict)
     #: what the plausibility checks found (:func:`pmdcid.io.checks.check_log`), one line each
     issues: list[str] = field(default_factory=list)
+    #: how the file's instants became the uniform ``t`` when they were not uniform (loop-timed
+    #: samples, signals on several clocks): a :class:`pmdcid.io.clock.Resampling`, else None
+    resampled: object | None = None
+    #: what reading did to the data, one line each (also printed as warnings)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def dt(self) -> float:
