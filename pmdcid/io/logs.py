@@ -184,14 +184,34 @@ def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
 
 def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
              defer: bool = False) -> Log:
-    """Read and validate one CSV log. Raises :class:`LogError` with one clear line.
+    """Read and validate one log. Raises :class:`LogError` with one clear line.
 
-    What the plausibility checks find (:mod:`pmdcid.io.checks`) is in ``log.issues``; it is
-    also warned about unless ``defer`` (a stage about to write a model refuses instead).
+    The format follows the extension: ``.mcap``, ``.wpilog``, ``.mf4``/``.mdf``, ``.tdms``,
+    ``.mat``, ``.parquet`` through :mod:`pmdcid.io.formats`, anything else as CSV. What the
+    plausibility checks find (:mod:`pmdcid.io.checks`) is in ``log.issues``; it is also warned
+    about unless ``defer`` (a stage about to write a model refuses instead).
     """
+    from pmdcid.io.formats import is_other_format
+
+    if is_other_format(path):
+        from pmdcid.io.formats import read
+
+        return read(path, mapping, defer)
+    p = str(path)
+    df, meta = read_table(p)
+    from pmdcid.io.build import frame_columns, validated_log
+
+    mapping = mapping or ColumnMap()
+    data, extra, skipped = frame_columns(df, mapping, p)
+    del df  # the table is no longer needed: freed before the checks' temporaries
+    return validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
+
+
+def read_table(p: str):
+    """A CSV log's table (a DataFrame or :class:`~pmdcid.io.plain.PlainFrame`, one-line unique
+    column names) and its ``# key: value`` metadata, unchecked."""
     from pmdcid.io.csvsource import header_names, open_source, sniff
 
-    p = str(path)
     if not os.path.exists(p):
         raise LogError("no such log file (check the path)", p)
     if os.path.isdir(p):
@@ -218,12 +238,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     df.columns = cols
     if len(df) == 0:
         raise LogError("has a header but no data rows: was the recording saved?", p)
-    from pmdcid.io.build import frame_columns, validated_log
-
-    mapping = mapping or ColumnMap()
-    data, extra, skipped = frame_columns(df, mapping, p)
-    del df  # the table is no longer needed: freed before the checks' temporaries
-    return validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
+    return df, meta
 
 
 def _read_frame(src, nskip: int, p: str):
