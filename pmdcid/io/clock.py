@@ -71,13 +71,18 @@ class Resampling:
 
     def at_file_instants(self, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Columns on the grid -> at :attr:`t_file`: the input as logged, the others
-        interpolated linearly (error: see the module doc)."""
+        interpolated linearly (error: see the module doc); the instants after the grid's last
+        (less than one period) extrapolated from its last step."""
         out = {}
+        g = self.grid
+        after = np.maximum(self.t_file - g[-1], 0.0)
         for name, col in columns.items():
             if name in self.inputs:
                 out[name] = self.inputs[name]
-            else:
-                out[name] = np.interp(self.t_file, self.grid, np.asarray(col, float))
+                continue
+            col = np.asarray(col, float)
+            slope = (col[-1] - col[-2]) / (g[-1] - g[-2]) if len(g) > 1 else 0.0
+            out[name] = np.interp(self.t_file, g, col) + slope * after
         return out
 
 
