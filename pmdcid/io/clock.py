@@ -215,10 +215,10 @@ def loop_note(clock: Clock, n_rows: int, measured: list[str]) -> str:
     lo, hi = clock.spread
     merged_rows = "" if clock.groups is None else \
         f"; {n_rows - len(clock.groups)} repeated time stamp(s) merged"
-    what = ", ".join(measured) if measured else "no measurement"
+    what = f", {', '.join(measured)} interpolated linearly" if measured else ""
     return (f"loop-timed samples ({_dt_text(lo)} to {_dt_text(hi)} apart): put on a uniform "
-            f"{_dt_text(clock.period)} grid, the input held from each logged instant, "
-            f"{what} interpolated linearly{merged_rows} (docs/io.md, 'Clocks')")
+            f"{_dt_text(clock.period)} grid, the input held from each logged instant"
+            f"{what}{merged_rows} (docs/io.md, 'Clocks')")
 
 
 def resample_columns(t: np.ndarray, data: dict[str, np.ndarray], clock: Clock,

@@ -136,7 +136,8 @@ def parse_spec(text: str) -> ColumnSpec:
         return _parse_spec(text)
     except LogError as exc:
         m = _MAP_RE.match(text)
-        if m is None or "/" not in m.group(2) or m.group(1) not in CANONICAL:
+        if (m is None or "/" not in m.group(2) or m.group(1) not in CANONICAL
+                or any(c in m.group(2) for c in "\"'()")):  # the expression grammar's own error
             raise
         rhs = m.group(2).strip()
         return ColumnSpec(m.group(1), rhs, text=text.strip(), pending=str(exc))
