@@ -158,3 +158,11 @@ def test_lego_ev3_step_reads_as_loop_timed():
     log = read_log(p)
     assert log.resampled is not None and log.dt == pytest.approx(0.0051, abs=3e-4)
     assert log.derived == {"omega"} and len(log.resampled.t_file) == 937
+    # fit-mechanical runs on the steps (applied from the first sample, from rest)
+    from pmdcid.identify.runners import lumped_if_wanted, stage_mechanical
+    from pmdcid.model import Model
+
+    logs = [read_log(p.parent / f"step_{s}.csv") for s in ("+30", "+60", "-60", "+90")]
+    res = stage_mechanical(logs, lumped_if_wanted(logs, Model()))
+    assert all(s.moved and s.t0 == 0.0 for s in res.steps)
+    assert 0 < res.estimates["J"].value < res.estimates["bv"].value  # tau_m ~ 0.07 s
