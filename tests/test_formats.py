@@ -293,15 +293,20 @@ def test_missing_reader_names_the_extra(tmp_path, monkeypatch):
                           "pip install 'pmdcid[mcap]'\n")
 
 
-@pytest.mark.parametrize("content, message", [
-    (b"not an mcap file at all", "is not a readable MCAP file"),
-    (b"", "is not a readable MCAP file"),
-])
-def test_broken_file_is_one_line(tmp_path, content, message):
-    p = tmp_path / "bad.mcap"
+@pytest.mark.parametrize("ext", [".mcap", ".wpilog", ".mf4", ".mdf", ".tdms", ".mat",
+                                 ".parquet"])
+@pytest.mark.parametrize("content", [b"", b"hello\n", "random"])
+def test_broken_file_is_one_line(tmp_path, ext, content):
+    """Empty, text or random bytes under each extension: one line naming the file, exit 1."""
+    if content == "random":
+        content = np.random.default_rng(7).bytes(3000)
+    p = tmp_path / f"bad{ext}"
     p.write_bytes(content)
-    with pytest.raises(LogError, match=message):
-        read_log(p)
+    for args in (["channels", str(p)], ["simulate", str(p), "-m", "m.json", "-o", "o.csv"]):
+        res = CliRunner().invoke(main, args)
+        assert res.exit_code == 1, res.output
+        assert res.output.startswith(f"error: {p}: ") and res.output.count("\n") == 1
+        assert "internal error" not in res.output
 
 
 def test_unmapped_series_file_says_how_to_map(logs, tmp_path):

@@ -45,8 +45,9 @@ def _load_v5(path: str) -> dict[str, Series]:
     sio = need("scipy.io", EXTRA, path, ".mat")
     try:
         data = sio.loadmat(path, simplify_cells=True)
-    except (ValueError, TypeError, OSError) as exc:
-        raise LogError(f"is not a readable MATLAB file ({str(exc)[:100]})", path) from None
+    except Exception as exc:  # noqa: BLE001 - scipy's MatReadError and others on a foreign file
+        raise LogError(f"is not a readable MATLAB file ({type(exc).__name__}: "
+                       f"{str(exc)[:80]})", path) from None
     out: dict[str, Series] = {}
     for k, v in data.items():
         if not k.startswith("__"):
@@ -74,7 +75,7 @@ def _load_v73(path: str) -> dict[str, Series]:
     try:
         with h5py.File(path, "r") as fh:
             _walk_h5("", fh, h5py, out)
-    except OSError as exc:
+    except (OSError, ValueError, KeyError, TypeError) as exc:
         raise LogError(f"is not a readable MATLAB v7.3 file ({str(exc)[:100]})", path) from None
     return out
 
