@@ -79,14 +79,16 @@ def need(module: str, extra: str, path: str, what: str):
                        f"pip install 'pmdcid[{extra}]'", path) from None
 
 
-def load(path) -> Signals:
-    """The signals of a non-CSV log file (a missing file, a folder: one line)."""
+def load(path, wanted: list[str] | None = None) -> Signals:
+    """The signals of a non-CSV log file (a missing file, a folder: one line). ``wanted``: the
+    names the mappings read (a reader may read only those: MCAP decodes only their topics)."""
     p = str(path)
     if not os.path.exists(p):
         raise LogError("no such log file (check the path)", p)
     if os.path.isdir(p):
         raise LogError("is a folder, not a log file", p)
-    sig = reader(p).load(p)
+    mod = reader(p)
+    sig = mod.load(p, wanted) if wanted and mod.__name__.endswith("mcapfile") else mod.load(p)
     if not sig.series:
         raise LogError(f"holds no numeric signal a motor log could use ({extension(p)} file)", p)
     return sig
@@ -99,8 +101,10 @@ def read(path, mapping=None, defer: bool = False):
     from pmdcid.io.mapping import ColumnMap
 
     p = str(path)
-    sig = load(p)
     mapping = mapping or ColumnMap()
+    wanted = [s.text.split("=", 1)[1].strip() if "=" in s.text else s.source
+              for s in mapping.specs.values()]
+    sig = load(p, wanted)
     if sig.table:
         return table_log(p, sig, mapping, defer)
     return series_log(p, sig, mapping, defer)

@@ -109,7 +109,7 @@ def _specs(p: str, sig: Signals, mapping: ColumnMap):
     if not specs:
         raise LogError(f"no signal is mapped to a canonical column: name them with e.g. "
                        f"-c v=SOURCE -c omega=SOURCE (signals: {short_list(names)}; "
-                       f"`pmdcid channels {p}` lists them)", p)
+                       "`pmdcid channels FILE` lists them)", p)
     return specs, skipped
 
 

@@ -69,7 +69,23 @@ def _decoder(schema, channel, ros2):
     return None
 
 
-def load(path: str) -> Signals:
+def _topics(reader, wanted) -> list[str] | None:
+    """The topics the mapped names (``wanted``: right-hand sides of ``-c``) read, or None (all)
+    when there is no mapping or none of them names a topic of the file (then the error lists
+    every signal)."""
+    if not wanted:
+        return None
+    summary = reader.get_summary()
+    if summary is None:
+        return None
+    topics = {ch.topic for ch in summary.channels.values()}
+    keep = [tp for tp in topics if any(w.startswith(tp + ".") for w in wanted)]
+    return keep or None
+
+
+def load(path: str, wanted: list[str] | None = None) -> Signals:
+    """The file's signals; with ``wanted`` (the mapped names), only the topics they read are
+    decoded (a bag's camera topics are never decoded to read a motor's)."""
     reader_mod = need("mcap.reader", EXTRA, path, ".mcap")
     ros2 = need("mcap_ros2.decoder", EXTRA, path, ".mcap (ROS 2)")
     times: dict[str, list[int]] = {}
@@ -77,7 +93,9 @@ def load(path: str) -> Signals:
     decoders: dict[int, object] = {}
     try:
         with open(path, "rb") as fh:
-            for schema, channel, msg in reader_mod.make_reader(fh).iter_messages():
+            reader = reader_mod.make_reader(fh)
+            topics = _topics(reader, wanted)
+            for schema, channel, msg in reader.iter_messages(topics=topics):
                 if channel.id not in decoders:
                     decoders[channel.id] = _decoder(schema, channel, ros2)
                 dec = decoders[channel.id]
