@@ -143,6 +143,12 @@ class Log:
         return read_log(path, as_mapping(columns, map_file, cutoff_hz))
 
     @classmethod
+    def from_file(cls, path, *, columns=None, map_file=None, cutoff_hz=None) -> Log:
+        """Read a log file of any format pmdcid reads, by extension (docs/io.md): the same as
+        :meth:`from_csv`, which also reads every format."""
+        return cls.from_csv(path, columns=columns, map_file=map_file, cutoff_hz=cutoff_hz)
+
+    @classmethod
     def from_dataframe(cls, df, *, columns=None, name: str = "dataframe", cutoff_hz=None,
                        meta: dict | None = None) -> Log:
         """A log from a pandas DataFrame, mapped and checked exactly as a CSV file is."""
