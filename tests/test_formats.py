@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from pmdcid.cli import main
 from pmdcid.errors import LogError
-from pmdcid.io import parse_mapping, read_log, write_log
+from pmdcid.io import Log, parse_mapping, read_log, write_log
 from pmdcid.io.formats import channels
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values
@@ -257,6 +257,8 @@ def test_loop_timed_input_clock_in_a_series_file(tmp_path, rng):
     w.flush()
     del ev, eo, w
     log = read_log(p, parse_mapping(["v=/v", "omega=/w"]))
+    same = Log.from_file(p, columns={"v": "/v", "omega": "/w"})
+    assert np.array_equal(same["omega"], log["omega"])
     assert log.resampled is not None
     assert "signals on different clocks" in log.notes[0] and "loop-timed" in log.notes[0]
     assert log.dt == pytest.approx(np.median(np.diff(t)), rel=0.01)
@@ -317,3 +319,18 @@ def test_unmapped_series_file_says_how_to_map(logs, tmp_path):
         read_log(p)
     with pytest.raises(LogError, match=r"carry their own time stamps"):
         read_log(p, parse_mapping(["t=/drive/voltage", "v=/drive/voltage"]))
+
+
+def test_slashed_names_in_mappings(tmp_path):
+    """A name holding '/' is read whole (the longest signal name the right-hand side starts
+    with), the rest is its scale and offset; a CSV mapping with '/' as a divisor is unchanged."""
+    from pmdcid.io.mapping import parse_spec, resolve
+
+    spec = resolve(parse_spec("v=drive/pwm/255*12"), ["drive/pwm", "drive/dir"])
+    assert (spec.source, spec.scale, spec.offset) == ("drive/pwm", pytest.approx(12 / 255), 0.0)
+    spec = resolve(parse_spec("omega=/joint_states.velocity*rpm+1"), ["/joint_states.velocity"])
+    assert spec.source == "/joint_states.velocity"
+    assert spec.scale == pytest.approx(2 * np.pi / 60) and spec.offset == 1.0
+    assert parse_spec("v=pwm*12/1023").scale == pytest.approx(12 / 1023)
+    with pytest.raises(LogError, match="'omega' is neither a number nor a unit"):
+        resolve(parse_spec("omega=enc/omega"), ["drive/omega"])

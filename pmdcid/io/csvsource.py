@@ -141,6 +141,9 @@ def column_specs(cols: list[str], mapping, canonical, p: str):
             try:
                 spec = resolve(spec, slashed)
             except LogError as exc:
+                if spec.origin is not None:  # a mapping-file line naming a signal not here
+                    skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no such signal"
+                    continue
                 raise LogError(str(exc), p) from None
         missing = [r for r in spec.refs if r not in have]
         if missing and spec.origin is not None and len(missing) == len(spec.refs):
