@@ -140,15 +140,13 @@ def channels(path) -> list[Channel]:
 
         return csv_channels(p)
     sig = load(p)
-    clock = None
-    if sig.table:
-        from pmdcid.io.formats.assemble import table_time
-
-        clock = table_time(sig)
     out = []
     for name, s in sig.series.items():
-        t = s.t if s.t is not None else (clock if clock is not None and
-                                         len(clock) == len(s.x) else None)
+        t = s.t
+        if t is None and sig.table:
+            from pmdcid.io.formats.assemble import table_time
+
+            t = table_time(sig, name)
         out.append(Channel(name, len(s.x), rate_of(t), s.unit))
     return out
 

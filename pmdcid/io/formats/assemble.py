@@ -32,10 +32,16 @@ from pmdcid.io.mapping import CANONICAL, ColumnMap
 TIME_NAMES = ("t", "time", "Time", "timestamp", "timestamps")
 
 
-def table_time(sig: Signals) -> np.ndarray | None:
-    """The time column of a table (the first of :data:`TIME_NAMES` it has), or None."""
-    name = next((n for n in TIME_NAMES if n in sig.series), None)
-    return None if name is None else sig.series[name].x
+def table_time(sig: Signals, column: str) -> np.ndarray | None:
+    """The time column a table's ``column`` goes with, for ``pmdcid channels``: a column of
+    :data:`TIME_NAMES` as long as it, in its own struct first (``log.t`` for ``log.v``), else at
+    the top; None when there is none."""
+    prefix = column.rsplit(".", 1)[0] + "." if "." in column else ""
+    for name in [prefix + n for n in TIME_NAMES] + list(TIME_NAMES):
+        s = sig.series.get(name)
+        if s is not None and len(s.x) == len(sig.series[column].x):
+            return s.x
+    return None
 
 
 def _time_source(sig: Signals, mapping: ColumnMap) -> str | None:
