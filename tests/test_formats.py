@@ -334,3 +334,49 @@ def test_slashed_names_in_mappings(tmp_path):
     assert parse_spec("v=pwm*12/1023").scale == pytest.approx(12 / 1023)
     with pytest.raises(LogError, match="'omega' is neither a number nor a unit"):
         resolve(parse_spec("omega=enc/omega"), ["drive/omega"])
+
+
+def _wpilog(path, entries):
+    """A wpilog of ``{name: (times [s], values)}``, each entry logged at its own instants."""
+    import wpiutil
+    from wpiutil.log import DoubleLogEntry
+
+    w = wpiutil.DataLogWriter(str(path))
+    made = {name: DoubleLogEntry(w, name, 1) for name in entries}
+    rows = sorted((int(round(tk * 1e6)) + 1, name, float(x))
+                  for name, (ts, xs) in entries.items() for tk, x in zip(ts, xs, strict=True))
+    for us, name, x in rows:
+        made[name].append(x, us)
+    w.flush()
+    del made, w
+
+
+def test_input_logged_when_it_changes(logs, truth, csv_fit, tmp_path):
+    """A command logged only when it changes (twice: 0 V, then the step), the speed every ms:
+    the input is held across its gaps on the speed's 1 kHz grid; the same motor as the CSV."""
+    paths = []
+    for name, (t, cols) in logs.items():
+        change = np.flatnonzero(np.diff(cols["v"])) + 1
+        at = np.concatenate(([0], change))
+        paths.append(tmp_path / f"{name}.wpilog")
+        _wpilog(paths[-1], {"/cmd": (t[at], cols["v"][at]), "/speed": (t, cols["omega"])})
+    with pytest.warns(UserWarning, match=r"uniform 1000 Hz grid, the fastest measurement's"):
+        got, read = _fit(paths, truth, ["v=/cmd", "omega=/speed"])
+    ref_logs = csv_fit[1]
+    assert read[0].n == ref_logs[0].n
+    np.testing.assert_allclose(read[0]["v"], ref_logs[0]["v"], atol=1e-9)
+    for k, v in csv_fit[0].items():
+        assert got[k] == pytest.approx(v, rel=0.005), k
+
+
+def test_slow_command_fast_encoder(logs, tmp_path):
+    """A 50 Hz command and a 1 kHz speed: the grid is the speed's (the input held on it), not
+    the command's 50 Hz, which would throw away 19 speed samples in 20."""
+    t, cols = logs["step_2V"]
+    slow = np.arange(0, len(t), 20)
+    p = tmp_path / "slow.wpilog"
+    _wpilog(p, {"/cmd": (t[slow], cols["v"][slow]), "/speed": (t, cols["omega"])})
+    log = read_log(p, parse_mapping(["v=/cmd", "omega=/speed"]))
+    assert log.dt == pytest.approx(1e-3) and log.n == len(t)
+    assert "the input '/cmd' (50 Hz) held on it" in log.notes[0]
+    np.testing.assert_allclose(log["omega"], cols["omega"], rtol=1e-9, atol=1e-12)

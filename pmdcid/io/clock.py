@@ -123,8 +123,9 @@ def _refuse_anomalies(t: np.ndarray, dtv: np.ndarray, med: float, path: str) -> 
             "or resample it to a uniform grid", path)
 
 
-def _refuse_loop_faults(t: np.ndarray, dtv: np.ndarray, med: float, path: str) -> None:
-    """A loop-timed log: too many repeated stamps, or a gap beyond :data:`GAP_MAX`."""
+def _refuse_loop_faults(t: np.ndarray, dtv: np.ndarray, med: float, path: str,
+                        gaps: bool = True) -> None:
+    """A loop-timed log: too many repeated stamps, or (``gaps``) a gap beyond :data:`GAP_MAX`."""
     dups = int((dtv == 0).sum())
     if dups > DUP_MAX_FRACTION * len(t):
         row = int(np.flatnonzero(dtv == 0)[0])
@@ -132,7 +133,7 @@ def _refuse_loop_faults(t: np.ndarray, dtv: np.ndarray, med: float, path: str) -
             f"time stands still in {dups} rows ({100 * dups / len(t):.0f} %, the first at data "
             f"row {row + 2}): more than {100 * DUP_MAX_FRACTION:.0f} % of rows repeat a time "
             "stamp, the clock is too coarse for the loop; log a finer time", path)
-    big = np.flatnonzero(dtv > GAP_MAX * med)
+    big = np.flatnonzero(dtv > GAP_MAX * med) if gaps else []
     if len(big):
         k = int(big[0])
         raise LogError(
@@ -141,7 +142,8 @@ def _refuse_loop_faults(t: np.ndarray, dtv: np.ndarray, med: float, path: str) -
             "cut the log there", path)
 
 
-def examine(t: np.ndarray, path: str) -> Clock:
+def examine(t: np.ndarray, path: str, *, held_gaps: bool = False,
+            period: float | None = None) -> Clock:
     """The :class:`Clock` of a time column [s]; a broken one raises :class:`LogError`.
 
     Uniform within :data:`JITTER_TOL`: the grid is ``t[0] + median * k`` (one instant per row).
@@ -149,6 +151,11 @@ def examine(t: np.ndarray, path: str) -> Clock:
     or samples missing are refused. Otherwise the log is loop-timed: repeated stamps are merged
     (:data:`DUP_MAX_FRACTION`), a gap beyond :data:`GAP_MAX` median intervals is refused, and
     the grid is ``t[0] + median * k`` up to the last instant.
+
+    ``held_gaps``: the instants are an input series' own (a command topic, a wpilog entry logged
+    when it changes): the input is held across any gap, so gaps and a few missing samples are
+    not refused. ``period`` [s]: the grid's period when the instants are not uniform (default
+    their median interval).
     """
     t = np.asarray(t, dtype=float)
     dtv = _finite_increasing(t, path)
@@ -158,9 +165,11 @@ def examine(t: np.ndarray, path: str) -> Clock:
     off = np.abs(dtv - med) > JITTER_TOL * med
     if not off.any():
         return Clock(True, med, t[0] + med * np.arange(len(t)))
-    if off.mean() <= ANOMALY_FRACTION and ((dtv == 0).any() or (dtv > 1.5 * med).any()):
+    if off.mean() <= ANOMALY_FRACTION and not held_gaps and (
+            (dtv == 0).any() or (dtv > 1.5 * med).any()):
         _refuse_anomalies(t, dtv, med, path)
-    _refuse_loop_faults(t, dtv, med, path)
+    _refuse_loop_faults(t, dtv, med, path, gaps=not held_gaps)
+    med = min(med, period) if period else med
     pos = dtv[dtv > 0]
     groups = None
     if (dtv == 0).any():

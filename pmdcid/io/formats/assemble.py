@@ -6,8 +6,10 @@
   on the **input's clock** (the instants of the signal the ``v`` or ``tau`` mapping reads):
   the input held (zero-order hold), every measurement interpolated linearly at those instants,
   over the span where every mapped signal has samples. When the input's own instants are not
-  uniform, they become a uniform grid as a loop-timed CSV does (:mod:`pmdcid.io.clock`): the
-  input's mean over each step, measurements interpolated, in one step. One line says so.
+  uniform (or a measurement comes at least twice as fast: :data:`REFINE`), they become a uniform
+  grid (:mod:`pmdcid.io.clock`) at the finer of the input's and the fastest measurement's median
+  intervals: the input's mean over each step (held across gaps: a command logged when it
+  changes), measurements interpolated, in one step. One line says so.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.clock import (
     GAP_MAX,
     INPUTS,
+    Clock,
     Resampling,
     examine,
     held_mean,
@@ -28,6 +31,9 @@ from pmdcid.io.clock import (
 from pmdcid.io.formats import Signals, extension
 from pmdcid.io.mapping import CANONICAL, ColumnMap
 
+#: a measurement sampled this many times faster than a uniform input (or more) sets the grid:
+#: the input is held on the measurement's rate instead of decimating the measurement
+REFINE = 0.5
 #: names a table's time column goes by when no ``-c t=...`` names it
 TIME_NAMES = ("t", "time", "Time", "timestamp", "timestamps")
 
@@ -119,6 +125,29 @@ def _specs(p: str, sig: Signals, mapping: ColumnMap):
     return specs, skipped
 
 
+def _finest(series: dict, names) -> float | None:
+    """The shortest median interval [s] among the series ``names`` (None: none)."""
+    meds = []
+    for n in names:
+        d = np.diff(series[n][0])
+        d = d[d > 0]
+        if len(d):
+            meds.append(float(np.median(d)))
+    return min(meds) if meds else None
+
+
+def _sparse(instants: np.ndarray, fine: float, hi: float) -> bool:
+    """An input whose own instants cannot be the grid: under 3 in the span, at least twice as
+    far apart as the fastest measurement's (:data:`REFINE`), with a gap of :data:`GAP_MAX`
+    intervals (a command logged when it changes), or ending well before the measurements."""
+    if len(instants) < 3:
+        return True
+    d = np.diff(instants)
+    med = float(np.median(d[d > 0])) if (d > 0).any() else 0.0
+    return (med * REFINE > fine or float(d.max()) > GAP_MAX * med
+            or hi - instants[-1] > GAP_MAX * med)
+
+
 class _OnClock:
     """The mapped signals at the input's instants (uniform clock) or on a uniform grid."""
 
@@ -130,14 +159,27 @@ class _OnClock:
         used = sorted({r for spec in specs.values() for r in spec.refs})
         self.series = {r: _sorted(sig, r, p) for r in used}
         self.lo = max(t[0] for t, _ in self.series.values())
-        self.hi = min(t[-1] for t, _ in self.series.values())
+        held = {r for c in INPUTS if c in specs for r in specs[c].refs}
+        # an input holds its last value: only the measurements end the span
+        self.hi = min([t[-1] for r, (t, _) in self.series.items() if r not in held]
+                      or [t[-1] for t, _ in self.series.values()])
         t_in = self.series[self.clock_name][0]
         self.instants = t_in[(t_in >= self.lo) & (t_in <= self.hi)]
-        try:
-            self.clock = examine(self.instants, p)
-        except LogError as exc:
-            msg = str(exc).removeprefix(f"{p}: ")
-            raise LogError(f"signal '{self.clock_name}' (the input's clock): {msg}", p) from None
+        measured = {r for c, spec in specs.items() if c not in INPUTS for r in spec.refs}
+        fine = _finest(self.series, measured)
+        self.refined = bool(self.input and fine and _sparse(self.instants, fine, self.hi))
+        if self.refined:  # a slow or sparse command, a fast encoder: the measurement's rate
+            m = int(np.floor((self.hi - self.lo) / fine * (1 + 1e-12))) + 1
+            d = np.diff(self.instants)
+            per = float(np.median(d)) if len(d) else self.hi - self.lo  # the input's interval
+            self.clock = Clock(False, fine, self.lo + fine * np.arange(m), spread=(per, per))
+        else:
+            try:  # a grid no coarser than the fastest measurement's median interval
+                self.clock = examine(self.instants, p, period=fine, held_gaps=True)
+            except LogError as exc:
+                msg = str(exc).removeprefix(f"{p}: ")
+                raise LogError(f"signal '{self.clock_name}' (the input's clock): {msg}",
+                               p) from None
         self.at = self.instants if self.clock.uniform else self.clock.grid
         for canon, spec in specs.items():
             if canon not in INPUTS:
@@ -171,9 +213,14 @@ class _OnClock:
     def note(self, measured: list[str]) -> str:
         hz = 1.0 / self.clock.period
         what = ", ".join(measured) if measured else "nothing"
+        span = f"t={self.lo:.6g} to {self.hi:.6g} s where every signal has samples"
+        if self.refined:
+            return (f"signals on different clocks put on a uniform {hz:.4g} Hz grid, the fastest "
+                    f"measurement's ({span}): the input '{self.clock_name}' "
+                    f"({1.0 / self.clock.spread[0]:.4g} Hz) held on it, {what} interpolated "
+                    "linearly")
         return (f"signals on different clocks put on the input's clock ('{self.clock_name}', "
-                f"{hz:.4g} Hz, t={self.lo:.6g} to {self.hi:.6g} s where every signal has "
-                f"samples): the input held, {what} interpolated linearly")
+                f"{hz:.4g} Hz, {span}): the input held, {what} interpolated linearly")
 
 
 def series_log(p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
@@ -189,9 +236,11 @@ def series_log(p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
     notes = [] if on.same_clock() else [on.note(measured)]
     resampled = None
     if not on.clock.uniform:
-        loop = loop_note(on.clock, len(on.instants), measured)
-        inputs = {c: zoh(*on._held_union(specs[c]), on.instants) for c in specs if c in INPUTS}
-        resampled = Resampling(on.instants, inputs, on.clock.grid, "; ".join([*notes, loop]),
+        loop = [] if on.refined else [loop_note(on.clock, len(on.instants), measured)]
+        # simulate writes at the input's instants, or on the grid for a slow or sparse input
+        t_out = on.clock.grid if on.refined else on.instants
+        inputs = {c: zoh(*on._held_union(specs[c]), t_out) for c in specs if c in INPUTS}
+        resampled = Resampling(t_out, inputs, on.clock.grid, "; ".join([*notes, *loop]),
                                measured)
     log = validated_log(p, data, {}, sig.meta, mapping.cutoff_hz, skipped=skipped,
                         defer=defer, resampled=resampled)
