@@ -1,7 +1,8 @@
 """Log files beyond CSV: one reader interface, one module per format, chosen by extension.
 
 Every reader module defines ``EXTENSIONS`` (lower-case, with the dot), ``EXTRA`` (the optional
-dependency that installs its library: ``pip install 'pmdcid[EXTRA]'``) and ``load(path)``,
+dependency that installs its library: ``pip install 'pmdcid[EXTRA]'``) and ``load(path,
+wanted=None)`` (``wanted``: the names the mappings read, a hint a reader may use to read less),
 which returns a :class:`Signals`: every numeric signal of the file by the name the file gives
 it, as **series** (each with its own time stamps: MCAP topics, wpilog entries, TDMS channels,
 MDF channel groups) or as a **table** (columns sharing one time column, as in a CSV file:
@@ -87,8 +88,7 @@ def load(path, wanted: list[str] | None = None) -> Signals:
         raise LogError("no such log file (check the path)", p)
     if os.path.isdir(p):
         raise LogError("is a folder, not a log file", p)
-    mod = reader(p)
-    sig = mod.load(p, wanted) if wanted and mod.__name__.endswith("mcapfile") else mod.load(p)
+    sig = reader(p).load(p, wanted)
     if not sig.series:
         raise LogError(f"holds no numeric signal a motor log could use ({extension(p)} file)", p)
     return sig

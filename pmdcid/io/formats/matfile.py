@@ -80,7 +80,8 @@ def _load_v73(path: str) -> dict[str, Series]:
     return out
 
 
-def load(path: str) -> Signals:
+def load(path: str, wanted: list[str] | None = None) -> Signals:
+    """The file's signals (``wanted``, the mapped names, unused: the file is read whole)."""
     with open(path, "rb") as fh:
         head = fh.read(128)
     hdf5 = head[:8] == b"\x89HDF\r\n\x1a\n" or (len(head) >= 128 and head[126:128] in (b"IM", b"MI")

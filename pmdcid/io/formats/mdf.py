@@ -34,7 +34,8 @@ def _channels(mdf) -> list[tuple[int, int, str]]:
     return out
 
 
-def load(path: str) -> Signals:
+def load(path: str, wanted: list[str] | None = None) -> Signals:
+    """The file's signals (``wanted``, the mapped names, unused: the file is read whole)."""
     asammdf = need("asammdf", EXTRA, path, "MDF (.mf4/.mdf)")
     try:
         mdf = asammdf.MDF(path)

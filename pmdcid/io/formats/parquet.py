@@ -47,7 +47,8 @@ def _flatten(name: str, arr, fld, pa, out: dict[str, Series]) -> None:
         out[name] = Series(x, None, _unit(fld))
 
 
-def load(path: str) -> Signals:
+def load(path: str, wanted: list[str] | None = None) -> Signals:
+    """The file's signals (``wanted``, the mapped names, unused: the file is read whole)."""
     pa = need("pyarrow", EXTRA, path, ".parquet")
     pq = need("pyarrow.parquet", EXTRA, path, ".parquet")
     try:

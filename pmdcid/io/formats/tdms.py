@@ -49,7 +49,8 @@ def _start(ch) -> float | None:
     return float(_seconds(np.asarray([st]))[0])
 
 
-def load(path: str) -> Signals:
+def load(path: str, wanted: list[str] | None = None) -> Signals:
+    """The file's signals (``wanted``, the mapped names, unused: the file is read whole)."""
     nptdms = need("nptdms", EXTRA, path, ".tdms")
     try:
         f = nptdms.TdmsFile.read(path)

@@ -53,7 +53,8 @@ def _record(rec, entry, times, values) -> None:
                 _add(name if len(arr) == 1 else f"{name}[{k}]", ts, v, times, values)
 
 
-def load(path: str) -> Signals:
+def load(path: str, wanted: list[str] | None = None) -> Signals:
+    """The file's signals (``wanted``, the mapped names, unused: the file is read whole)."""
     log = need("wpiutil.log", EXTRA, path, ".wpilog")
     reader = log.DataLogReader(path)
     if not reader.isValid():
