@@ -61,6 +61,12 @@ def rigs(shared: Path = SHARED) -> list[Rig]:
             {f"step_{v}V": [f"step_{v}V_{k}.csv" for k in (2, 3)] for v in (6, 12, 24)},
             why="the first run of each voltage to fit, the two other repeats held out"),
     ]
+    ev3 = real / "lego-ev3"
+    out.append(Rig("lego-ev3", ev3,
+                   [f"step_{s}{d}.csv" for d in range(10, 101, 10) for s in "+-"], [],
+                   {f"sine_{k}pi": [f"sine_{k}pi.csv"] for k in (1, 2, 3)},
+                   why="loop-timed samples (4-18 ms, resampled on read): the duty steps to fit, "
+                       "the three sines (0.5, 1, 1.5 Hz, through zero speed) held out"))
     emps = shared / "emps"
     out.append(Rig("EMPS", emps, [], ["emps_train_DATA_EMPS.csv"],
                    {"pulses": ["emps_test_DATA_EMPS_PULSES.csv"]},

@@ -171,7 +171,10 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
         meta["seed"] = str(seed)
     if controller is not None:
         meta["controller"] = controller.describe()
-    write_log(output, log.t if log.t_file is None else log.t_file, cols, meta)
+    t_out = log.t if log.t_file is None else log.t_file
+    if log.resampled is not None:  # loop-timed INPUT: written at its own instants
+        cols, t_out = log.resampled.at_file_instants(cols), log.resampled.t_file
+    write_log(output, t_out, cols, meta)
     return str(output)
 
 

@@ -65,15 +65,16 @@ def test_few_nans_filled_with_warning(tmp_path):
     assert np.allclose(log["omega"][200], np.sin(0.2), atol=1e-5)
 
 
-def test_small_jitter_accepted_large_rejected(tmp_path, rng):
+def test_small_jitter_accepted_large_resampled(tmp_path, rng):
     t = np.arange(1000) * 1e-3
     p = tmp_path / "j.csv"
     write_log(p, t + rng.uniform(-5e-6, 5e-6, t.size), {"v": np.ones_like(t)})
     log = read_log(p)
-    assert log.dt == pytest.approx(1e-3, rel=1e-4)
+    assert log.dt == pytest.approx(1e-3, rel=1e-4) and log.resampled is None
     write_log(p, t + rng.uniform(-2e-4, 2e-4, t.size), {"v": np.ones_like(t)})
-    with pytest.raises(LogError, match="irregular sampling"):
-        read_log(p)
+    with pytest.warns(UserWarning, match=r"loop-timed samples .* uniform 1(\.0\d)? ms grid"):
+        log = read_log(p)
+    assert log.resampled is not None and np.allclose(log["v"], 1.0)
 
 
 def test_model_file_roundtrip_and_atomic_update(tmp_path):

@@ -123,6 +123,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                              "(python-control, C, MATLAB)."),
     "plan": ("cmd_plan", "Input profiles to record, and the standard error each parameter will "
                          "have."),
+    "channels": ("cmd_channels", "List the signals FILE holds (any format pmdcid reads): name, "
+                                 "samples, rate, unit."),
 }
 
 
@@ -213,5 +215,5 @@ def _register() -> None:
 
 #: command modules, each registering its command(s) on ``main`` at import
 COMMAND_MODULES = ["cmd_simulate", "cmd_fit", "cmd_report", "cmd_demo", "cmd_diagnose",
-                   "cmd_identify", "cmd_export", "cmd_plan"]
+                   "cmd_identify", "cmd_export", "cmd_plan", "cmd_channels"]
 _register()

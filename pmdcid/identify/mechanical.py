@@ -214,7 +214,12 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
                          "the median of their neighbours")
             log = replace(log, data={**log.data, "omega": w})
         sig = speed_noise(w)
-        for step in find_steps(log.t, log.u, log.path):
+        # a log that starts at rest may hold its step from the first sample (the input applied
+        # as logging starts, e.g. lego-ev3): a step from 0 there. At rest: the first speed
+        # within the noise or a fifth of the log's largest (a speed derived from the angle by
+        # a zero-phase filter already rises at the first sample)
+        at_rest = abs(float(w[0])) <= max(MOVE_SIGMAS * sig, 0.2 * float(np.max(np.abs(w))))
+        for step in find_steps(log.t, log.u, log.path, at_start=at_rest):
             ms, d = fit_step(log, step, tau_e, km, R, sig, warns)
             steps.append(ms)
             if d is not None:

@@ -102,13 +102,18 @@ def _segments(u: np.ndarray, thr: float) -> list[tuple[int, int, int]]:
     return out
 
 
-def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None) -> list[StepInfo]:
+def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
+               at_start: bool = False) -> list[StepInfo]:
     """Every step in input ``u`` (e.g. V): an interval of constant input after a change, up to
     the next change (up or down, several per log; a last plateau of a few samples is a glitch).
 
     Onset: the first sample of the transition past half-way between the levels (for a
     zero-order-held input, the sample of the jump). Raises :class:`FitError` when the input holds
     no plateau after a clear change (constant, noisy, or varying all the time: ramps, sines).
+
+    ``at_start``: the caller knows the system was at rest with the input 0 before the log (a
+    rig that applies the input from its first logged sample): a nonzero first plateau is then a
+    step from 0 at the first sample.
     """
     u = np.asarray(u, float)
     n = len(u)
@@ -119,6 +124,9 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None) -> list[St
     segs = _segments(u, thr)
     levels = [float(np.median(u[b:e])) if e > b else float(u[a]) for a, b, e in segs]
     steps = []
+    a0, b0, e0 = segs[0]
+    if at_start and b0 == 0 and e0 >= MIN_PLATEAU_SAMPLES and abs(levels[0]) > max(thr, 5 * sig):
+        steps.append(StepInfo(0, float(t[0]), 0.0, levels[0], e0, 0))
     for j in range(1, len(segs)):
         a, b, e = segs[j]
         lev, before = levels[j], levels[j - 1]
@@ -179,7 +187,7 @@ def strejc(t: np.ndarray, y: np.ndarray, step: StepInfo, settle_fraction: float 
     """
     y = np.asarray(y, float)
     k0 = step.onset
-    y0 = float(np.median(y[:k0]))
+    y0 = float(np.median(y[:k0])) if k0 > 0 else float(y[0])  # a step at the first sample
     tail = max(3, int(len(y) * settle_fraction))
     y1 = float(np.median(y[-tail:]))
     dy = y1 - y0

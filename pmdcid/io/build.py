@@ -3,9 +3,9 @@
 Every way into a log goes through here: :func:`~pmdcid.io.logs.read_log` (CSV files, the CLI),
 ``Log.from_dataframe`` and ``Log.from_arrays`` (the library). :func:`frame_columns` applies a
 column mapping (units, renames) to a table; :func:`validated_log` checks the time column (finite,
-increasing, uniform within :data:`~pmdcid.io.logs.JITTER_TOL`), fills short NaN gaps, runs the
-plausibility checks (:mod:`pmdcid.io.checks`) and derives speed from angle or the reverse
-(:mod:`pmdcid.io.derive`).
+increasing; uniform, or loop-timed and resampled: :mod:`pmdcid.io.clock`), fills short NaN
+gaps, runs the plausibility checks (:mod:`pmdcid.io.checks`) and derives speed from angle
+or the reverse (:mod:`pmdcid.io.derive`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from pmdcid.errors import LogError, short_list, warn
-from pmdcid.io.logs import JITTER_TOL, NAN_MAX_FRACTION, NAN_MAX_RUN, Log
+from pmdcid.io.logs import NAN_MAX_FRACTION, NAN_MAX_RUN, Log
 from pmdcid.io.mapping import CANONICAL, ColumnMap, parse_mapping
 
 
@@ -120,57 +120,38 @@ def fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
     return x
 
 
-def check_time(t: np.ndarray, path: str) -> float:
-    """The sample period [s] of a time column that is finite, increasing and uniform."""
-    if not np.isfinite(t).all():
-        row = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise LogError(f"time column has a missing or non-finite value (data row {row + 1}): "
-                       "fix or remove that row", path)
-    if len(t) < 3:
-        raise LogError(f"has only {len(t)} data row(s): too short to use (at least 3)", path)
-    dtv = np.diff(t)
-    if (dtv <= 0).any():
-        row = int(np.flatnonzero(dtv <= 0)[0])
-        what = "stands still" if dtv[row] == 0 else "goes back"
-        raise LogError(f"time {what} at data row {row + 2} (t={t[row + 1]:g} s): time must "
-                       "increase", path)
-    med = float(np.median(dtv))
-    dev = float(np.max(np.abs(dtv - med)) / med)
-    if dev > JITTER_TOL:
-        gaps = np.flatnonzero(dtv > 1.5 * med)
-        if len(gaps) and np.all(np.abs(np.delete(dtv, gaps) - med) <= JITTER_TOL * med):
-            k = int(gaps[0])
-            raise LogError(
-                f"samples missing: {len(gaps)} gap(s), the first of {dtv[k]:.3g} s after data "
-                f"row {k + 1} (t={t[k]:g} s) where the period is {med:.3g} s; cut the log there "
-                "or resample it to a uniform grid", path)
-        raise LogError(
-            f"irregular sampling: the sample period varies from {dtv.min():.3g} to "
-            f"{dtv.max():.3g} s ({100 * dev:.0f} % jitter); resample to a uniform grid first",
-            path)
-    return med
-
-
 def validated_log(path: str, data: dict[str, np.ndarray], extra: dict | None = None,
                   meta: dict | None = None, cutoff_hz: float | None = None, *,
-                  skipped: dict | None = None, defer: bool = False) -> Log:
+                  skipped: dict | None = None, defer: bool = False,
+                  resampled=None) -> Log:
     """The checked :class:`Log` of canonical SI columns ``data`` (``t`` [s] among them).
 
-    The time column is checked (:func:`check_time`) and put on its uniform grid from 0 (the
-    original kept as ``t_file``); NaN gaps are filled (:func:`fill_nans`); the plausibility
-    checks run; speed is derived from the angle, or the angle from the speed, when one is missing.
+    The time column is examined (:func:`pmdcid.io.clock.examine`): a uniform one is put on its
+    grid from 0 (the original kept as ``t_file``); a loop-timed one is resampled onto a uniform
+    grid (the input held, measurements interpolated; ``log.resampled`` keeps the file's
+    instants, one line says so). ``resampled``: the :class:`~pmdcid.io.clock.Resampling` of
+    columns already put on a uniform grid by a reader (signals on several clocks). NaN gaps are
+    filled (:func:`fill_nans`); the plausibility checks run; speed is derived from the angle, or
+    the angle from the speed, when one is missing.
     """
+    from pmdcid.io.clock import examine, resample_columns
+
     data = {k: np.asarray(v, dtype=float) for k, v in data.items()}
     t = data.pop("t")
-    med = check_time(t, path)
-    t_file = t
-    t = t[0] + med * np.arange(len(t))
-    t = t - t[0]
+    clock = examine(t, path)
     for canon in list(data):
         data[canon] = fill_nans(canon, data[canon], path)
     extra = {c: x for c, x in (extra or {}).items() if np.isfinite(x).all()}
+    if not clock.uniform:
+        data, extra, resampled = resample_columns(t, data, clock, extra)
+    t_file = clock.grid if resampled is not None else t
+    t = clock.grid - clock.grid[0]
     log = Log(path=path, t=t, data=data, meta=dict(meta or {}), extra=extra,
-              cutoff_hz=cutoff_hz, t_file=t_file, skipped=dict(skipped or {}))
+              cutoff_hz=cutoff_hz, t_file=t_file, skipped=dict(skipped or {}),
+              resampled=resampled)
+    if resampled is not None:
+        log.notes.append(resampled.note)
+        warn(resampled.note, path)
     from pmdcid.io.checks import check_log
 
     log.issues = check_log(log)

@@ -130,12 +130,21 @@ def numeric_column(df, src: str, p: str, strict: bool = True) -> np.ndarray:
 
 def column_specs(cols: list[str], mapping, canonical, p: str):
     """Spec of each canonical column, and the mapping-file lines skipped for this log."""
-    from pmdcid.io.mapping import ColumnSpec
+    from pmdcid.io.mapping import ColumnSpec, resolve
 
     have = set(cols)
     specs = {c: ColumnSpec(c, c) for c in canonical if c in have}
     skipped: dict[str, str] = {}
+    slashed = [c for c in cols if "/" in c]
     for canon, spec in mapping.specs.items():
+        if slashed or spec.pending is not None:
+            try:
+                spec = resolve(spec, slashed)
+            except LogError as exc:
+                if spec.origin is not None:  # a mapping-file line naming a signal not here
+                    skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no such signal"
+                    continue
+                raise LogError(str(exc), p) from None
         missing = [r for r in spec.refs if r not in have]
         if missing and spec.origin is not None and len(missing) == len(spec.refs):
             skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no column '{missing[0]}'"

@@ -18,12 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from pmdcid.errors import LogError, short_list
+from pmdcid.io.clock import JITTER_TOL  # noqa: F401 - the one definition, re-exported here
 from pmdcid.io.mapping import ColumnMap
 
 UNITS = {"t": "s", "v": "V", "tau": "N m", "i": "A", "omega": "rad/s", "theta": "rad"}
 
-#: largest relative deviation of one sample period from the median still taken as uniform
-JITTER_TOL = 0.02
 #: NaN cells are interpolated (with a warning) up to this fraction of a column ...
 NAN_MAX_FRACTION = 0.01
 #: ... and this many consecutive samples
@@ -54,6 +53,11 @@ class Log:
     skipped: dict[str, str] = field(default_factory=dict)
     #: what the plausibility checks found (:func:`pmdcid.io.checks.check_log`), one line each
     issues: list[str] = field(default_factory=list)
+    #: how the file's instants became the uniform ``t`` when they were not uniform (loop-timed
+    #: samples, signals on several clocks): a :class:`pmdcid.io.clock.Resampling`, else None
+    resampled: object | None = None
+    #: what reading did to the data, one line each (also printed as warnings)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def dt(self) -> float:
@@ -139,6 +143,12 @@ class Log:
         return read_log(path, as_mapping(columns, map_file, cutoff_hz))
 
     @classmethod
+    def from_file(cls, path, *, columns=None, map_file=None, cutoff_hz=None) -> Log:
+        """Read a log file of any format pmdcid reads, by extension (docs/io.md): the same as
+        :meth:`from_csv`, which also reads every format."""
+        return cls.from_csv(path, columns=columns, map_file=map_file, cutoff_hz=cutoff_hz)
+
+    @classmethod
     def from_dataframe(cls, df, *, columns=None, name: str = "dataframe", cutoff_hz=None,
                        meta: dict | None = None) -> Log:
         """A log from a pandas DataFrame, mapped and checked exactly as a CSV file is."""
@@ -180,14 +190,34 @@ def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
 
 def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
              defer: bool = False) -> Log:
-    """Read and validate one CSV log. Raises :class:`LogError` with one clear line.
+    """Read and validate one log. Raises :class:`LogError` with one clear line.
 
-    What the plausibility checks find (:mod:`pmdcid.io.checks`) is in ``log.issues``; it is
-    also warned about unless ``defer`` (a stage about to write a model refuses instead).
+    The format follows the extension: ``.mcap``, ``.wpilog``, ``.mf4``/``.mdf``, ``.tdms``,
+    ``.mat``, ``.parquet`` through :mod:`pmdcid.io.formats`, anything else as CSV. What the
+    plausibility checks find (:mod:`pmdcid.io.checks`) is in ``log.issues``; it is also warned
+    about unless ``defer`` (a stage about to write a model refuses instead).
     """
+    from pmdcid.io.formats import is_other_format
+
+    if is_other_format(path):
+        from pmdcid.io.formats import read
+
+        return read(path, mapping, defer)
+    p = str(path)
+    df, meta = read_table(p)
+    from pmdcid.io.build import frame_columns, validated_log
+
+    mapping = mapping or ColumnMap()
+    data, extra, skipped = frame_columns(df, mapping, p)
+    del df  # the table is no longer needed: freed before the checks' temporaries
+    return validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
+
+
+def read_table(p: str):
+    """A CSV log's table (a DataFrame or :class:`~pmdcid.io.plain.PlainFrame`, one-line unique
+    column names) and its ``# key: value`` metadata, unchecked."""
     from pmdcid.io.csvsource import header_names, open_source, sniff
 
-    p = str(path)
     if not os.path.exists(p):
         raise LogError("no such log file (check the path)", p)
     if os.path.isdir(p):
@@ -214,12 +244,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     df.columns = cols
     if len(df) == 0:
         raise LogError("has a header but no data rows: was the recording saved?", p)
-    from pmdcid.io.build import frame_columns, validated_log
-
-    mapping = mapping or ColumnMap()
-    data, extra, skipped = frame_columns(df, mapping, p)
-    del df  # the table is no longer needed: freed before the checks' temporaries
-    return validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
+    return df, meta
 
 
 def _read_frame(src, nskip: int, p: str):

@@ -76,6 +76,10 @@ class ColumnSpec:
     #: where a mapping-file line came from, e.g. ``rig.map line 3`` (None: command line)
     origin: str | None = None
     text: str = ""
+    #: a mapping whose right-hand side holds a ``/`` and did not parse as a scale: a signal name
+    #: such as an MCAP topic or a TDMS ``group/channel``, resolved against the file's names
+    #: (:func:`resolve`); this is the parse error to raise when no name matches
+    pending: str | None = None
 
     @property
     def refs(self) -> list[str]:
@@ -123,7 +127,40 @@ def _number(token: str, text: str) -> float:
 
 
 def parse_spec(text: str) -> ColumnSpec:
-    """Parse one mapping ``CANON=SOURCE*FACTOR/DIVISOR+OFFSET`` (see module docstring)."""
+    """Parse one mapping ``CANON=SOURCE*FACTOR/DIVISOR+OFFSET`` (see module docstring).
+
+    A source name may hold ``/`` (an MCAP topic ``/motor/state.velocity``, a TDMS or MDF
+    ``group/channel``): such a mapping is kept whole and read against the file's own names
+    (:func:`resolve`), the longest name the right-hand side starts with being the source."""
+    try:
+        return _parse_spec(text)
+    except LogError as exc:
+        m = _MAP_RE.match(text)
+        if (m is None or "/" not in m.group(2) or m.group(1) not in CANONICAL
+                or any(c in m.group(2) for c in "\"'()")):  # the expression grammar's own error
+            raise
+        rhs = m.group(2).strip()
+        return ColumnSpec(m.group(1), rhs, text=text.strip(), pending=str(exc))
+
+
+def resolve(spec: ColumnSpec, names) -> ColumnSpec:
+    """``spec`` read against a file's signal or column ``names``: when its right-hand side starts
+    with a name holding ``/`` (longer than the source parsed), that name is the source and the
+    rest is its scale and offset. A pending spec no name matches raises its parse error."""
+    if spec.expr is not None:
+        return spec
+    rhs = spec.text.split("=", 1)[1].strip() if "=" in spec.text else spec.source
+    best = max((n for n in names if "/" in n and (rhs == n or (
+        rhs.startswith(n) and rhs[len(n)] in "*/+-"))), key=len, default=None)
+    if best is None or best == spec.source:
+        if spec.pending is not None and spec.source not in names:
+            raise LogError(spec.pending)
+        return spec
+    tail = _parse_spec(f"{spec.canon}=x{rhs[len(best):]}")
+    return ColumnSpec(spec.canon, best, tail.scale, tail.offset, None, spec.origin, spec.text)
+
+
+def _parse_spec(text: str) -> ColumnSpec:
     if any(not c.isprintable() for c in text):
         raise LogError(f"column mapping {text!r} holds control characters")
     m = _MAP_RE.match(text)

@@ -1,0 +1,165 @@
+"""Log files beyond CSV: one reader interface, one module per format, chosen by extension.
+
+Every reader module defines ``EXTENSIONS`` (lower-case, with the dot), ``EXTRA`` (the optional
+dependency that installs its library: ``pip install 'pmdcid[EXTRA]'``) and ``load(path,
+wanted=None)`` (``wanted``: the names the mappings read, a hint a reader may use to read less),
+which returns a :class:`Signals`: every numeric signal of the file by the name the file gives
+it, as **series** (each with its own time stamps: MCAP topics, wpilog entries, TDMS channels,
+MDF channel groups) or as a **table** (columns sharing one time column, as in a CSV file:
+Parquet, MATLAB ``.mat``). :func:`read` turns them into a checked
+:class:`~pmdcid.io.logs.Log` with the ``-c`` column mappings; :func:`channels` lists them
+(``pmdcid channels FILE``). CSV keeps its own reader (:func:`pmdcid.io.logs.read_log`), listed
+here as the ``csv`` format. docs/io.md has the table of formats and an example of each.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pmdcid.errors import LogError
+
+#: extension -> module of this package reading it (CSV: :mod:`pmdcid.io.logs` itself)
+READERS: dict[str, str] = {
+    ".mcap": "mcapfile",
+    ".wpilog": "wpilog",
+    ".mf4": "mdf",
+    ".mdf": "mdf",
+    ".tdms": "tdms",
+    ".mat": "matfile",
+    ".parquet": "parquet",
+    ".pq": "parquet",
+}
+
+
+@dataclass
+class Series:
+    """One signal: values ``x`` at instants ``t`` [s from the file's first time stamp], or
+    ``t`` None for a table column (its time is the table's time column); ``unit`` as the file
+    stores it (None when it stores none)."""
+
+    x: np.ndarray
+    t: np.ndarray | None = None
+    unit: str | None = None
+
+
+@dataclass
+class Signals:
+    """What a reader found: ``series`` name -> :class:`Series`; ``table`` True when they are
+    columns sharing a time column; ``meta`` file-level metadata (``# key: value`` as in CSV)."""
+
+    series: dict[str, Series]
+    table: bool = False
+    meta: dict[str, str] = field(default_factory=dict)
+
+
+def extension(path) -> str:
+    """The lower-case extension of ``path`` ('' for none)."""
+    return os.path.splitext(str(path))[1].lower()
+
+
+def is_other_format(path) -> bool:
+    """True when ``path``'s extension names a format read by this package (not CSV)."""
+    return extension(path) in READERS
+
+
+def reader(path):
+    """The reader module for ``path``'s extension."""
+    return importlib.import_module(f"pmdcid.io.formats.{READERS[extension(path)]}")
+
+
+def need(module: str, extra: str, path: str, what: str):
+    """Import ``module`` (the format's library) or raise one line naming the extra to install."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise LogError(f"reading {what} files needs the package '{module.split('.')[0]}': "
+                       f"pip install 'pmdcid[{extra}]'", path) from None
+
+
+def load(path, wanted: list[str] | None = None) -> Signals:
+    """The signals of a non-CSV log file (a missing file, a folder: one line). ``wanted``: the
+    names the mappings read (a reader may read only those: MCAP decodes only their topics)."""
+    p = str(path)
+    if not os.path.exists(p):
+        raise LogError("no such log file (check the path)", p)
+    if os.path.isdir(p):
+        raise LogError("is a folder, not a log file", p)
+    sig = reader(p).load(p, wanted)
+    if not sig.series:
+        raise LogError(f"holds no numeric signal a motor log could use ({extension(p)} file)", p)
+    return sig
+
+
+def read(path, mapping=None, defer: bool = False):
+    """A checked :class:`~pmdcid.io.logs.Log` from a non-CSV file: signals named by ``mapping``
+    (``-c CANON=SOURCE``, the CSV syntax); series on several clocks put on the input's clock."""
+    from pmdcid.io.formats.assemble import series_log, table_log
+    from pmdcid.io.mapping import ColumnMap
+
+    p = str(path)
+    mapping = mapping or ColumnMap()
+    wanted = [s.text.split("=", 1)[1].strip() if "=" in s.text else s.source
+              for s in mapping.specs.values()]
+    sig = load(p, wanted)
+    if sig.table:
+        return table_log(p, sig, mapping, defer)
+    return series_log(p, sig, mapping, defer)
+
+
+@dataclass
+class Channel:
+    """One signal of a file as ``pmdcid channels`` lists it: ``rate`` [Hz] the median rate
+    (None: no time), ``unit`` as stored (None: none)."""
+
+    name: str
+    samples: int
+    rate: float | None
+    unit: str | None
+
+
+def rate_of(t) -> float | None:
+    """1 / the median interval of instants ``t`` [s] (None when they cannot tell)."""
+    if t is None or len(t) < 2:
+        return None
+    dtv = np.diff(np.asarray(t, float))
+    dtv = dtv[dtv > 0]
+    if not len(dtv):
+        return None
+    return float(1.0 / np.median(dtv))
+
+
+def channels(path) -> list[Channel]:
+    """The signals ``path`` holds (any format, CSV included): name, samples, rate, unit."""
+    p = str(path)
+    if not is_other_format(p):
+        from pmdcid.io.formats.csvfile import csv_channels
+
+        return csv_channels(p)
+    sig = load(p)
+    out = []
+    for name, s in sig.series.items():
+        t = s.t
+        if t is None and sig.table:
+            from pmdcid.io.formats.assemble import table_time
+
+            t = table_time(sig, name)
+        out.append(Channel(name, len(s.x), rate_of(t), s.unit))
+    return out
+
+
+def format_channels(chans: list[Channel]) -> str:
+    """The text table ``pmdcid channels`` prints."""
+    rows = [("name", "samples", "rate [Hz]", "unit")]
+    for c in chans:
+        rate = "-" if c.rate is None else f"{c.rate:.6g}"
+        rows.append((c.name, str(c.samples), rate, c.unit or "-"))
+    width = [max(len(r[k]) for r in rows) for k in range(4)]
+    lines = []
+    for r in rows:
+        lines.append("  ".join([r[0].ljust(width[0]), r[1].rjust(width[1]),
+                                r[2].rjust(width[2]), r[3]]).rstrip())
+    return "\n".join(lines)

@@ -1,0 +1,60 @@
+"""ASAM MDF logs (``.mf4``, ``.mdf``: MDF 3 and 4) through asammdf: series.
+
+Each channel group has its own master (time) channel: its channels are series on that clock,
+in physical values (the file's conversions applied), with the unit the file stores. A channel
+is named by its own name where that is unique in the file, else ``group/channel`` with the
+group's acquisition name (or its index when it has none or shares it).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+from pmdcid.errors import LogError
+from pmdcid.io.formats import Series, Signals, need
+
+EXTENSIONS = (".mf4", ".mdf")
+EXTRA = "mdf"
+
+
+def _group_names(mdf) -> list[str]:
+    acq = [(g.channel_group.acq_name or "").strip() for g in mdf.groups]
+    count = Counter(acq)
+    return [a if a and count[a] == 1 and "/" not in a else str(k) for k, a in enumerate(acq)]
+
+
+def _channels(mdf) -> list[tuple[int, int, str]]:
+    """(group, index, name) of every channel that is not its group's master channel."""
+    out = []
+    for gi, g in enumerate(mdf.groups):
+        master = mdf.masters_db.get(gi)
+        out += [(gi, ci, ch.name) for ci, ch in enumerate(g.channels) if ci != master]
+    return out
+
+
+def load(path: str, wanted: list[str] | None = None) -> Signals:
+    """The file's signals (``wanted``, the mapped names, unused: the file is read whole)."""
+    asammdf = need("asammdf", EXTRA, path, "MDF (.mf4/.mdf)")
+    try:
+        mdf = asammdf.MDF(path)
+    except Exception as exc:  # asammdf raises many types on a foreign file  # noqa: BLE001
+        raise LogError(f"is not a readable MDF file ({type(exc).__name__}: "
+                       f"{str(exc)[:80]})", path) from None
+    try:
+        chans = _channels(mdf)
+        groups = _group_names(mdf)
+        count = Counter(name for _, _, name in chans)
+        out: dict[str, Series] = {}
+        for gi, ci, name in chans:
+            sig = mdf.get(name, group=gi, index=ci)
+            x = np.asarray(sig.samples)
+            if x.dtype.kind not in "biuf" or x.ndim != 1 or len(x) < 1:
+                continue
+            key = name if count[name] == 1 else f"{groups[gi]}/{name}"
+            out[key] = Series(x.astype(float), np.asarray(sig.timestamps, dtype=float),
+                              sig.unit or None)
+    finally:
+        mdf.close()
+    return Signals(out)
