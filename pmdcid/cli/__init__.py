@@ -33,9 +33,9 @@ class _Group(click.Group):
 
         def _show(message, category, filename, lineno, file=None, line=None):
             if issubclass(category, PmdcidWarning):
-                click.echo(f"warning: {one_line(message)}", err=True)
+                echo(f"warning: {one_line(message)}", err=True)
             elif os.environ.get("PMDCID_DEBUG"):
-                click.echo(f"warning: {category.__name__}: {message}", err=True)
+                echo(f"warning: {category.__name__}: {message}", err=True)
 
         from pmdcid.io.outputs import Terminated, install_sigterm, transaction
 
@@ -50,7 +50,7 @@ class _Group(click.Group):
             click.echo("error: terminated (SIGTERM): nothing was written", err=True)
             sys.exit(143)
         except PmdcidError as exc:
-            click.echo("error: " + one_line(str(exc)), err=True)  # always one short line
+            echo("error: " + one_line(str(exc)), err=True)  # always one short line
             sys.exit(1)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
@@ -61,8 +61,8 @@ class _Group(click.Group):
             if os.environ.get("PMDCID_DEBUG"):
                 raise
             where = f"{exc.filename}: " if exc.filename else ""
-            click.echo(one_line(f"error: {where}{exc.strerror or exc} (check the path and its "
-                                "permissions)"), err=True)
+            echo(one_line(f"error: {where}{exc.strerror or exc} (check the path and its "
+                          "permissions)"), err=True)
             sys.exit(1)
         except MemoryError:
             click.echo("error: out of memory: the log is too large for this machine", err=True)
@@ -71,10 +71,28 @@ class _Group(click.Group):
             if os.environ.get("PMDCID_DEBUG"):
                 raise
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-            click.echo(one_line(f"error: internal error {type(exc).__name__}: {msg[:120]} "
-                                "(please report it; PMDCID_DEBUG=1 shows the traceback)"),
-                       err=True)
+            echo(one_line(f"error: internal error {type(exc).__name__}: {msg[:120]} "
+                          "(please report it; PMDCID_DEBUG=1 shows the traceback)"), err=True)
             sys.exit(1)
+
+
+def echo(text="", err: bool = False) -> None:
+    """Print a line (or a table) the way every command prints: user text in it (file, column,
+    effect names) can not reach the terminal as a control sequence
+    (:func:`pmdcid.io.escape.terminal`; newlines and tabs kept)."""
+    from pmdcid.io.escape import terminal
+
+    click.echo(terminal(text, keep_newlines=True), err=err)
+
+
+def progress_lines():
+    """The commands' progress callback: :func:`pmdcid.progress.stage_lines`, its messages
+    passed through :func:`pmdcid.io.escape.terminal`."""
+    from pmdcid.io.escape import terminal
+    from pmdcid.progress import stage_lines
+
+    lines = stage_lines()
+    return lambda msg: lines(terminal(msg))
 
 
 def tune_malloc() -> bool:

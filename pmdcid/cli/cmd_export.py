@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 from pmdcid.cli.options import model_option
 
 FORMATS = ("python-control", "c", "matlab")  # as pmdcid.export.FORMATS (not imported: fast --help)
@@ -23,4 +23,4 @@ def export_cmd(model_path, fmt, output, force):
     from pmdcid.export import export_model
 
     for path in export_model(model_path, fmt, output, force=force):
-        click.echo(f"wrote {path}")
+        echo(f"wrote {path}")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 from pmdcid.cli.options import FiniteFloat, log_options, model_option
 from pmdcid.model.spec import BASE_PARAMS
 
@@ -31,10 +31,10 @@ def _names(allowed):
 
 
 def _show(result, model_path):
-    click.echo(result.table())
+    echo(result.table())
     for w in result.warnings:
-        click.echo(f"warning: {w}", err=True)
-    click.echo(f"updated {model_path}")
+        echo(f"warning: {w}", err=True)
+    echo(f"updated {model_path}")
 
 
 @main.command("fit-electrical")

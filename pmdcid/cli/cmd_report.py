@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main, progress_lines
 from pmdcid.cli.options import log_options, model_option
 
 
@@ -23,7 +23,6 @@ def report_cmd(logs, model_path, out_dir, summary_path, before_path, mapping):
     """Compare MODEL with measured LOGs: DIR/report.html, DIR/metrics.json, DIR/*.png."""
     from pmdcid.io import read_logs
     from pmdcid.model import load_model
-    from pmdcid.progress import stage_lines
     from pmdcid.report import check_out_dir, load_summary, make_report
 
     check_out_dir(out_dir)
@@ -31,6 +30,6 @@ def report_cmd(logs, model_path, out_dir, summary_path, before_path, mapping):
     before = load_model(before_path) if before_path else None
     summary = load_summary(summary_path) if summary_path else None
     res = make_report(read_logs(logs, mapping), model, out_dir, summary=summary,
-                      before_model=before, progress=stage_lines())
-    click.echo(f"wrote {res.html_path}")
-    click.echo(f"wrote {res.metrics_path} and {len(res.figures)} figures")
+                      before_model=before, progress=progress_lines())
+    echo(f"wrote {res.html_path}")
+    echo(f"wrote {res.metrics_path} and {len(res.figures)} figures")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 from pmdcid.cli.options import FiniteFloat, log_options, model_option, parse_x0
 
 
@@ -43,7 +43,7 @@ def simulate_cmd(input_logs, model_path, output, noise_i, noise_omega, encoder, 
         if os.path.isdir(output):
             raise click.BadParameter(f"{output!r} is a folder: with one INPUT, -o names the "
                                      "output file", param_hint="'-o' / '--output'")
-        click.echo(f"wrote {simulate_file(input_logs[0], model_path, output, **opts)}")
+        echo(f"wrote {simulate_file(input_logs[0], model_path, output, **opts)}")
         return
     names = [os.path.basename(p) for p in input_logs]
     dup = next((n for n in names if names.count(n) > 1), None)
@@ -51,4 +51,4 @@ def simulate_cmd(input_logs, model_path, output, noise_i, noise_omega, encoder, 
         raise click.BadParameter(f"two INPUTs are named {dup!r}: their outputs in {output} "
                                  "would collide; simulate them in separate calls",
                                  param_hint="INPUT...")
-    simulate_files(list(input_logs), model_path, output, echo=click.echo, **opts)
+    simulate_files(list(input_logs), model_path, output, echo=echo, **opts)

@@ -9,7 +9,6 @@ against it to 1e-9 relative.
 
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass
 from importlib import resources
@@ -117,10 +116,11 @@ def fill(text: str, subs: dict[str, str]) -> str:
 
 
 def number(x: float, inf: str) -> str:
-    """A float literal that reads back exactly (17 significant digits); ``inf`` spells infinity."""
-    if math.isinf(x):
-        return inf if x > 0 else "-" + inf
-    return repr(float(x))
+    """A float literal that reads back exactly (17 significant digits); ``inf`` spells infinity;
+    NaN refused (:func:`pmdcid.io.escape.number`, the one rule for numbers in generated code)."""
+    from pmdcid.io.escape import number as literal
+
+    return literal(x, inf)
 
 
 def _is_ours(path: Path) -> bool:
