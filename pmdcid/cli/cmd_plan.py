@@ -107,6 +107,8 @@ def _check(logs, model_path, settings, out_dir, mapping) -> None:
     for line in res.lines():
         echo(line)
     if out_dir:
-        Path(out_dir).mkdir(parents=True, exist_ok=True)
-        atomic_write_text(Path(out_dir) / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")
+        from pmdcid.io.outputs import output_folder
+
+        with output_folder(out_dir) as d:
+            atomic_write_text(d / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")
         echo(f"wrote {Path(out_dir) / 'check.json'}")

@@ -133,7 +133,10 @@ def _is_ours(path: Path) -> bool:
 
 def check_outputs(paths: list[Path], model_path: str, force: bool) -> None:
     """Refuse to overwrite the model, or (without ``force``) a file pmdcid export did not write."""
+    from pmdcid.io.outputs import check_target
+
     for out in paths:
+        check_target(out)  # a FIFO would hang the check below; a device is never replaced
         if out.is_dir():
             raise ExportError("is a folder; give a file name to -o", str(out))
         if not out.exists():

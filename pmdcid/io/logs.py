@@ -301,6 +301,7 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
     """
     from pmdcid.io import outputs
 
+    outputs.check_target(path)  # regular files only, no symlink loop
     p = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.exists():

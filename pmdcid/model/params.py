@@ -235,6 +235,10 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
 def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
     """Read a model file. A missing file gives an empty model when ``must_exist`` is false."""
     p = str(path)
+    if os.path.islink(p) and not os.path.exists(p):
+        from pmdcid.io.outputs import check_target
+
+        check_target(p, option="-m")  # a symlink loop: one line (a dangling link: created)
     if not os.path.exists(p):
         if must_exist:
             raise ModelError("no such model file (run a fit stage first to create it)", p)
