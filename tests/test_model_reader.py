@@ -22,7 +22,8 @@ PAPER = '"R": 2.3724, "L": 0.0177933, "km": 0.0502, "J": 0.00310442, "bv": 0.031
 
 def _obj(params: str, effects: str = "") -> str:
     """A model file's text from the inside of its ``parameters`` object."""
-    return '{"parameters": {' + params + "}" + (f', "effects": [{effects}]' if effects else "") + "}"
+    tail = f', "effects": [{effects}]' if effects else ""
+    return '{"parameters": {' + params + "}" + tail + "}"
 
 
 def _load(tmp_path, text: str):
