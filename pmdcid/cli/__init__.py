@@ -46,9 +46,9 @@ class _Group(click.Group):
         try:
             with transaction():  # a failing command leaves nothing new behind
                 return super().invoke(ctx)
-        except Terminated:
-            click.echo("error: terminated (SIGTERM): nothing was written", err=True)
-            sys.exit(143)
+        except Terminated as exc:
+            click.echo(f"error: terminated ({exc.name}): nothing was written", err=True)
+            sys.exit(128 + exc.signum)
         except PmdcidError as exc:
             echo("error: " + one_line(str(exc)), err=True)  # always one short line
             sys.exit(1)

@@ -193,6 +193,9 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     if os.path.isdir(p):
         raise LogError("is a folder, not a log file", p)
     src = open_source(p)
+    from pmdcid.io.bounds import check_lines
+
+    check_lines(src.handle, p)  # before any parsing: a 50 MB line fails at once
     meta, nskip = _split_comments(src.head, p)
     sniff(src, nskip)
     df = None

@@ -5,8 +5,11 @@
   is noted; when the command fails -- any error, a full disk, stdout closed under the final
   message (EPIPE), SIGTERM -- the old versions come back and the new files go. Exit 0 means
   every promised file was written; a non-zero exit leaves nothing new behind.
-- :func:`install_sigterm`: SIGTERM becomes an exception, so in-flight temporary files are
-  removed and the transaction rolled back like any other failure.
+- :func:`install_sigterm`: every signal that can end a command (:data:`ENDING_SIGNALS`:
+  SIGTERM, SIGHUP -- a closed terminal or ssh session --, SIGQUIT) becomes an exception
+  (:class:`Terminated`, a BaseException like KeyboardInterrupt: no ``except Exception`` in a
+  fit can swallow it), so in-flight temporary files are removed and the transaction rolled back
+  like any other failure; the command exits 128 + the signal's number.
 - :func:`locked`: an exclusive ``flock`` on the folder holding a model, for a stage's
   read-modify-write of the model file (two stages on one model both land their updates).
 - :func:`check_overwrite`: an existing output that is not what pmdcid writes there (a model,
@@ -122,28 +125,47 @@ def current() -> Transaction | None:
     return _CURRENT[-1] if _CURRENT else None
 
 
+#: the signals that end a command, each handled as SIGTERM is (names: absent on some platforms)
+ENDING_SIGNALS = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP", "SIGQUIT")
+                       if hasattr(signal, n))
+
+
 @contextmanager
 def sigterm_deferred():
-    """SIGTERM held back for the block (main thread, POSIX): a temporary file created and
-    registered in :data:`IN_FLIGHT` inside it is never left behind by a SIGTERM arriving between
-    the two (the signal is delivered, and the file removed, once the block ends)."""
+    """The ending signals held back for the block (main thread, POSIX): a temporary file
+    created and registered in :data:`IN_FLIGHT` inside it is never left behind by a signal
+    arriving between the two (the signal is delivered, and the file removed, once the block
+    ends)."""
     mask = getattr(signal, "pthread_sigmask", None)
     if mask is None or threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = mask(signal.SIG_BLOCK, {signal.SIGTERM})
+    old = mask(signal.SIG_BLOCK, set(ENDING_SIGNALS))
     try:
         yield
     finally:
         mask(signal.SIG_SETMASK, old)
 
 
-class Terminated(Exception):
-    """SIGTERM arrived: unwind, clean up, exit 143."""
+class Terminated(BaseException):
+    """An ending signal arrived (SIGTERM, SIGHUP, SIGQUIT): unwind, clean up, exit 128 + its
+    number. A BaseException, as KeyboardInterrupt: ``except Exception`` never swallows it."""
+
+    def __init__(self, signum: int = getattr(signal, "SIGTERM", 15)):
+        super().__init__(signum)
+        self.signum = signum
+
+    @property
+    def name(self) -> str:
+        try:
+            return signal.Signals(self.signum).name
+        except ValueError:
+            return f"signal {self.signum}"
 
 
 def install_sigterm() -> None:
-    """Turn SIGTERM into :class:`Terminated` (main thread only; a no-op elsewhere)."""
+    """Turn every signal of :data:`ENDING_SIGNALS` into :class:`Terminated` (main thread only;
+    a no-op elsewhere)."""
     if threading.current_thread() is not threading.main_thread():
         return
 
@@ -154,12 +176,13 @@ def install_sigterm() -> None:
                     os.unlink(tmp)
                 except OSError:
                     pass
-        raise Terminated()
+        raise Terminated(signum)
 
-    try:
-        signal.signal(signal.SIGTERM, handler)
-    except (ValueError, OSError):
-        pass
+    for sig in ENDING_SIGNALS:
+        try:
+            signal.signal(sig, handler)
+        except (ValueError, OSError):
+            pass
 
 
 @contextmanager
