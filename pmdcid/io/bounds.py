@@ -78,5 +78,5 @@ def check_rows(logs, limit: int, command: str) -> None:
     longest = max(logs, key=lambda lg: lg.n)
     k = math.ceil(n / limit)
     raise LogError(f"{command} takes at most {limit:,} rows in all and the logs hold {n:,}: "
-                   f"keep every {k}th row of them (or a part of each) and rerun; fit-nonlinear "
+                   f"keep one row in {k} (or a part of each log) and rerun; fit-nonlinear "
                    "and simulate take any length", str(longest.path))
