@@ -277,7 +277,9 @@ def parse_model_json(text: str, path):
 
 def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
     """Read a model file. A missing file gives an empty model when ``must_exist`` is false."""
-    p = str(path)
+    from pmdcid.io.args import path_arg
+
+    p = path_arg(path, "path")
     if os.path.islink(p) and not os.path.exists(p):
         from pmdcid.io.outputs import check_target
 
@@ -361,8 +363,12 @@ def save_model(model: Model, path: str | os.PathLike) -> None:
     ``path`` is written back only if the file still holds what was read (:func:`check_unchanged`,
     optimistic locking; the stage runners call this under :func:`pmdcid.io.outputs.locked`).
     """
+    from pmdcid.io.args import path_arg
     from pmdcid.io.logs import atomic_write_text
 
+    path_arg(path, "path")
+    if not isinstance(model, Model):
+        raise TypeError(f"model must be a Model, not {type(model).__name__}")
     for name, par in model.parameters.items():
         check_bounds(name, par.value, str(path))
     from pmdcid.model.plausible import check_plausible
