@@ -91,3 +91,16 @@ def test_diagnose_refuses_more_rows_than_it_can_take(rig, monkeypatch):
                              catch_exceptions=False)
     _one_error(res, "step.csv: diagnose takes at most 2,000 rows", "keep one row in 2")
     assert not (rig / "new.json").exists()
+
+
+def test_out_of_memory_names_the_file(rig, monkeypatch):
+    """'out of memory: the log is too large' named no file."""
+    from pmdcid.io import bounds
+
+    def exhausted(*a, **k):
+        raise MemoryError
+
+    monkeypatch.setattr(bounds, "check_lines", exhausted)
+    res = CliRunner().invoke(main, ["simulate", "step.csv", "-m", "m.json", "-o", "o.csv"],
+                             catch_exceptions=False)
+    _one_error(res, "error: step.csv: out of memory")

@@ -39,6 +39,7 @@ class _Group(click.Group):
 
         from pmdcid.io.outputs import Terminated, install_sigterm, transaction
 
+        raw = [*getattr(ctx, "protected_args", []), *ctx.args]  # the command's own words
         warnings.showwarning = _show
         warnings.simplefilter("always", PmdcidWarning)
         install_sigterm()
@@ -65,7 +66,9 @@ class _Group(click.Group):
                           "permissions)"), err=True)
             sys.exit(1)
         except MemoryError:
-            click.echo("error: out of memory: the log is too large for this machine", err=True)
+            big = largest_file(raw)
+            echo(one_line(f"error: {big + ': ' if big else ''}out of memory: the log is too large "
+                          "for this machine (keep one row in k, or a part of it)"), err=True)
             sys.exit(1)
         except Exception as exc:  # never a traceback at the edge; PMDCID_DEBUG=1 shows it
             if os.environ.get("PMDCID_DEBUG"):
@@ -74,6 +77,13 @@ class _Group(click.Group):
             echo(one_line(f"error: internal error {type(exc).__name__}: {msg[:120]} "
                           "(please report it; PMDCID_DEBUG=1 shows the traceback)"), err=True)
             sys.exit(1)
+
+
+def largest_file(raw) -> str | None:
+    """The largest existing file among the command line's words (what an out-of-memory is
+    about)."""
+    files = [a for a in raw if isinstance(a, str) and os.path.isfile(a)]
+    return max(files, key=os.path.getsize) if files else None
 
 
 def echo(text="", err: bool = False) -> None:
