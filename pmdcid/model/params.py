@@ -318,11 +318,12 @@ ABSENT = "absent"
 
 
 def file_digest(path) -> str:
-    """sha256 of the file's bytes (:data:`ABSENT` when there is none)."""
+    """sha256 of the file's bytes (:data:`ABSENT` when there is none, or it cannot be read: the
+    write that follows says why)."""
     try:
         with open(path, "rb") as fh:
             return hashlib.sha256(fh.read()).hexdigest()
-    except FileNotFoundError:
+    except OSError:
         return ABSENT
 
 
