@@ -44,9 +44,10 @@ class Model:
     effects: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
     path: str | None = None
-    #: what ``path`` held when the model was read (:func:`file_digest`; None: not read from a
-    #: file). Saving back to ``path`` checks it first: optimistic locking, see :func:`save_model`
-    digest: str | None = field(default=None, repr=False, compare=False)
+    #: (file, what it held) when the model was read or last saved (:func:`file_digest`; None:
+    #: neither). Saving back to that file checks it first: optimistic locking, see
+    #: :func:`save_model`
+    digest: tuple[str, str] | None = field(default=None, repr=False, compare=False)
 
     def value(self, name: str, default: float | None = None) -> float:
         if name in self.parameters:
@@ -287,7 +288,7 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
     if not os.path.exists(p):
         if must_exist:
             raise ModelError("no such model file (run a fit stage first to create it)", p)
-        return Model(path=p, digest=ABSENT)
+        return Model(path=p, digest=(p, ABSENT))
     if os.path.isdir(p):
         raise ModelError("is a folder, not a model file", p)
     from pmdcid.io.text import decode
@@ -309,7 +310,7 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
         raise ModelError(f"model file is not usable JSON ({str(exc)[:60]}): repair it, or "
                          "delete it to start afresh", p) from None
     model = model_from_json(obj, p)
-    model.digest = hashlib.sha256(data).hexdigest()
+    model.digest = (p, hashlib.sha256(data).hexdigest())
     return model
 
 
@@ -337,9 +338,9 @@ def _same_file(a, b) -> bool:
 def check_unchanged(model: Model, path) -> None:
     """Optimistic locking: a model read from ``path`` is written back only if ``path`` still
     holds what was read (another command, e.g. a stage run meanwhile, would lose its results)."""
-    if model.digest is None or model.path is None or not _same_file(model.path, path):
+    if model.digest is None or not _same_file(model.digest[0], path):
         return
-    if file_digest(path) != model.digest:
+    if file_digest(path) != model.digest[1]:
         raise ModelError("the model file changed since this command read it (another pmdcid "
                          "command or an editor wrote it): nothing was written; rerun the command "
                          "to build on the new file", str(path))
@@ -387,5 +388,4 @@ def save_model(model: Model, path: str | os.PathLike) -> None:
         if isinstance(exc, PmdcidError):
             raise ModelError(str(exc)) from None
         raise
-    if model.path is not None and _same_file(model.path, path):
-        model.digest = file_digest(path)
+    model.digest = (str(path), file_digest(path))
