@@ -138,3 +138,4 @@ def test_report_with_tex_in_a_log_name_and_a_dot_in_a_parameter(tmp_path, monkey
                              catch_exceptions=False)
     assert res.exit_code == 0, res.stderr
     assert "my.param" in (tmp_path / "rep" / "report.html").read_text()
+

@@ -24,7 +24,9 @@ def _names(allowed):
         names = [v.strip() for v in value.split(",") if v.strip()]
         bad = [n for n in names if n not in allowed]
         if bad or not names:
-            raise click.BadParameter(f"{', '.join(bad) or 'empty'}: choose among "
+            from pmdcid.io.escape import terminal
+
+            raise click.BadParameter(f"{terminal(', '.join(bad)) or 'empty'}: choose among "
                                      f"{','.join(allowed)}")
         return names
     return parse

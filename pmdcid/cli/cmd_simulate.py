@@ -48,7 +48,7 @@ def simulate_cmd(input_logs, model_path, output, noise_i, noise_omega, encoder, 
     names = [os.path.basename(p) for p in input_logs]
     dup = next((n for n in names if names.count(n) > 1), None)
     if dup:
-        raise click.BadParameter(f"two INPUTs are named {dup!r}: their outputs in {output} "
+        raise click.BadParameter(f"two INPUTs are named {dup!r}: their outputs in {output!r} "
                                  "would collide; simulate them in separate calls",
                                  param_hint="INPUT...")
     simulate_files(list(input_logs), model_path, output, echo=echo, **opts)

@@ -54,7 +54,9 @@ def log_options(f):
         except LogError as exc:
             if exc.path is not None:  # a problem in the --map file: exit 1, names the file
                 raise
-            raise click.BadParameter(str(exc), param_hint="'-c' / '--column'") from None
+            from pmdcid.io.escape import terminal
+
+            raise click.BadParameter(terminal(str(exc)), param_hint="'-c' / '--column'") from None
         mapping.cutoff_hz = cutoff_hz
         kwargs["mapping"] = mapping
         guard_outputs()
