@@ -39,7 +39,9 @@ class _Group(click.Group):
 
         from pmdcid.io.outputs import Terminated, install_sigterm, transaction
 
-        raw = [*getattr(ctx, "protected_args", []), *ctx.args]  # the command's own words
+        with warnings.catch_warnings():  # click 8.2 deprecates protected_args (9: in args)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            raw = [*getattr(ctx, "protected_args", []), *ctx.args]  # the command's own words
         warnings.showwarning = _show
         warnings.simplefilter("always", PmdcidWarning)
         install_sigterm()
