@@ -29,7 +29,12 @@ class _Group(click.Group):
     """Turns the library's exception family into one line on stderr and exit status 1."""
 
     def invoke(self, ctx):
-        from pmdcid.errors import PmdcidError, PmdcidWarning, one_line
+        from pmdcid.errors import PmdcidError, PmdcidWarning
+        from pmdcid.errors import one_line as _one_line
+        from pmdcid.io.escape import terminal
+
+        def one_line(text) -> str:  # shown safely first, then at most MAX_MESSAGE characters
+            return _one_line(terminal(str(text)))
 
         def _show(message, category, filename, lineno, file=None, line=None):
             if issubclass(category, PmdcidWarning):
