@@ -31,6 +31,8 @@ _LOCK = threading.Lock()
 #: set by an interrupt: every map stops handing out pieces (cleared by the next top-level map)
 CANCEL = threading.Event()
 _DEPTH = threading.local()
+#: the names of the helper threads
+PREFIX = "pmdcid-cpu"
 
 
 class Cancelled(Exception):
@@ -67,17 +69,18 @@ def _spares(n: int):
             from concurrent.futures import ThreadPoolExecutor
 
             _STATE.update(n=n, sem=threading.Semaphore(n - 1),
-                          pool=ThreadPoolExecutor(4 * n, thread_name_prefix="pmdcid-cpu"))
+                          pool=ThreadPoolExecutor(4 * n, thread_name_prefix=PREFIX))
         return _STATE["sem"], _STATE["pool"]
 
 
 def pmap(fn: Callable, items: Sequence, parallel: bool = True) -> list:
     """``[fn(x) for x in items]``, the pieces shared with the spare CPUs free at the call
-    (module doc). The first exception in item order is raised after every piece has run."""
+    (module doc). The first exception in item order is raised after every piece has run; an
+    interrupt at once (module doc)."""
     items = list(items)
-    main = threading.current_thread() is threading.main_thread()
+    helper = threading.current_thread().name.startswith(PREFIX)
     depth = getattr(_DEPTH, "n", 0)
-    if main and depth == 0:
+    if not helper and depth == 0:
         CANCEL.clear()  # a new piece of work: an earlier interrupt is over
     elif CANCEL.is_set():
         raise Cancelled()
