@@ -2,8 +2,8 @@
 
 - :func:`check_lines`: no line of a log is longer than :data:`MAX_LINE_BYTES` (a row of numbers
   never is; a 50 MB single line is an export gone wrong, which would take a minute and gigabytes
-  to parse before failing). One pass over the bytes, in chunks: a regular file is scanned
-  without being held in memory, and the scan stops at the first line past the bound.
+  to parse before failing). A quick pass reads a few kB of every 2 MB (0.4 ms for 40 MB); only
+  when a block holds no line end, an exact pass in chunks finds the line (it stops there).
 - :data:`MAX_DIAGNOSE_ROWS` (used by :mod:`pmdcid.diagnose.files`): the most rows diagnose's
   refits take from one log; longer logs are refused with the way to proceed.
 """
@@ -21,6 +21,8 @@ from pmdcid.errors import LogError
 MAX_LINE_BYTES = 4 << 20
 #: bytes scanned at a time
 SCAN_CHUNK = 8 << 20
+#: bytes read at a time by the quick pass
+PEEK = 1 << 16
 #: most rows (all logs together) diagnose takes: past it its refits take minutes and gigabytes
 #: (5 million rows: 6.5 min, 4.5 GB)
 MAX_DIAGNOSE_ROWS = 2_000_000
@@ -34,38 +36,69 @@ def _too_long(line: int, length: int, p: str):
 
 def check_lines(handle, p: str) -> None:
     """Raise :class:`LogError` naming ``p`` when a line of ``handle`` (a path, or the in-memory
-    bytes of a pipe) is longer than :data:`MAX_LINE_BYTES`."""
+    bytes of a pipe) is longer than :data:`MAX_LINE_BYTES`. A quick pass first (every aligned
+    block of half the bound must hold a line end: memchr speed, a line past the bound covers a
+    whole block), the exact scan (which line) only when a block holds none."""
     if isinstance(handle, io.BytesIO):
-        return _scan(io.BytesIO(handle.getbuffer()), p)
-    if isinstance(handle, str):
-        with open(handle, "rb") as fh:
-            return _scan(fh, p)
-    return None
+        def reopen():
+            return io.BytesIO(handle.getbuffer())
+    elif isinstance(handle, str):
+        def reopen():
+            return open(handle, "rb")
+    else:
+        return None
+    with reopen() as fh:
+        if _every_block_ends_a_line(fh):
+            return None
+    with reopen() as fh:
+        return _scan(fh, p)
+
+
+def _every_block_ends_a_line(fh) -> bool:
+    """Whether every aligned block of ``MAX_LINE_BYTES // 2`` bytes holds a line end; each
+    block is read from its start only until one is found (a few kB for a log)."""
+    half = MAX_LINE_BYTES // 2
+    head = fh.read(PEEK)
+    term = b"\r" if b"\n" not in head and b"\r" in head else b"\n"
+    block = 0
+    while True:
+        fh.seek(block)
+        seen = 0
+        while seen < half:
+            part = fh.read(min(PEEK, half - seen))
+            if not part:
+                return True  # the file ends inside this block: no whole block left
+            if term in part:
+                break
+            seen += len(part)
+        else:
+            return False
+        block += half
 
 
 def _scan(fh, p: str) -> None:
-    """Lines end at LF or CR (a CR-only export too); line numbers count LFs (CRLF: one line)."""
+    """Lines end at LF (CRLF too), or at CR in a file whose first chunk holds CR but no LF (an
+    old Mac export); one comparison per byte."""
     start = pos = 0  # where the current line starts, bytes read so far
-    newlines = 0  # LFs before this chunk
+    lines = 0  # line ends before this chunk
+    term = None
     while True:
         chunk = fh.read(SCAN_CHUNK)
         if not chunk:
             break
-        b = np.frombuffer(chunk, np.uint8)
-        lf = b == 10
-        ends = np.flatnonzero(lf | (b == 13)) + pos
+        if term is None:
+            term = 13 if b"\n" not in chunk and b"\r" in chunk else 10
+        ends = np.flatnonzero(np.frombuffer(chunk, np.uint8) == term) + pos
         if ends.size:
             gaps = np.diff(ends, prepend=start - 1) - 1
             worst = int(np.argmax(gaps))
             if gaps[worst] > MAX_LINE_BYTES:
-                begin = max(int(ends[worst] - gaps[worst]) - pos, 0)
-                raise _too_long(newlines + int(np.count_nonzero(lf[:begin])) + 1,
-                                int(gaps[worst]), p)
+                raise _too_long(lines + worst + 1, int(gaps[worst]), p)
             start = int(ends[-1]) + 1
-        newlines += int(np.count_nonzero(lf))
+            lines += ends.size
         pos += len(chunk)
         if pos - start > MAX_LINE_BYTES:
-            raise _too_long(newlines + 1, pos - start, p)
+            raise _too_long(lines + 1, pos - start, p)
     return None
 
 
