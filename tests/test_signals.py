@@ -91,3 +91,13 @@ def test_an_interrupt_cancels_the_remaining_pieces(monkeypatch):
         cpus.pmap(piece, range(40))
     assert len(ran) <= 3, f"{len(ran)} pieces ran after the interrupt"
     assert cpus.pmap(lambda x: 2 * x, range(4)) == [0, 2, 4, 6]  # the next map runs again
+
+
+def test_nohup_keeps_sighup_ignored(tmp_path):
+    """Under nohup (SIGHUP ignored) a closed terminal must not end the command."""
+    code = ("import signal, sys; signal.signal(signal.SIGHUP, signal.SIG_IGN)\n"
+            "from pmdcid.io.outputs import install_sigterm\n"
+            "install_sigterm()\n"
+            "sys.exit(0 if signal.getsignal(signal.SIGHUP) == signal.SIG_IGN else 3)\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    assert subprocess.run([sys.executable, "-c", code], env=env, timeout=60).returncode == 0

@@ -6,7 +6,8 @@
   message (EPIPE), SIGTERM -- the old versions come back and the new files go. Exit 0 means
   every promised file was written; a non-zero exit leaves nothing new behind.
 - :func:`install_sigterm`: every signal that can end a command (:data:`ENDING_SIGNALS`:
-  SIGTERM, SIGHUP -- a closed terminal or ssh session --, SIGQUIT) becomes an exception
+  SIGTERM, SIGHUP -- a closed terminal or ssh session --, SIGQUIT; one the process was started
+  ignoring, as under ``nohup``, stays ignored) becomes an exception
   (:class:`Terminated`, a BaseException like KeyboardInterrupt: no ``except Exception`` in a
   fit can swallow it), so in-flight temporary files are removed and the transaction rolled back
   like any other failure; the command exits 128 + the signal's number.
@@ -180,6 +181,8 @@ def install_sigterm() -> None:
 
     for sig in ENDING_SIGNALS:
         try:
+            if signal.getsignal(sig) == signal.SIG_IGN:  # nohup: the user asked to go on
+                continue
             signal.signal(sig, handler)
         except (ValueError, OSError):
             pass
