@@ -9,6 +9,9 @@ lumped (per-volt) path for voltage+speed logs.
 
 Results follow one protocol (:class:`~pmdcid.identify.results.ResultProtocol`): ``str()`` is
 the table, ``_repr_html_()``, ``to_dict()``, ``to_pandas()``, ``apply(model)``.
+
+An argument of the wrong type (a scalar for a log, a dict for a Model) raises a TypeError naming
+the argument before any work (:mod:`pmdcid.io.args`); a bad value a ValueError or PmdcidError.
 """
 
 from __future__ import annotations
@@ -16,19 +19,28 @@ from __future__ import annotations
 import os
 
 
-def _logs(logs) -> list:
+def _logs(logs, name: str = "logs") -> list:
     from pmdcid.errors import LogError
     from pmdcid.io.logs import Log, read_log
 
     if isinstance(logs, (Log, str, os.PathLike)):
         logs = [logs]
+    if not isinstance(logs, (list, tuple)):
+        hint = " (Log.from_dataframe(df) makes a log of a DataFrame)" if hasattr(
+            logs, "columns") or isinstance(logs, dict) else ""
+        raise TypeError(f"{name} must be a Log, a log file's path or a list of them, not "
+                        f"{type(logs).__name__}{hint}")
+    for k, lg in enumerate(logs):
+        if not isinstance(lg, (Log, str, os.PathLike)):
+            raise TypeError(f"{name}[{k}] must be a Log or a log file's path, not "
+                            f"{type(lg).__name__}")
     out = [lg if isinstance(lg, Log) else read_log(lg) for lg in logs]
     if not out:
         raise LogError("no logs given")
     return out
 
 
-def _model(model):
+def _model(model, name: str = "model"):
     """A working copy of ``model`` (a Model, a model file's path, or None for an empty one)."""
     from pmdcid.model.params import Model, load_model
 
@@ -36,7 +48,39 @@ def _model(model):
         return Model()
     if isinstance(model, (str, os.PathLike)):
         return load_model(model)
+    if not isinstance(model, Model):
+        hint = (" (pmdcid.model.params.model_from_json(d) makes a Model of a dict)"
+                if isinstance(model, dict) else "")
+        raise TypeError(f"{name} must be a Model, a model file's path or None, not "
+                        f"{type(model).__name__}{hint}")
     return model.copy()
+
+
+def _x0(x0):
+    """None, 'measured', a dict of i/omega/theta, or (i, omega, theta): finite numbers."""
+    import math
+
+    if x0 is None or (isinstance(x0, str) and x0 == "measured"):
+        return x0
+    if isinstance(x0, dict):
+        vals = dict(x0)
+        bad = [k for k in vals if k not in ("i", "omega", "theta")]
+        if bad:
+            raise ValueError(f"x0: unknown state {bad[0]!r} (give i, omega, theta)")
+    elif isinstance(x0, (list, tuple)) or hasattr(x0, "__array__"):
+        seq = list(x0)
+        if len(seq) != 3:
+            raise ValueError(f"x0 must be (i, omega, theta): 3 numbers, not {len(seq)}")
+        vals = dict(zip(("i", "omega", "theta"), seq, strict=True))
+    else:
+        raise TypeError(f"x0 must be None, 'measured', a dict or (i, omega, theta), not "
+                        f"{type(x0).__name__}")
+    for k, v in vals.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) and not hasattr(v, "__float__"):
+            raise TypeError(f"x0[{k!r}] must be a number, not {type(v).__name__}")
+        if not math.isfinite(float(v)):
+            raise ValueError(f"x0[{k!r}] must be finite, got {v!r}")
+    return x0
 
 
 def identify(logs, model=None, *, km: float | None = None, diagnose: bool = True,
@@ -46,9 +90,11 @@ def identify(logs, model=None, *, km: float | None = None, diagnose: bool = True
     ``priors``: later stages combine with earlier estimates. ``progress``: None prints stage
     lines on a terminal's stderr, False is silent, a callable receives each stage's name.
     Returns a :class:`~pmdcid.pipeline.IdentifyResult` (``.model`` is the identified model)."""
+    from pmdcid.io.args import number_arg
     from pmdcid.pipeline import identify as run
     from pmdcid.progress import resolve
 
+    km = number_arg(km, "km", positive=True)
     return run(_logs(logs), _model(model), km=km, run_diagnose=diagnose, priors=priors,
                progress=resolve(progress))
 
@@ -73,8 +119,10 @@ def fit_mechanical(logs, model, *, km: float | None = None):
     logs carry no current and the model no R). ``km`` [N m/A]: datasheet torque constant.
     Returns a :class:`~pmdcid.identify.mechanical.MechanicalResult`."""
     from pmdcid.identify.runners import lumped_if_wanted, per_volt, stage_mechanical
+    from pmdcid.io.args import number_arg
     from pmdcid.model.lumped import is_lumped
 
+    km = number_arg(km, "km", positive=True)
     logs = _logs(logs)
     work = lumped_if_wanted(logs, _model(model))
     res = stage_mechanical(logs, work, km)
@@ -95,13 +143,15 @@ def fit_nonlinear(logs, model, *, free=None, signals=None, priors: bool = True,
     from the logged reference and fitted (docs/identification.md, "Closed-loop logs").
     Returns a :class:`~pmdcid.identify.nonlinear.NonlinearResult`."""
     from pmdcid.identify.runners import lumped_if_wanted, per_volt, stage_nonlinear
+    from pmdcid.io.args import names_arg
     from pmdcid.model.lumped import is_lumped
 
+    free, signals = names_arg(free, "free"), names_arg(signals, "signals")
     logs = _logs(logs)
     work = lumped_if_wanted(logs, _model(model))
     opts = {"priors": priors}
     if free is not None:
-        opts["free"] = [free] if isinstance(free, str) else list(free)
+        opts["free"] = free
     if signals is not None:
         opts["signals"] = (signals,) if isinstance(signals, str) else tuple(signals)
     if controller is not None:
@@ -127,9 +177,10 @@ def diagnose(logs, model, *, effects=None, progress=None):
     ``effects``: names to search (default all). Returns a
     :class:`~pmdcid.diagnose.loop.DiagnoseResult` (``.model`` has the effects added)."""
     from pmdcid.diagnose.files import diagnose_logs
+    from pmdcid.io.args import names_arg
     from pmdcid.progress import resolve
 
-    effects = [effects] if isinstance(effects, str) else effects
+    effects = names_arg(effects, "effects")
     return diagnose_logs(_logs(logs), _model(model), effects=effects,
                          progress=resolve(progress))
 
@@ -140,19 +191,26 @@ def simulate(log_or_input, model, *, x0=None):
     Returns a :class:`~pmdcid.simulate.SimResult` (t, i, omega, theta; ``to_pandas()``)."""
     from pmdcid.simulate import simulate_log
 
-    (log,) = _logs(log_or_input)
-    return simulate_log(log, _model(model), x0=x0)
+    logs = _logs(log_or_input, "log_or_input")
+    if len(logs) != 1:
+        raise TypeError(f"log_or_input must be one log, not {len(logs)}: simulate each")
+    return simulate_log(logs[0], _model(model), x0=_x0(x0))
 
 
 def report(logs, model, out_dir, *, summary=None, before=None, progress=None):
     """The model against measured logs into ``out_dir`` (report.html, metrics.json, figures),
     as ``pmdcid report``. ``summary``: a diagnose summary dict; ``before``: a model to show as
     'before'. Returns a :class:`~pmdcid.report.ReportResult`."""
+    from pmdcid.io.args import path_arg
     from pmdcid.progress import resolve
     from pmdcid.report import make_report
 
+    out_dir = path_arg(out_dir, "out_dir")
+    if summary is not None and not isinstance(summary, dict):
+        raise TypeError(f"summary must be a diagnose summary (dict) or None, not "
+                        f"{type(summary).__name__}")
     return make_report(_logs(logs), _model(model), out_dir, summary=summary,
-                       before_model=_model(before) if before is not None else None,
+                       before_model=_model(before, "before") if before is not None else None,
                        progress=resolve(progress))
 
 

@@ -207,16 +207,14 @@ def simulate_files(input_paths: list[str], model_path, out_dir, echo=None, **opt
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise LogError("is a file, not a folder: with several INPUTs, -o names a folder", str(out))
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise LogError(f"cannot create the output folder ({exc.strerror or exc})",
-                       str(out)) from None
+    from pmdcid.io.outputs import output_folder
+
     written = []
-    for src in input_paths:
-        written.append(simulate_file(src, model_path, str(out / Path(src).name), **opts))
-        if echo is not None:
-            echo(f"wrote {written[-1]}")
+    with output_folder(out):  # removed again if the first write fails
+        for src in input_paths:
+            written.append(simulate_file(src, model_path, str(out / Path(src).name), **opts))
+            if echo is not None:
+                echo(f"wrote {written[-1]}")
     return written
 
 

@@ -746,8 +746,8 @@ CASES: list[Case] = [
     C("model-unit-mH-and-mNm-per-A", combine(STEP, model_units(L=(17.8, "mH"),
                                                                 km=(50.2, "mN m/A"))), SIM, 0,
       None, changes=("out.csv",)),
-    C("model-unit-unknown", combine(STEP, model_units(J=(2.0, "g cm^2"))), SIM, 1,
-      r"^error: model\.json: parameter 'J' has unit 'g cm\^2', which pmdcid cannot convert"),
+    C("model-unit-unknown", combine(STEP, model_units(J=(2.0, "oz in^2"))), SIM, 1,
+      r"^error: model\.json: parameter 'J' has unit 'oz in\^2', which pmdcid cannot convert"),
     C("model-unit-not-text", combine(STEP, text("model.json", '{"parameters": {"R": {"value": '
                                                 '2.37, "unit": 5}}}')), SIM, 1,
       r"^error: model\.json: parameter 'R' has unit 5"),

@@ -29,16 +29,24 @@ class _Group(click.Group):
     """Turns the library's exception family into one line on stderr and exit status 1."""
 
     def invoke(self, ctx):
-        from pmdcid.errors import PmdcidError, PmdcidWarning, one_line
+        from pmdcid.errors import PmdcidError, PmdcidWarning
+        from pmdcid.errors import one_line as _one_line
+        from pmdcid.io.escape import terminal
+
+        def one_line(text) -> str:  # shown safely first, then at most MAX_MESSAGE characters
+            return _one_line(terminal(str(text)))
 
         def _show(message, category, filename, lineno, file=None, line=None):
             if issubclass(category, PmdcidWarning):
-                click.echo(f"warning: {one_line(message)}", err=True)
+                echo(f"warning: {one_line(message)}", err=True)
             elif os.environ.get("PMDCID_DEBUG"):
-                click.echo(f"warning: {category.__name__}: {message}", err=True)
+                echo(f"warning: {category.__name__}: {message}", err=True)
 
         from pmdcid.io.outputs import Terminated, install_sigterm, transaction
 
+        with warnings.catch_warnings():  # click 8.2 deprecates protected_args (9: in args)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            raw = [*getattr(ctx, "protected_args", []), *ctx.args]  # the command's own words
         warnings.showwarning = _show
         warnings.simplefilter("always", PmdcidWarning)
         install_sigterm()
@@ -46,11 +54,11 @@ class _Group(click.Group):
         try:
             with transaction():  # a failing command leaves nothing new behind
                 return super().invoke(ctx)
-        except Terminated:
-            click.echo("error: terminated (SIGTERM): nothing was written", err=True)
-            sys.exit(143)
+        except Terminated as exc:
+            click.echo(f"error: terminated ({exc.name}): nothing was written", err=True)
+            sys.exit(128 + exc.signum)
         except PmdcidError as exc:
-            click.echo("error: " + one_line(str(exc)), err=True)  # always one short line
+            echo("error: " + one_line(str(exc)), err=True)  # always one short line
             sys.exit(1)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
@@ -61,20 +69,47 @@ class _Group(click.Group):
             if os.environ.get("PMDCID_DEBUG"):
                 raise
             where = f"{exc.filename}: " if exc.filename else ""
-            click.echo(one_line(f"error: {where}{exc.strerror or exc} (check the path and its "
-                                "permissions)"), err=True)
+            echo(one_line(f"error: {where}{exc.strerror or exc} (check the path and its "
+                          "permissions)"), err=True)
             sys.exit(1)
         except MemoryError:
-            click.echo("error: out of memory: the log is too large for this machine", err=True)
+            big = largest_file(raw)
+            echo(one_line(f"error: {big + ': ' if big else ''}out of memory: the log is too large "
+                          "for this machine (keep one row in k, or a part of it)"), err=True)
             sys.exit(1)
         except Exception as exc:  # never a traceback at the edge; PMDCID_DEBUG=1 shows it
             if os.environ.get("PMDCID_DEBUG"):
                 raise
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-            click.echo(one_line(f"error: internal error {type(exc).__name__}: {msg[:120]} "
-                                "(please report it; PMDCID_DEBUG=1 shows the traceback)"),
-                       err=True)
+            echo(one_line(f"error: internal error {type(exc).__name__}: {msg[:120]} "
+                          "(please report it; PMDCID_DEBUG=1 shows the traceback)"), err=True)
             sys.exit(1)
+
+
+def largest_file(raw) -> str | None:
+    """The largest existing file among the command line's words (what an out-of-memory is
+    about)."""
+    files = [a for a in raw if isinstance(a, str) and os.path.isfile(a)]
+    return max(files, key=os.path.getsize) if files else None
+
+
+def echo(text="", err: bool = False) -> None:
+    """Print a line (or a table) the way every command prints: user text in it (file, column,
+    effect names) can not reach the terminal as a control sequence
+    (:func:`pmdcid.io.escape.terminal`; newlines and tabs kept)."""
+    from pmdcid.io.escape import terminal
+
+    click.echo(terminal(text, keep_newlines=True), err=err)
+
+
+def progress_lines():
+    """The commands' progress callback: :func:`pmdcid.progress.stage_lines`, its messages
+    passed through :func:`pmdcid.io.escape.terminal`."""
+    from pmdcid.io.escape import terminal
+    from pmdcid.progress import stage_lines
+
+    lines = stage_lines()
+    return lambda msg: lines(terminal(msg))
 
 
 def tune_malloc() -> bool:

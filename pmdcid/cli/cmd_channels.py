@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 
 
 @main.command("channels")
@@ -23,7 +23,7 @@ def channels_cmd(log_file, as_json):
     if as_json:
         import json
 
-        click.echo(json.dumps([{"name": c.name, "samples": c.samples, "rate_hz": c.rate,
+        echo(json.dumps([{"name": c.name, "samples": c.samples, "rate_hz": c.rate,
                                 "unit": c.unit} for c in chans], indent=1))
         return
-    click.echo(format_channels(chans))
+    echo(format_channels(chans))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 
 
 @main.command("demo")
@@ -14,4 +14,4 @@ def demo_cmd(out_dir):
     """Run the whole pipeline on the bundled example logs and write a report."""
     from pmdcid.demo import run_demo
 
-    run_demo(out_dir, echo=click.echo)
+    run_demo(out_dir, echo=echo)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main, progress_lines
 from pmdcid.cli.options import log_options, model_option
 
 
@@ -33,11 +33,10 @@ def diagnose_cmd(logs, model_path, out_path, summary_path, effects, force, mappi
     if unknown:
         raise click.BadParameter(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})",
                                  param_hint="'--effect'")
-    from pmdcid.progress import stage_lines
 
     res = run_diagnose(list(logs), model_path, out_path, summary_path, mapping,
-                       effects=list(effects) or None, progress=stage_lines(), force=force)
-    click.echo(res.table())
-    click.echo(f"wrote {out_path}")
+                       effects=list(effects) or None, progress=progress_lines(), force=force)
+    echo(res.table())
+    echo(f"wrote {out_path}")
     if summary_path:
-        click.echo(f"wrote {summary_path}")
+        echo(f"wrote {summary_path}")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 from pmdcid.cli.options import model_option
 
 #: as pmdcid.export.FORMATS (not imported: fast --help)
@@ -26,5 +26,5 @@ def export_cmd(model_path, fmt, output, force):
     approximated and said)."""
     from pmdcid.export import export_model
 
-    for path in export_model(model_path, fmt, output, force=force, note=click.echo):
-        click.echo(f"wrote {path}")
+    for path in export_model(model_path, fmt, output, force=force, note=echo):
+        echo(f"wrote {path}")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 from pmdcid.cli.options import FiniteFloat, controller_option, log_options, model_option
 from pmdcid.model.spec import BASE_PARAMS
 
@@ -24,17 +24,19 @@ def _names(allowed):
         names = [v.strip() for v in value.split(",") if v.strip()]
         bad = [n for n in names if n not in allowed]
         if bad or not names:
-            raise click.BadParameter(f"{', '.join(bad) or 'empty'}: choose among "
+            from pmdcid.io.escape import terminal
+
+            raise click.BadParameter(f"{terminal(', '.join(bad)) or 'empty'}: choose among "
                                      f"{','.join(allowed)}")
         return names
     return parse
 
 
 def _show(result, model_path):
-    click.echo(result.table())
+    echo(result.table())
     for w in result.warnings:
-        click.echo(f"warning: {w}", err=True)
-    click.echo(f"updated {model_path}")
+        echo(f"warning: {w}", err=True)
+    echo(f"updated {model_path}")
 
 
 @main.command("fit-electrical")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main, progress_lines
 from pmdcid.cli.options import FiniteFloat, controller_option, log_options, model_option
 
 
@@ -29,14 +29,13 @@ def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, co
     """A whole rig: sort the logs, run every stage that applies, a joint fit, diagnose, and
     the report into DIR."""
     from pmdcid.pipeline import run_identify
-    from pmdcid.progress import stage_lines
 
     res = run_identify(list(logs), model_path, out_dir, mapping, km=km,
                        run_diagnose=not no_diagnose, priors=not no_prior,
-                       progress=stage_lines(), force=force, controller=controller)
-    click.echo(res.table())
+                       progress=progress_lines(), force=force, controller=controller)
+    echo(res.table())
     for w in res.warnings:
-        click.echo(f"warning: {w}", err=True)
-    click.echo(f"updated {model_path}")
+        echo(f"warning: {w}", err=True)
+    echo(f"updated {model_path}")
     if res.report_dir:
-        click.echo(f"wrote {res.report_dir}/report.html")
+        echo(f"wrote {res.report_dir}/report.html")

@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 from pmdcid.cli.options import FiniteFloat, log_options
 
 #: largest budget x rate a plan simulates (samples): 2e7 is 5.5 h at 1 kHz, ~1 GB of sensitivities
@@ -83,14 +83,14 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
     plan = guess_plan(settings) if guess else plan_for_model(load_model(model_path), settings)
     command = "pmdcid plan " + " ".join(sys.argv[2:])
     write_plan(plan, out_dir, command)
-    click.echo(f"wrote {len(plan.profiles)} profiles ({plan.seconds:.1f} s) and plan.json, "
+    echo(f"wrote {len(plan.profiles)} profiles ({plan.seconds:.1f} s) and plan.json, "
                f"plan.md into {out_dir}")
     for note in plan.notes:
-        click.echo(f"note: {note}", err=True)
+        echo(f"note: {note}", err=True)
     for n in plan.names:
         se = plan.stderr[n]
         rel = plan.relative()[n]
-        click.echo(f"  {n:<8} {plan.values[n]:12.5g} ± {se:.3g}"
+        echo(f"  {n:<8} {plan.values[n]:12.5g} ± {se:.3g}"
                    f"{f'  ({100 * rel:.2g} %)' if math.isfinite(rel) else ''}")
 
 
@@ -105,8 +105,10 @@ def _check(logs, model_path, settings, out_dir, mapping) -> None:
 
     res = check_logs(read_logs(logs, mapping), load_model(model_path), settings)
     for line in res.lines():
-        click.echo(line)
+        echo(line)
     if out_dir:
-        Path(out_dir).mkdir(parents=True, exist_ok=True)
-        atomic_write_text(Path(out_dir) / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")
-        click.echo(f"wrote {Path(out_dir) / 'check.json'}")
+        from pmdcid.io.outputs import output_folder
+
+        with output_folder(out_dir) as d:
+            atomic_write_text(d / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")
+        echo(f"wrote {Path(out_dir) / 'check.json'}")

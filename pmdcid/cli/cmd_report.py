@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main, progress_lines
 from pmdcid.cli.options import log_options, model_option
 
 
@@ -18,12 +18,14 @@ from pmdcid.cli.options import log_options, model_option
 @click.option("--before", "before_path", type=click.Path(dir_okay=False), default=None,
               metavar="MODEL", help="Model to show as 'before' (default: MODEL without its "
                                     "effects, when it has any).")
+@click.option("--force", is_flag=True,
+              help="Replace a report.html, metrics.json or figure in DIR that pmdcid did not "
+                   "write.")
 @log_options
-def report_cmd(logs, model_path, out_dir, summary_path, before_path, mapping):
+def report_cmd(logs, model_path, out_dir, summary_path, before_path, force, mapping):
     """Compare MODEL with measured LOGs: DIR/report.html, DIR/metrics.json, DIR/*.png."""
     from pmdcid.io import read_logs
     from pmdcid.model import load_model
-    from pmdcid.progress import stage_lines
     from pmdcid.report import check_out_dir, load_summary, make_report
 
     check_out_dir(out_dir)
@@ -31,6 +33,6 @@ def report_cmd(logs, model_path, out_dir, summary_path, before_path, mapping):
     before = load_model(before_path) if before_path else None
     summary = load_summary(summary_path) if summary_path else None
     res = make_report(read_logs(logs, mapping), model, out_dir, summary=summary,
-                      before_model=before, progress=stage_lines())
-    click.echo(f"wrote {res.html_path}")
-    click.echo(f"wrote {res.metrics_path} and {len(res.figures)} figures")
+                      before_model=before, progress=progress_lines(), force=force)
+    echo(f"wrote {res.html_path}")
+    echo(f"wrote {res.metrics_path} and {len(res.figures)} figures")

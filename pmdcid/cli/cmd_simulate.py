@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 from pmdcid.cli.options import (
     FiniteFloat,
     controller_option,
@@ -49,17 +49,17 @@ def simulate_cmd(input_logs, model_path, output, noise_i, noise_omega, encoder, 
     opts = dict(mapping=mapping, noise=NoiseSpec(noise_i, noise_omega, encoder), seed=seed,
                 blocked=blocked, force=force, x0=x0, controller=controller)
     if controller is not None:
-        click.echo(f"closed loop: {controller.describe()}")
+        echo(f"closed loop: {controller.describe()}")
     if len(input_logs) == 1:
         if os.path.isdir(output):
             raise click.BadParameter(f"{output!r} is a folder: with one INPUT, -o names the "
                                      "output file", param_hint="'-o' / '--output'")
-        click.echo(f"wrote {simulate_file(input_logs[0], model_path, output, **opts)}")
+        echo(f"wrote {simulate_file(input_logs[0], model_path, output, **opts)}")
         return
     names = [os.path.basename(p) for p in input_logs]
     dup = next((n for n in names if names.count(n) > 1), None)
     if dup:
-        raise click.BadParameter(f"two INPUTs are named {dup!r}: their outputs in {output} "
+        raise click.BadParameter(f"two INPUTs are named {dup!r}: their outputs in {output!r} "
                                  "would collide; simulate them in separate calls",
                                  param_hint="INPUT...")
-    simulate_files(list(input_logs), model_path, output, echo=click.echo, **opts)
+    simulate_files(list(input_logs), model_path, output, echo=echo, **opts)

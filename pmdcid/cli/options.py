@@ -54,7 +54,9 @@ def log_options(f):
         except LogError as exc:
             if exc.path is not None:  # a problem in the --map file: exit 1, names the file
                 raise
-            raise click.BadParameter(str(exc), param_hint="'-c' / '--column'") from None
+            from pmdcid.io.escape import terminal
+
+            raise click.BadParameter(terminal(str(exc)), param_hint="'-c' / '--column'") from None
         mapping.cutoff_hz = cutoff_hz
         kwargs["mapping"] = mapping
         guard_outputs()
@@ -68,17 +70,23 @@ OUTPUT_OPTIONS = frozenset({"-o", "--output"})
 OUTPUT_OPTIONS_OF = {"diagnose": frozenset({"--summary"})}
 #: parameters (besides the arguments) naming files a command only reads
 INPUT_PARAMS = frozenset({"map_file", "summary_path", "before_path"})
+#: commands that write their -m MODEL (guarded like an output)
+WRITES_MODEL = frozenset({"fit-electrical", "fit-mechanical", "fit-nonlinear",
+                          "fit-inverse-dynamics", "identify"})
 
 
 def guard_outputs(ctx: click.Context | None = None) -> None:
     """Refuse (exit 1) when an output option names an input: a LOG argument, the --map file,
     or another file the command only reads (report's ``--summary`` and ``--before``).
 
-    Runs at the edge before the command does any work, so no command can overwrite a user's log.
+    Runs at the edge before the command does any work, so no command can overwrite a user's log;
+    every output (and the model a stage writes) passes the one output guard first
+    (:func:`pmdcid.io.outputs.check_target`: no FIFO, device or symlink loop).
     """
     import os
 
     from pmdcid.errors import LogError
+    from pmdcid.io.outputs import check_target
 
     ctx = ctx or click.get_current_context(silent=True)
     if ctx is None:
@@ -93,7 +101,10 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
             outputs += [(x, p.opts[-1]) for x in vals]
         elif isinstance(p, click.Argument) or p.name in INPUT_PARAMS:
             inputs += vals
+    if ctx.command.name in WRITES_MODEL and isinstance(ctx.params.get("model_path"), str):
+        outputs.append((ctx.params["model_path"], "-m"))
     for out, opt in outputs:
+        check_target(out, option=opt)
         if not os.path.exists(out):
             continue
         for inp in inputs:

@@ -266,6 +266,9 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
     varied between samples (fit-nonlinear's reading; :mod:`pmdcid.diagnose.hold`), profiled
     here when such a log is given without it.
     """
+    from pmdcid.io import bounds
+
+    bounds.check_rows(logs, bounds.MAX_DIAGNOSE_ROWS, "diagnose")  # before the work
     rules = Rules(bic_threshold, heldout_threshold, min_z, min_gain, max_rise)
     with blas_single_thread():
         return _diagnose(logs, model, effects, split, max_samples, refit_top, rules,

@@ -11,7 +11,6 @@ elements instead, and lists what it approximates.
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -120,10 +119,11 @@ def fill(text: str, subs: dict[str, str]) -> str:
 
 
 def number(x: float, inf: str) -> str:
-    """A float literal that reads back exactly (17 significant digits); ``inf`` spells infinity."""
-    if math.isinf(x):
-        return inf if x > 0 else "-" + inf
-    return repr(float(x))
+    """A float literal that reads back exactly (17 significant digits); ``inf`` spells infinity;
+    NaN refused (:func:`pmdcid.io.escape.number`, the one rule for numbers in generated code)."""
+    from pmdcid.io.escape import number as literal
+
+    return literal(x, inf)
 
 
 def _is_ours(path: Path) -> bool:
@@ -136,7 +136,10 @@ def _is_ours(path: Path) -> bool:
 
 def check_outputs(paths: list[Path], model_path: str, force: bool) -> None:
     """Refuse to overwrite the model, or (without ``force``) a file pmdcid export did not write."""
+    from pmdcid.io.outputs import check_target
+
     for out in paths:
+        check_target(out)  # a FIFO would hang the check below; a device is never replaced
         if out.is_dir():
             raise ExportError("is a folder; give a file name to -o", str(out))
         if not out.exists():

@@ -14,6 +14,7 @@ import re
 from pathlib import Path
 
 from pmdcid.export import MARKER, ExportError, ExportSpec, fill, number, template
+from pmdcid.io.escape import c_comment, c_include
 
 _DRIVE_CHAR = {"v": "v", "tau": "t", "lumped": "l"}
 
@@ -31,10 +32,11 @@ def render(spec: ExportSpec, header_name: str) -> tuple[str, str]:
     values = dict(spec.values, omega0=spec.omega0, delay=spec.delay)
     params = "\n".join(f"    p->{n} = {number(v, 'INFINITY')};" for n, v in values.items())
     guard = "PMDC_" + re.sub(r"[^A-Za-z0-9]", "_", header_name).upper()
-    common = {"MARKER": MARKER.capitalize(), "SOURCE": spec.source}
+    common = {"MARKER": MARKER.capitalize(), "SOURCE": c_comment(spec.source)}
     header = fill(template("model.h.tmpl"), dict(
         common, GUARD=guard, DRIVE_CHAR=_DRIVE_CHAR[spec.drive],
         TORQUE_PATH="1" if spec.torque_path else "0"))
     source = fill(template("model.c.tmpl"), dict(
-        common, HEADER=header_name, CNAME=Path(header_name).stem + ".c", PARAMS=params))
+        common, HEADER=c_include(header_name), CNAME=c_comment(Path(header_name).stem + ".c"),
+        PARAMS=params))
     return source, header

@@ -12,6 +12,7 @@ import re
 from pathlib import Path
 
 from pmdcid.export import MARKER, ExportError, ExportSpec, fill, number, template
+from pmdcid.io.escape import m_comment
 
 _IDENT = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
 
@@ -33,7 +34,7 @@ def render(spec: ExportSpec, func: str) -> tuple[str, str]:
     """(function file text, script text)."""
     params = "\n".join(f"{n} = {number(v, 'Inf')};" for n, v in spec.values.items())
     input_doc = {"v": "voltage [V]", "tau": "torque [N m]", "lumped": "voltage [V]"}[spec.drive]
-    common = {"MARKER": MARKER.capitalize(), "SOURCE": spec.source, "FUNC": func,
+    common = {"MARKER": MARKER.capitalize(), "SOURCE": m_comment(spec.source), "FUNC": func,
               "INPUT_DOC": input_doc}
     fn = fill(template("model.m.tmpl"), dict(
         common, TORQUE_PATH="true" if spec.torque_path else "false", PARAMS=params,

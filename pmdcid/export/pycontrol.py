@@ -14,13 +14,14 @@ from __future__ import annotations
 import textwrap
 
 from pmdcid.export import MARKER, ExportSpec, fill, number, template
+from pmdcid.io.escape import py_text
 
 
 def render(spec: ExportSpec) -> str:
     """Source text of the generated module."""
     params = "\n".join(f"    {n!r}: {number(v, 'math.inf')}," for n, v in spec.values.items())
     return fill(template("pycontrol.py.tmpl"), {
-        "MARKER": MARKER.capitalize(), "SOURCE": spec.source, "DRIVE": spec.drive,
+        "MARKER": MARKER.capitalize(), "SOURCE": py_text(spec.source), "DRIVE": spec.drive,
         "INPUT": "tau" if spec.drive == "tau" else "v",
         "NAMES": textwrap.fill(" ".join(f"{n!r}," for n in spec.values), 96,
                                initial_indent="    ", subsequent_indent="    "),

@@ -13,6 +13,11 @@ helpers' last pieces lends its own token meanwhile. Each piece is computed by th
 whichever thread runs it and results come back in order, so every fit is bit for bit the same
 for any number of threads. ``PMDCID_THREADS=1`` (or a single CPU) runs everything serially in
 the calling thread.
+
+An interrupt (Ctrl-C, SIGTERM, SIGHUP: an exception that ends the command) stops the work
+promptly: no thread takes another piece of any map (:data:`CANCEL`), a helper thread's nested
+map raises :class:`Cancelled` at once, and the caller re-raises the interrupt as soon as the
+helpers have left the piece they were in.
 """
 
 from __future__ import annotations
@@ -23,6 +28,22 @@ from collections.abc import Callable, Sequence
 
 _STATE: dict = {}
 _LOCK = threading.Lock()
+#: set by an interrupt: every map stops handing out pieces (cleared by the next top-level map)
+CANCEL = threading.Event()
+_DEPTH = threading.local()
+#: the names of the helper threads
+PREFIX = "pmdcid-cpu"
+
+
+class Cancelled(Exception):
+    """A map was cancelled by an interrupt elsewhere (see module doc)."""
+
+
+def _interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` ends the command (Ctrl-C, SIGTERM/SIGHUP's exception, exit)."""
+    from pmdcid.io.outputs import Terminated
+
+    return isinstance(exc, (KeyboardInterrupt, SystemExit, Terminated, Cancelled))
 
 
 def workers() -> int:
@@ -48,15 +69,29 @@ def _spares(n: int):
             from concurrent.futures import ThreadPoolExecutor
 
             _STATE.update(n=n, sem=threading.Semaphore(n - 1),
-                          pool=ThreadPoolExecutor(4 * n, thread_name_prefix="pmdcid-cpu"))
+                          pool=ThreadPoolExecutor(4 * n, thread_name_prefix=PREFIX))
         return _STATE["sem"], _STATE["pool"]
 
 
 def pmap(fn: Callable, items: Sequence, parallel: bool = True) -> list:
     """``[fn(x) for x in items]``, the pieces shared with the spare CPUs free at the call
-    (module doc). The first exception in item order is raised after every piece has run."""
+    (module doc). The first exception in item order is raised after every piece has run; an
+    interrupt at once (module doc)."""
     items = list(items)
-    n = workers() if parallel else 1
+    helper = threading.current_thread().name.startswith(PREFIX)
+    depth = getattr(_DEPTH, "n", 0)
+    if not helper and depth == 0:
+        CANCEL.clear()  # a new piece of work: an earlier interrupt is over
+    elif CANCEL.is_set():
+        raise Cancelled()
+    _DEPTH.n = depth + 1
+    try:
+        return _pmap(fn, items, workers() if parallel else 1)
+    finally:
+        _DEPTH.n = depth
+
+
+def _pmap(fn: Callable, items: list, n: int) -> list:
     if n < 2 or len(items) < 2:
         return [fn(x) for x in items]
     sem, pool = _spares(n)
@@ -67,7 +102,7 @@ def pmap(fn: Callable, items: Sequence, parallel: bool = True) -> list:
 
     def take():
         with take_lock:
-            return next(order, None)
+            return None if CANCEL.is_set() else next(order, None)
 
     def work():
         k = take()
@@ -76,6 +111,8 @@ def pmap(fn: Callable, items: Sequence, parallel: bool = True) -> list:
                 results[k] = fn(items[k])
             except BaseException as exc:  # noqa: BLE001 - re-raised in the caller, in order
                 errors[k] = exc
+                if _interrupt(exc):
+                    CANCEL.set()
             k = take()
 
     def helper():
@@ -93,14 +130,27 @@ def pmap(fn: Callable, items: Sequence, parallel: bool = True) -> list:
     if helpers:
         sem.release()  # lend this thread's CPU while the helpers finish their pieces
         try:
-            for h in helpers:
-                h.result()
+            _wait(helpers)
         finally:
             sem.acquire()
-    for e in errors:
-        if e is not None:
-            raise e
+    first = next((e for e in errors if e is not None and _interrupt(e)), None)
+    first = first or next((e for e in errors if e is not None), None)
+    if first is not None:
+        raise first
     return results
+
+
+def _wait(helpers) -> None:
+    """Wait for the helpers; an interrupt meanwhile cancels their remaining pieces, and is
+    raised once they have left the piece they were in."""
+    try:
+        for h in helpers:
+            h.result()
+    except BaseException:
+        CANCEL.set()
+        for h in helpers:
+            h.exception()
+        raise
 
 
 __all__ = ["pmap", "workers"]

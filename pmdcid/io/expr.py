@@ -25,6 +25,10 @@ import numpy as np
 from pmdcid.errors import LogError
 
 FUNCS = {"sign": np.sign, "abs": np.abs}
+#: longest expression [characters] and deepest nesting (parentheses and signs in a row) a
+#: mapping may have: checked before parsing, so no input reaches Python's recursion limit
+MAX_EXPR_CHARS = 400
+MAX_EXPR_DEPTH = 32
 
 _TOKEN = re.compile(r"""\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)
                           |(?P<name>[A-Za-z_][A-Za-z0-9_.]*)
@@ -111,9 +115,35 @@ class _Parser:
             self.fail("a '(' is not closed")
 
 
+def _nesting(tokens) -> int:
+    """Deepest nesting of ``tokens``: open parentheses plus signs in a row."""
+    deepest = depth = signs = 0
+    prev = None
+    for kind, val in tokens:
+        if kind == "op" and val == "(":
+            depth += 1
+        elif kind == "op" and val == ")":
+            depth -= 1
+        signs = signs + 1 if kind == "op" and val in "+-" and prev in (None, "(", "+", "-", "*",
+                                                                        "/") else 0
+        deepest = max(deepest, depth + signs)
+        prev = val if kind == "op" else "x"
+    return deepest
+
+
 def parse_expr(src: str, text: str, units: dict[str, float]):
-    """Parse ``src`` (the right-hand side of mapping ``text``) into a tree (see module doc)."""
-    p = _Parser(_tokens(src, text), text, units)
+    """Parse ``src`` (the right-hand side of mapping ``text``) into a tree (see module doc).
+    An expression longer than :data:`MAX_EXPR_CHARS` or nested deeper than
+    :data:`MAX_EXPR_DEPTH` is refused before parsing (one line)."""
+    short = text if len(text) <= 60 else text[:40] + "..."
+    if len(src) > MAX_EXPR_CHARS:
+        raise LogError(f"column mapping '{short}': the expression is {len(src)} characters long "
+                       f"(at most {MAX_EXPR_CHARS}): map a simpler expression")
+    toks = _tokens(src, text)
+    if _nesting(toks) > MAX_EXPR_DEPTH:
+        raise LogError(f"column mapping '{short}': nested deeper than {MAX_EXPR_DEPTH} levels "
+                       "(parentheses or signs): simplify it")
+    p = _Parser(toks, text, units)
     node = p.expr()
     if p.k != len(p.toks):
         p.fail(f"unexpected '{p.toks[p.k][1]}'")

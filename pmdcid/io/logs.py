@@ -152,9 +152,10 @@ class Log:
     def from_dataframe(cls, df, *, columns=None, name: str = "dataframe", cutoff_hz=None,
                        meta: dict | None = None) -> Log:
         """A log from a pandas DataFrame, mapped and checked exactly as a CSV file is."""
+        from pmdcid.io.args import frame_arg
         from pmdcid.io.build import as_mapping, log_from_frame
 
-        return log_from_frame(df, as_mapping(columns, None, cutoff_hz), name, meta)
+        return log_from_frame(frame_arg(df), as_mapping(columns, None, cutoff_hz), name, meta)
 
     @classmethod
     def from_arrays(cls, t, *, v=None, tau=None, i=None, omega=None, theta=None,
@@ -162,10 +163,12 @@ class Log:
         """A log from SI arrays: ``t`` [s], ``v`` [V] or ``tau`` [N m], ``i`` [A], ``omega``
         [rad/s], ``theta`` [rad]; checked as a CSV file is (uniform time, finite values, speed
         derived from the angle or the reverse)."""
+        from pmdcid.io.args import array_arg
         from pmdcid.io.build import log_from_arrays
 
-        return log_from_arrays(t, name, cutoff_hz, meta, v=v, tau=tau, i=i, omega=omega,
-                               theta=theta)
+        cols = {k: None if a is None else array_arg(a, k)
+                for k, a in dict(v=v, tau=tau, i=i, omega=omega, theta=theta).items()}
+        return log_from_arrays(array_arg(t, "t"), name, cutoff_hz, meta, **cols)
 
 
 def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
@@ -223,6 +226,9 @@ def read_table(p: str):
     if os.path.isdir(p):
         raise LogError("is a folder, not a log file", p)
     src = open_source(p)
+    from pmdcid.io.bounds import check_lines
+
+    check_lines(src.handle, p)  # before any parsing: a 50 MB line fails at once
     meta, nskip = _split_comments(src.head, p)
     sniff(src, nskip)
     df = None
@@ -326,6 +332,7 @@ def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
     """
     from pmdcid.io import outputs
 
+    outputs.check_target(path)  # regular files only, no symlink loop
     p = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.exists():

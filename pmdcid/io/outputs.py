@@ -5,20 +5,35 @@
   is noted; when the command fails -- any error, a full disk, stdout closed under the final
   message (EPIPE), SIGTERM -- the old versions come back and the new files go. Exit 0 means
   every promised file was written; a non-zero exit leaves nothing new behind.
-- :func:`install_sigterm`: SIGTERM becomes an exception, so in-flight temporary files are
-  removed and the transaction rolled back like any other failure.
+- :func:`install_sigterm`: every signal that can end a command (:data:`ENDING_SIGNALS`:
+  SIGTERM, SIGHUP -- a closed terminal or ssh session --, SIGQUIT; one the process was started
+  ignoring, as under ``nohup``, stays ignored) becomes an exception
+  (:class:`Terminated`, a BaseException like KeyboardInterrupt: no ``except Exception`` in a
+  fit can swallow it), so in-flight temporary files are removed and the transaction rolled back
+  like any other failure; the command exits 128 + the signal's number.
 - :func:`locked`: an exclusive ``flock`` on the folder holding a model, for a stage's
   read-modify-write of the model file (two stages on one model both land their updates).
 - :func:`check_overwrite`: an existing output that is not what pmdcid writes there (a model,
   a diagnose summary) is only replaced with ``--force``.
+- :func:`check_target`: the one output guard, before any work and again at every write: pmdcid
+  writes regular files only (a FIFO, a device, a socket refused even with ``--force``: ``-o
+  /dev/null`` is never replaced), a symlink loop is refused, and a file a command writes into
+  an output folder never goes through a symlink leading out of that folder.
+- :func:`output_folder`: an output folder created for a block of writes is removed again when
+  the block fails (a full disk leaves no empty folder), inside a command or not.
+- :func:`check_folder_outputs`: the files a command writes into a folder (report's
+  report.html, metrics.json, figures): guarded as above, and an existing one the tool did not
+  write is only replaced with ``--force`` (the rule simulate, export and diagnose follow).
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
 import signal
+import stat
 import tempfile
 import threading
 from contextlib import contextmanager
@@ -111,28 +126,47 @@ def current() -> Transaction | None:
     return _CURRENT[-1] if _CURRENT else None
 
 
+#: the signals that end a command, each handled as SIGTERM is (names: absent on some platforms)
+ENDING_SIGNALS = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP", "SIGQUIT")
+                       if hasattr(signal, n))
+
+
 @contextmanager
 def sigterm_deferred():
-    """SIGTERM held back for the block (main thread, POSIX): a temporary file created and
-    registered in :data:`IN_FLIGHT` inside it is never left behind by a SIGTERM arriving between
-    the two (the signal is delivered, and the file removed, once the block ends)."""
+    """The ending signals held back for the block (main thread, POSIX): a temporary file
+    created and registered in :data:`IN_FLIGHT` inside it is never left behind by a signal
+    arriving between the two (the signal is delivered, and the file removed, once the block
+    ends)."""
     mask = getattr(signal, "pthread_sigmask", None)
     if mask is None or threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = mask(signal.SIG_BLOCK, {signal.SIGTERM})
+    old = mask(signal.SIG_BLOCK, set(ENDING_SIGNALS))
     try:
         yield
     finally:
         mask(signal.SIG_SETMASK, old)
 
 
-class Terminated(Exception):
-    """SIGTERM arrived: unwind, clean up, exit 143."""
+class Terminated(BaseException):
+    """An ending signal arrived (SIGTERM, SIGHUP, SIGQUIT): unwind, clean up, exit 128 + its
+    number. A BaseException, as KeyboardInterrupt: ``except Exception`` never swallows it."""
+
+    def __init__(self, signum: int = getattr(signal, "SIGTERM", 15)):
+        super().__init__(signum)
+        self.signum = signum
+
+    @property
+    def name(self) -> str:
+        try:
+            return signal.Signals(self.signum).name
+        except ValueError:
+            return f"signal {self.signum}"
 
 
 def install_sigterm() -> None:
-    """Turn SIGTERM into :class:`Terminated` (main thread only; a no-op elsewhere)."""
+    """Turn every signal of :data:`ENDING_SIGNALS` into :class:`Terminated` (main thread only;
+    a no-op elsewhere)."""
     if threading.current_thread() is not threading.main_thread():
         return
 
@@ -143,12 +177,15 @@ def install_sigterm() -> None:
                     os.unlink(tmp)
                 except OSError:
                     pass
-        raise Terminated()
+        raise Terminated(signum)
 
-    try:
-        signal.signal(signal.SIGTERM, handler)
-    except (ValueError, OSError):
-        pass
+    for sig in ENDING_SIGNALS:
+        try:
+            if signal.getsignal(sig) == signal.SIG_IGN:  # nohup: the user asked to go on
+                continue
+            signal.signal(sig, handler)
+        except (ValueError, OSError):
+            pass
 
 
 @contextmanager
@@ -194,3 +231,106 @@ def check_overwrite(path, kind: str, force: bool = False, option: str = "-o") ->
     if not ours:
         raise LogError(f"exists and is not a pmdcid {kind} file: {option} would overwrite it; "
                        "choose another name, or use --force", p)
+
+
+_KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+def _special(mode: int) -> str | None:
+    return next((name for test, name in _KINDS if test(mode)), None)
+
+
+def check_target(path, folder=None, option: str = "-o") -> None:
+    """The one output guard (see module doc): raise a one-line :class:`LogError` naming
+    ``path`` when it is a symlink loop or exists and is not a regular file or a folder, or --
+    with ``folder``, the output folder it is written into -- when it leads out of ``folder``."""
+    p = str(path)
+    try:
+        st = os.stat(p)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise LogError("is a symlink loop: pmdcid will not replace it; remove the link or "
+                           f"choose another {option}", p) from None
+        st = None
+    if st is not None:
+        kind = _special(st.st_mode)
+        if kind is not None:
+            raise LogError(f"is {kind}, not a regular file: pmdcid writes regular files only "
+                           f"(even with --force); choose another {option}", p)
+    if folder is not None and os.path.islink(p):
+        base = os.path.realpath(folder)
+        real = os.path.realpath(p)
+        if os.path.commonpath([base, real]) != base:
+            raise LogError(f"is a symlink leading out of the output folder {folder} (to {real}): "
+                           f"pmdcid never writes through it; remove the link or choose another "
+                           f"{option}", p)
+
+
+def _is_png(path: str) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(8) == b"\x89PNG\r\n\x1a\n"
+    except OSError:
+        return False
+
+
+def _is_report_page(path: str) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            return b"<title>pmdcid report" in fh.read(4096)
+    except OSError:
+        return False
+
+
+def _is_metrics(path: str) -> bool:
+    obj = _json_object(path)
+    return obj is not None and {"version", "parameters", "logs"} <= set(obj)
+
+
+#: what pmdcid writes under each name of an output folder (by suffix): how it recognises its own
+OURS_IN_FOLDER = {"report.html": _is_report_page, "metrics.json": _is_metrics, ".png": _is_png}
+
+
+def _ours_in_folder(path: str) -> bool:
+    name = os.path.basename(path)
+    test = OURS_IN_FOLDER.get(name) or OURS_IN_FOLDER.get(os.path.splitext(name)[1])
+    return test is not None and test(path)
+
+
+def check_folder_outputs(folder, names, force: bool = False, option: str = "-o") -> None:
+    """Refuse, before anything is written, a file ``names`` would replace in ``folder`` that is
+    not a regular file inside it (:func:`check_target`), or -- without ``force`` -- that pmdcid
+    did not write (:data:`OURS_IN_FOLDER`)."""
+    for name in names:
+        target = os.path.join(str(folder), name)
+        check_target(target, folder, option)
+        if force or not os.path.lexists(target) or not os.path.exists(target):
+            continue
+        if os.path.isdir(target) or not _ours_in_folder(target):
+            raise LogError(f"exists and was not written by pmdcid: {option} {folder} would "
+                           "replace it; move it, choose another folder, or use --force", target)
+
+
+@contextmanager
+def output_folder(path):
+    """Create the folder ``path`` (parents too) for the block's writes; yield it as a Path. The
+    folders this created are removed when the block fails: by the command's rollback inside a
+    transaction, at once outside one (the library's functions)."""
+    from pathlib import Path
+
+    p = Path(path)
+    first_new = next((a for a in reversed([p, *p.parents]) if not os.path.lexists(a)), None)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise LogError(f"cannot create the output folder ({exc.strerror or exc})", str(p)) from None
+    tr = current()
+    if first_new is not None and tr is not None:
+        tr.created_dir(str(first_new))
+    try:
+        yield p
+    except BaseException:
+        if first_new is not None and tr is None:
+            shutil.rmtree(first_new, ignore_errors=True)
+        raise

@@ -8,6 +8,7 @@ effects in :mod:`pmdcid.model.effects`.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -43,6 +44,10 @@ class Model:
     effects: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
     path: str | None = None
+    #: (file, what it held) when the model was read or last saved (:func:`file_digest`; None:
+    #: neither). Saving back to that file checks it first: optimistic locking, see
+    #: :func:`save_model`
+    digest: tuple[str, str] | None = field(default=None, repr=False, compare=False)
 
     def value(self, name: str, default: float | None = None) -> float:
         if name in self.parameters:
@@ -77,7 +82,8 @@ class Model:
 
     def copy(self) -> Model:
         return Model({k: Parameter(**vars(v)) for k, v in self.parameters.items()},
-                     list(self.effects), json.loads(json.dumps(self.extra)), self.path)
+                     list(self.effects), json.loads(json.dumps(self.extra)), self.path,
+                     self.digest)
 
     @classmethod
     def load(cls, path: str | os.PathLike, must_exist: bool = True) -> Model:
@@ -204,7 +210,7 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
             entry = {"value": entry}
         if not isinstance(entry, dict) or "value" not in entry:
             raise ModelError(f"parameter '{name}' must be an object with a 'value'", path)
-        unit = entry.get("unit")
+        unit = _unit_of_entry(name, entry, path)
         v = _check_value(name, entry["value"], path, unit, lumped)
         se = entry.get("stderr")
         se = float(se) if isinstance(se, (int, float)) and not isinstance(se, bool) else math.nan
@@ -229,53 +235,157 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
             warn(f"model lists effect '{e}' but lacks its parameter(s) {', '.join(lacking)}: "
                  "they are taken as neutral (effect off); run diagnose to identify them", path)
     model.extra = {k: v for k, v in obj.items() if k not in ("parameters", "effects")}
+    from pmdcid.model.plausible import check_plausible
+
+    check_plausible({k: p.value for k, p in model.parameters.items()}, path, lumped)
     return model
+
+
+def _unit_of_entry(name: str, entry: dict, path):
+    """A parameter's unit: ``unit`` (or ``units``, ``Unit``: a unit is never ignored because
+    of its key's spelling); two different ones are refused."""
+    given = {k: entry[k] for k in entry if str(k).strip().lower() in ("unit", "units")}
+    units = {str(u) for u in given.values() if u not in (None, "")}
+    if len(units) > 1:
+        raise ModelError(f"parameter '{name}' gives two units ({', '.join(sorted(units))}): "
+                         "keep one", path)
+    return next(iter(given.values()), None) if len(given) <= 1 else next(iter(units), None)
+
+
+class _Duplicate(ValueError):
+    pass
+
+
+def _pairs(pairs):
+    """JSON object from its key/value pairs: a key given twice is refused, never the last taken."""
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise _Duplicate(f"key {k[:40]!r} is given twice in one object")
+        out[k] = v
+    return out
+
+
+def parse_model_json(text: str, path):
+    """The model file's JSON, strictly: a key given twice (``R`` twice) refused with one line
+    naming the file; ``NaN``/``Infinity`` (not JSON) are refused as a parameter's value, and
+    elsewhere (an extra key) written back as ``null``, never as an invalid token."""
+    try:
+        return json.loads(text, object_pairs_hook=_pairs)
+    except _Duplicate as exc:
+        raise ModelError(f"model file is ambiguous: {exc}; repair it", path) from None
 
 
 def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
     """Read a model file. A missing file gives an empty model when ``must_exist`` is false."""
-    p = str(path)
+    from pmdcid.io.args import path_arg
+
+    p = path_arg(path, "path")
+    if os.path.islink(p) and not os.path.exists(p):
+        from pmdcid.io.outputs import check_target
+
+        check_target(p, option="-m")  # a symlink loop: one line (a dangling link: created)
     if not os.path.exists(p):
         if must_exist:
             raise ModelError("no such model file (run a fit stage first to create it)", p)
-        return Model(path=p)
+        return Model(path=p, digest=(p, ABSENT))
     if os.path.isdir(p):
         raise ModelError("is a folder, not a model file", p)
-    from pmdcid.io.text import read_text
+    from pmdcid.io.text import decode
 
     try:
-        text = read_text(p)
+        with open(p, "rb") as fh:
+            data = fh.read()
+        text = decode(data)
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"cannot read model file ({getattr(exc, 'strerror', exc)})", p) from None
     if not text.strip():
         raise ModelError("model file is empty (delete it to start afresh)", p)
     try:
-        obj = json.loads(text)
+        obj = parse_model_json(text, p)
     except json.JSONDecodeError as exc:
         raise ModelError(f"model file is not valid JSON (line {exc.lineno}: {exc.msg}): "
                          "repair it, or delete it to start afresh", p) from None
     except (ValueError, RecursionError) as exc:  # e.g. an integer of more than 4300 digits
         raise ModelError(f"model file is not usable JSON ({str(exc)[:60]}): repair it, or "
                          "delete it to start afresh", p) from None
-    return model_from_json(obj, p)
+    model = model_from_json(obj, p)
+    model.digest = (p, hashlib.sha256(data).hexdigest())
+    return model
+
+
+#: the digest of a model file that did not exist when it was read
+ABSENT = "absent"
+
+
+def file_digest(path) -> str:
+    """sha256 of the file's bytes (:data:`ABSENT` when there is none, or it cannot be read: the
+    write that follows says why)."""
+    try:
+        with open(path, "rb") as fh:
+            return hashlib.sha256(fh.read()).hexdigest()
+    except OSError:
+        return ABSENT
+
+
+def _same_file(a, b) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def check_unchanged(model: Model, path) -> None:
+    """Optimistic locking: a model read from ``path`` is written back only if ``path`` still
+    holds what was read (another command, e.g. a stage run meanwhile, would lose its results)."""
+    if model.digest is None or not _same_file(model.digest[0], path):
+        return
+    if file_digest(path) != model.digest[1]:
+        raise ModelError("the model file changed since this command read it (another pmdcid "
+                         "command or an editor wrote it): nothing was written; rerun the command "
+                         "to build on the new file", str(path))
+
+
+def finite_json(x):
+    """A copy of ``x`` with every non-finite float as None: what JSON can hold."""
+    if isinstance(x, dict):
+        return {k: finite_json(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [finite_json(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
 
 
 def save_model(model: Model, path: str | os.PathLike) -> None:
     """Write the model file atomically (temporary file in the same folder, then rename).
 
-    Every value is checked against the bounds the loader applies first: the tool never writes a
-    model it would then refuse to read.
+    Every value is checked against the bounds (and the plausibility rule) the loader applies
+    first: the tool never writes a model it would then refuse to read. A model read from
+    ``path`` is written back only if the file still holds what was read (:func:`check_unchanged`,
+    optimistic locking; the stage runners call this under :func:`pmdcid.io.outputs.locked`).
     """
+    from pmdcid.io.args import path_arg
     from pmdcid.io.logs import atomic_write_text
 
+    path_arg(path, "path")
+    if not isinstance(model, Model):
+        raise TypeError(f"model must be a Model, not {type(model).__name__}")
     for name, par in model.parameters.items():
         check_bounds(name, par.value, str(path))
+    from pmdcid.model.plausible import check_plausible
 
+    check_plausible({k: p.value for k, p in model.parameters.items()}, str(path),
+                    model.extra.get("lumped") is True)
+
+    text = json.dumps(finite_json(model.to_json()), indent=2, allow_nan=False) + "\n"
+    check_unchanged(model, path)  # under the caller's lock, just before the atomic replace
     try:
-        atomic_write_text(path, json.dumps(model.to_json(), indent=2) + "\n")
+        atomic_write_text(path, text)
     except Exception as exc:
         from pmdcid.errors import PmdcidError
 
         if isinstance(exc, PmdcidError):
             raise ModelError(str(exc)) from None
         raise
+    model.digest = (str(path), file_digest(path))

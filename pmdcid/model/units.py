@@ -9,6 +9,8 @@ read must not be used as if it were SI.
 
 from __future__ import annotations
 
+import re
+
 from pmdcid.errors import ModelError
 
 PREFIXES: dict[str, float] = {
@@ -35,11 +37,25 @@ def _norm(unit: str) -> str:
     return u
 
 
+_INERTIA = re.compile(r"([pnumck]?)g([pnumck]?)m\^2")
+
+
+def _inertia_factor(u: str) -> float | None:
+    """A moment of inertia in prefixed grams and metres (``g cm^2``, ``kg mm^2``, ``g m^2``)
+    -> kg m^2."""
+    m = _INERTIA.fullmatch(u)
+    if m is None:
+        return None
+    return PREFIXES[m.group(1)] * 1e-3 * PREFIXES[m.group(2)] ** 2
+
+
 def unit_factor(unit: str, canonical: str) -> float | None:
     """Factor turning a value in ``unit`` into ``canonical`` (None: not a prefixed form of it)."""
     u, c = _norm(unit), _norm(canonical)
     if u in ("", c):
         return 1.0
+    if c == "kgm^2" and _inertia_factor(u) is not None:
+        return _inertia_factor(u)
     forms = (c, *ALIASES.get(c, ()))
     for form in forms:
         if u == form:

@@ -103,19 +103,21 @@ def check_out_dir(folder: str | os.PathLike) -> None:
 
 def write_plan(plan: Plan, folder: str | os.PathLike, command: str = "") -> list[str]:
     """Write the profiles, plan.json and plan.md into ``folder`` (created). Returns the paths."""
+    from pmdcid.io.outputs import output_folder
+
     d = Path(folder)
     check_out_dir(d)
-    d.mkdir(parents=True, exist_ok=True)
     written = []
-    for p in plan.profiles:
-        meta = {"generator": GENERATOR,
-                "kind": "blocked-rotor" if p.blocked else p.kind.replace("_", "-"),
-                "purpose": p.purpose, "units": f"{p.units:.3g}", **p.meta}
-        path = d / f"{p.name}.csv"
-        write_log(path, p.t, {plan.drive.column: p.u}, meta)
-        written.append(str(path))
-    atomic_write_text(d / "plan.json", json.dumps(plan_json(plan), indent=2) + "\n")
-    atomic_write_text(d / "plan.md", plan_markdown(plan, command))
+    with output_folder(d):  # removed again if a write fails
+        for p in plan.profiles:
+            meta = {"generator": GENERATOR,
+                    "kind": "blocked-rotor" if p.blocked else p.kind.replace("_", "-"),
+                    "purpose": p.purpose, "units": f"{p.units:.3g}", **p.meta}
+            path = d / f"{p.name}.csv"
+            write_log(path, p.t, {plan.drive.column: p.u}, meta)
+            written.append(str(path))
+        atomic_write_text(d / "plan.json", json.dumps(plan_json(plan), indent=2) + "\n")
+        atomic_write_text(d / "plan.md", plan_markdown(plan, command))
     return written + [str(d / "plan.json"), str(d / "plan.md")]
 
 

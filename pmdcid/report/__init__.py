@@ -159,15 +159,19 @@ def _before_after(logs, names, model: Model, before_model: Model | None) -> dict
 
 
 def make_report(logs, model: Model, out_dir, summary: dict | None = None,
-                before_model: Model | None = None, progress=None) -> ReportResult:
+                before_model: Model | None = None, progress=None,
+                force: bool = False) -> ReportResult:
     """Compare ``model`` with every log and write the report into ``out_dir`` (see module doc).
 
     ``summary`` is a diagnose summary (CONTRACT.md) shown on the page; without it a
     ``diagnose`` record in ``model.extra`` is used. When the model carries effects (or
     ``before_model`` is given) the page shows the error before and after them.
     ``progress(msg)`` is called before each log's simulation and before the figures.
+    An existing report.html, metrics.json or figure pmdcid did not write is replaced only with
+    ``force`` (:func:`pmdcid.io.outputs.check_folder_outputs`).
     """
     from pmdcid import __version__
+    from pmdcid.io.outputs import check_folder_outputs, output_folder
     from pmdcid.report import html
     from pmdcid.report.compare import compare_log, mean_errors, unique_names
     from pmdcid.report.metrics import LOW_SPEED_FRACTION, MAX_LAG
@@ -177,6 +181,7 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
         raise LogError("no log files given")
     check_out_dir(out_dir)
     names = unique_names(logs)
+    check_folder_outputs(out_dir, _file_names(names), force)  # before the work, and again below
     say = progress or (lambda msg: None)
     # started before the simulations: the workers' imports overlap them (report/parallel.py)
     with FigureDrawer(2 * len(logs) + 2) as drawer:
@@ -210,13 +215,14 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     page = html.render(metrics, figs)
     _refuse_overwriting_inputs(out_dir, [*figs, "metrics.json", "report.html"],
                                [str(lg.path) for lg in logs] + [model.path or ""])
-    out = make_out_dir(out_dir)
-    for name, png in figs.items():
-        write_bytes_atomic(out / name, png)
-    metrics_path = out / "metrics.json"
-    html_path = out / "report.html"
-    write_bytes_atomic(metrics_path, (json.dumps(metrics, indent=1) + "\n").encode())
-    write_bytes_atomic(html_path, page.encode("utf-8"))
+    check_folder_outputs(out_dir, [*figs, "metrics.json", "report.html"], force)
+    with output_folder(out_dir) as out:  # removed again if a write fails
+        for name, png in figs.items():
+            write_bytes_atomic(out / name, png)
+        metrics_path = out / "metrics.json"
+        html_path = out / "report.html"
+        write_bytes_atomic(metrics_path, (json.dumps(metrics, indent=1) + "\n").encode())
+        write_bytes_atomic(html_path, page.encode("utf-8"))
     return ReportResult(str(out), str(html_path), str(metrics_path), metrics, sorted(figs))
 
 
@@ -240,6 +246,12 @@ def figure_jobs(cmps, ba: dict | None, names: list[str]) -> list:
         jobs.append(FigureJob("before_after.png", figures.before_after_figure,
                               (names, ba["before"], ba["after"])))
     return jobs
+
+
+def _file_names(names: list[str]) -> list[str]:
+    """The files a report of logs ``names`` writes (as :func:`figure_jobs` names them)."""
+    figs = [f"{n}_{kind}.png" for n in names for kind in ("overlay", "residual")]
+    return [*figs, "fit.png", "before_after.png", "metrics.json", "report.html"]
 
 
 def _refuse_overwriting_inputs(out_dir, names, inputs) -> None:

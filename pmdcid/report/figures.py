@@ -13,6 +13,7 @@ import io
 
 import numpy as np
 
+from pmdcid.io.escape import mpl_text
 from pmdcid.report.decimate import envelope_indices, scatter_indices
 
 DPI = 100
@@ -196,7 +197,7 @@ def overlay_figure(cmp, pool: FigurePool | None = None) -> bytes:
                      fontsize=9)
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("time [s]")
-    fig.suptitle(f"{cmp.name}: measured and simulated", fontsize=11)
+    fig.suptitle(f"{mpl_text(cmp.name)}: measured and simulated", fontsize=11)
     return _png(fig)
 
 
@@ -246,13 +247,13 @@ def residual_figure(cmp, pool: FigurePool | None = None) -> bytes:
         ax.set_xlabel("lag [s]")
         ax.set_title(title, fontsize=9)
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{cmp.name}: {s} residual", fontsize=11)
+    fig.suptitle(f"{mpl_text(cmp.name)}: {s} residual", fontsize=11)
     return _png(fig)
 
 
 def fit_figure(rows: list[tuple[str, dict]]) -> bytes:
     """Fit % per log and signal (MATLAB compare's figure of merit), near-zero speed vs rest."""
-    labels = [f"{name} {s}" for name, sig in rows for s in sig]
+    labels = [f"{mpl_text(name)} {s}" for name, sig in rows for s in sig]
     left = 0.3 + 0.065 * max(len(x) for x in labels)
     fig, axes = _new(1, 2, 1.6 + 0.3 * len(labels), left=left, wspace=left / 4.5)
     fits = [sig[s]["fit_percent"] for _, sig in rows for s in sig]
@@ -283,7 +284,7 @@ def before_after_figure(names: list[str], before: list[dict], after: list[dict])
     labels, b, a = [], [], []
     for name, rb, ra in zip(names, before, after, strict=True):
         for s in ra:
-            labels.append(f"{name} {s}")
+            labels.append(f"{mpl_text(name)} {s}")
             b.append(rb.get(s) or 0.0)
             a.append(ra.get(s) or 0.0)
     left = 0.3 + 0.065 * max((len(x) for x in labels), default=4)

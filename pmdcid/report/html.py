@@ -36,10 +36,15 @@ def fmt(v, digits: int = 4) -> str:
 
 
 def get_path(metrics: dict, path: str):
-    """The value at a dotted path of ``metrics`` (list indices as numbers)."""
-    cur = metrics
-    for part in path.split("."):
-        cur = cur[int(part)] if isinstance(cur, list) else cur[part]
+    """The value at a dotted path of ``metrics`` (list indices as numbers). A key may hold dots
+    itself (a parameter ``my.param``, a log ``run.2``): the longest key present is taken."""
+    cur, parts = metrics, path.split(".")
+    while parts:
+        if isinstance(cur, list):
+            cur, parts = cur[int(parts[0])], parts[1:]
+            continue
+        n = next((k for k in range(len(parts), 0, -1) if ".".join(parts[:k]) in cur), 1)
+        cur, parts = cur[".".join(parts[:n])], parts[n:]
     return cur
 
 
