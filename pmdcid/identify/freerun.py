@@ -34,6 +34,12 @@ from pmdcid.identify.simfit import format_estimates
 from pmdcid.model import Model
 
 STAGE = "fit-electrical"
+#: the stage name of a km written as ke (no datasheet km)
+KM_FROM_KE = "ke (km = ke, no datasheet)"
+#: what that means, in words (the result's warning and identify's note)
+KM_FROM_KE_NOTE = ("no datasheet km: km = ke = {ke:.4g} is written (an ideal motor's torque and "
+                   "back-EMF constants are one number in SI, N m/A = V s/rad; iron and brush "
+                   "losses make the true km slightly smaller); give --km to use the datasheet's")
 #: L/R below this many sample periods: L is not resolved by the sampling
 MIN_TAU_SAMPLES = 2.0
 #: ... or when its relative standard error exceeds this
@@ -107,6 +113,8 @@ class FreeRunResult:
             e = self.estimates["ke"]
             model.set("ke", e.value, e.stderr, e.unit, stage=STAGE)
             model.add_effect("back_emf")
+            if not model.has("km"):  # SI: one number (V s/rad = N m/A); the datasheet's wins
+                model.set("km", e.value, e.stderr, "N m/A", stage=KM_FROM_KE)
         e = self.estimates["L"]
         keep_l = not self.l_resolved and model.has("L")
         if not keep_l:
@@ -298,6 +306,8 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
                         ("an upper bound is written (± 100 %)" if bound else
                          "the fitted value is written with its standard error"))
                      + ": sample faster, or use a blocked-rotor log, to identify L")
+    if ke_ok and ke > 0 and not (model is not None and model.has("km")):
+        warns.append(KM_FROM_KE_NOTE.format(ke=ke))
     offsets = _offsets(logs, th, cov, warns)
     est = {"R": Estimate("R", float(R), float(se[0]), "ohm"),
            "L": Estimate("L", float(L), float(L_se), "H"),

@@ -106,27 +106,55 @@ def gate(logs, force: bool = False, km: float | None = None, R: float | None = N
             warn(msg, log.path)
 
 
-def gate_result(model, logs, force: bool = False) -> None:
-    """The time-constant rules on a fitted model (before it is written)."""
-    def val(name):
-        p = model.parameters.get(name)
-        return p.value if p is not None else math.nan
+def _val(model, name: str) -> float:
+    p = model.parameters.get(name)
+    return p.value if p is not None else math.nan
 
-    R, L, km, J = val("R"), val("L"), val("km"), val("J")
-    b = val("bv") if math.isfinite(val("bv")) else val("b")
+
+def mechanical_tau(model) -> float:
+    """The model's mechanical time constant J/(b + km^2/R) [s] (per volt: J/bv); NaN without J
+    or damping."""
+    R, km, J = _val(model, "R"), _val(model, "km"), _val(model, "J")
+    b = _val(model, "bv") if math.isfinite(_val(model, "bv")) else _val(model, "b")
+    damping = (b if math.isfinite(b) else 0.0) + (km * km / R if R > 0 and km > 0 else 0.0)
+    return J / damping if damping > 0 else math.nan
+
+
+#: a fitted time constant longer than this many times the longest log was not determined by
+#: the logs (whatever the unit of t, the ratio is the same): a fit that diverged, not a unit
+UNDETERMINED_DURATIONS = 3.0
+
+
+def _tau_messages(model) -> list[tuple[str, float]]:
+    R, L = _val(model, "R"), _val(model, "L")
     msgs = []
     if R > 0 and L / R > MAX_TAU_ELECTRICAL:
-        msgs.append(f"the fitted armature time constant L/R = {L / R:.3g} s is beyond any "
-                    "motor's (< 1 s)")
-    damping = (b if math.isfinite(b) else 0.0) + (km * km / R if R > 0 and km > 0 else 0.0)
-    if damping > 0 and J / damping > MAX_TAU_MECHANICAL:
-        msgs.append(f"the fitted mechanical time constant J/(b+km^2/R) = {J / damping:.3g} s is "
-                    "beyond any motor's (< 100 s)")
+        msgs.append((f"the fitted armature time constant L/R = {L / R:.3g} s is beyond any "
+                     "motor's (< 1 s)", L / R))
+    tau = mechanical_tau(model)
+    if tau > MAX_TAU_MECHANICAL:
+        msgs.append((f"the fitted mechanical time constant J/(b+km^2/R) = {tau:.3g} s is "
+                     "beyond any motor's (< 100 s)", tau))
+    return msgs
+
+
+def gate_result(model, logs, force: bool = False) -> None:
+    """The time-constant rules on a fitted model (before it is written). A time constant beyond
+    any motor's that the logs resolve (within a few log lengths) names the time unit; one far
+    longer than every log was not determined by them (a fit that diverged), and says so."""
+    msgs = _tau_messages(model)
     if not msgs:
         return
+    text, tau = msgs[0]
     dt = max(log.dt for log in logs)
+    longest = max(float(log.t[-1] - log.t[0]) for log in logs) if logs else math.inf
     path = logs[0].path if logs else None
-    msg = f"{msgs[0]}: is t in ms or us? (sample period {dt:g} s; map it with -c t=COLUMN*ms)"
+    if tau > UNDETERMINED_DURATIONS * longest:
+        msg = (f"{text}, and {tau / longest:.3g} times the longest log ({longest:.3g} s): the "
+               "logs do not determine it (the fit diverged, or the speed never settles); "
+               "record steps held until the speed settles")
+    else:
+        msg = f"{text}: is t in ms or us? (sample period {dt:g} s; map it with -c t=COLUMN*ms)"
     if not force:
         raise LogError(f"{msg} (or --force to write it anyway)", path)
     warn(msg, path)

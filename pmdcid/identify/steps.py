@@ -140,6 +140,32 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None) -> list[St
     return steps
 
 
+#: an input is held (piecewise constant) when this fraction of its samples lie on the
+#: plateaus of its steps or on the level before the first one
+HELD_FRACTION = 0.9
+
+
+def held_steps(t: np.ndarray, u: np.ndarray) -> list[StepInfo]:
+    """The steps of an input held at levels (a step, a staircase, levels, an APRBS): every step
+    :func:`find_steps` finds, when at least :data:`HELD_FRACTION` of the samples lie on their
+    plateaus or on the level before the first. An input that varies between its levels (a
+    ramp, a sine), or holds no step, gives []. Robust to a noisy measured input: a change is
+    a jump beyond :data:`CHANGE_SIGMAS` of its sample-to-sample noise."""
+    try:
+        steps = find_steps(t, u)
+    except FitError:
+        return []
+    u = np.asarray(u, float)
+    n = len(u)
+    first = steps[0]
+    head = u[:first.onset]
+    du = abs(first.amplitude)
+    flat_head = len(head) > 0 and float(np.ptp(head)) <= 0.1 * du + 6 * _input_noise(u)
+    covered = (first.onset if flat_head else 0) + sum(
+        (s.end if s.end is not None else n) - s.onset for s in steps)
+    return steps if covered >= HELD_FRACTION * n else []
+
+
 @dataclass
 class StrejcResult:
     """Strejc's graphical method on a normalised step response.
