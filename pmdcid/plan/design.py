@@ -352,6 +352,22 @@ def blocked_hold(profiles, sens, ctx, umax: float, budget: float) -> float:
     return best
 
 
+def blocked_current_notes(profiles, vals: dict[str, float], drive: fi.Drive) -> list[str]:
+    """What each blocked-rotor step draws: V/R [A] (no back-EMF with the rotor held), for how
+    long, so that the user checks the drive's and the motor's ratings before recording it."""
+    out = []
+    for p in profiles:
+        if not (p.blocked and drive.electrical and vals.get("R", 0) > 0):
+            continue
+        v = float(np.max(np.abs(p.u)))
+        held = float(np.count_nonzero(np.abs(p.u) > 0)) / pr.rate_of(p.t)
+        out.append(f"{p.name}.csv: the blocked-rotor step of {v:.3g} V draws {v / vals['R']:.3g} A "
+                   f"(V/R, R = {vals['R']:.3g} ohm, no back-EMF with the rotor held) for "
+                   f"{held:.3g} s: check that the drive and the motor take it (a lower --vmax "
+                   "lowers it)")
+    return out
+
+
 def plan_for_model(model: Model, settings: Settings) -> Plan:
     """The plan for a model: profiles, units, predicted standard errors, the effect table."""
     drive = fi.drive_of(model, settings.taumax)
@@ -388,6 +404,7 @@ def plan_for_model(model: Model, settings: Settings) -> Plan:
     plan = Plan(profiles, drive, names, {n: vals[n] for n in names},
                 {n: float(s) for n, s in zip(names, se, strict=True)}, noise, umax,
                 umax_default, settings.speed_max, sens=sens)
+    plan.notes += blocked_current_notes(profiles, vals, drive)
     if settings.effects:
         plan.effects = effect_table(profiles, sens, F, vals, names, drive, noise, scales, model)
     if plan.seconds > settings.budget + 1e-6:
