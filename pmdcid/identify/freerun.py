@@ -175,6 +175,31 @@ def _simulated_current(A, th, starts, ends) -> np.ndarray:
     return out
 
 
+def _measured(v: np.ndarray) -> bool:
+    """True for a measured (noisy) voltage: it changes from sample to sample by more than a
+    millionth of its range at most samples (a commanded, held input does not)."""
+    d = np.abs(np.diff(v))
+    span = float(np.ptp(v)) if len(v) else 0.0
+    return bool(span > 0 and np.median(d) > 1e-6 * span)
+
+
+def _neighbour_mean(v: np.ndarray, starts, ends) -> np.ndarray:
+    """The instrument for a measured voltage v[k]: the mean of its neighbours v[k-1], v[k+1]
+    (the log's own ends: the one neighbour). A measured voltage's noise at k biases the
+    conductance g low and R high (errors in variables); its neighbours carry the same held
+    level and none of that noise."""
+    out = v.copy()
+    for a, b in zip(starts, ends, strict=True):
+        seg = v[a:b]
+        if len(seg) < 3:
+            continue
+        z = np.empty_like(seg)
+        z[1:-1] = 0.5 * (seg[:-2] + seg[2:])
+        z[0], z[-1] = seg[1], seg[-2]
+        out[a:b] = z
+    return out
+
+
 def _iv_regression(parts):
     """Least squares, then refined instrumental variables, on the stacked rows of every log
     (one offset column per log). Returns (theta, HAC covariance, residual, CovarianceInfo)."""
@@ -189,11 +214,14 @@ def _iv_regression(parts):
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
     th = np.linalg.lstsq(A / scale, y, rcond=None)[0] / scale
     Z = A
+    noisy_v = _measured(A[:, 1])
     for _ in range(IV_ITERATIONS):  # refined instrumental variables: the model's own current
         if not 0 < th[0] < 1:
             break
         Z = A.copy()
         Z[:, 0] = _simulated_current(A, th, starts, ends)
+        if noisy_v:
+            Z[:, 1] = _neighbour_mean(A[:, 1], starts, ends)
         th = np.linalg.solve((Z / scale).T @ (A / scale), (Z / scale).T @ y) / scale
     r = A @ th - y
     s2 = float(r @ r) / max(len(y) - A.shape[1], 1)
