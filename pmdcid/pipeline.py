@@ -417,7 +417,11 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
     gate_result(res.model, logs, force)
     with locked(model_path):
         save_model(res.model, model_path)
-    if out_dir is not None:
+    if out_dir is not None and not res.model.has("J"):
+        res.notes.append(f"report: not written into {out_dir}: the model has no J to simulate "
+                         "the logs with (only blocked-rotor logs were given: record free-running "
+                         "ones, steps or ramps, for the mechanics)")
+    elif out_dir is not None:
         from pmdcid.report import make_report
 
         summary = res.diagnose.summary if res.diagnose is not None else None

@@ -245,3 +245,17 @@ def test_identify_ends_the_same_with_and_without_a_report(tmp_path):
         assert "Traceback" not in r.output
     assert codes == [1, 1]
     assert not (tmp_path / "m.json").exists()
+
+
+def test_blocked_rotor_logs_alone_end_the_same_with_and_without_a_report(tmp_path):
+    """Only blocked-rotor logs: R, L written and exit 0 both ways; with -o the report is not
+    attempted (no J to simulate with), and the output says why."""
+    from pathlib import Path
+
+    fix = Path(__file__).resolve().parents[1] / "fixtures" / "paper"
+    logs = [str(fix / "blocked_1.0V.csv"), str(fix / "blocked_2.0V.csv")]
+    for k, extra in enumerate(([], ["-o", str(tmp_path / "rep")])):
+        r = CliRunner().invoke(main, ["identify", *logs, "-m", str(tmp_path / f"m{k}.json"),
+                                      *extra])
+        assert r.exit_code == 0, r.output
+    assert "no J to simulate" in r.output
