@@ -117,15 +117,20 @@ def input_changes(u: np.ndarray) -> int:
 
 
 def _still(log) -> bool:
+    """True when the rotor never moves: no speed or angle, a measured speed within 5 noise std
+    of zero, or (speed derived from the angle) an angle that stays within 5 noise std."""
+    from pmdcid.io.derive import noise_std
+
     if not (log.has("omega") or log.has("theta")):
         return True
-    if log.has("omega") and "omega" not in log.derived:
-        w = np.asarray(log["omega"], float)
-        from pmdcid.io.derive import noise_std
-
-        sd = noise_std(w[np.isfinite(w)])
-        return bool(np.nanmax(np.abs(w)) < 5 * max(sd, 1e-12))
-    return False
+    sig = "omega" if log.has("omega") and "omega" not in log.derived else "theta"
+    if not log.has(sig) or sig in log.derived:
+        return False
+    x = np.asarray(log[sig], float)
+    x = x[np.isfinite(x)]
+    if sig == "theta":
+        x = x - x[0] if x.size else x
+    return bool(x.size == 0 or np.max(np.abs(x)) < 5 * max(noise_std(x), 1e-12))
 
 
 def classify(log) -> LogPlan:
@@ -137,16 +142,27 @@ def classify(log) -> LogPlan:
     if log.has("i") and log.drive == "v" and _still(log):
         return LogPlan(log.path, "blocked", "the rotor stays still while current flows")
     n = input_changes(log.u)
-    if n == 0:
-        return LogPlan(log.path, "unused", "the input never changes: nothing to identify")
     if _still(log):
-        return LogPlan(log.path, "unused", "the rotor never moves (and no current is logged)")
+        why = ("the input never changes: nothing to identify" if n == 0 else
+               "the rotor never moves (and no current is logged)")
+        return LogPlan(log.path, "unused", why)
+    if n == 0:
+        return _constant_input(log)
     steps = held_steps(log.t, log.u)
     if steps:
         return LogPlan(log.path, "step", f"the input is held at levels ({len(steps)} step"
                                          f"{'s' if len(steps) > 1 else ''})")
     return LogPlan(log.path, "rich", "the input varies between its samples (ramp, sine, "
                                      "chirp...)")
+
+
+def _constant_input(log) -> LogPlan:
+    """A log whose input never changes while the rotor moves: a step applied at its first sample
+    (the rotor starting at rest: its transient carries J) or a coast-down: the joint fit uses it."""
+    if float(np.max(np.abs(log.u))) > 0:
+        return LogPlan(log.path, "rich", "the input is held from the first sample while the "
+                                         "rotor moves (a step applied at the log's start)")
+    return LogPlan(log.path, "rich", "no input while the rotor moves (a coast-down)")
 
 
 def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool = True,

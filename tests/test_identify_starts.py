@@ -259,3 +259,20 @@ def test_blocked_rotor_logs_alone_end_the_same_with_and_without_a_report(tmp_pat
                                       *extra])
         assert r.exit_code == 0, r.output
     assert "no J to simulate" in r.output
+
+
+def test_a_step_applied_at_the_first_sample_is_used_not_called_unchanging(tmp_path):
+    """A duty held from the first sample with the rotor starting at rest (an EV3 run: no rest
+    recorded before the step), angle only: the joint fit uses it; a flat log stays unused."""
+    from pmdcid.io import read_log
+    from pmdcid.pipeline import classify
+
+    t = np.arange(2000) / 1000.0
+    u = np.full(len(t), 3.0)
+    vals = {**neutral_values(), "J": 0.01, "bv": 0.1, "bc": 0.3, "R": 1.0, "L": 1.0, "km": 1.0}
+    theta = simulate_values(t, u, vals, torque_driven=True).theta
+    q = 2 * np.pi / 360  # a 1-degree encoder
+    write_log(tmp_path / "run.csv", t, {"v": u, "theta": np.round(theta / q) * q})
+    write_log(tmp_path / "flat.csv", t, {"v": u, "theta": np.zeros(len(t))})
+    assert classify(read_log(tmp_path / "run.csv")).kind == "rich"
+    assert classify(read_log(tmp_path / "flat.csv")).kind == "unused"
