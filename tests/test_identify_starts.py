@@ -276,3 +276,19 @@ def test_a_step_applied_at_the_first_sample_is_used_not_called_unchanging(tmp_pa
     write_log(tmp_path / "flat.csv", t, {"v": u, "theta": np.zeros(len(t))})
     assert classify(read_log(tmp_path / "run.csv")).kind == "rich"
     assert classify(read_log(tmp_path / "flat.csv")).kind == "unused"
+
+
+def test_fit_mechanical_uses_the_logs_with_steps_and_says_which_have_none():
+    """A log declared a step whose input holds none (applied at its first sample) no longer
+    stops fit-mechanical on the others: it is left out with a warning naming it."""
+    from pmdcid.identify.mechanical import fit_mechanical
+
+    steps = _fixture_steps()
+    t = steps[0].t
+    flat = Log("flat.csv", t, {"v": np.full(len(t), 1.0), "omega": steps[0]["omega"]})
+    model = Model()
+    for k in ("R", "L", "km"):
+        model.set(k, PAPER[k])
+    res = fit_mechanical([*steps, flat], model)
+    assert res.estimates["J"].value == pytest.approx(PAPER["J"], rel=0.05)
+    assert any(w.startswith("flat.csv") and "not used" in w for w in res.warnings)

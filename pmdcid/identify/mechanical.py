@@ -204,6 +204,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
     warns: list[str] = []
     steps: list[MechStep] = []
     data: list[tuple] = []  # steps from rest: (time from onset, speed, torque amplitude, noise)
+    no_step: list[FitError] = []  # logs whose input holds no step
     for log in logs:
         log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
         w, bad = despike(log["omega"])
@@ -214,11 +215,19 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
                          "the median of their neighbours")
             log = replace(log, data={**log.data, "omega": w})
         sig = speed_noise(w)
-        for step in find_steps(log.t, log.u, log.path):
+        try:
+            found = find_steps(log.t, log.u, log.path)
+        except FitError as exc:  # used when another log holds steps: a warning then
+            no_step.append(exc)
+            continue
+        for step in found:
             ms, d = fit_step(log, step, tau_e, km, R, sig, warns)
             steps.append(ms)
             if d is not None:
                 data.append(d)
+    if no_step and not steps:
+        raise no_step[0]
+    warns += [f"{exc}: not used" for exc in no_step]
     _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:
