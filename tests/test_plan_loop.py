@@ -47,6 +47,8 @@ def truth(tmp_path_factory):
 def test_plan_for_a_model_recorded_and_identified_within_its_predicted_stderr(tmp_path, truth):
     _run("plan", "-m", truth, "--vmax", 12, "--budget", 60, "-o", tmp_path / "plan")
     plan = json.loads((tmp_path / "plan" / "plan.json").read_text())
+    # the blocked-rotor step says what it draws: V/R = 12 V / 2.37 ohm
+    assert any(f"draws {12 / PAPER['R']:.3g} A" in n for n in plan["notes"]), plan["notes"]
     logs = _record(tmp_path / "plan", truth, plan["noise"], seed=7)
     _run("identify", *logs, "-m", tmp_path / "new.json", "--km", PAPER["km"])
     model = load_model(tmp_path / "new.json")
