@@ -311,3 +311,16 @@ def test_steps_inside_a_rich_log_start_the_mechanics(tmp_path):
     assert "steps inside the rich logs" in r.output
     g = json.loads((tmp_path / "m.json").read_text())["parameters"]
     assert g["J"]["value"] == pytest.approx(MOTOR["J"], rel=0.05)
+
+
+def test_a_quantised_measured_voltage_step_is_held_not_rich():
+    """A 0 -> 12 V step read by a 12-bit ADC (a one-count flicker, no noise most samples): one
+    held step, not an input that changes all the time."""
+    from pmdcid.identify.steps import held_steps
+
+    rng = np.random.default_rng(13)
+    t = np.arange(3000) / 1000.0
+    q = 12.0 / 4095
+    v = np.round((step(t, 12.0, 0.5) + rng.normal(0, 0.3 * q, len(t))) / q) * q
+    steps = held_steps(t, v)
+    assert len(steps) == 1 and steps[0].t0 == pytest.approx(0.5, abs=2e-3)

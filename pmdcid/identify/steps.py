@@ -75,6 +75,8 @@ def find_step(t: np.ndarray, u: np.ndarray, path: str | None = None) -> StepInfo
 MIN_PLATEAU_SAMPLES = 10
 #: an input change larger than this many noise std of the input's sample-to-sample differences
 CHANGE_SIGMAS = 8.0
+#: ... and than this fraction of the input's range (an ADC's one-count flicker is not a step)
+MIN_STEP_FRACTION = 0.01
 
 
 def _input_noise(u: np.ndarray) -> float:
@@ -115,7 +117,10 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None) -> list[St
     if n < 10:
         raise FitError(f"{path}: too short ({n} samples) to hold a step response")
     sig = _input_noise(u)
-    thr = max(CHANGE_SIGMAS * sig, 1e-9 * max(float(np.max(np.abs(u))), 1e-300))
+    # a measured input quantised by its ADC has no sample-to-sample noise most of the time
+    # (sig = 0): its one-count flicker is not a step, hence a floor of a fraction of the range
+    thr = max(CHANGE_SIGMAS * sig, 1e-9 * max(float(np.max(np.abs(u))), 1e-300),
+              MIN_STEP_FRACTION * float(np.ptp(u)))
     segs = _segments(u, thr)
     levels = [float(np.median(u[b:e])) if e > b else float(u[a]) for a, b, e in segs]
     steps = []
