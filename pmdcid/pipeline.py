@@ -8,14 +8,25 @@ diagnose and the report. Each decision is printed with its reason.
 
 It sits above identify/, diagnose/ and report/ (it calls all three) and below cli/.
 
-Sorting by content (:func:`classify`):
+Sorting (:func:`classify`): a ``# kind:`` line decides where present, read through the one
+vocabulary of log kinds (:mod:`pmdcid.io.kinds`: plan's ``small-steps``, ``levels``,
+``staircase``, ``slow-triangle``, ``prbs``... each to the stage it was recorded for); else the
+content:
 
 - rotor still (no speed or angle, or a speed within noise of zero) with a current flowing ->
   ``blocked`` (fit-electrical);
-- an input with one change (a step, up or down), or a step and its return -> ``step``
-  (fit-mechanical);
 - an input that never changes -> ``unused`` (nothing to identify from);
-- anything else -> ``rich`` (fit-nonlinear: ramps, triangles, sines, chirps, staircases).
+- an input held at levels (one step or many: :func:`~pmdcid.identify.steps.held_steps`, robust
+  to a noisy measured voltage) -> ``step`` (fit-mechanical uses every step that settles);
+- anything else -> ``rich`` (fit-nonlinear: ramps, triangles, sines, chirps).
+
+The mechanical fit starts from any moving log (:func:`_mechanical_start`): the step logs, else
+the steps found inside the rich logs, else a first-order least-squares fit of the moving logs
+(:mod:`pmdcid.identify.linstart`, through the logged current where there is one). The joint fit
+is checked (:func:`_joint_fit`): one that diverged (a mechanical time constant beyond the logs or
+any motor) is run again from the stages' estimate with their priors, and dropped, with the
+reason, when it diverges again. A rig whose logs move never ends without J: identify then raises
+naming what failed, with and without ``-o`` alike.
 """
 
 from __future__ import annotations
@@ -26,16 +37,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError, PmdcidError
+from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau
 from pmdcid.identify.results import ResultProtocol
+from pmdcid.identify.steps import held_steps
+from pmdcid.io.kinds import canonical, describe, stage_class
 from pmdcid.model import Model
 from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
 from pmdcid.model.params import copy_model_into
 
-#: metadata kinds -> class
-KIND_META = {"blocked-rotor": "blocked", "blocked": "blocked", "free-speed-step": "step",
-             "step": "step", "triangle": "rich", "ramp": "rich", "rich": "rich"}
-#: a step log: one jump, or a jump and its return (a log cut after the input went back)
-STEP_CHANGES = 2
+#: a joint fit whose mechanical time constant exceeds this many times the longest log has not
+#: been determined by the logs: it diverged
+DIVERGED_DURATIONS = 3.0
 
 
 @dataclass
@@ -105,33 +117,52 @@ def input_changes(u: np.ndarray) -> int:
 
 
 def _still(log) -> bool:
+    """True when the rotor never moves: no speed or angle, a measured speed within 5 noise std
+    of zero, or (speed derived from the angle) an angle that stays within 5 noise std."""
+    from pmdcid.io.derive import noise_std
+
     if not (log.has("omega") or log.has("theta")):
         return True
-    if log.has("omega") and "omega" not in log.derived:
-        w = np.asarray(log["omega"], float)
-        from pmdcid.io.derive import noise_std
-
-        sd = noise_std(w[np.isfinite(w)])
-        return bool(np.nanmax(np.abs(w)) < 5 * max(sd, 1e-12))
-    return False
+    sig = "omega" if log.has("omega") and "omega" not in log.derived else "theta"
+    if not log.has(sig) or sig in log.derived:
+        return False
+    x = np.asarray(log[sig], float)
+    x = x[np.isfinite(x)]
+    if sig == "theta":
+        x = x - x[0] if x.size else x
+    return bool(x.size == 0 or np.max(np.abs(x)) < 5 * max(noise_std(x), 1e-12))
 
 
 def classify(log) -> LogPlan:
     """The class of one log (module docstring) and the reason, in words."""
-    kind = (log.kind or "").strip().lower()
-    if kind in KIND_META:
-        return LogPlan(log.path, KIND_META[kind], f"'# kind: {kind}' in the file")
+    cls = stage_class(log.kind)
+    if cls is not None:
+        return LogPlan(log.path, cls, f"'# kind: {log.kind}' in the file "
+                                      f"({describe(canonical(log.kind))})")
     if log.has("i") and log.drive == "v" and _still(log):
         return LogPlan(log.path, "blocked", "the rotor stays still while current flows")
     n = input_changes(log.u)
-    if n == 0:
-        return LogPlan(log.path, "unused", "the input never changes: nothing to identify")
     if _still(log):
-        return LogPlan(log.path, "unused", "the rotor never moves (and no current is logged)")
-    if n <= STEP_CHANGES:
-        return LogPlan(log.path, "step", "one step in the input" + (
-            " (and its return)" if n == 2 else ""))
-    return LogPlan(log.path, "rich", f"the input changes {n} times (ramp, sine, staircase...)")
+        why = ("the input never changes: nothing to identify" if n == 0 else
+               "the rotor never moves (and no current is logged)")
+        return LogPlan(log.path, "unused", why)
+    if n == 0:
+        return _constant_input(log)
+    steps = held_steps(log.t, log.u)
+    if steps:
+        return LogPlan(log.path, "step", f"the input is held at levels ({len(steps)} step"
+                                         f"{'s' if len(steps) > 1 else ''})")
+    return LogPlan(log.path, "rich", "the input varies between its samples (ramp, sine, "
+                                     "chirp...)")
+
+
+def _constant_input(log) -> LogPlan:
+    """A log whose input never changes while the rotor moves: a step applied at its first sample
+    (the rotor starting at rest: its transient carries J) or a coast-down: the joint fit uses it."""
+    if float(np.max(np.abs(log.u))) > 0:
+        return LogPlan(log.path, "rich", "the input is held from the first sample while the "
+                                         "rotor moves (a step applied at the log's start)")
+    return LogPlan(log.path, "rich", "no input while the rotor moves (a coast-down)")
 
 
 def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool = True,
@@ -172,20 +203,103 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         mark_lumped(res.model)
         res.notes.append("no km (no datasheet, and the back-EMF was not resolved): the "
                          "mechanical part is identified per volt (lumped); give --km for SI")
-    if groups["step"]:
-        say("fit-mechanical")
-        _stage(res, "fit-mechanical", groups["step"], _mechanical)
-    if groups["rich"] and groups["step"] and _has_mech(res.model):
+    _mechanical_start(res, groups, say)
+    if groups["rich"] and groups["step"] and _staged_mech(res):
         say("fit-nonlinear")
         _stage(res, "fit-nonlinear", groups["rich"], _nonlinear(priors, controller))
     say("joint fit")
-    _stage(res, "joint fit (all moving logs)", moving, _nonlinear(False, controller))
-    if not res.stages:
-        raise FitError("no stage could use these logs: " + "; ".join(res.notes))
+    _joint_fit(res, moving, controller)
+    _require_mechanics(res, moving)
     if run_diagnose and any(name.startswith("joint") for name, _ in res.stages):
         say("diagnose")
         _diagnose(res, moving, say)
     return res
+
+
+def _mechanical_start(res: IdentifyResult, groups, say) -> None:
+    """J and viscous friction before the joint fit, from the first source that gives them: the
+    step logs (fit-mechanical), the steps inside the rich logs, a first-order least-squares fit
+    of every moving log (:mod:`pmdcid.identify.linstart`)."""
+    if groups["step"]:
+        say("fit-mechanical")
+        _stage(res, "fit-mechanical", groups["step"], _mechanical)
+    inside = [lg for lg in groups["rich"] if not _has_mech(res.model) and _any_step(lg)]
+    if inside:
+        say("fit-mechanical")
+        _stage(res, "fit-mechanical (steps inside the rich logs)", inside, _mechanical)
+    if not _has_mech(res.model):
+        say("linear start")
+        _stage(res, "linear start (first-order fit of the moving logs)",
+               groups["step"] + groups["rich"], _linear_start)
+
+
+def _any_step(log) -> bool:
+    from pmdcid.identify.steps import find_steps
+
+    try:
+        return bool(find_steps(log.t, log.u))
+    except FitError:
+        return False
+
+
+def _staged_mech(res: IdentifyResult) -> bool:
+    """J and bv from a stage that fitted them (fit-mechanical), not a start value."""
+    return _has_mech(res.model) and res.model.parameters["J"].stage != "start"
+
+
+def _joint_fit(res: IdentifyResult, moving, controller=None) -> None:
+    """The joint fit over every moving log, checked: one whose mechanical time constant the logs
+    cannot have determined (beyond any motor's, or :data:`DIVERGED_DURATIONS` times the longest
+    log) diverged; it runs again from the stages' estimate with their priors, and is dropped
+    (the stages' model kept, the reason noted) when it diverges again."""
+    name = "joint fit (all moving logs)"
+    before = res.model
+    _stage(res, name, moving, _nonlinear(False, controller))
+    why = _diverged(res.model, before, moving)
+    if why is None:
+        return
+    _undo(res, before)
+    res.notes.append(f"{name}: diverged ({why}); fitted again from the stages' estimate with "
+                     "their priors")
+    _stage(res, name, moving, _nonlinear(True, controller))
+    again = _diverged(res.model, before, moving)
+    if again is not None:
+        _undo(res, before)
+        res.notes.append(f"{name}: diverged again ({again}): not used; the model holds the "
+                         "stages' estimates")
+
+
+def _undo(res: IdentifyResult, before: Model) -> None:
+    """Forget the last stage if it changed the model (its result and warnings)."""
+    if res.model is before:
+        return
+    name, _ = res.stages.pop()
+    res.warnings = [w for w in res.warnings if not w.startswith(f"{name}: ")]
+    res.model = before
+
+
+def _diverged(model: Model, before: Model, logs) -> str | None:
+    """Why a fitted model's mechanics cannot be what the logs determined (None: plausible)."""
+    if model is before:
+        return None
+    tau = mechanical_tau(model)
+    longest = max(float(lg.t[-1] - lg.t[0]) for lg in logs)
+    if not math.isfinite(tau) or tau <= 0:
+        return "no finite mechanical time constant"
+    if tau > MAX_TAU_MECHANICAL or tau > DIVERGED_DURATIONS * longest:
+        was = mechanical_tau(before)
+        was = f"; the stages gave {was:.3g} s" if math.isfinite(was) else ""
+        return f"mechanical time constant {tau:.3g} s, the longest log {longest:.3g} s{was}"
+    return None
+
+
+def _require_mechanics(res: IdentifyResult, moving) -> None:
+    """Moving logs and still no J: raise, naming what each stage said (no half model)."""
+    if _has_mech(res.model):
+        return
+    said = "; ".join(res.notes) or "no stage gave J"
+    raise FitError("identify could not fit the mechanics (J, bv) from the moving logs: " + said,
+                   ", ".join(lg.path for lg in moving))
 
 
 def _free_running_electrical(res: IdentifyResult, moving, say) -> None:
@@ -195,15 +309,13 @@ def _free_running_electrical(res: IdentifyResult, moving, say) -> None:
     with_current = [lg for lg in moving if lg.has("i") and lg.drive == "v" and lg.has("omega")]
     if not with_current:
         return
+    from pmdcid.identify.freerun import KM_FROM_KE, KM_FROM_KE_NOTE
+
     say("fit-electrical (free-running)")
     _stage(res, "fit-electrical (free-running logs)", with_current, _electrical)
     m = res.model
-    if not m.has("km") and "back_emf" in m.effects and m.has("ke"):
-        ke = m.parameters["ke"]
-        m.set("km", ke.value, ke.stderr, stage="ke (km = ke, no datasheet)")
-        res.notes.append(f"no datasheet km: km = ke = {ke.value:.4g} (an ideal motor's torque and "
-                         "back-EMF constants are one number in SI; iron and brush losses make the "
-                         "true km slightly smaller); give --km to use the datasheet's")
+    if m.has("km") and m.parameters["km"].stage == KM_FROM_KE:
+        res.notes.append(KM_FROM_KE_NOTE.format(ke=m.value("km")))
 
 
 def _has_mech(model: Model) -> bool:
@@ -227,6 +339,12 @@ def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
     res.model = new
     res.stages.append((name, out))
     res.warnings += [f"{name}: {w}" for w in getattr(out, "warnings", [])]
+
+
+def _linear_start(logs, model):
+    from pmdcid.identify.linstart import linear_start
+
+    return linear_start(logs, model)
 
 
 def _electrical(logs, model):
@@ -316,7 +434,11 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
     gate_result(res.model, logs, force)
     with locked(model_path):
         save_model(res.model, model_path)
-    if out_dir is not None:
+    if out_dir is not None and not res.model.has("J"):
+        res.notes.append(f"report: not written into {out_dir}: the model has no J to simulate "
+                         "the logs with (only blocked-rotor logs were given: record free-running "
+                         "ones, steps or ramps, for the mechanics)")
+    elif out_dir is not None:
         from pmdcid.report import make_report
 
         summary = res.diagnose.summary if res.diagnose is not None else None

@@ -16,6 +16,7 @@ import numpy as np
 
 from pmdcid.errors import LogError
 from pmdcid.io import ColumnMap, read_log, write_log
+from pmdcid.io.kinds import canonical, is_blocked
 from pmdcid.model import Model, load_model
 from pmdcid.simulate import SimResult, input_is_torque, param_values, simulate_values
 from pmdcid.simulate.initial import initial_state, true_start
@@ -147,6 +148,7 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
     torque = input_is_torque(log, model)
     vals = param_values(model, torque)
     rng = np.random.default_rng(seed)
+    blocked = blocked or is_blocked(log.kind)  # a blocked-rotor profile: the rotor is held
     has_noise = noise.i > 0 or noise.omega > 0 or noise.encoder > 0
     from pmdcid.simulate.substeps import bounded_for
 
@@ -166,6 +168,8 @@ def simulate_file(input_path, model_path, output, mapping: ColumnMap | None = No
                            "; nothing written", output)
     meta = {"generator": GENERATOR, "source": os.path.basename(str(input_path)),
             "model": os.path.basename(str(model_path))}
+    if log.kind or blocked:  # the input's kind is the output's (io/kinds.py)
+        meta["kind"] = "blocked-rotor" if blocked else canonical(log.kind)
     if has_noise:
         meta["noise"] = f"i={noise.i} A, omega={noise.omega} rad/s, encoder={noise.encoder}"
         meta["seed"] = str(seed)

@@ -89,7 +89,9 @@ def test_monte_carlo_spread_matches_prediction(paper_model):
 
 def test_plan_beats_the_paper_protocol_in_the_same_time():
     """Paper motor, paper noise, same 136.5 s: the plan's worst relative stderr among J, bv,
-    bc, dz is far below the paper protocol's (3.03x measured; docs/plan.md)."""
+    bc, dz is below the paper protocol's, both predicted stage by stage as identify fits them
+    (R, L from the blocked-rotor logs alone, their error carried into the rest: 1.12x measured;
+    it was 3.03x when both were predicted as one joint fit of every signal; docs/plan.md)."""
     model = truth_model(PAPER)
     prof = paper_profiles()
     seconds = protocol_seconds(prof)
@@ -99,7 +101,7 @@ def test_plan_beats_the_paper_protocol_in_the_same_time():
     assert plan.seconds <= seconds + 1e-6
     worst_paper = max(paper[n] / PAPER[n] for n in MECH)
     worst_plan = max(plan.stderr[n] / PAPER[n] for n in MECH)
-    assert worst_paper / worst_plan > 2.5, (worst_paper, worst_plan)
+    assert worst_paper / worst_plan > 1.05, (worst_paper, worst_plan)
 
 
 def test_guess_writes_a_safe_first_experiment(tmp_path):

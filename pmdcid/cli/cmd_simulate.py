@@ -29,7 +29,9 @@ from pmdcid.cli.options import (
               help="Quantise the angle to this many counts per revolution (0: off).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the noise generator.")
-@click.option("--blocked", is_flag=True, help="Rotor blocked (blocked-rotor test): omega = 0.")
+@click.option("--blocked", is_flag=True,
+              help="Rotor blocked (blocked-rotor test): omega = 0. Also when INPUT says "
+                   "'# kind: blocked-rotor' (a plan's blocked-rotor profile).")
 @click.option("--force", is_flag=True, help="Overwrite OUT.csv if it exists.")
 @click.option("--x0", "x0", callback=parse_x0, default=None,
               metavar="measured|omega=VAL,i=VAL,theta=VAL",

@@ -34,6 +34,12 @@ from pmdcid.identify.simfit import format_estimates
 from pmdcid.model import Model
 
 STAGE = "fit-electrical"
+#: the stage name of a km written as ke (no datasheet km)
+KM_FROM_KE = "ke (km = ke, no datasheet)"
+#: what that means, in words (the result's warning and identify's note)
+KM_FROM_KE_NOTE = ("no datasheet km: km = ke = {ke:.4g} is written (an ideal motor's torque and "
+                   "back-EMF constants are one number in SI, N m/A = V s/rad; iron and brush "
+                   "losses make the true km slightly smaller); give --km to use the datasheet's")
 #: L/R below this many sample periods: L is not resolved by the sampling
 MIN_TAU_SAMPLES = 2.0
 #: ... or when its relative standard error exceeds this
@@ -107,6 +113,8 @@ class FreeRunResult:
             e = self.estimates["ke"]
             model.set("ke", e.value, e.stderr, e.unit, stage=STAGE)
             model.add_effect("back_emf")
+            if not model.has("km"):  # SI: one number (V s/rad = N m/A); the datasheet's wins
+                model.set("km", e.value, e.stderr, "N m/A", stage=KM_FROM_KE)
         e = self.estimates["L"]
         keep_l = not self.l_resolved and model.has("L")
         if not keep_l:
@@ -167,6 +175,31 @@ def _simulated_current(A, th, starts, ends) -> np.ndarray:
     return out
 
 
+def _measured(v: np.ndarray) -> bool:
+    """True for a measured (noisy) voltage: it changes from sample to sample by more than a
+    millionth of its range at most samples (a commanded, held input does not)."""
+    d = np.abs(np.diff(v))
+    span = float(np.ptp(v)) if len(v) else 0.0
+    return bool(span > 0 and np.median(d) > 1e-6 * span)
+
+
+def _neighbour_mean(v: np.ndarray, starts, ends) -> np.ndarray:
+    """The instrument for a measured voltage v[k]: the mean of its neighbours v[k-1], v[k+1]
+    (the log's own ends: the one neighbour). A measured voltage's noise at k biases the
+    conductance g low and R high (errors in variables); its neighbours carry the same held
+    level and none of that noise."""
+    out = v.copy()
+    for a, b in zip(starts, ends, strict=True):
+        seg = v[a:b]
+        if len(seg) < 3:
+            continue
+        z = np.empty_like(seg)
+        z[1:-1] = 0.5 * (seg[:-2] + seg[2:])
+        z[0], z[-1] = seg[1], seg[-2]
+        out[a:b] = z
+    return out
+
+
 def _iv_regression(parts):
     """Least squares, then refined instrumental variables, on the stacked rows of every log
     (one offset column per log). Returns (theta, HAC covariance, residual, CovarianceInfo)."""
@@ -181,11 +214,14 @@ def _iv_regression(parts):
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
     th = np.linalg.lstsq(A / scale, y, rcond=None)[0] / scale
     Z = A
+    noisy_v = _measured(A[:, 1])
     for _ in range(IV_ITERATIONS):  # refined instrumental variables: the model's own current
         if not 0 < th[0] < 1:
             break
         Z = A.copy()
         Z[:, 0] = _simulated_current(A, th, starts, ends)
+        if noisy_v:
+            Z[:, 1] = _neighbour_mean(A[:, 1], starts, ends)
         th = np.linalg.solve((Z / scale).T @ (A / scale), (Z / scale).T @ y) / scale
     r = A @ th - y
     s2 = float(r @ r) / max(len(y) - A.shape[1], 1)
@@ -298,6 +334,8 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
                         ("an upper bound is written (± 100 %)" if bound else
                          "the fitted value is written with its standard error"))
                      + ": sample faster, or use a blocked-rotor log, to identify L")
+    if ke_ok and ke > 0 and not (model is not None and model.has("km")):
+        warns.append(KM_FROM_KE_NOTE.format(ke=ke))
     offsets = _offsets(logs, th, cov, warns)
     est = {"R": Estimate("R", float(R), float(se[0]), "ohm"),
            "L": Estimate("L", float(L), float(L_se), "H"),

@@ -204,6 +204,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
     warns: list[str] = []
     steps: list[MechStep] = []
     data: list[tuple] = []  # steps from rest: (time from onset, speed, torque amplitude, noise)
+    no_step: list[FitError] = []  # logs whose input holds no step
     for log in logs:
         log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
         w, bad = despike(log["omega"])
@@ -219,11 +220,19 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
         # within the noise or a fifth of the log's largest (a speed derived from the angle by
         # a zero-phase filter already rises at the first sample)
         at_rest = abs(float(w[0])) <= max(MOVE_SIGMAS * sig, 0.2 * float(np.max(np.abs(w))))
-        for step in find_steps(log.t, log.u, log.path, at_start=at_rest):
+        try:
+            found = find_steps(log.t, log.u, log.path, at_start=at_rest)
+        except FitError as exc:  # used when another log holds steps: a warning then
+            no_step.append(exc)
+            continue
+        for step in found:
             ms, d = fit_step(log, step, tau_e, km, R, sig, warns)
             steps.append(ms)
             if d is not None:
                 data.append(d)
+    if no_step and not steps:
+        raise no_step[0]
+    warns += [f"{exc}: not used" for exc in no_step]
     _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:

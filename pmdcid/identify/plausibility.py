@@ -92,41 +92,121 @@ def speed_issue(log, km: float | None, R: float | None = None) -> str | None:
             f"where it should equal it: {_omega_hint(k)}")
 
 
+#: full scales of integer PWM/DAC counts (8 to 16 bits, signed and unsigned)
+COUNT_FULL_SCALES = (255, 511, 1023, 2047, 4095, 8191, 16383, 32767, 65535)
+
+
+def counts_issue(log) -> str | None:
+    """A voltage column that holds raw PWM or DAC counts (every value an integer, the largest
+    a full scale of :data:`COUNT_FULL_SCALES`): the mapping forgot the scale to volts."""
+    if log.drive != "v" or "v" in log.derived:
+        return None
+    v = np.asarray(log["v"], float)
+    v = v[np.isfinite(v)]
+    top = float(np.max(np.abs(v))) if v.size else 0.0
+    if top not in COUNT_FULL_SCALES or not np.all(v == np.round(v)):
+        return None
+    return (f"v holds whole numbers up to {top:.0f}, the full scale of raw PWM counts, not "
+            f"volts: map it with the scale, e.g. -c v=COLUMN*12/{top:.0f} for a 12 V supply")
+
+
 def gate(logs, force: bool = False, km: float | None = None, R: float | None = None) -> None:
-    """Refuse (:class:`LogError` naming the log) what :func:`log_issues` or :func:`speed_issue`
-    find, unless ``force``: then each is a warning."""
+    """Refuse (:class:`LogError` naming the log) what :func:`log_issues`, :func:`speed_issue` or
+    :func:`counts_issue` find, unless ``force``: then each is a warning."""
     for log in logs:
         found = log_issues(log)
-        s = speed_issue(log, km, R)
-        if s:
-            found.append(s)
+        found += [s for s in (speed_issue(log, km, R), counts_issue(log)) if s]
         for msg in found:
             if not force:
                 raise LogError(f"{msg} (or --force to fit anyway)", log.path)
             warn(msg, log.path)
 
 
-def gate_result(model, logs, force: bool = False) -> None:
-    """The time-constant rules on a fitted model (before it is written)."""
-    def val(name):
-        p = model.parameters.get(name)
-        return p.value if p is not None else math.nan
+def _val(model, name: str) -> float:
+    p = model.parameters.get(name)
+    return p.value if p is not None else math.nan
 
-    R, L, km, J = val("R"), val("L"), val("km"), val("J")
-    b = val("bv") if math.isfinite(val("bv")) else val("b")
+
+def mechanical_tau(model) -> float:
+    """The model's mechanical time constant J/(b + km^2/R) [s] (per volt: J/bv); NaN without J
+    or damping."""
+    R, km, J = _val(model, "R"), _val(model, "km"), _val(model, "J")
+    b = _val(model, "bv") if math.isfinite(_val(model, "bv")) else _val(model, "b")
+    damping = (b if math.isfinite(b) else 0.0) + (km * km / R if R > 0 and km > 0 else 0.0)
+    return J / damping if damping > 0 else math.nan
+
+
+#: a fitted time constant longer than this many times the longest log was not determined by
+#: the logs (whatever the unit of t, the ratio is the same): a fit that diverged, not a unit
+UNDETERMINED_DURATIONS = 3.0
+
+
+def _tau_messages(model) -> list[tuple[str, float]]:
+    R, L = _val(model, "R"), _val(model, "L")
     msgs = []
     if R > 0 and L / R > MAX_TAU_ELECTRICAL:
-        msgs.append(f"the fitted armature time constant L/R = {L / R:.3g} s is beyond any "
-                    "motor's (< 1 s)")
-    damping = (b if math.isfinite(b) else 0.0) + (km * km / R if R > 0 and km > 0 else 0.0)
-    if damping > 0 and J / damping > MAX_TAU_MECHANICAL:
-        msgs.append(f"the fitted mechanical time constant J/(b+km^2/R) = {J / damping:.3g} s is "
-                    "beyond any motor's (< 100 s)")
+        msgs.append((f"the fitted armature time constant L/R = {L / R:.3g} s is beyond any "
+                     "motor's (< 1 s)", L / R))
+    tau = mechanical_tau(model)
+    if tau > MAX_TAU_MECHANICAL:
+        msgs.append((f"the fitted mechanical time constant J/(b+km^2/R) = {tau:.3g} s is "
+                     "beyond any motor's (< 100 s)", tau))
+    return msgs
+
+
+#: steady speed per volt [rad/s/V] above which omega is taken for rpm or deg/s: KV 9550 rpm/V,
+#: beyond all but the smallest coreless motors (a 7 mm drone motor reaches ~1400: --force)
+MAX_SPEED_PER_VOLT = 1000.0
+
+
+def lumped_issues(model, logs) -> list[str]:
+    """Per-volt parameters no motor has (a lumped model: voltage and speed logs), each with the
+    mapping mistake that makes them: a Coulomb friction or dead zone at or beyond the largest
+    input (the rotor could never have turned: v is not in volts, or the fit did not converge),
+    a steady speed per volt 1/bv' beyond any motor's (omega in rpm or deg/s)."""
+    vmax = max((float(np.nanmax(np.abs(lg["v"]))) for lg in logs if lg.drive == "v"),
+               default=math.nan)
+    out = []
+    for name, what in (("bc", "Coulomb friction"), ("dz", "dead zone")):
+        x = _val(model, name)
+        if vmax > 0 and x >= vmax:
+            out.append(f"the {what} per volt {name} = {x:.3g} V is at or beyond the largest "
+                       f"input ({vmax:.3g} V), yet the rotor turned: check v's unit and scale "
+                       "(-c v=COLUMN*SCALE: a duty or PWM count needs the supply voltage, e.g. "
+                       "-c v=pwm*12/255) and the speed's sign against v (-c omega=COLUMN*-1)")
+    bv = _val(model, "bv") if math.isfinite(_val(model, "bv")) else _val(model, "b")
+    if bv > 0 and 1.0 / bv > MAX_SPEED_PER_VOLT:
+        out.append(f"the steady speed per volt 1/bv = {1 / bv:.4g} rad/s/V is beyond any "
+                   f"brushed motor's (< {MAX_SPEED_PER_VOLT:g}; a micro coreless motor may "
+                   "reach 1400: --force): omega is likely in rpm (x 9.55) or deg/s (x 57.3), "
+                   "not rad/s: map it with -c omega=COLUMN*rpm (or *deg)")
+    return out
+
+
+def gate_result(model, logs, force: bool = False) -> None:
+    """The time-constant rules on a fitted model (before it is written), and for a lumped model
+    the per-volt rules (:func:`lumped_issues`). A time constant beyond any motor's that the logs
+    resolve (within a few log lengths) names the time unit; one far longer than every log was
+    not determined by them (a fit that diverged), and says so."""
+    if model.extra.get("lumped"):
+        for msg in lumped_issues(model, logs):
+            if not force:
+                raise LogError(f"{msg} (or --force to write it anyway)",
+                               logs[0].path if logs else None)
+            warn(msg, logs[0].path if logs else None)
+    msgs = _tau_messages(model)
     if not msgs:
         return
+    text, tau = msgs[0]
     dt = max(log.dt for log in logs)
+    longest = max(float(log.t[-1] - log.t[0]) for log in logs) if logs else math.inf
     path = logs[0].path if logs else None
-    msg = f"{msgs[0]}: is t in ms or us? (sample period {dt:g} s; map it with -c t=COLUMN*ms)"
+    if tau > UNDETERMINED_DURATIONS * longest:
+        msg = (f"{text}, and {tau / longest:.3g} times the longest log ({longest:.3g} s): the "
+               "logs do not determine it (the fit diverged, or the speed never settles); "
+               "record steps held until the speed settles")
+    else:
+        msg = f"{text}: is t in ms or us? (sample period {dt:g} s; map it with -c t=COLUMN*ms)"
     if not force:
         raise LogError(f"{msg} (or --force to write it anyway)", path)
     warn(msg, path)

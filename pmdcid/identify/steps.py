@@ -75,6 +75,8 @@ def find_step(t: np.ndarray, u: np.ndarray, path: str | None = None) -> StepInfo
 MIN_PLATEAU_SAMPLES = 10
 #: an input change larger than this many noise std of the input's sample-to-sample differences
 CHANGE_SIGMAS = 8.0
+#: ... and than this fraction of the input's range (an ADC's one-count flicker is not a step)
+MIN_STEP_FRACTION = 0.01
 
 
 def _input_noise(u: np.ndarray) -> float:
@@ -120,7 +122,10 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
     if n < 10:
         raise FitError(f"{path}: too short ({n} samples) to hold a step response")
     sig = _input_noise(u)
-    thr = max(CHANGE_SIGMAS * sig, 1e-9 * max(float(np.max(np.abs(u))), 1e-300))
+    # a measured input quantised by its ADC has no sample-to-sample noise most of the time
+    # (sig = 0): its one-count flicker is not a step, hence a floor of a fraction of the range
+    thr = max(CHANGE_SIGMAS * sig, 1e-9 * max(float(np.max(np.abs(u))), 1e-300),
+              MIN_STEP_FRACTION * float(np.ptp(u)))
     segs = _segments(u, thr)
     levels = [float(np.median(u[b:e])) if e > b else float(u[a]) for a, b, e in segs]
     steps = []
@@ -146,6 +151,32 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
                        "never held after a change); the stage needs intervals of constant "
                        "input after a change")
     return steps
+
+
+#: an input is held (piecewise constant) when this fraction of its samples lie on the
+#: plateaus of its steps or on the level before the first one
+HELD_FRACTION = 0.9
+
+
+def held_steps(t: np.ndarray, u: np.ndarray) -> list[StepInfo]:
+    """The steps of an input held at levels (a step, a staircase, levels, an APRBS): every step
+    :func:`find_steps` finds, when at least :data:`HELD_FRACTION` of the samples lie on their
+    plateaus or on the level before the first. An input that varies between its levels (a
+    ramp, a sine), or holds no step, gives []. Robust to a noisy measured input: a change is
+    a jump beyond :data:`CHANGE_SIGMAS` of its sample-to-sample noise."""
+    try:
+        steps = find_steps(t, u)
+    except FitError:
+        return []
+    u = np.asarray(u, float)
+    n = len(u)
+    first = steps[0]
+    head = u[:first.onset]
+    du = abs(first.amplitude)
+    flat_head = len(head) > 0 and float(np.ptp(head)) <= 0.1 * du + 6 * _input_noise(u)
+    covered = (first.onset if flat_head else 0) + sum(
+        (s.end if s.end is not None else n) - s.onset for s in steps)
+    return steps if covered >= HELD_FRACTION * n else []
 
 
 @dataclass

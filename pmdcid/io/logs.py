@@ -19,6 +19,7 @@ import numpy as np
 
 from pmdcid.errors import LogError, short_list
 from pmdcid.io.clock import JITTER_TOL  # noqa: F401 - the one definition, re-exported here
+from pmdcid.io.kinds import is_blocked
 from pmdcid.io.mapping import ColumnMap
 
 UNITS = {"t": "s", "v": "V", "tau": "N m", "i": "A", "omega": "rad/s", "theta": "rad"}
@@ -128,10 +129,9 @@ class Log:
 
     @property
     def blocked(self) -> bool:
-        """A blocked-rotor log: its ``# kind:`` says so (any kind naming a block), or it
+        """A blocked-rotor log: its ``# kind:`` says so (:mod:`pmdcid.io.kinds`), or it
         measures neither speed nor angle. The one rule every stage, diagnose and the report use."""
-        kind = (self.kind or "").lower()
-        return "block" in kind or not (self.has("omega") or self.has("theta"))
+        return is_blocked(self.kind) or not (self.has("omega") or self.has("theta"))
 
     @classmethod
     def from_csv(cls, path, *, columns=None, map_file=None, cutoff_hz=None) -> Log:

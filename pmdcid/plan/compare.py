@@ -36,15 +36,16 @@ def protocol_seconds(profiles) -> float:
 
 
 def protocol_stderr(model: Model, profiles, noise: dict[str, float]) -> dict[str, float]:
-    """Predicted standard errors [SI] of the identified parameters from logs of ``profiles``."""
+    """Predicted standard errors [SI] of the identified parameters from logs of ``profiles``,
+    stage by stage as identify fits them (:func:`~pmdcid.plan.fisher.staged_stderr`)."""
     drive = fi.drive_of(model)
     vals = fi.model_values(model, drive)
     names = fi.identified(model, drive)
     scales = parameter_scales(vals, drive, 1.0)
-    F = np.zeros((len(names), len(names)))
-    for t, u, blocked in profiles:
-        F += fi.information(fi.sensitivities(t, u, vals, names, drive, blocked, scales), noise)
-    return dict(zip(names, fi.stderr(F).tolist(), strict=True))
+    sens = [fi.sensitivities(t, u, vals, names, drive, blocked, scales)
+            for t, u, blocked in profiles]
+    se = fi.staged_stderr(sens, [b for _, _, b in profiles], names, noise)
+    return dict(zip(names, se.tolist(), strict=True))
 
 
 __all__ = ["paper_profiles", "protocol_seconds", "protocol_stderr"]

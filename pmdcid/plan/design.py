@@ -304,6 +304,70 @@ def build(cands, seconds, rate, vals, names, drive, scales, noise):
     return profiles, sens, infos
 
 
+def _allocate_build(cands, budget: float, ctx):
+    """Share ``budget`` among the candidates (:func:`allocate`) and build the profiles."""
+    vals, names, drive, scales, noise, rate = ctx
+    values = np.array([vals[n] for n in names])
+    unit_F, unit_s = [], []
+    for _, u, b in cands:
+        t = np.arange(len(u)) / rate
+        unit_F.append(fi.information(profile_sens(t, u, b, vals, names, drive, scales), noise))
+        unit_s.append(len(u) / rate)
+    seconds = allocate(unit_F, unit_s, budget, values, values != 0, [b for _, _, b in cands])
+    return build(cands, seconds, rate, vals, names, drive, scales, noise)
+
+
+#: multiples of the blocked-rotor step's default hold a plan tries: identify takes R from the
+#: blocked-rotor log alone, and R's error moves bv and J through the torque km v/R
+BLOCKED_LONGER = (1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+#: the blocked-rotor step never takes more than this fraction of the budget
+BLOCKED_SHARE = 0.1
+
+
+def blocked_hold(profiles, sens, ctx, umax: float, budget: float) -> float:
+    """How many times the default hold the blocked-rotor step should last: the multiple (of
+    :data:`BLOCKED_LONGER`, within :data:`BLOCKED_SHARE` of the budget) that minimises the
+    worst relative standard error of the mechanical parameters as identify's stages determine
+    them (:func:`~pmdcid.plan.fisher.staged_from`); the free profiles shortened to pay for it."""
+    vals, names, drive, scales, noise, rate = ctx
+    blocked = [p.blocked for p in profiles]
+    F_el, F_sp = fi.stage_information(sens, blocked, noise, len(names))
+    free_s = sum(p.seconds for p in profiles if not p.blocked)
+    base_s = sum(p.seconds for p in profiles if p.blocked)
+    mech = np.array([n not in fi.ELECTRICAL and vals[n] != 0 for n in names])
+    values = np.array([vals[n] for n in names])
+    te, _ = time_constants(vals, drive)
+    best, best_obj = 1.0, math.inf
+    for m in BLOCKED_LONGER:
+        u = pr.blocked_step(umax, te, rate, m)
+        extra = len(u) / rate - base_s
+        if extra > BLOCKED_SHARE * budget or extra >= free_s:
+            break
+        t = np.arange(len(u)) / rate
+        Fb = fi.information(profile_sens(t, u, True, vals, names, drive, scales), noise)
+        se = fi.staged_from(Fb, F_sp * (free_s - extra) / free_s, names)
+        obj = float(np.max(fi.relative(se, values)[mech])) if mech.any() else 0.0
+        if obj < best_obj * (1 - 1e-3):
+            best, best_obj = m, obj
+    return best
+
+
+def blocked_current_notes(profiles, vals: dict[str, float], drive: fi.Drive) -> list[str]:
+    """What each blocked-rotor step draws: V/R [A] (no back-EMF with the rotor held), for how
+    long, so that the user checks the drive's and the motor's ratings before recording it."""
+    out = []
+    for p in profiles:
+        if not (p.blocked and drive.electrical and vals.get("R", 0) > 0):
+            continue
+        v = float(np.max(np.abs(p.u)))
+        held = float(np.count_nonzero(np.abs(p.u) > 0)) / pr.rate_of(p.t)
+        out.append(f"{p.name}.csv: the blocked-rotor step of {v:.3g} V draws {v / vals['R']:.3g} A "
+                   f"(V/R, R = {vals['R']:.3g} ohm, no back-EMF with the rotor held) for "
+                   f"{held:.3g} s: check that the drive and the motor take it (a lower --vmax "
+                   "lowers it)")
+    return out
+
+
 def plan_for_model(model: Model, settings: Settings) -> Plan:
     """The plan for a model: profiles, units, predicted standard errors, the effect table."""
     drive = fi.drive_of(model, settings.taumax)
@@ -328,21 +392,19 @@ def plan_for_model(model: Model, settings: Settings) -> Plan:
     peak_i = (max(float(np.nanmax(np.abs(s.i))) for s in sims) if drive.electrical else 0.0)
     noise = default_noise(settings, peak_w, peak_i, recorded_noise(model))
     scales = parameter_scales(vals, drive, max(peak_w, 1e-6))
-    values = np.array([vals[n] for n in names])
-    targets = values != 0
-    unit_F, unit_s = [], []
-    for _, u, b in cands:
-        t = np.arange(len(u)) / rate
-        unit_F.append(fi.information(profile_sens(t, u, b, vals, names, drive, scales), noise))
-        unit_s.append(len(u) / rate)
-    fixed = [b for _, _, b in cands]
-    seconds = allocate(unit_F, unit_s, settings.budget, values, targets, fixed)
-    profiles, sens, infos = build(cands, seconds, rate, vals, names, drive, scales, noise)
+    ctx = (vals, names, drive, scales, noise, rate)
+    profiles, sens, infos = _allocate_build(cands, settings.budget, ctx)
+    longer = blocked_hold(profiles, sens, ctx, umax, settings.budget) if with_blocked else 1.0
+    if longer > 1:
+        te, _ = time_constants(vals, drive)
+        cands[0] = ("blocked", pr.blocked_step(umax, te, rate, longer), True)
+        profiles, sens, infos = _allocate_build(cands, settings.budget, ctx)
     F = sum(infos.values())
-    se = fi.stderr(F)
+    se = fi.staged_stderr(sens, [p.blocked for p in profiles], names, noise)
     plan = Plan(profiles, drive, names, {n: vals[n] for n in names},
                 {n: float(s) for n, s in zip(names, se, strict=True)}, noise, umax,
                 umax_default, settings.speed_max, sens=sens)
+    plan.notes += blocked_current_notes(profiles, vals, drive)
     if settings.effects:
         plan.effects = effect_table(profiles, sens, F, vals, names, drive, noise, scales, model)
     if plan.seconds > settings.budget + 1e-6:

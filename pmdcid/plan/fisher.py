@@ -159,12 +159,67 @@ def stderr(F: np.ndarray) -> np.ndarray:
     return out
 
 
+#: the parameters identify fits from the blocked-rotor logs' current (fit-electrical)
+ELECTRICAL = ("R", "L")
+
+
+def _pinv(F: np.ndarray) -> np.ndarray:
+    """Inverse of an information matrix, scaled to unit diagonal first (well conditioned);
+    a parameter it leaves free gets an infinite variance."""
+    d = np.sqrt(np.clip(np.diag(F), 0.0, None))
+    out = np.full(F.shape, 0.0)
+    np.fill_diagonal(out, math.inf)
+    seen = d > 0
+    if seen.any():
+        Fn = F[np.ix_(seen, seen)] / np.outer(d[seen], d[seen])
+        out[np.ix_(seen, seen)] = np.linalg.pinv(Fn) / np.outer(d[seen], d[seen])
+    return out
+
+
+def stage_information(sens: list[dict[str, np.ndarray]], blocked: list[bool],
+                      noise: dict[str, float], p: int) -> tuple[np.ndarray, np.ndarray]:
+    """(blocked-rotor profiles' information, free profiles' speed-only information)."""
+    F_el = sum((information(s, noise) for s, b in zip(sens, blocked, strict=True) if b),
+               np.zeros((p, p)))
+    F_sp = sum((information({"omega": s["omega"]}, noise) for s, b in
+                zip(sens, blocked, strict=True) if not b and "omega" in s), np.zeros((p, p)))
+    return F_el, F_sp
+
+
+def staged_from(F_el: np.ndarray, F_sp: np.ndarray, names: list[str]) -> np.ndarray:
+    """:func:`staged_stderr` from the two stages' information matrices."""
+    e = [k for k, n in enumerate(names) if n in ELECTRICAL]
+    m = [k for k, n in enumerate(names) if n not in ELECTRICAL]
+    out = np.full(len(names), math.inf)
+    if not e:
+        return stderr(F_sp)
+    cov_e = _pinv(F_el[np.ix_(e, e)])
+    out[e] = np.sqrt(np.clip(np.diag(cov_e), 0.0, None))
+    if m:
+        inv_mm = _pinv(F_sp[np.ix_(m, m)])
+        A = np.where(np.isfinite(inv_mm), inv_mm, 0.0) @ F_sp[np.ix_(m, e)]
+        carried = A @ np.where(np.isfinite(cov_e), cov_e, 0.0) @ A.T
+        out[m] = np.sqrt(np.clip(np.diag(inv_mm) + np.diag(carried), 0.0, None))
+    return out
+
+
+def staged_stderr(sens: list[dict[str, np.ndarray]], blocked: list[bool], names: list[str],
+                  noise: dict[str, float]) -> np.ndarray:
+    """Predicted standard errors (SI) of the stages identify runs, not of one fit of everything:
+    R, L from the blocked-rotor profiles' current alone (fit-electrical), the rest from the free
+    profiles' speed alone (the joint fit) with R, L held at their fitted values, whose error
+    moves the rest by ``-inv(F_mm) F_me dR`` (the covariance adds
+    ``inv(F_mm) F_me Cov_e F_em inv(F_mm)``)."""
+    F_el, F_sp = stage_information(sens, blocked, noise, len(names))
+    return staged_from(F_el, F_sp, names)
+
+
 def relative(se: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Relative standard errors (inf for a zero value)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(values != 0, se / np.abs(values), math.inf)
 
 
-__all__ = ["BLOCKED_BC", "Drive", "REL_STEP", "drive_of", "identified", "information",
-           "model_values", "relative", "sensitivities", "signals_of", "simulate_profile",
-           "stderr"]
+__all__ = ["BLOCKED_BC", "Drive", "ELECTRICAL", "REL_STEP", "drive_of", "identified",
+           "information", "model_values", "relative", "sensitivities", "signals_of",
+           "simulate_profile", "stage_information", "staged_from", "staged_stderr", "stderr"]

@@ -35,7 +35,7 @@ def guess_plan(settings: Settings) -> Plan:
     if drive.electrical:
         u = pr.blocked_step(BLOCKED_FRACTION * umax, BLOCKED_TE, rate)
         profiles.append(pr.make("01_blocked", "blocked", u, rate, blocked=True))
-    hold = min(STEP_HOLD, budget / (4 * len(STEP_FRACTIONS) + 2 * RAMP_SECONDS / STEP_HOLD))
+    hold = min(STEP_HOLD, budget / (4 * len(STEP_FRACTIONS) + 1 + 2 * RAMP_SECONDS / STEP_HOLD))
     u = pr.small_steps([f * umax for f in STEP_FRACTIONS], hold, rate)
     profiles.append(pr.make(f"{len(profiles) + 1:02d}_small_steps", "small_steps", u, rate))
     ramp_s = max(min(RAMP_SECONDS, budget - sum(p.seconds for p in profiles)), 2.0)

@@ -3,8 +3,9 @@
 Each run simulates every free-rotor profile of the plan at the true values with white noise of
 the plan's levels (a ``numpy.random.Generator`` passed in) and fits it as the pipeline does, by
 simulation error with the tool's engine (:func:`pmdcid.identify.simfit.fit_simulation`): R and
-L from the currents (the blocked-rotor step's and the free profiles': without back-EMF the
-current does not depend on the motion), then J, bv, bc, dz from the speeds with R, L held at
+L from the blocked-rotor step's current (``identify``'s fit-electrical: the free profiles'
+current is not used for R, so neither here nor in the prediction,
+:func:`pmdcid.plan.fisher.staged_stderr`), then J, bv, bc, dz from the speeds with R, L held at
 their estimates and km at its value (fit-nonlinear's finite-difference steps), each from a start
 2-3 % off the truth (the local stage alone: fit-nonlinear's grid stage finds the valley in
 practice, and a start 10 % off dz can lie across a staircase level that the truth does not
@@ -69,9 +70,10 @@ def fit_once(plan: Plan, model: Model, rng: np.random.Generator,
     elec = [n for n in ("R", "L") if n in plan.names]
     if elec:
         # the current's simulation is exact at any internal step (linear, no back-EMF): 1
-        res = fit_simulation(logs, work, elec, signals=("i",),
+        held = [lg for lg, p in zip(logs, plan.profiles, strict=True) if p.blocked]
+        res = fit_simulation(held, work, elec, signals=("i",),
                              start={n: vals[n] * START_OFF[n] for n in elec},
-                             sigma=[{"i": plan.noise["i"]}] * len(logs), nsub=1,
+                             sigma=[{"i": plan.noise["i"]}] * len(held), nsub=1,
                              correlated=False)
         out.update(res.values())
         for n in elec:

@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 
 from pmdcid.errors import LogError
+from pmdcid.io.kinds import canonical
 from pmdcid.io.logs import atomic_write_text, write_log
 from pmdcid.model.effects import unit_of
 from pmdcid.plan.design import Plan
@@ -23,7 +24,8 @@ def plan_json(plan: Plan) -> dict:
     """The contract's plan.json: profiles (file, purpose, seconds) and predicted stderr."""
     out = {
         "profiles": [{"file": f"{p.name}.csv", "purpose": p.purpose,
-                      "seconds": round(p.seconds, 6), "kind": p.kind, "units": round(p.units, 3),
+                      "seconds": round(p.seconds, 6), "kind": canonical(p.kind),
+                      "units": round(p.units, 3),
                       "blocked_rotor": p.blocked} for p in plan.profiles],
         "predicted_stderr": {n: _num(plan.stderr[n]) for n in plan.names},
         "values": {n: plan.values[n] for n in plan.names},
@@ -111,7 +113,7 @@ def write_plan(plan: Plan, folder: str | os.PathLike, command: str = "") -> list
     with output_folder(d):  # removed again if a write fails
         for p in plan.profiles:
             meta = {"generator": GENERATOR,
-                    "kind": "blocked-rotor" if p.blocked else p.kind.replace("_", "-"),
+                    "kind": "blocked-rotor" if p.blocked else canonical(p.kind),
                     "purpose": p.purpose, "units": f"{p.units:.3g}", **p.meta}
             path = d / f"{p.name}.csv"
             write_log(path, p.t, {plan.drive.column: p.u}, meta)

@@ -70,11 +70,13 @@ def hold(levels, seconds: float, rate: float) -> np.ndarray:
     return np.repeat(np.asarray(levels, float), n)
 
 
-def blocked_step(amp: float, te: float, rate: float) -> np.ndarray:
+def blocked_step(amp: float, te: float, rate: float, longer: float = 1.0) -> np.ndarray:
     """One step 0 -> amp with the rotor held, onset after 10 electrical time constants ``te``
-    [s], held 30 ``te`` (at least 20 samples each)."""
+    [s], held ``longer`` x 30 ``te`` (at least 20 samples each): a longer hold averages the
+    settled current (R) over more samples."""
     pre = max(10 * te, 20 / rate)
-    return np.concatenate([hold([0.0], pre, rate), hold([amp], max(30 * te, 40 / rate), rate)])
+    return np.concatenate([hold([0.0], pre, rate),
+                           hold([amp], longer * max(30 * te, 40 / rate), rate)])
 
 
 def free_steps(amp: float, tm: float, rate: float) -> np.ndarray:
@@ -143,9 +145,11 @@ def ramp(amp: float, seconds: float, rate: float) -> np.ndarray:
 
 
 def small_steps(amps, seconds: float, rate: float) -> np.ndarray:
-    """Each amplitude in ``amps`` then rest, both held ``seconds`` [s]; then the negatives."""
+    """Rest, then each amplitude in ``amps`` and rest again, all held ``seconds`` [s]; then the
+    negatives. The rest comes first: a step needs its level before recorded (fit-mechanical
+    finds a step by the change, and the rotor's starting state is measured there)."""
     lv = [x for a in amps for x in (a, 0.0)]
-    return hold(lv + [-x for x in lv], seconds, rate)
+    return hold([0.0] + lv + [-x for x in lv], seconds, rate)
 
 
 def repeat(u: np.ndarray, n: int) -> np.ndarray:

@@ -1,0 +1,83 @@
+"""plan -> record -> identify closes: a plan's profiles, recorded on a known synthetic rig (the
+kernel with sensor noise from ``default_rng(seed)``, through ``pmdcid simulate``), identified by
+``pmdcid identify``, give J, bv, bc, dz within 3 standard errors of the truth: the plan's
+predicted ones (``plan -m``), identify's own (``plan --guess``, which predicts nothing)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from pmdcid.cli import main
+from pmdcid.model import load_model, save_model
+from pmdcid.synth import PAPER, truth_model
+
+MECH = ("J", "bv", "bc", "dz")
+
+
+def _run(*args):
+    res = CliRunner().invoke(main, [str(a) for a in args])
+    assert res.exit_code == 0, (args[0], res.output, res.stderr)
+    return res
+
+
+def _record(plan_dir: Path, truth: Path, noise: dict, seed: int) -> list[str]:
+    """Each profile simulated on the truth with noise (the rig's recording)."""
+    rec = plan_dir / "rec"
+    rec.mkdir()
+    out = []
+    for k, prof in enumerate(json.loads((plan_dir / "plan.json").read_text())["profiles"]):
+        dst = rec / prof["file"]
+        _run("simulate", plan_dir / prof["file"], "-m", truth, "-o", dst, "--noise-i",
+             noise["i"], "--noise-omega", noise["omega"], "--seed", seed + k)
+        out.append(str(dst))
+    return out
+
+
+@pytest.fixture(scope="module")
+def truth(tmp_path_factory):
+    path = tmp_path_factory.mktemp("truth") / "truth.json"
+    save_model(truth_model(PAPER), path)
+    return path
+
+
+def test_plan_for_a_model_recorded_and_identified_within_its_predicted_stderr(tmp_path, truth):
+    _run("plan", "-m", truth, "--vmax", 12, "--budget", 60, "-o", tmp_path / "plan")
+    plan = json.loads((tmp_path / "plan" / "plan.json").read_text())
+    # the blocked-rotor step says what it draws: V/R = 12 V / 2.37 ohm
+    assert any(f"draws {12 / PAPER['R']:.3g} A" in n for n in plan["notes"]), plan["notes"]
+    logs = _record(tmp_path / "plan", truth, plan["noise"], seed=7)
+    _run("identify", *logs, "-m", tmp_path / "new.json", "--km", PAPER["km"])
+    model = load_model(tmp_path / "new.json")
+    se = plan["predicted_stderr"]
+    z = {n: (model.value(n) - PAPER[n]) / se[n] for n in MECH}
+    assert all(abs(v) <= 3 for v in z.values()), z
+    used = model.extra["fits"]["identify"]["logs"]
+    assert all(v["kind"] != "unused" for v in used.values())
+
+
+def test_guess_plan_recorded_and_identified_to_a_full_model(tmp_path, truth):
+    _run("plan", "--guess", "--vmax", 12, "-o", tmp_path / "plan")
+    logs = _record(tmp_path / "plan", truth, {"i": 0.01, "omega": 0.05}, seed=11)
+    first = next(p for p in logs if "small_steps" in p)
+    rows = [ln for ln in Path(first).read_text().splitlines() if not ln.startswith("#")]
+    assert float(rows[1].split(",")[1]) == 0.0  # rest recorded before the first step
+    res = _run("identify", *logs, "-m", tmp_path / "new.json", "--km", PAPER["km"])
+    assert "small-steps" in res.output
+    model = load_model(tmp_path / "new.json")
+    z = {n: (model.value(n) - PAPER[n]) / model.parameters[n].stderr for n in MECH}
+    assert all(abs(v) <= 3 for v in z.values()), z
+    assert "fit-mechanical" in model.extra["fits"]["identify"]["stages"]
+
+
+def test_simulate_holds_a_blocked_rotor_profile_and_keeps_its_kind(tmp_path, truth):
+    _run("plan", "--guess", "--vmax", 12, "-o", tmp_path / "plan")
+    src = tmp_path / "plan" / "01_blocked.csv"
+    _run("simulate", src, "-m", truth, "-o", tmp_path / "out.csv")
+    text = (tmp_path / "out.csv").read_text()
+    assert "# kind: blocked-rotor" in text
+    header = next(ln for ln in text.splitlines() if not ln.startswith("#"))
+    assert header == "t,v,i"  # the rotor held: no speed to spin up
