@@ -81,6 +81,20 @@ class IdentifyResult(ResultProtocol):
         """Make ``model`` the identified model: its parameters, effects and records."""
         copy_model_into(self.model, model)
 
+    def all_notes(self) -> list:
+        """Every stage's warnings, identify's own notes and diagnose's, as
+        :class:`~pmdcid.notes.Note` (what each concerns, severity, stage)."""
+        from pmdcid.identify.results import known_names
+        from pmdcid.notes import as_note
+
+        names, logs = known_names(), [p.path for p in self.plan]
+        out = [as_note(w, names=names, logs=logs) for w in self.warnings]
+        out += [as_note(n, severity="note", stage="identify", names=names, logs=logs)
+                for n in self.notes]
+        if self.diagnose is not None:
+            out += self.diagnose.all_notes()
+        return out
+
 
 def input_changes(u: np.ndarray) -> int:
     """Number of changes of a zero-order-held input [count]: sample-to-sample jumps above its
@@ -225,7 +239,7 @@ def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
         mark_lumped(new)
     res.model = new
     res.stages.append((name, out))
-    res.warnings += [f"{name}: {w}" for w in getattr(out, "warnings", [])]
+    res.warnings += [w.in_stage(name) for w in out.all_notes()]
 
 
 def _electrical(logs, model):
@@ -312,6 +326,7 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
     res.model.extra.setdefault("fits", {})["identify"] = {
         "logs": {p.path: {"kind": p.kind, "why": p.why} for p in res.plan},
         "stages": [name for name, _ in res.stages], "notes": res.notes}
+    res.record_notes(res.model)
     gate_result(res.model, logs, force)
     with locked(model_path):
         save_model(res.model, model_path)

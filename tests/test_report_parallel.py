@@ -44,9 +44,9 @@ def _pngs(out_dir: Path) -> dict[str, bytes]:
 @pytest.fixture
 def two_cpus(monkeypatch):
     """A spare CPU whatever the machine (and PMDCID_THREADS) says."""
-    import pmdcid.identify.cpus
+    from pmdcid.identify import cpus
 
-    monkeypatch.setattr(pmdcid.identify.cpus, "workers", lambda: 2)
+    monkeypatch.setattr(cpus, "workers", lambda: 2)
 
 
 @pytest.fixture(scope="module")
@@ -165,11 +165,11 @@ def test_a_figure_that_fails_everywhere_fails_the_report_as_serially(serial, two
 
 
 def test_serial_when_one_cpu_or_few_figures(monkeypatch):
-    import pmdcid.identify.cpus
+    from pmdcid.identify import cpus
 
-    monkeypatch.setattr(pmdcid.identify.cpus, "workers", lambda: 1)
+    monkeypatch.setattr(cpus, "workers", lambda: 1)
     assert parallel.spare_workers(100) == 0
-    monkeypatch.setattr(pmdcid.identify.cpus, "workers", lambda: 8)
+    monkeypatch.setattr(cpus, "workers", lambda: 8)
     assert parallel.spare_workers(parallel.MIN_JOBS - 1) == 0
     assert parallel.spare_workers(parallel.MIN_JOBS) == 1
     assert parallel.spare_workers(100) == parallel.MAX_WORKERS

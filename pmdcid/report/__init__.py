@@ -260,7 +260,3 @@ def model_errors_from(cmps) -> list[dict]:
 
 
 __all__ = ["ReportResult", "check_out_dir", "load_summary", "make_report"]
-
-from pmdcid._callable import make_callable  # noqa: E402
-
-make_callable(__name__)  # pmdcid.report(...) calls pmdcid.api.report
