@@ -31,9 +31,10 @@ def _names(allowed):
 
 
 def _show(result, model_path):
+    from pmdcid.cli.notes import echo_notes
+
     click.echo(result.table())
-    for w in result.warnings:
-        click.echo(f"warning: {w}", err=True)
+    echo_notes(result.all_notes())
     click.echo(f"updated {model_path}")
 
 

@@ -31,9 +31,10 @@ def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, ma
     res = run_identify(list(logs), model_path, out_dir, mapping, km=km,
                        run_diagnose=not no_diagnose, priors=not no_prior,
                        progress=stage_lines(), force=force)
+    from pmdcid.cli.notes import echo_notes
+
     click.echo(res.table())
-    for w in res.warnings:
-        click.echo(f"warning: {w}", err=True)
+    echo_notes(res.all_notes(), warnings_only=True)  # the table holds the notes
     click.echo(f"updated {model_path}")
     if res.report_dir:
         click.echo(f"wrote {res.report_dir}/report.html")

@@ -171,6 +171,7 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     from pmdcid.report import html
     from pmdcid.report.compare import compare_log, mean_errors, unique_names
     from pmdcid.report.metrics import LOW_SPEED_FRACTION, MAX_LAG
+    from pmdcid.report.notes import report_notes
     from pmdcid.report.parallel import FigureDrawer
 
     if not logs:
@@ -205,6 +206,8 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
         "mean": mean_errors(model_errors_from(cmps)),
         "before_after": ba,
         "summary": summary,
+        "notes": report_notes(model, summary, logs),
+        "lumped": model.extra.get("lumped") is True,
         "figures": sorted(figs),
     })
     page = html.render(metrics, figs)
