@@ -130,11 +130,24 @@ def _still(log) -> bool:
     return False
 
 
+def _measures_nothing(log) -> str:
+    """Why a log with an input and no measurement identifies nothing, and what to map."""
+    from pmdcid.errors import short_list
+
+    hint = (f"unmapped: {short_list(list(log.extra), 4)}; map one, e.g. "
+            f"-c omega={next(iter(log.extra))}*SCALE" if log.extra
+            else "map one with -c omega=SOURCE*SCALE")
+    return (f"measures no speed, angle or current (it has {', '.join(['t', *log.data])}; "
+            f"{hint})")
+
+
 def classify(log) -> LogPlan:
     """The class of one log (module docstring) and the reason, in words."""
     kind = (log.kind or "").strip().lower()
     if kind in KIND_META:
         return LogPlan(log.path, KIND_META[kind], f"'# kind: {kind}' in the file")
+    if not any(log.has(c) for c in ("i", "omega", "theta")):
+        return LogPlan(log.path, "unused", _measures_nothing(log))
     if log.has("i") and log.drive == "v" and _still(log):
         return LogPlan(log.path, "blocked", "the rotor stays still while current flows")
     n = input_changes(log.u)
@@ -171,8 +184,11 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
     moving = groups["step"] + groups["rich"]
     if not moving:
         if not res.stages:
-            raise FitError("no log identifies anything: give logs where the input changes and "
-                           "the rotor moves (steps, ramps) or blocked-rotor current steps")
+            why = res.notes[0] if res.notes else f"{plan[0].path}: {plan[0].why}" + (
+                f" (and {len(plan) - 1} more log(s))" if len(plan) > 1 else "")
+            raise FitError(f"no log identifies anything: {why}; give logs where the input "
+                           "changes and the rotor moves (steps, ramps) or blocked-rotor "
+                           "current steps")
         return res
     if not groups["blocked"] and not res.model.has("R"):
         _free_running_electrical(res, moving, say)
