@@ -76,10 +76,10 @@ def _names_in(text: str, names) -> tuple[str, ...]:
 
 def as_note(item, *, severity: str = "warning", stage: str = "", names=(), logs=()) -> Note:
     """``item`` (a :class:`Note`, a plain string, or a dict from :meth:`Note.to_dict`) as a
-    Note. A plain string's ``about`` is read by the module docstring's rule over ``names``
-    (parameter or effect names) and ``logs`` (paths)."""
+    Note (a Note without a stage gets ``stage``). A plain string's ``about`` is read by the
+    module docstring's rule over ``names`` (parameter or effect names) and ``logs`` (paths)."""
     if isinstance(item, Note):
-        return item
+        return item.in_stage(stage, prefix=False) if stage and not item.stage else item
     if isinstance(item, dict):
         return Note(item.get("text", ""), item.get("about", ()),
                     severity=item.get("severity", severity), stage=item.get("stage", stage),
