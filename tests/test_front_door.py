@@ -37,11 +37,11 @@ def test_front_door_names_are_functions_after_the_subpackages_are_imported():
         "import pmdcid.identify.runners, pmdcid.diagnose.loop, pmdcid.simulate.kernel\n"
         "import pmdcid.report.figures, pmdcid.plan.design, pmdcid.export.c_source\n"
         "import pmdcid, pmdcid.api as api\n"
-        "for n in %r:\n"
+        f"for n in {NAMES!r}:\n"
         "    f = getattr(pmdcid, n)\n"
         "    assert inspect.isfunction(f) and f is getattr(api, n), (n, f)\n"
         "    assert f.__doc__ == getattr(api, n).__doc__, n\n"
-        "    print(n, inspect.signature(f))\n" % (NAMES,))
+        "    print(n, inspect.signature(f))\n")
     here = Path(pmdcid.__file__).resolve().parents[1]  # the checkout under test
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=here)
