@@ -15,8 +15,8 @@ body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;margin:0 a
 max-width:1150px;padding:1em 1.5em;color:#222;line-height:1.4}
 h1{font-size:1.5em;margin-bottom:.2em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;
 margin-top:1.6em}h3{margin-bottom:.3em}
-table{border-collapse:collapse;margin:.5em 0;font-size:.9em;max-width:100%}
-th,td{border:1px solid #ddd;padding:.25em .6em;text-align:left;vertical-align:top}
+table{border-collapse:collapse;margin:.5em 0;font-size:.88em;max-width:100%}
+th,td{border:1px solid #ddd;padding:.25em .45em;text-align:left;vertical-align:top}
 th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
 td.why{font-size:.85em;color:#444;max-width:34em}
 .scroll{max-width:100%;overflow-x:auto}
@@ -135,8 +135,8 @@ def _errors(p: Page, figs: dict[str, bytes]) -> None:
           f"(regime NRMSE = regime RMS error / std of the whole measurement). "
           f"Resid: number of the {p.span('max_lag')} auto- (and {p.span('cross_lags')} cross-) "
           f"correlation lags outside the 99 % band.</p>")
-    p.add("<div class='scroll'><table><tr><th>log</th><th>signal</th><th>NRMSE</th>"
-          "<th>fit [%]</th><th>RMS error</th><th>max |error|</th><th>unit</th>"
+    p.add("<div class='scroll'><table><tr><th>log</th><th>signal [unit]</th><th>NRMSE</th>"
+          "<th>fit [%]</th><th>RMS error</th><th>max |error|</th>"
           "<th>near-zero NRMSE</th><th>rest NRMSE</th><th>near-zero max |error|</th>"
           "<th>auto lags out</th><th>cross lags out</th></tr>")
     for k, lg in enumerate(m["logs"]):
@@ -151,9 +151,10 @@ def _errors(p: Page, figs: dict[str, bytes]) -> None:
             if lu and "rms_logged" in sm:  # and in the log's own unit beside SI
                 rms = (rms[:-5] + f"<br><small>= {p.span(b + '.rms_logged')} "
                        f"{_esc(lu['source'])}</small></td>")
-            p.add(f"<tr><td>{_esc(lg['name'])}</td><td>{_esc(s)}{derived}</td>"
+            p.add(f"<tr><td>{_esc(lg['name'])}</td><td>{_esc(s)}{derived}<br><small>"
+                  f"[{_esc(sm['unit'])}]</small></td>"
                   f"{p.num(b + '.nrmse')}{p.num(b + '.fit_percent')}{rms}"
-                  f"{p.num(b + '.max_abs')}<td>{_esc(sm['unit'])}</td>{reg}"
+                  f"{p.num(b + '.max_abs')}{reg}"
                   f"{p.num(b + '.resid.auto.outside')}{p.num(b + '.resid.cross.outside')}</tr>")
     p.add("</table></div>")
     p.img("fit.png", figs["fit.png"], "fit per log and signal")
