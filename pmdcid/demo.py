@@ -146,6 +146,7 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
     def fit(fn, paths, **kw):
         res = fn(read_logs([str(p) for p in paths]), model, **kw)
         res.apply(model)
+        res.record_notes(model)  # the report shows them beside the numbers
         warnings.extend(getattr(res, "warnings", []))
         return res
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from pmdcid.io import read_log, write_log
+from pmdcid.io.build import as_mapping
 from pmdcid.report import figures, make_report, parallel
 from pmdcid.simulate import neutral_values
 from pmdcid.synth import PAPER, PAPER_NOISE, step, synth_log, triangle, truth_model
@@ -21,7 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _logs(tmp_path, rng):
-    """Three short logs of three kinds (triangle, step, blocked rotor): 8 figures."""
+    """Three short logs of three kinds (triangle, step, blocked rotor): 8 figures. The
+    triangle's speed is logged in rpm (its figures carry an axis in the log's own unit)."""
     vals = {**neutral_values(), **PAPER}
     out = []
     for name, n, kind, amp in (("tri", 4000, "triangle", 1.5), ("step", 1500, "step", 1.0),
@@ -32,8 +34,13 @@ def _logs(tmp_path, rng):
         else:
             u = step(t, amp, 0.2) if kind == "step" else np.full(n, amp)
         cols, _ = synth_log(t, u, vals, PAPER_NOISE, rng, blocked=kind == "blocked")
+        mapping = None
+        if kind == "triangle":
+            cols["speed_rpm"] = cols.pop("omega") * 30 / np.pi
+            mapping = as_mapping({"omega": "speed_rpm*rpm"})
         write_log(tmp_path / f"{name}.csv", t, cols, {"kind": kind})
-        out.append(read_log(tmp_path / f"{name}.csv"))
+        out.append(read_log(tmp_path / f"{name}.csv", mapping))
+    assert out[0].sources["omega"][0] == "speed_rpm"
     return out
 
 
