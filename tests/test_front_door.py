@@ -108,6 +108,7 @@ def test_plan_and_export_in_the_api(tmp_path):
     plan = pmdcid.plan(vmax=12.0, out_dir=tmp_path / "plan")
     written = json.loads((tmp_path / "plan" / "plan.json").read_text())
     assert len(plan.profiles) == len(written["profiles"]) >= 2
+    assert len(repr(plan)) < 200 and "array" not in repr(plan) and "profiles" in repr(plan)
     with pytest.raises(pmdcid.PmdcidError, match="vmax"):
         pmdcid.plan()
     out = pmdcid.export(_truth(), "python-control", tmp_path / "motor.py")

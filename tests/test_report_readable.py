@@ -107,6 +107,7 @@ def page(rig):
                "before": {"omega_nrmse": 0.05}, "after": {"omega_nrmse": 0.01},
                "notes": [], "warnings": [DELAY]}
     res = make_report([log], model, tmp / "rep", summary=summary)
+    assert len(repr(res)) < 200 and "report.html" in repr(res)  # not the metrics
     p = _Text()
     p.feed(open(res.html_path, encoding="utf-8").read())
     return p, res.metrics

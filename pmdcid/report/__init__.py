@@ -29,6 +29,12 @@ class ReportResult:
     metrics: dict
     figures: list[str] = field(default_factory=list)
 
+    def __repr__(self) -> str:  # one line: not the metrics (every lag of every residual)
+        mean = ", ".join(f"{k.replace('_nrmse', '')} {v:.3g}"
+                         for k, v in (self.metrics.get("mean") or {}).items() if v is not None)
+        return (f"ReportResult({self.html_path!r}, {len(self.figures)} figures"
+                f"{f', mean NRMSE {mean}' if mean else ''})")
+
 
 def check_out_dir(out_dir) -> Path:
     """Refuse an output folder that is a file or lies under one (one clear line)."""
