@@ -74,21 +74,27 @@ def _names_in(text: str, names) -> tuple[str, ...]:
     return tuple(n for n in names if re.search(_WORD.format(re.escape(n)), head))
 
 
+def _leading_log(text: str, stage: str, logs) -> tuple[str, str]:
+    """(the log path ``text`` starts with, after a ``stage: `` prefix, or ''; the rest)."""
+    body = text[len(stage) + 2:] if stage and text.startswith(f"{stage}: ") else text
+    log = next((p for p in logs if p and body.startswith(f"{p}:")), "")
+    return log, body[len(log) + 1:].lstrip() if log else body
+
+
 def as_note(item, *, severity: str = "warning", stage: str = "", names=(), logs=()) -> Note:
     """``item`` (a :class:`Note`, a plain string, or a dict from :meth:`Note.to_dict`) as a
     Note (a Note without a stage gets ``stage``). A plain string's ``about`` is read by the
-    module docstring's rule over ``names`` (parameter or effect names) and ``logs`` (paths)."""
+    module docstring's rule over ``names`` (parameter or effect names) and ``logs`` (paths);
+    a dict's log, when it names none, by the same rule."""
     if isinstance(item, Note):
         return item.in_stage(stage, prefix=False) if stage and not item.stage else item
     if isinstance(item, dict):
-        return Note(item.get("text", ""), item.get("about", ()),
-                    severity=item.get("severity", severity), stage=item.get("stage", stage),
-                    log=item.get("log", ""))
+        text, stage = str(item.get("text", "")), item.get("stage", stage)
+        log = item.get("log") or _leading_log(text, stage, logs)[0]
+        return Note(text, item.get("about", ()), severity=item.get("severity", severity),
+                    stage=stage, log=log)
     text = str(item)
-    body = re.sub(r"^[^:]{1,80}?:\s", "", text) if stage and text.startswith(stage) else text
-    log = next((p for p in logs if p and body.startswith(f"{p}:")), "")
-    if log:
-        body = body[len(log) + 1:].lstrip()
+    log, body = _leading_log(text, stage, logs)
     return Note(text, _names_in(body, names), severity=severity, stage=stage, log=log)
 
 

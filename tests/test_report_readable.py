@@ -48,7 +48,10 @@ def rig(tmp_path_factory):
     model.set("dz", 0.004, 0.0023, stage="fit-nonlinear")
     model.set("delay", 0.0, stage="diagnose")
     model.extra["notes"] = [{"text": DZ_NOTE, "about": ["dz"], "severity": "warning",
-                             "stage": "fit-nonlinear", "log": ""}]
+                             "stage": "fit-nonlinear", "log": ""},
+                            {"text": f"fit-mechanical: {log.path}: 2 isolated speed spike(s): "
+                             "reported, not fitted", "about": [], "severity": "warning",
+                             "stage": "fit-mechanical"}]
     return tmp, log, model
 
 
@@ -122,7 +125,9 @@ def test_warnings_sit_beside_the_numbers_they_qualify(page):
     listed = p.by_id["notes"]
     assert "warning: fit-nonlinear: dz is not identifiable" in " ".join(listed.split())
     assert DELAY in " ".join(listed.split())
-    assert [n["rows"] for n in metrics["notes"]] == [["dz"], ["delay"]]
+    assert [n["rows"] for n in metrics["notes"]] == [["dz"], [], ["delay"]]
+    assert [n["log_index"] for n in metrics["notes"]] == [None, 0, None]
+    assert "2 isolated speed spike(s)" in p.by_id["log-0"]
 
 
 def test_diagnose_table_in_words_and_header_true_about_the_start(page):
