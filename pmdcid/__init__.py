@@ -38,15 +38,23 @@ __all__ = ["Log", "Model", "Note", "PmdcidError", "diagnose", "export", "fit_ele
 
 
 class _FrontDoor(types.ModuleType):
-    """The class of the ``pmdcid`` module: importing the subpackage ``pmdcid.identify`` makes
-    Python bind it as the attribute ``identify`` of ``pmdcid`` (``setattr`` on the parent);
-    that one binding is declined, so ``pmdcid.identify`` stays :func:`pmdcid.api.identify`.
-    The subpackage stays reachable as ``sys.modules['pmdcid.identify']`` and by every import
-    form (``from pmdcid.identify import x``, ``import pmdcid.identify.x as x``)."""
+    """The class of the ``pmdcid`` module (docs/architecture.md, "Front-door names").
+
+    Importing the subpackage ``pmdcid.identify`` makes Python bind it as the attribute
+    ``identify`` of ``pmdcid`` (``setattr`` on the parent). That binding is declined, so
+    ``pmdcid.identify`` stays the plain function :func:`pmdcid.api.identify`; instead the
+    function's attribute namespace becomes the subpackage's (a function's ``__dict__`` may be
+    any dict, PEP 232), so ``pmdcid.identify.runners``, ``import pmdcid.export as ex;
+    ex.PORTED`` and ``monkeypatch.setattr("pmdcid.simulate.cache.x", ...)`` reach the
+    subpackage as before, while the function's own name, signature and docstring stay its own.
+    """
 
     def __setattr__(self, name, value):
         if name in FRONT_DOOR and isinstance(value, types.ModuleType):
-            return  # the subpackage being bound by the import system (class docstring)
+            from pmdcid import api
+
+            getattr(api, name).__dict__ = value.__dict__  # the subpackage's namespace
+            return
         super().__setattr__(name, value)
 
 
@@ -59,6 +67,7 @@ def __getattr__(name: str):
     if name in _LAZY:
         value = getattr(importlib.import_module(_LAZY[name]), name)
     elif name in FRONT_DOOR:
+        importlib.import_module(f"pmdcid.{name}")  # links the function to its subpackage
         value = getattr(importlib.import_module("pmdcid.api"), name)
     else:
         raise AttributeError(f"module 'pmdcid' has no attribute {name!r}")

@@ -191,13 +191,5 @@ def export(model, to: str, output, *, force: bool = False) -> list[str]:
         return export_model(path, to, str(output), force=force)
 
 
-#: ``import pmdcid.identify.runners as r`` binds ``r`` through ``getattr(pmdcid, "identify")``,
-#: which is the function below (pmdcid/__init__.py), then CPython looks the submodule up as
-#: ``sys.modules[f"{identify.__name__}.runners"]``: the functions named as subpackages carry the
-#: package's full name, so every import form reaches the subpackage (docs/architecture.md)
-for _f in (identify, diagnose, simulate, report, plan, export):
-    _f.__name__ = f"pmdcid.{_f.__qualname__}"
-del _f
-
 __all__ = ["diagnose", "export", "fit_electrical", "fit_mechanical", "fit_nonlinear", "identify",
            "plan", "report", "simulate"]

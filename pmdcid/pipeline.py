@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError, PmdcidError
-from pmdcid.identify.results import ResultProtocol
+from pmdcid.identify.results import ResultProtocol, notes_of
 from pmdcid.model import Model
 from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
 from pmdcid.model.params import copy_model_into
@@ -255,7 +255,7 @@ def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
         mark_lumped(new)
     res.model = new
     res.stages.append((name, out))
-    res.warnings += [w.in_stage(name) for w in out.all_notes()]
+    res.warnings += [w.in_stage(name) for w in notes_of(out)]
 
 
 def _electrical(logs, model):

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from pmdcid.simulate import aot, cache, neutral_values, param_vector
+from pmdcid.simulate import aot, neutral_values, param_vector
 from pmdcid.simulate.kernel import discretize
 from pmdcid.simulate.layout import NSTATE
 
@@ -76,7 +76,7 @@ def test_stale_or_missing_build_is_not_used(monkeypatch, tmp_path):
 
 def test_digest_follows_the_kernel_sources(monkeypatch):
     before = aot.digest()
-    monkeypatch.setattr(cache, "sources_hash", lambda: "edited")
+    monkeypatch.setattr("pmdcid.simulate.cache.sources_hash", lambda: "edited")
     assert aot.digest() != before
 
 

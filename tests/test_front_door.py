@@ -60,16 +60,23 @@ def test_signature_and_help_are_the_functions_own():
     assert "Identification stages" not in pmdcid.identify.__doc__
 
 
-def test_every_import_form_still_reaches_the_subpackages():
+def test_every_import_form_still_reaches_the_subpackages(monkeypatch):
+    import pmdcid.export as ex
     import pmdcid.identify.cpus as cpus
     import pmdcid.report.parallel as par
     from pmdcid import simulate
     from pmdcid.simulate import SimResult
 
     assert cpus.__name__ == "pmdcid.identify.cpus" and par.__name__ == "pmdcid.report.parallel"
-    assert simulate is api.simulate
-    assert sys.modules["pmdcid.simulate"].SimResult is SimResult
+    assert simulate is api.simulate and ex is api.export
     assert pmdcid.simulate is api.simulate  # importing submodules did not rebind it
+    # the function's attributes are its subpackage's namespace
+    assert pmdcid.simulate.SimResult is SimResult and pmdcid.identify.cpus is cpus
+    assert ex.FORMATS == sys.modules["pmdcid.export"].FORMATS
+    monkeypatch.setattr("pmdcid.identify.cpus.workers", lambda: 7)
+    assert cpus.workers() == 7
+    monkeypatch.setattr(ex, "MARKER", "patched")
+    assert sys.modules["pmdcid.export"].MARKER == "patched"
 
 
 def test_log_and_simulation_reprs_are_short():

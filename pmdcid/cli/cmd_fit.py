@@ -32,9 +32,10 @@ def _names(allowed):
 
 def _show(result, model_path):
     from pmdcid.cli.notes import echo_notes
+    from pmdcid.identify.results import notes_of
 
     click.echo(result.table())
-    echo_notes(result.all_notes())
+    echo_notes(notes_of(result))
     click.echo(f"updated {model_path}")
 
 

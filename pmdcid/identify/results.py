@@ -37,27 +37,11 @@ class ResultProtocol:
     def all_notes(self) -> list:
         """Every warning and note of this result as :class:`~pmdcid.notes.Note`: text, the
         parameters (or log) it concerns, severity, the stage that gave it."""
-        from pmdcid.notes import as_note
-
-        stage = STAGE_OF.get(type(self).__name__, type(self).__name__)
-        items = [(w, "warning") for w in getattr(self, "warnings", [])]
-        summary = getattr(self, "summary", None)  # diagnose's: its notes and drive warnings
-        if isinstance(summary, dict):
-            items += [(w, "warning") for w in summary.get("warnings", [])]
-            items += [(n, "note") for n in summary.get("notes", [])]
-        logs = _log_paths(self)
-        return [as_note(w, severity=sev, stage=stage, names=known_names(), logs=logs)
-                for w, sev in items]
+        return notes_of(self)
 
     def record_notes(self, model) -> None:
-        """Keep this result's notes in ``model`` (the model file's ``"notes"``, one record per
-        note), in place of those an earlier run of the same stage left there."""
-        from pmdcid.notes import to_records
-
-        mine = to_records(self.all_notes())
-        stages = {r["stage"] for r in mine} | {STAGE_OF.get(type(self).__name__, "")}
-        kept = [r for r in model.extra.get("notes", []) if r.get("stage") not in stages]
-        model.extra["notes"] = kept + mine
+        """Keep this result's notes in ``model`` (:func:`record_notes`)."""
+        record_notes(self, model)
 
     def to_dict(self) -> dict:
         """Parameters (name -> value, stderr, unit), warnings, notes (with what each concerns
@@ -98,9 +82,38 @@ class ResultProtocol:
 
 
 #: the stage each result class reports for (the model file's parameter ``stage`` names)
-STAGE_OF = {"ElectricalResult": "fit-electrical", "MechanicalResult": "fit-mechanical",
+STAGE_OF = {"ElectricalResult": "fit-electrical", "FreeRunResult": "fit-electrical",
+            "MechanicalResult": "fit-mechanical",
             "NonlinearResult": "fit-nonlinear", "InverseDynamicsResult": "fit-nonlinear",
             "IdentifyResult": "identify", "DiagnoseResult": "diagnose"}
+
+
+def notes_of(result) -> list:
+    """Every warning and note of any stage result (``warnings``; a diagnose summary's
+    ``warnings`` and ``notes``) as :class:`~pmdcid.notes.Note`, with its stage."""
+    from pmdcid.notes import as_note
+
+    stage = STAGE_OF.get(type(result).__name__, type(result).__name__)
+    items = [(w, "warning") for w in getattr(result, "warnings", [])]
+    summary = getattr(result, "summary", None)  # diagnose's: its notes and drive warnings
+    if isinstance(summary, dict):
+        items += [(w, "warning") for w in summary.get("warnings", [])]
+        items += [(n, "note") for n in summary.get("notes", [])]
+    logs = _log_paths(result)
+    return [as_note(w, severity=sev, stage=stage, names=known_names(), logs=logs)
+            for w, sev in items]
+
+
+def record_notes(result, model) -> None:
+    """Keep ``result``'s notes in ``model`` (the model file's ``"notes"``, one record per
+    note), in place of those an earlier run of the same stage left there."""
+    from pmdcid.notes import to_records
+
+    got = result.all_notes() if hasattr(result, "all_notes") else notes_of(result)
+    mine = to_records(got)
+    stages = {r["stage"] for r in mine} | {STAGE_OF.get(type(result).__name__, "")}
+    kept = [r for r in model.extra.get("notes", []) if r.get("stage") not in stages]
+    model.extra["notes"] = kept + mine
 
 
 def known_names() -> tuple[str, ...]:

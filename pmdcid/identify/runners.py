@@ -21,6 +21,7 @@ import os
 
 from pmdcid.errors import LogError
 from pmdcid.identify.plausibility import gate, gate_result
+from pmdcid.identify.results import record_notes
 from pmdcid.io import read_logs
 from pmdcid.io.outputs import locked
 from pmdcid.model import load_model, save_model
@@ -59,7 +60,7 @@ def _apply(result, model, new) -> None:
     if is_lumped(model):
         per_volt(result)
     result.apply(new)
-    result.record_notes(new)
+    record_notes(result, new)
     if is_lumped(model):
         mark_lumped(new)
 
