@@ -136,9 +136,10 @@ class Log:
         from pmdcid.io.plot import LABELS, describe
 
         cols = ", ".join(f"{c}{' (derived)' if c in self.derived else ''}"
+                         f"{f' (as {self.sources[c][0]})' if c in self.sources else ''}"
                          for c in self.data if c in LABELS)
         kind = f", kind {self.kind}" if self.kind else ""
-        return f"Log({self.path!r}{kind}: {describe(self.t, '')}; {cols})"
+        return f"Log({self.path!r}{kind}: {describe(self.t)}; {cols})"
 
     def plot(self, columns=None):
         """The log's signals against time, the input on top (matplotlib Figure)."""

@@ -44,14 +44,14 @@ def plot_columns(t, columns: dict[str, np.ndarray], title: str, styles: dict | N
     return fig
 
 
-def describe(t: np.ndarray, what: str) -> str:
+def describe(t: np.ndarray) -> str:
     """``12000 samples, 0-12 s at 1000 Hz`` for a repr."""
     n = len(t)
     if n < 2:
         return f"{n} sample(s)"
     dt = (t[-1] - t[0]) / (n - 1)
     rate = f" at {1.0 / dt:.4g} Hz" if dt > 0 else ""
-    return f"{what}{n} samples, {t[0]:.4g}-{t[-1]:.4g} s{rate}"
+    return f"{n} samples, {t[0]:.4g}-{t[-1]:.4g} s{rate}"
 
 
 __all__ = ["LABELS", "ORDER", "describe", "plot_columns"]

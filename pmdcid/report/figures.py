@@ -192,9 +192,9 @@ def _fit_label(metrics: dict, s: str) -> str:
     return f"model (fit {fit:.1f} %)" if fit is not None else "model"
 
 
-def _input_panel(ax, cmp, a: int = 0, b: int | None = None) -> None:
+def _input_panel(ax, cmp) -> None:
     log = cmp.log
-    _line(ax, log.t[a:b], log.u[a:b], **INPUT)
+    _line(ax, log.t, log.u, **INPUT)
     ax.set_ylabel(LABELS[log.drive])
     _logged_axis(ax, cmp.metrics.get("logged_units", {}).get(log.drive))
     ax.grid(alpha=0.3)

@@ -60,9 +60,10 @@ class Page:
     def add(self, text: str) -> None:
         self.parts.append(text)
 
-    def num(self, path: str, digits: int = 4) -> str:
+    def num(self, path: str, digits: int = 4, after: str = "") -> str:
+        """A numeric cell; ``after``: HTML below the number in the same cell."""
         return (f'<td class="num" data-m="{html.escape(path)}">'
-                f"{fmt(get_path(self.m, path), digits)}</td>")
+                f"{fmt(get_path(self.m, path), digits)}{after}</td>")
 
     def span(self, path: str, digits: int = 4) -> str:
         return (f'<span data-m="{html.escape(path)}">'
@@ -147,10 +148,9 @@ def _errors(p: Page, figs: dict[str, bytes]) -> None:
                                        ("low_speed", "max_abs")))
             derived = " (derived)" if sm["derived"] else ""
             lu = lg.get("logged_units", {}).get(s)
-            rms = p.num(b + ".rms")
-            if lu and "rms_logged" in sm:  # and in the log's own unit beside SI
-                rms = (rms[:-5] + f"<br><small>= {p.span(b + '.rms_logged')} "
-                       f"{_esc(lu['source'])}</small></td>")
+            own = (f"<br><small>= {p.span(b + '.rms_logged')} {_esc(lu['source'])}</small>"
+                   if lu and "rms_logged" in sm else "")  # and in the log's own unit
+            rms = p.num(b + ".rms", after=own)
             p.add(f"<tr><td>{_esc(lg['name'])}</td><td>{_esc(s)}{derived}<br><small>"
                   f"[{_esc(sm['unit'])}]</small></td>"
                   f"{p.num(b + '.nrmse')}{p.num(b + '.fit_percent')}{rms}"

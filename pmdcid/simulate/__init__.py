@@ -82,7 +82,7 @@ class SimResult:
         spans = "; ".join(f"{n} {np.nanmin(a):.4g}..{np.nanmax(a):.4g} {u}"
                           for n, a, u in (("omega", self.omega, "rad/s"), ("i", self.i, "A"))
                           if len(a) and np.isfinite(a).any())
-        return f"SimResult({describe(self.t, '')}; {spans})"
+        return f"SimResult({describe(self.t)}; {spans})"
 
     def plot(self, log=None):
         """The simulated current, speed and angle against time (matplotlib Figure); with
