@@ -24,6 +24,7 @@ NAMES = ("dz", "bc", "L", "R", "sensor_delay", "delay")
 def test_a_note_is_its_text_and_knows_what_it_concerns():
     n = Note("dz is not identifiable from these logs: any dead zone fits", about="dz")
     assert n == "dz is not identifiable from these logs: any dead zone fits"
+    assert pmdcid.Note is Note
     assert "identifiable" in n and n.about == ("dz",) and n.severity == "warning"
     back = pickle.loads(pickle.dumps(n.in_stage("fit-nonlinear")))
     assert back.about == ("dz",) and back.stage == "fit-nonlinear"
@@ -103,3 +104,30 @@ def test_notes_survive_a_model_file_round_trip(tmp_path):
     (n,) = [as_note(r) for r in back.extra["notes"]]
     assert n.about == ("dz",) and n.stage == "fit-nonlinear" and isinstance(n, str)
     assert np.isclose(back.value("dz"), 0.004)
+
+
+def test_identify_prints_notes_keeps_them_and_the_report_shows_the_dz_caveat(tmp_path):
+    """End to end on voltage + speed steps: the lumped note on stdout, the dead zone's caveat
+    as a warning, both in the model file, and the dz row of the report says why."""
+    paths = []
+    for amp in ("1.0", "2.0"):
+        lg = pmdcid.Log.from_csv(PAPER_DIR / f"step_{amp}V.csv")
+        paths.append(tmp_path / f"step_{amp}.csv")
+        write_log(paths[-1], lg.t, {"v": lg["v"], "omega": lg["omega"]},
+                  {"kind": "free-speed-step"})
+    model = tmp_path / "m.json"
+    r = CliRunner().invoke(main, ["identify", *map(str, paths), "-m", str(model),
+                                  "--no-diagnose"])
+    assert r.exit_code == 0, r.output
+    assert "note: fit-mechanical: lumped model: per-volt" in r.stdout
+    assert all(ln.startswith("warning: ") for ln in r.stderr.splitlines())
+    kept = json.loads(model.read_text())["notes"]
+    (dz,) = [k for k in kept if "dz is not identifiable" in k["text"]]
+    assert dz["about"] == ["dz"] and dz["severity"] == "warning"
+    assert {k["severity"] for k in kept if "lumped model: per-volt" in k["text"]} == {"note"}
+    r = CliRunner().invoke(main, ["report", str(paths[0]), "-m", str(model),
+                                  "-o", str(tmp_path / "rep")])
+    assert r.exit_code == 0, r.output
+    page = (tmp_path / "rep" / "report.html").read_text()
+    row = page.split("id='param-dz'", 1)[1].split("</tr>", 1)[0]
+    assert "dz is not identifiable from these logs" in row

@@ -34,7 +34,7 @@ def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, ma
     from pmdcid.cli.notes import echo_notes
 
     click.echo(res.table())
-    echo_notes(res.all_notes(), warnings_only=True)  # the table holds the notes
+    echo_notes(res.all_notes(), in_table=("identify", "diagnose"))
     click.echo(f"updated {model_path}")
     if res.report_dir:
         click.echo(f"wrote {res.report_dir}/report.html")

@@ -7,12 +7,12 @@ import click
 from pmdcid.errors import one_line
 
 
-def echo_notes(notes, warnings_only: bool = False) -> None:
+def echo_notes(notes, in_table=()) -> None:
     """Each warning as one ``warning: ...`` line on stderr, each note as ``note: ...`` on
-    stdout (a note says how a number was obtained: part of the result, not a problem);
-    ``warnings_only`` when the command's table printed the notes already."""
+    stdout (a note says how a number was obtained: part of the result, not a problem), but
+    the notes of the stages ``in_table`` (the command's table printed them already)."""
     for n in notes:
         if getattr(n, "severity", "warning") == "warning":
             click.echo(f"warning: {one_line(n)}", err=True)
-        elif not warnings_only:
+        elif getattr(n, "stage", "") not in in_table:
             click.echo(f"note: {one_line(n)}")
