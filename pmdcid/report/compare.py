@@ -51,23 +51,26 @@ def figure_view(cmp: LogComparison) -> tuple[LogComparison, int]:
 
 def simulate_for(log, model: Model) -> SimResult:
     """Simulate ``model`` on the log's input from the state its first samples measured
-    (:func:`start_of`: rest unless it starts turning); a blocked rotor is held still; a lumped
-    model takes the voltage through the torque path."""
-    torque = input_is_torque(log, model)
-    over = {"bc": BLOCKED_BC, "sigma0": 0.0} if log.blocked else None  # stiction holds it
-    vals = param_values(model, torque, over)
-    return simulate_values(log.t, log.u, vals, torque, x0=start_of(log))
-
-
-def start_of(log) -> np.ndarray:
-    """The state (i [A], omega [rad/s], theta [rad]) the report simulates ``log`` from: its
-    measured first samples (:mod:`pmdcid.identify.initial`), the speed 0 for a blocked rotor."""
+    (:mod:`pmdcid.identify.initial`: rest unless it starts turning); a blocked rotor is held
+    still; a lumped model takes the voltage through the torque path."""
     from pmdcid.identify.initial import initial_state
 
+    torque = input_is_torque(log, model)
+    blocked = log.blocked
+    over = {"bc": BLOCKED_BC, "sigma0": 0.0} if blocked else None  # stiction holds it
+    vals = param_values(model, torque, over)
     x0 = initial_state(log)
-    if log.blocked:
+    if blocked:
         x0[1] = 0.0
-    return x0
+    return simulate_values(log.t, log.u, vals, torque, x0=x0)
+
+
+def start_of(sim: SimResult) -> dict:
+    """The state a simulation started from (its first sample): i [A] (None for a torque-driven
+    one), the rotor's omega [rad/s] and theta [rad]."""
+    i0 = float(sim.i[0])
+    return {"i": i0 if math.isfinite(i0) else None, "omega": float(sim.omega_true[0]),
+            "theta": float(sim.theta_true[0])}
 
 
 def logged_units(log, signals) -> dict:
@@ -128,13 +131,12 @@ def compare_log(log, model: Model, name: str) -> LogComparison:
     for s, lu in units.items():
         if s in per and per[s]["rms"] is not None:
             per[s]["rms_logged"] = per[s]["rms"] / abs(lu["scale"])
-    x0 = start_of(log)
     m = {
         "name": name, "path": str(log.path), "kind": log.kind, "drive": log.drive,
         "n": int(log.n), "dt": float(log.dt), "rate_hz": 1.0 / float(log.dt),
         "duration": float(log.duration),
         "blocked": blocked, "omega_threshold": threshold, "signals": per,
-        "initial_state": {"i": float(x0[0]), "omega": float(x0[1]), "theta": float(x0[2])},
+        "initial_state": start_of(sim),
         "logged_units": units,
     }
     return LogComparison(name, log, sim, blocked, signals, low, threshold, m)
