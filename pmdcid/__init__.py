@@ -8,11 +8,15 @@ Library use (docs/api.md)::
     print(res)            # the table; res.model is a pmdcid.Model
 
 Names are imported on first use (module ``__getattr__``), so ``import pmdcid`` and the command
-line stay fast. ``pmdcid.identify``, ``pmdcid.diagnose``, ``pmdcid.simulate`` and
-``pmdcid.report`` are also subpackages: calling one runs the function of :mod:`pmdcid.api`.
+line stay fast. ``pmdcid.identify``, ``.diagnose``, ``.simulate``, ``.report``, ``.plan`` and
+``.export`` are the plain functions of :mod:`pmdcid.api`, although subpackages of the same
+names hold the stages (docs/architecture.md, "Front-door names").
 
 Import order (one way): io -> model -> simulate -> identify -> diagnose -> report -> cli.
 """
+
+import sys
+import types
 
 __version__ = "0.1.0"
 
@@ -20,16 +24,41 @@ __version__ = "0.1.0"
 _LAZY = {
     "Log": "pmdcid.io.logs",
     "Model": "pmdcid.model.params",
+    "Note": "pmdcid.notes",
     "PmdcidError": "pmdcid.errors",
     "fit_electrical": "pmdcid.api",
     "fit_mechanical": "pmdcid.api",
     "fit_nonlinear": "pmdcid.api",
 }
-#: callable subpackages (see :mod:`pmdcid._callable`)
-_SUBPACKAGES = ("identify", "diagnose", "simulate", "report")
+#: functions of :mod:`pmdcid.api` named as subpackages: the package attribute stays the function
+FRONT_DOOR = ("identify", "diagnose", "simulate", "report", "plan", "export")
 
-__all__ = ["Log", "Model", "PmdcidError", "diagnose", "fit_electrical", "fit_mechanical",
-           "fit_nonlinear", "identify", "report", "simulate"]
+__all__ = ["Log", "Model", "Note", "PmdcidError", "diagnose", "export", "fit_electrical",
+           "fit_mechanical", "fit_nonlinear", "identify", "plan", "report", "simulate"]
+
+
+class _FrontDoor(types.ModuleType):
+    """The class of the ``pmdcid`` module (docs/architecture.md, "Front-door names").
+
+    Importing the subpackage ``pmdcid.identify`` makes Python bind it as the attribute
+    ``identify`` of ``pmdcid`` (``setattr`` on the parent). That binding is declined, so
+    ``pmdcid.identify`` stays the plain function :func:`pmdcid.api.identify`; instead the
+    function's attribute namespace becomes the subpackage's (a function's ``__dict__`` may be
+    any dict, PEP 232), so ``pmdcid.identify.runners``, ``import pmdcid.export as ex;
+    ex.PORTED`` and ``monkeypatch.setattr("pmdcid.simulate.cache.x", ...)`` reach the
+    subpackage as before, while the function's own name, signature and docstring stay its own.
+    """
+
+    def __setattr__(self, name, value):
+        if name in FRONT_DOOR and isinstance(value, types.ModuleType):
+            from pmdcid import api
+
+            getattr(api, name).__dict__ = value.__dict__  # the subpackage's namespace
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _FrontDoor
 
 
 def __getattr__(name: str):
@@ -37,12 +66,14 @@ def __getattr__(name: str):
 
     if name in _LAZY:
         value = getattr(importlib.import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    if name in _SUBPACKAGES:
-        return importlib.import_module(f"pmdcid.{name}")
-    raise AttributeError(f"module 'pmdcid' has no attribute {name!r}")
+    elif name in FRONT_DOOR:
+        importlib.import_module(f"pmdcid.{name}")  # links the function to its subpackage
+        value = getattr(importlib.import_module("pmdcid.api"), name)
+    else:
+        raise AttributeError(f"module 'pmdcid' has no attribute {name!r}")
+    globals()[name] = value
+    return value
 
 
 def __dir__():
-    return sorted(list(globals()) + __all__)
+    return sorted(set(globals()) | set(__all__))

@@ -214,5 +214,56 @@ def report(logs, model, out_dir, *, summary=None, before=None, progress=None):
                        progress=resolve(progress))
 
 
-__all__ = ["diagnose", "fit_electrical", "fit_mechanical", "fit_nonlinear", "identify",
-           "report", "simulate"]
+def plan(model=None, out_dir=None, *, vmax: float | None = None, taumax: float | None = None,
+         speed_max: float | None = None, rate: float = 1000.0, budget: float = 120.0,
+         noise_omega: float | None = None, noise_i: float | None = None):
+    """Input profiles to record, as ``pmdcid plan``: for ``model`` (a Model or a model file's
+    path), or, with ``model=None``, a first safe experiment (``--guess``: give ``vmax`` [V] or
+    ``taumax`` [N m]). ``speed_max`` [rad/s]: the largest speed the motion may reach; ``rate``
+    [Hz]: sampling and input hold rate; ``budget`` [s]: total recording time; ``noise_omega``
+    [rad/s] and ``noise_i`` [A]: the sensors' noise std (None: defaults). With ``out_dir`` the
+    profiles (CSV), plan.json and plan.md are written there. Returns the
+    :class:`~pmdcid.plan.design.Plan` (``.profiles``, ``.stderr``: predicted standard errors)."""
+    import math
+
+    from pmdcid.errors import PmdcidError
+    from pmdcid.plan.design import Settings, plan_for_model
+    from pmdcid.plan.guess import guess_plan
+    from pmdcid.plan.output import check_out_dir, write_plan
+
+    if vmax is not None and taumax is not None:
+        raise PmdcidError("give vmax or taumax, not both")
+    if model is None and vmax is None and taumax is None:
+        raise PmdcidError("a plan without a model needs vmax (or taumax): the largest input "
+                          "the rig may take")
+    settings = Settings(umax=vmax if vmax is not None else taumax,
+                        speed_max=speed_max if speed_max is not None else math.inf, rate=rate,
+                        budget=budget, noise_omega=noise_omega, noise_i=noise_i,
+                        taumax=taumax is not None)
+    if out_dir is not None:
+        check_out_dir(out_dir)
+    out = guess_plan(settings) if model is None else plan_for_model(_model(model), settings)
+    if out_dir is not None:
+        write_plan(out, out_dir, "pmdcid.plan(...)")
+    return out
+
+
+def export(model, to: str, output, *, force: bool = False) -> list[str]:
+    """Code that steps ``model`` exactly as :func:`simulate` does, as ``pmdcid export``:
+    ``to`` is ``"python-control"``, ``"c"`` or ``"matlab"``; ``output`` the file to write (C:
+    its header beside it; MATLAB: a script beside it); ``force`` overwrites a file pmdcid did
+    not write. ``model``: a Model or a model file's path. Returns the paths written."""
+    import tempfile
+
+    from pmdcid.export import export_model
+
+    if isinstance(model, (str, os.PathLike)):
+        return export_model(str(model), to, str(output), force=force)
+    with tempfile.TemporaryDirectory() as tmp:  # the exporters read a model file
+        path = os.path.join(tmp, "model.json")
+        model.save(path)
+        return export_model(path, to, str(output), force=force)
+
+
+__all__ = ["diagnose", "export", "fit_electrical", "fit_mechanical", "fit_nonlinear", "identify",
+           "plan", "report", "simulate"]

@@ -123,6 +123,7 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
     from pmdcid.identify.electrical import fit_electrical
     from pmdcid.identify.mechanical import fit_mechanical
     from pmdcid.identify.nonlinear import fit_nonlinear
+    from pmdcid.identify.results import record_notes
     from pmdcid.io import read_logs
     from pmdcid.model import Model, save_model
     from pmdcid.report import check_out_dir, make_out_dir, make_report
@@ -146,6 +147,7 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
     def fit(fn, paths, **kw):
         res = fn(read_logs([str(p) for p in paths]), model, **kw)
         res.apply(model)
+        record_notes(res, model)  # the report shows them beside the numbers
         warnings.extend(getattr(res, "warnings", []))
         return res
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from pmdcid.errors import FitError, PmdcidError
 from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau
-from pmdcid.identify.results import ResultProtocol
+from pmdcid.identify.results import ResultProtocol, notes_of
 from pmdcid.identify.steps import held_steps
 from pmdcid.io.kinds import canonical, describe, stage_class
 from pmdcid.model import Model
@@ -93,6 +93,20 @@ class IdentifyResult(ResultProtocol):
         """Make ``model`` the identified model: its parameters, effects and records."""
         copy_model_into(self.model, model)
 
+    def all_notes(self) -> list:
+        """Every stage's warnings, identify's own notes and diagnose's, as
+        :class:`~pmdcid.notes.Note` (what each concerns, severity, stage)."""
+        from pmdcid.identify.results import known_names
+        from pmdcid.notes import as_note
+
+        names, logs = known_names(), [p.path for p in self.plan]
+        out = [as_note(w, names=names, logs=logs) for w in self.warnings]
+        out += [as_note(n, severity="note", stage="identify", names=names, logs=logs)
+                for n in self.notes]
+        if self.diagnose is not None:
+            out += self.diagnose.all_notes()
+        return out
+
 
 def input_changes(u: np.ndarray) -> int:
     """Number of changes of a zero-order-held input [count]: sample-to-sample jumps above its
@@ -133,12 +147,25 @@ def _still(log) -> bool:
     return bool(x.size == 0 or np.max(np.abs(x)) < 5 * max(noise_std(x), 1e-12))
 
 
+def _measures_nothing(log) -> str:
+    """Why a log with an input and no measurement identifies nothing, and what to map."""
+    from pmdcid.errors import short_list
+
+    hint = (f"unmapped: {short_list(list(log.extra), 4)}; map one, e.g. "
+            f"-c omega={next(iter(log.extra))}*SCALE" if log.extra
+            else "map one with -c omega=SOURCE*SCALE")
+    return (f"measures no speed, angle or current (it has {', '.join(['t', *log.data])}; "
+            f"{hint})")
+
+
 def classify(log) -> LogPlan:
     """The class of one log (module docstring) and the reason, in words."""
     cls = stage_class(log.kind)
     if cls is not None:
         return LogPlan(log.path, cls, f"'# kind: {log.kind}' in the file "
                                       f"({describe(canonical(log.kind))})")
+    if not any(log.has(c) for c in ("i", "omega", "theta")):
+        return LogPlan(log.path, "unused", _measures_nothing(log))
     if log.has("i") and log.drive == "v" and _still(log):
         return LogPlan(log.path, "blocked", "the rotor stays still while current flows")
     n = input_changes(log.u)
@@ -189,8 +216,11 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
     moving = groups["step"] + groups["rich"]
     if not moving:
         if not res.stages:
-            raise FitError("no log identifies anything: give logs where the input changes and "
-                           "the rotor moves (steps, ramps) or blocked-rotor current steps")
+            why = res.notes[0] if res.notes else f"{plan[0].path}: {plan[0].why}" + (
+                f" (and {len(plan) - 1} more log(s))" if len(plan) > 1 else "")
+            raise FitError(f"no log identifies anything: {why}; give logs where the input "
+                           "changes and the rotor moves (steps, ramps) or blocked-rotor "
+                           "current steps")
         return res
     if not groups["blocked"] and not res.model.has("R"):
         _free_running_electrical(res, moving, say)
@@ -338,7 +368,7 @@ def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
         mark_lumped(new)
     res.model = new
     res.stages.append((name, out))
-    res.warnings += [f"{name}: {w}" for w in getattr(out, "warnings", [])]
+    res.warnings += [w.in_stage(name) for w in notes_of(out)]
 
 
 def _linear_start(logs, model):
@@ -431,6 +461,7 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
     res.model.extra.setdefault("fits", {})["identify"] = {
         "logs": {p.path: {"kind": p.kind, "why": p.why} for p in res.plan},
         "stages": [name for name, _ in res.stages], "notes": res.notes}
+    res.record_notes(res.model)
     gate_result(res.model, logs, force)
     with locked(model_path):
         save_model(res.model, model_path)

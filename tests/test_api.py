@@ -162,14 +162,14 @@ def test_lumped_fit_matches_cli_runner(tmp_path):
     assert si.value("J") == pytest.approx(model.value("J") * 0.0502 / 2.3724)
 
 
-def test_subpackages_are_callable():
-    import pmdcid.identify.runners  # noqa: F401 - binds pmdcid.identify to the subpackage
-    import pmdcid.simulate as simpkg
+def test_front_door_functions_after_subpackage_imports():
+    import pmdcid.identify.runners  # noqa: F401 - would bind pmdcid.identify to the subpackage
+    from pmdcid import simulate
 
     assert callable(pmdcid.identify) and callable(pmdcid.diagnose) and callable(pmdcid.report)
     t = np.arange(0.0, 0.5, 1e-3)
-    sim = simpkg(pmdcid.Log.from_arrays(t, v=np.where(t > 0.1, 1.0, 0.0)), _truth(),
-                 x0=(0.0, 0.5, 0.0))
+    sim = simulate(pmdcid.Log.from_arrays(t, v=np.where(t > 0.1, 1.0, 0.0)), _truth(),
+                   x0=(0.0, 0.5, 0.0))
     assert sim.omega[0] == pytest.approx(0.5, rel=0.01)
     assert list(sim.to_pandas().columns) == ["t", "i", "omega", "theta"]
 

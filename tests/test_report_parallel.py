@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from pmdcid.io import read_log, write_log
+from pmdcid.io.build import as_mapping
 from pmdcid.report import figures, make_report, parallel
 from pmdcid.simulate import neutral_values
 from pmdcid.synth import PAPER, PAPER_NOISE, step, synth_log, triangle, truth_model
@@ -21,7 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _logs(tmp_path, rng):
-    """Three short logs of three kinds (triangle, step, blocked rotor): 8 figures."""
+    """Three short logs of three kinds (triangle, step, blocked rotor): 8 figures. The
+    triangle's speed is logged in rpm (its figures carry an axis in the log's own unit)."""
     vals = {**neutral_values(), **PAPER}
     out = []
     for name, n, kind, amp in (("tri", 4000, "triangle", 1.5), ("step", 1500, "step", 1.0),
@@ -32,8 +34,13 @@ def _logs(tmp_path, rng):
         else:
             u = step(t, amp, 0.2) if kind == "step" else np.full(n, amp)
         cols, _ = synth_log(t, u, vals, PAPER_NOISE, rng, blocked=kind == "blocked")
+        mapping = None
+        if kind == "triangle":
+            cols["speed_rpm"] = cols.pop("omega") * 30 / np.pi
+            mapping = as_mapping({"omega": "speed_rpm*rpm"})
         write_log(tmp_path / f"{name}.csv", t, cols, {"kind": kind})
-        out.append(read_log(tmp_path / f"{name}.csv"))
+        out.append(read_log(tmp_path / f"{name}.csv", mapping))
+    assert out[0].sources["omega"][0] == "speed_rpm"
     return out
 
 
@@ -44,9 +51,9 @@ def _pngs(out_dir: Path) -> dict[str, bytes]:
 @pytest.fixture
 def two_cpus(monkeypatch):
     """A spare CPU whatever the machine (and PMDCID_THREADS) says."""
-    import pmdcid.identify.cpus
+    from pmdcid.identify import cpus
 
-    monkeypatch.setattr(pmdcid.identify.cpus, "workers", lambda: 2)
+    monkeypatch.setattr(cpus, "workers", lambda: 2)
 
 
 @pytest.fixture(scope="module")
@@ -165,11 +172,11 @@ def test_a_figure_that_fails_everywhere_fails_the_report_as_serially(serial, two
 
 
 def test_serial_when_one_cpu_or_few_figures(monkeypatch):
-    import pmdcid.identify.cpus
+    from pmdcid.identify import cpus
 
-    monkeypatch.setattr(pmdcid.identify.cpus, "workers", lambda: 1)
+    monkeypatch.setattr(cpus, "workers", lambda: 1)
     assert parallel.spare_workers(100) == 0
-    monkeypatch.setattr(pmdcid.identify.cpus, "workers", lambda: 8)
+    monkeypatch.setattr(cpus, "workers", lambda: 8)
     assert parallel.spare_workers(parallel.MIN_JOBS - 1) == 0
     assert parallel.spare_workers(parallel.MIN_JOBS) == 1
     assert parallel.spare_workers(100) == parallel.MAX_WORKERS

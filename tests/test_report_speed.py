@@ -147,7 +147,7 @@ def test_overlay_draws_a_one_sample_spike_of_a_long_log(tmp_path, rng):
     pool = figures.FigurePool()
     figures.overlay_figure(c, pool)
     (fig, axes), = pool._figs.values()
-    line = axes[0, 0].lines[0]  # measured speed, full length
+    line = axes[1, 0].lines[0]  # measured speed, full length (the input is on top)
     drawn = np.asarray(line.get_ydata())
     assert len(drawn) < c.log.n // 10  # decimated ...
     assert drawn.max() == np.nanmax(c.log["omega"])  # ... but the spike is drawn

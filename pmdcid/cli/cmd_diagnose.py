@@ -10,7 +10,7 @@ from pmdcid.cli.options import log_options, model_option
 
 @main.command("diagnose")
 @click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=click.Path(dir_okay=False))
-@model_option()
+@model_option(updated=False)
 @click.option("-o", "--output", "out_path", required=True, type=click.Path(dir_okay=False),
               metavar="NEW_MODEL", help="Where to write the model with the effects found "
                                         "(MODEL itself is only changed if this is MODEL).")

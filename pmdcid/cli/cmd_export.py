@@ -12,7 +12,7 @@ FORMATS = ("python-control", "c", "matlab", "mujoco", "fmu")
 
 
 @main.command("export")
-@model_option()
+@model_option(updated=False)
 @click.option("--to", "fmt", required=True, type=click.Choice(FORMATS), help="Output format.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), metavar="FILE",
               help="File to write (c: FILE.c, header FILE.h beside it; matlab: FILE.m, "

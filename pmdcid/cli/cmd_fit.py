@@ -33,9 +33,11 @@ def _names(allowed):
 
 
 def _show(result, model_path):
+    from pmdcid.cli.notes import echo_notes
+    from pmdcid.identify.results import notes_of
+
     echo(result.table())
-    for w in result.warnings:
-        echo(f"warning: {w}", err=True)
+    echo_notes(notes_of(result))
     echo(f"updated {model_path}")
 
 

@@ -33,9 +33,10 @@ def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, co
     res = run_identify(list(logs), model_path, out_dir, mapping, km=km,
                        run_diagnose=not no_diagnose, priors=not no_prior,
                        progress=progress_lines(), force=force, controller=controller)
+    from pmdcid.cli.notes import echo_notes
+
     echo(res.table())
-    for w in res.warnings:
-        echo(f"warning: {w}", err=True)
+    echo_notes(res.all_notes(), in_table=("identify", "diagnose"))
     echo(f"updated {model_path}")
     if res.report_dir:
         echo(f"wrote {res.report_dir}/report.html")

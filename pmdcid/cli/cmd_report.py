@@ -10,7 +10,7 @@ from pmdcid.cli.options import log_options, model_option
 
 @main.command("report")
 @click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=click.Path(dir_okay=False))
-@model_option()
+@model_option(updated=False)
 @click.option("-o", "--output", "out_dir", required=True, type=click.Path(), metavar="DIR",
               help="Folder for report.html, metrics.json and the figures (created).")
 @click.option("--summary", "summary_path", type=click.Path(dir_okay=False), default=None,

@@ -112,10 +112,13 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
                 raise LogError(f"output would overwrite the input {inp}; choose another {opt}", out)
 
 
-def model_option(required: bool = True):
+def model_option(required: bool = True, updated: bool = True):
+    """``-m MODEL``; ``updated``: the command writes its results into MODEL (the fits,
+    identify), else it only reads it (simulate, export, report, diagnose)."""
     return click.option("-m", "--model", "model_path", required=required,
                         type=click.Path(dir_okay=False), metavar="MODEL",
-                        help="Model file (JSON), read and updated.")
+                        help="Model file (JSON), read and updated." if updated
+                        else "Model file (JSON), read only (never written).")
 
 
 def parse_x0(ctx, param, value):

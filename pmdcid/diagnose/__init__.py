@@ -3,7 +3,3 @@
 from pmdcid.diagnose.loop import Candidate, DiagnoseResult, diagnose
 
 __all__ = ["Candidate", "DiagnoseResult", "diagnose"]
-
-from pmdcid._callable import make_callable  # noqa: E402
-
-make_callable(__name__)  # pmdcid.diagnose(...) calls pmdcid.api.diagnose

@@ -76,6 +76,7 @@ def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, e
     gate(logs, force, value("km"), value("R"))
     with bounded_for(model_path):
         res = diagnose_logs(logs, model, effects=effects, **opts)
+    res.record_notes(res.model)  # the model file keeps diagnose's notes and warnings
     with locked(out_path):
         save_model(res.model, out_path)
     if summary_path:

@@ -34,12 +34,24 @@ class ResultProtocol:
 
         return html_table(self.rows(), type(self).__name__, self.table())
 
+    def all_notes(self) -> list:
+        """Every warning and note of this result as :class:`~pmdcid.notes.Note`: text, the
+        parameters (or log) it concerns, severity, the stage that gave it."""
+        return notes_of(self)
+
+    def record_notes(self, model) -> None:
+        """Keep this result's notes in ``model`` (:func:`record_notes`)."""
+        record_notes(self, model)
+
     def to_dict(self) -> dict:
-        """Parameters (name -> value, stderr, unit), warnings, fit statistics, the table."""
+        """Parameters (name -> value, stderr, unit), warnings, notes (with what each concerns
+        and its severity), fit statistics, the table."""
         from pmdcid.model.tables import rows_dict
+        from pmdcid.notes import to_records
 
         out = {"result": type(self).__name__, "parameters": rows_dict(self.rows()),
-               "warnings": list(getattr(self, "warnings", []))}
+               "warnings": list(getattr(self, "warnings", [])),
+               "notes": to_records(self.all_notes())}
         stats = getattr(self, "stats", None)
         if isinstance(stats, FitStats):
             out["stats"] = {"ndata": stats.ndata, "nvarys": stats.nvarys,
@@ -67,6 +79,61 @@ class ResultProtocol:
             from pmdcid.model.lumped import mark_lumped
 
             mark_lumped(model)
+
+
+#: the stage each result class reports for (the model file's parameter ``stage`` names)
+STAGE_OF = {"ElectricalResult": "fit-electrical", "FreeRunResult": "fit-electrical",
+            "MechanicalResult": "fit-mechanical",
+            "NonlinearResult": "fit-nonlinear", "InverseDynamicsResult": "fit-nonlinear",
+            "IdentifyResult": "identify", "DiagnoseResult": "diagnose"}
+
+
+def notes_of(result) -> list:
+    """Every warning and note of any stage result (``warnings``; a diagnose summary's
+    ``warnings`` and ``notes``) as :class:`~pmdcid.notes.Note`, with its stage."""
+    from pmdcid.notes import as_note
+
+    stage = STAGE_OF.get(type(result).__name__, type(result).__name__)
+    items = [(w, "warning") for w in getattr(result, "warnings", [])]
+    summary = getattr(result, "summary", None)  # diagnose's: its notes and drive warnings
+    if isinstance(summary, dict):
+        items += [(w, "warning") for w in summary.get("warnings", [])]
+        items += [(n, "note") for n in summary.get("notes", [])]
+    logs = _log_paths(result)
+    return [as_note(w, severity=sev, stage=stage, names=known_names(), logs=logs)
+            for w, sev in items]
+
+
+def record_notes(result, model) -> None:
+    """Keep ``result``'s notes in ``model`` (the model file's ``"notes"``, one record per
+    note), in place of those an earlier run of the same stage left there."""
+    from pmdcid.notes import to_records
+
+    got = result.all_notes() if hasattr(result, "all_notes") else notes_of(result)
+    mine = to_records(got)
+    stages = {r["stage"] for r in mine} | {STAGE_OF.get(type(result).__name__, "")}
+    kept = [r for r in model.extra.get("notes", []) if r.get("stage") not in stages]
+    model.extra["notes"] = kept + mine
+
+
+def known_names() -> tuple[str, ...]:
+    """Every parameter and effect name (what a note may concern), longest first."""
+    from pmdcid.model.effects import EFFECTS
+    from pmdcid.model.spec import BASE_PARAMS
+
+    names = set(BASE_PARAMS) | set(EFFECTS)
+    names |= {p.name for e in EFFECTS.values() for p in e.params}
+    return tuple(sorted(names, key=lambda n: (-len(n), n)))
+
+
+def _log_paths(result) -> list[str]:
+    paths = list(getattr(result, "paths", None) or [])
+    for name in ("steps", "logs", "per_log"):
+        for item in getattr(result, name, None) or []:
+            p = getattr(item, "path", None)
+            if isinstance(p, str):
+                paths.append(p)
+    return sorted(set(paths), key=len, reverse=True)
 
 
 @dataclass

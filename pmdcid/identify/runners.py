@@ -21,10 +21,12 @@ import os
 
 from pmdcid.errors import LogError
 from pmdcid.identify.plausibility import gate, gate_result
+from pmdcid.identify.results import record_notes
 from pmdcid.io import read_logs
 from pmdcid.io.outputs import locked
 from pmdcid.model import load_model, save_model
 from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
+from pmdcid.notes import Note
 from pmdcid.simulate import logs_for
 from pmdcid.simulate.substeps import bounded_for
 
@@ -58,6 +60,7 @@ def _apply(result, model, new) -> None:
     if is_lumped(model):
         per_volt(result)
     result.apply(new)
+    record_notes(result, new)
     if is_lumped(model):
         mark_lumped(new)
 
@@ -70,15 +73,20 @@ def per_volt(result) -> None:
             e.unit = lumped_unit(e.unit)
     result.lumped = True
     result.warnings[:] = [_per_volt_text(w) for w in result.warnings]
-    note = "lumped model: per-volt parameters (no current, no datasheet); see the model file"
+    note = Note("lumped model: per-volt parameters (no current, no datasheet); see the model "
+                "file", severity="note")
     if note not in result.warnings:
         result.warnings.insert(0, note)
 
 
 def _per_volt_text(text: str) -> str:
-    """A message's torque units as per-volt ones (the values in it are per volt already)."""
-    return (text.replace("kg m^2", "V s^2/rad").replace("N m s/rad", "V s/rad")
-            .replace(" N m", " V"))
+    """A message's torque units as per-volt ones (the values in it are per volt already); a
+    :class:`~pmdcid.notes.Note` stays one."""
+    new = (text.replace("kg m^2", "V s^2/rad").replace("N m s/rad", "V s/rad")
+           .replace(" N m", " V"))
+    if isinstance(text, Note):
+        return Note(new, text.about, severity=text.severity, stage=text.stage, log=text.log)
+    return new
 
 
 def _value(model, name, given=None):

@@ -177,7 +177,9 @@ def log_from_frame(df, mapping: ColumnMap | None = None, path: str = "<dataframe
         raise LogError("has no data rows", path)
     df = df.set_axis(cols, axis=1)
     data, extra, skipped = frame_columns(df, mapping, path)
-    return validated_log(path, data, extra, meta, mapping.cutoff_hz, skipped=skipped)
+    log = validated_log(path, data, extra, meta, mapping.cutoff_hz, skipped=skipped)
+    log.sources = mapping.sources(data)
+    return log
 
 
 def log_from_arrays(t, name: str = "<arrays>", cutoff_hz: float | None = None,

@@ -59,6 +59,9 @@ class Log:
     resampled: object | None = None
     #: what reading did to the data, one line each (also printed as warnings)
     notes: list[str] = field(default_factory=list)
+    #: canonical column -> (source column, scale, offset) when the file logged it in its own
+    #: unit (``-c omega=speed_rpm*rpm``: ``("speed_rpm", 0.1047, 0.0)``): SI = raw*scale+offset
+    sources: dict[str, tuple[str, float, float]] = field(default_factory=dict)
 
     @property
     def dt(self) -> float:
@@ -132,6 +135,23 @@ class Log:
         """A blocked-rotor log: its ``# kind:`` says so (:mod:`pmdcid.io.kinds`), or it
         measures neither speed nor angle. The one rule every stage, diagnose and the report use."""
         return is_blocked(self.kind) or not (self.has("omega") or self.has("theta"))
+
+    def __repr__(self) -> str:
+        from pmdcid.io.plot import LABELS, describe
+
+        cols = ", ".join(f"{c}{' (derived)' if c in self.derived else ''}"
+                         f"{f' (as {self.sources[c][0]})' if c in self.sources else ''}"
+                         for c in self.data if c in LABELS)
+        kind = f", kind {self.kind}" if self.kind else ""
+        return f"Log({self.path!r}{kind}: {describe(self.t)}; {cols})"
+
+    def plot(self, columns=None):
+        """The log's signals against time, the input on top (matplotlib Figure)."""
+        from pmdcid.io.plot import plot_columns
+
+        cols = {c: a for c, a in self.data.items() if columns is None or c in columns}
+        units = {c: f" ({s[0]} as logged)" for c, s in self.sources.items()}
+        return plot_columns(self.t, cols, str(self.path), units=units)
 
     @classmethod
     def from_csv(cls, path, *, columns=None, map_file=None, cutoff_hz=None) -> Log:
@@ -213,7 +233,9 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     mapping = mapping or ColumnMap()
     data, extra, skipped = frame_columns(df, mapping, p)
     del df  # the table is no longer needed: freed before the checks' temporaries
-    return validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
+    log = validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
+    log.sources = mapping.sources(data)
+    return log
 
 
 def read_table(p: str):

@@ -109,6 +109,13 @@ class ColumnMap:
     def __bool__(self) -> bool:
         return bool(self.specs) or self.cutoff_hz is not None
 
+    def sources(self, present) -> dict[str, tuple[str, float, float]]:
+        """Canonical column -> (source, scale, offset) of each linear mapping of a column in
+        ``present`` that changes its unit (``Log.sources``: the log's own unit, for display)."""
+        return {c: (s.source, s.scale, s.offset) for c, s in self.specs.items()
+                if c in present and c != "t" and s.expr is None
+                and (s.scale, s.offset) != (1.0, 0.0)}
+
 
 def _number(token: str, text: str) -> float:
     token = token.strip()

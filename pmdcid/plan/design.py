@@ -72,6 +72,12 @@ class Plan:
         return {n: (self.stderr[n] / abs(self.values[n]) if self.values[n] else math.inf)
                 for n in self.names}
 
+    def __repr__(self) -> str:  # one line, no arrays (a notebook's pmdcid.plan(...))
+        rel = ", ".join(f"{n} ± {100 * r:.2g} %" for n, r in self.relative().items()
+                        if math.isfinite(r))
+        return (f"Plan({len(self.profiles)} profiles, {self.seconds:.1f} s: "
+                f"{', '.join(p.name for p in self.profiles)}{'; ' + rel if rel else ''})")
+
     def worst(self, among=None) -> tuple[str, float]:
         rel = {n: r for n, r in self.relative().items() if among is None or n in among}
         name = max(rel, key=rel.get)

@@ -29,6 +29,12 @@ class ReportResult:
     metrics: dict
     figures: list[str] = field(default_factory=list)
 
+    def __repr__(self) -> str:  # one line: not the metrics (every lag of every residual)
+        mean = ", ".join(f"{k.replace('_nrmse', '')} {v:.3g}"
+                         for k, v in (self.metrics.get("mean") or {}).items() if v is not None)
+        return (f"ReportResult({self.html_path!r}, {len(self.figures)} figures"
+                f"{f', mean NRMSE {mean}' if mean else ''})")
+
 
 def check_out_dir(out_dir) -> Path:
     """Refuse an output folder that is a file or lies under one (one clear line)."""
@@ -175,6 +181,7 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     from pmdcid.report import html
     from pmdcid.report.compare import compare_log, mean_errors, unique_names
     from pmdcid.report.metrics import LOW_SPEED_FRACTION, MAX_LAG
+    from pmdcid.report.notes import report_notes
     from pmdcid.report.parallel import FigureDrawer
 
     if not logs:
@@ -210,6 +217,8 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
         "mean": mean_errors(model_errors_from(cmps)),
         "before_after": ba,
         "summary": summary,
+        "notes": report_notes(model, summary, logs),
+        "lumped": model.extra.get("lumped") is True,
         "figures": sorted(figs),
     })
     page = html.render(metrics, figs)
@@ -272,7 +281,3 @@ def model_errors_from(cmps) -> list[dict]:
 
 
 __all__ = ["ReportResult", "check_out_dir", "load_summary", "make_report"]
-
-from pmdcid._callable import make_callable  # noqa: E402
-
-make_callable(__name__)  # pmdcid.report(...) calls pmdcid.api.report

@@ -65,6 +65,22 @@ def simulate_for(log, model: Model) -> SimResult:
     return simulate_values(log.t, log.u, vals, torque, x0=x0)
 
 
+def start_of(sim: SimResult) -> dict:
+    """The state a simulation started from (its first sample): i [A] (None for a torque-driven
+    one), the rotor's omega [rad/s] and theta [rad]."""
+    i0 = float(sim.i[0])
+    return {"i": i0 if math.isfinite(i0) else None, "omega": float(sim.omega_true[0]),
+            "theta": float(sim.theta_true[0])}
+
+
+def logged_units(log, signals) -> dict:
+    """Per canonical column the log held in its own unit (``Log.sources``): the source column
+    and its scale and offset to SI (SI = logged x scale + offset)."""
+    cols = [*signals, log.drive]
+    return {c: {"source": src, "scale": k, "offset": b}
+            for c, (src, k, b) in getattr(log, "sources", {}).items() if c in cols and k != 0}
+
+
 def compared_signals(log) -> list[str]:
     """The measured signals the model predicts: speed and angle (not for a blocked rotor), and
     current unless the log is torque-driven."""
@@ -111,11 +127,17 @@ def compare_log(log, model: Model, name: str) -> LogComparison:
         per[s] = signal_metrics(simv, log[s], log.u, low, step)
         per[s]["unit"] = SIGNALS[s]
         per[s]["derived"] = s in getattr(log, "derived", set())
+    units = logged_units(log, signals)
+    for s, lu in units.items():
+        if s in per and per[s]["rms"] is not None:
+            per[s]["rms_logged"] = per[s]["rms"] / abs(lu["scale"])
     m = {
         "name": name, "path": str(log.path), "kind": log.kind, "drive": log.drive,
         "n": int(log.n), "dt": float(log.dt), "rate_hz": 1.0 / float(log.dt),
         "duration": float(log.duration),
         "blocked": blocked, "omega_threshold": threshold, "signals": per,
+        "initial_state": start_of(sim),
+        "logged_units": units,
     }
     return LogComparison(name, log, sim, blocked, signals, low, threshold, m)
 

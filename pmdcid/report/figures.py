@@ -19,9 +19,15 @@ from pmdcid.report.decimate import envelope_indices, scatter_indices
 DPI = 100
 #: zlib level of the PNGs: 3 is ~2x faster to encode than PIL's 6 for files ~5 % larger
 PNG_LEVEL = 3
-MEAS = dict(color="0.25", lw=0.9, label="measured")
-SIM = dict(color="tab:red", lw=0.9, ls="--", label="simulated")
-LABELS = {"omega": "speed [rad/s]", "theta": "angle [rad]", "i": "current [A]"}
+#: measured: a wide light-grey band; the model: a thin saturated line on top. Told apart by
+#: weight and lightness in grey print, by colour on screen, whatever the zoom (issue #26)
+MEAS = dict(color="0.62", lw=2.6, solid_capstyle="butt", label="measured")
+SIM = dict(color="#c4001a", lw=1.0, label="model")
+INPUT = dict(color="#1f4e9c", lw=1.0)
+LABELS = {"omega": "speed [rad/s]", "theta": "angle [rad]", "i": "current [A]",
+          "v": "input voltage [V]", "tau": "input torque [N m]"}
+#: right margin [in] of a figure with axes in the log's own units
+RIGHT_UNITS = 0.95
 
 
 class FigurePool:
@@ -46,13 +52,14 @@ class FigurePool:
 
 
 def _new(nrows: int, ncols: int, height: float, left: float = 0.85, wspace: float = 0.22,
-         top: float = 0.45, pool: FigurePool | None = None):
-    """A figure 11 in wide with fixed margins (``left`` in inches); from ``pool`` if given."""
-    key = (nrows, ncols, height, left, wspace, top)
+         top: float = 0.45, pool: FigurePool | None = None, right: float = 0.165):
+    """A figure 11 in wide with fixed margins (``left``, ``right`` in inches); from ``pool``
+    if given."""
+    key = (nrows, ncols, height, left, wspace, top, right)
     return pool.get(key) if pool is not None else _build(*key)
 
 
-def _build(nrows, ncols, height, left, wspace, top):
+def _build(nrows, ncols, height, left, wspace, top, right=0.165):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -60,7 +67,7 @@ def _build(nrows, ncols, height, left, wspace, top):
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, squeeze=False)
     # fixed margins (in inches): constrained layout doubles the drawing time
-    fig.subplots_adjust(left=left / 11, right=0.985, top=1 - top / height,
+    fig.subplots_adjust(left=left / 11, right=1 - right / 11, top=1 - top / height,
                         bottom=0.55 / height, hspace=0.55 * 2.3 / max(height / nrows, 1.0),
                         wspace=wspace)
     return fig, axes
@@ -74,7 +81,7 @@ def _empty(fig, axes) -> None:
         fig._suptitle.remove()
         fig._suptitle = None
     for ax in axes.flat:
-        for a in [*ax.lines, *ax.collections, *ax.patches, *ax.texts]:
+        for a in [*ax.lines, *ax.collections, *ax.patches, *ax.texts, *ax.child_axes]:
             a.remove()
         if ax.legend_ is not None:
             ax.legend_.remove()
@@ -170,34 +177,69 @@ def zoom_window(t: np.ndarray, omega: np.ndarray, threshold: float) -> tuple[int
     return 0, min(n, max(n // 10, 2)), "start"
 
 
+def _logged_axis(ax, lu: dict | None) -> None:
+    """A right-hand axis in the log's own unit (``lu``: source, scale, offset; SI = logged x
+    scale + offset), e.g. rpm beside rad/s, PWM counts beside volts."""
+    if not lu:
+        return
+    k, b = float(lu["scale"]), float(lu["offset"])
+    sec = ax.secondary_yaxis("right", functions=(lambda y: (y - b) / k, lambda r: r * k + b))
+    sec.set_ylabel(f"{lu['source']} (as logged)", fontsize=8)
+    sec.tick_params(labelsize=8)
+
+
+def _fit_label(metrics: dict, s: str) -> str:
+    fit = metrics["signals"][s].get("fit_percent")
+    return f"model (fit {fit:.1f} %)" if fit is not None else "model"
+
+
+def _input_panel(ax, cmp) -> None:
+    log = cmp.log
+    _line(ax, log.t, log.u, **INPUT)
+    ax.set_ylabel(LABELS[log.drive])
+    _logged_axis(ax, cmp.metrics.get("logged_units", {}).get(log.drive))
+    ax.grid(alpha=0.3)
+
+
+def _pair(ax, cmp, s: str, a: int = 0, b: int | None = None) -> None:
+    """Measured and model of signal ``s`` over samples a..b; above the panel, the legend with
+    the whole log's fit (not on the zoom: its fit would be the whole log's, not the zoom's)."""
+    log = cmp.log
+    label = _fit_label(cmp.metrics, s) if a == 0 and b is None else "model"
+    _line(ax, log.t[a:b], log[s][a:b], **MEAS)
+    _line(ax, log.t[a:b], cmp.sim.get(s)[a:b], **{**SIM, "label": label})
+    ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8, frameon=False,
+              borderaxespad=0.1)
+    ax.grid(alpha=0.3)
+
+
 def overlay_figure(cmp, pool: FigurePool | None = None) -> bytes:
-    """Measured vs simulated signals over the whole log, and a zoom near zero speed."""
-    log, sim = cmp.log, cmp.sim
-    t = log.t
-    full = [s for s in cmp.signals]
+    """The input on top, then measured against model for each compared signal (the legend
+    gives the fit), and a zoom near zero speed; axes in the log's own units on the right."""
+    log = cmp.log
     zoom = "omega" in cmp.signals and cmp.threshold is not None
-    rows = len(full) + (1 if zoom else 0)
-    fig, axes = _new(rows, 1, 2.3 * rows + 0.4, pool=pool)
-    for ax, s in zip(axes[:, 0], full, strict=False):
-        _line(ax, t, log[s], **MEAS)
-        _line(ax, t, sim.get(s), **SIM)
+    rows = 1 + len(cmp.signals) + (1 if zoom else 0)
+    units = cmp.metrics.get("logged_units", {})
+    fig, axes = _new(rows, 1, 2.1 * rows + 0.4, pool=pool,
+                     right=RIGHT_UNITS if units else 0.165)
+    _input_panel(axes[0, 0], cmp)
+    for ax, s in zip(axes[1:, 0], cmp.signals, strict=False):
+        _pair(ax, cmp, s)
         ax.set_ylabel(LABELS[s] + (" (derived)" if s in getattr(log, "derived", ()) else ""))
-        ax.grid(alpha=0.3)
-    axes[0, 0].legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8,
-                      frameon=False)
+        _logged_axis(ax, units.get(s))
     if zoom:
-        a, b, what = zoom_window(t, log["omega"], cmp.threshold)
+        a, b, what = zoom_window(log.t, log["omega"], cmp.threshold)
         ax = axes[-1, 0]
-        _line(ax, t[a:b], log["omega"][a:b], **MEAS)
-        _line(ax, t[a:b], sim.omega[a:b], **SIM)
+        _pair(ax, cmp, "omega", a, b)
         for sgn in (-1, 1):
             ax.axhline(sgn * cmp.threshold, color="tab:blue", lw=0.6, ls=":")
         ax.set_ylabel(LABELS["omega"])
+        _logged_axis(ax, units.get("omega"))
         ax.set_title(f"zoom: {what} (dotted: near-zero band ±{cmp.threshold:.3g} rad/s)",
-                     fontsize=9)
-        ax.grid(alpha=0.3)
+                     fontsize=9, loc="left")
     axes[-1, 0].set_xlabel("time [s]")
-    fig.suptitle(f"{mpl_text(cmp.name)}: measured and simulated", fontsize=11)
+    fig.suptitle(f"{mpl_text(cmp.name)}: input, then measured (grey band) and model (red line)",
+                 fontsize=11)
     return _png(fig)
 
 

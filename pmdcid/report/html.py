@@ -15,12 +15,19 @@ body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;margin:0 a
 max-width:1150px;padding:1em 1.5em;color:#222;line-height:1.4}
 h1{font-size:1.5em;margin-bottom:.2em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;
 margin-top:1.6em}h3{margin-bottom:.3em}
-table{border-collapse:collapse;margin:.5em 0;font-size:.9em}
-th,td{border:1px solid #ddd;padding:.25em .6em;text-align:left}
+table{border-collapse:collapse;margin:.5em 0;font-size:.88em;max-width:100%}
+th,td{border:1px solid #ddd;padding:.25em .45em;text-align:left;vertical-align:top}
 th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
+td.why{font-size:.85em;color:#444;max-width:34em}
+.scroll{max-width:100%;overflow-x:auto}
 img{max-width:100%;height:auto;display:block;margin:.5em 0;border:1px solid #eee}
 .note{color:#555;font-size:.9em}.good{color:#1a7f37}.bad{color:#b42318}
-code{background:#f6f6f6;padding:0 .2em}
+code{background:#f6f6f6;padding:0 .2em;overflow-wrap:anywhere}
+ul.notes{padding-left:1.2em}ul.notes li{margin:.2em 0}
+.sev-warning{color:#8a3c00;font-weight:600}.sev-note{color:#1f4e9c;font-weight:600}
+.legend-meas{display:inline-block;width:2.2em;height:.45em;background:#9e9e9e;
+vertical-align:middle}.legend-sim{display:inline-block;width:2.2em;height:2px;
+background:#c4001a;vertical-align:middle}
 """
 
 
@@ -58,9 +65,10 @@ class Page:
     def add(self, text: str) -> None:
         self.parts.append(text)
 
-    def num(self, path: str, digits: int = 4) -> str:
+    def num(self, path: str, digits: int = 4, after: str = "") -> str:
+        """A numeric cell; ``after``: HTML below the number in the same cell."""
         return (f'<td class="num" data-m="{html.escape(path)}">'
-                f"{fmt(get_path(self.m, path), digits)}</td>")
+                f"{fmt(get_path(self.m, path), digits)}{after}</td>")
 
     def span(self, path: str, digits: int = 4) -> str:
         return (f'<span data-m="{html.escape(path)}">'
@@ -84,14 +92,44 @@ def _params(p: Page) -> None:
     p.add('<section id="parameters"><h2>Model parameters</h2>')
     p.add(f"<p>Model file <code>{_esc(m['model_path'])}</code>; effects beyond the paper's "
           f"model: <b>{_esc(', '.join(m['effects']) or 'none')}</b>.</p>")
-    p.add("<table><tr><th>parameter</th><th>value</th><th>std. error</th>"
-          "<th>rel. error [%]</th><th>unit</th><th>stage</th></tr>")
+    if m.get("lumped"):
+        p.add("<p><span class='sev-note'>note:</span> lumped model: per-volt parameters "
+              "(voltage and speed only, no current, no datasheet); torques are in volts.</p>")
+    p.add("<div class='scroll'><table><tr><th>parameter</th><th>value</th><th>std. error</th>"
+          "<th>rel. error [%]</th><th>unit</th><th>stage</th><th>why / caveat</th></tr>")
     for name, par in m["parameters"].items():
         base = f"parameters.{name}"
-        p.add(f"<tr><td>{_esc(name)}</td>{p.num(base + '.value', 6)}{p.num(base + '.stderr', 3)}"
-              f"{p.num(base + '.rel_stderr_percent', 3)}<td>{_esc(par['unit'])}</td>"
-              f"<td>{_esc(par['stage'])}</td></tr>")
-    p.add("</table></section>")
+        p.add(f"<tr id='param-{_esc(name)}'><td>{_esc(name)}</td>{p.num(base + '.value', 6)}"
+              f"{p.num(base + '.stderr', 3)}{p.num(base + '.rel_stderr_percent', 3)}"
+              f"<td>{_esc(par['unit'])}</td><td>{_esc(par['stage'])}</td>"
+              f"<td class='why'>{_why(m, lambda n, name=name: name in n['rows'])}</td></tr>")
+    p.add("</table></div></section>")
+
+
+def _note_item(n: dict) -> str:
+    sev = "warning" if n["severity"] == "warning" else "note"
+    return f"<span class='sev-{sev}'>{sev}:</span> {_esc(n['text'])}"
+
+
+def _why(m: dict, wanted) -> str:
+    """The notes ``wanted(note)`` selects, one per line."""
+    return "<br>".join(_note_item(n) for n in m.get("notes", []) if wanted(n))
+
+
+def _notes(p: Page) -> None:
+    """Every warning and note, at the top: what qualifies the numbers below."""
+    notes = p.m.get("notes") or []
+    p.add("<section id='notes'><h2>Warnings and notes</h2>")
+    if not notes:
+        p.add("<p>None: no stage qualified its numbers.</p></section>")
+        return
+    p.add("<p class='note'>What the stages said about the numbers below; each is repeated "
+          "beside the parameter or log it concerns.</p><ul class='notes'>")
+    for n in notes:
+        where = ", ".join(n["rows"]) or (p.m["logs"][n["log_index"]]["name"]
+                                         if n["log_index"] is not None else "")
+        p.add(f"<li>{_note_item(n)}{f' <i>({_esc(where)})</i>' if where else ''}</li>")
+    p.add("</ul></section>")
 
 
 def _errors(p: Page, figs: dict[str, bytes]) -> None:
@@ -103,9 +141,10 @@ def _errors(p: Page, figs: dict[str, bytes]) -> None:
           f"(regime NRMSE = regime RMS error / std of the whole measurement). "
           f"Resid: number of the {p.span('max_lag')} auto- (and {p.span('cross_lags')} cross-) "
           f"correlation lags outside the 99 % band.</p>")
-    p.add("<table><tr><th>log</th><th>signal</th><th>NRMSE</th><th>fit [%]</th><th>RMS</th>"
-          "<th>max |err|</th><th>unit</th><th>near-zero NRMSE</th><th>rest NRMSE</th>"
-          "<th>near-zero max |err|</th><th>auto out</th><th>cross out</th></tr>")
+    p.add("<div class='scroll'><table><tr><th>log</th><th>signal [unit]</th><th>NRMSE</th>"
+          "<th>fit [%]</th><th>RMS error</th><th>max |error|</th>"
+          "<th>near-zero NRMSE</th><th>rest NRMSE</th><th>near-zero max |error|</th>"
+          "<th>auto lags out</th><th>cross lags out</th></tr>")
     for k, lg in enumerate(m["logs"]):
         for s, sm in lg["signals"].items():
             b = f"logs.{k}.signals.{s}"
@@ -113,11 +152,16 @@ def _errors(p: Page, figs: dict[str, bytes]) -> None:
                           for r, q in (("low_speed", "nrmse"), ("high_speed", "nrmse"),
                                        ("low_speed", "max_abs")))
             derived = " (derived)" if sm["derived"] else ""
-            p.add(f"<tr><td>{_esc(lg['name'])}</td><td>{_esc(s)}{derived}</td>"
-                  f"{p.num(b + '.nrmse')}{p.num(b + '.fit_percent')}{p.num(b + '.rms')}"
-                  f"{p.num(b + '.max_abs')}<td>{_esc(sm['unit'])}</td>{reg}"
+            lu = lg.get("logged_units", {}).get(s)
+            own = (f"<br><small>= {p.span(b + '.rms_logged')} {_esc(lu['source'])}</small>"
+                   if lu and "rms_logged" in sm else "")  # and in the log's own unit
+            rms = p.num(b + ".rms", after=own)
+            p.add(f"<tr><td>{_esc(lg['name'])}</td><td>{_esc(s)}{derived}<br><small>"
+                  f"[{_esc(sm['unit'])}]</small></td>"
+                  f"{p.num(b + '.nrmse')}{p.num(b + '.fit_percent')}{rms}"
+                  f"{p.num(b + '.max_abs')}{reg}"
                   f"{p.num(b + '.resid.auto.outside')}{p.num(b + '.resid.cross.outside')}</tr>")
-    p.add("</table>")
+    p.add("</table></div>")
     p.img("fit.png", figs["fit.png"], "fit per log and signal")
     p.add("</section>")
 
@@ -145,37 +189,87 @@ def _before_after(p: Page, figs: dict[str, bytes]) -> None:
     p.add("</section>")
 
 
+#: the diagnose summary's candidate fields shown, as words: key -> (column head, unit or how
+#: to read it). Other keys stay in metrics.json (``summary.candidates``)
+CANDIDATE_COLUMNS = {
+    "delta_bic": ("change of BIC", "negative: the effect pays for its parameters"),
+    "heldout_delta": ("change on held-out data", "n log(χ² ratio); negative: better"),
+    "size_sigmas": ("effect size", "standard errors from zero"),
+    "chi2_drop_fit": ("misfit drop, fitted part", "fraction of χ²"),
+    "chi2_drop_heldout": ("misfit drop, held-out part", "fraction of χ²"),
+    "omega_nrmse": ("speed error with it", "NRMSE"),
+}
+#: the summary's error keys as words
+ERROR_WORDS = {"omega_nrmse": "speed NRMSE", "theta_nrmse": "angle NRMSE",
+               "i_nrmse": "current NRMSE"}
+
+
 def _cand_cell(p: Page, path: str, v) -> str:
-    if isinstance(v, bool):
-        return f"<td>{'yes' if v else 'no'}</td>"
-    if v is None or isinstance(v, (int, float)):
+    if v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)):
         return p.num(path)
     return f"<td>{_esc(v)}</td>"
+
+
+def _decision(c: dict) -> str:
+    added = "added" if c.get("chosen") else "not added"
+    why = c.get("reason") or c.get("status") or ""
+    return f"<b>{added}</b>{f': {_esc(why)}' if why else ''}"
+
+
+def _candidates(p: Page, cands: list[dict]) -> None:
+    keys = [k for k in CANDIDATE_COLUMNS if any(k in c for c in cands)]
+    heads = "".join(f"<th>{_esc(CANDIDATE_COLUMNS[k][0])}<br><small>"
+                    f"{_esc(CANDIDATE_COLUMNS[k][1])}</small></th>" for k in keys)
+    p.add(f"<div class='scroll'><table><tr><th>effect</th><th>decision</th>{heads}</tr>")
+    for j, c in enumerate(cands):
+        cells = "".join(_cand_cell(p, f"summary.candidates.{j}.{k}", c.get(k)) for k in keys)
+        p.add(f"<tr><td>{_esc(c.get('effect', ''))}</td><td class='why'>{_decision(c)}</td>"
+              f"{cells}</tr>")
+    p.add("</table></div>")
 
 
 def _summary(p: Page) -> None:
     s = p.m["summary"]
     p.add('<section id="diagnose"><h2>What diagnose found</h2>')
     added = ", ".join(s.get("added", [])) or "nothing significant"
-    p.add(f"<p>Added: <b>{_esc(added)}</b>. Structure left unexplained: "
-          f"<b>{'yes' if s.get('unexplained') else 'no'}</b>.</p>")
-    cands = s.get("candidates", [])
+    p.add(f"<p>Added: <b>{_esc(added)}</b>. Structure left in the residual that no catalogue "
+          f"effect explains: <b>{'yes' if s.get('unexplained') else 'no'}</b>.</p>")
+    cands = [c for c in s.get("candidates", []) if isinstance(c, dict)]
     if cands:
-        keys = [k for k in cands[0] if k != "effect"
-                and not isinstance(cands[0][k], (dict, list))]
-        p.add("<table><tr><th>candidate effect</th>"
-              + "".join(f"<th>{_esc(k)}</th>" for k in keys) + "</tr>")
-        for j, c in enumerate(cands):
-            cells = "".join(_cand_cell(p, f"summary.candidates.{j}.{k}", c.get(k))
-                            for k in keys)
-            p.add(f"<tr><td>{_esc(c.get('effect', ''))}</td>{cells}</tr>")
-        p.add("</table>")
-    for side in ("before", "after"):
+        _candidates(p, cands)
+    rows = []
+    for side, word in (("before", "before diagnose"), ("after", "after diagnose")):
         if isinstance(s.get(side), dict) and s[side]:
-            cells = "".join(f"<td>{_esc(k)}</td>{p.num(f'summary.{side}.{k}')}"
+            cells = "".join(f"<td>{_esc(ERROR_WORDS.get(k, k.replace('_', ' ')))}</td>"
+                            f"{p.num(f'summary.{side}.{k}')}"
                             for k, v in s[side].items() if isinstance(v, (int, float)))
-            p.add(f"<table><tr><th>{side}</th>{cells}</tr></table>")
+            rows.append(f"<tr><th>{word}</th>{cells}</tr>")
+    if rows:
+        p.add("<table>" + "".join(rows) + "</table>")
     p.add("</section>")
+
+
+def _start(p: Page, k: int) -> str:
+    """The state the log was simulated from, in words."""
+    lg = p.m["logs"][k]
+    x0 = lg.get("initial_state")
+    if not x0:
+        return ""
+    b = f"logs.{k}.initial_state"
+    rest = " (at rest)" if x0["omega"] == 0 else " (turning)"
+    cur = f"i = {p.span(b + '.i')} A, " if "i" in lg["signals"] else ""
+    return (f" Simulated from its measured first state: {cur}ω = {p.span(b + '.omega')} "
+            f"rad/s{rest}, θ = {p.span(b + '.theta')} rad.")
+
+
+def _units(lg: dict) -> str:
+    """The columns the log held in its own units, and how they map to SI."""
+    parts = []
+    for c, u in lg.get("logged_units", {}).items():
+        off = f" + {u['offset']:.6g}" if u["offset"] else ""
+        parts.append(f"{_esc(c)} as <code>{_esc(u['source'])}</code> (SI = logged × "
+                     f"{u['scale']:.6g}{off})")
+    return f" Logged in its own units: {'; '.join(parts)}; the figures show both." if parts else ""
 
 
 def _log_sections(p: Page, figs: dict[str, bytes]) -> None:
@@ -188,7 +282,10 @@ def _log_sections(p: Page, figs: dict[str, bytes]) -> None:
         blocked = " Rotor blocked: simulated with the rotor held." if lg["blocked"] else ""
         p.add(f"<p><code>{_esc(lg['path'])}</code>: {p.span(f'logs.{k}.n')} samples, "
               f"{p.span(f'logs.{k}.duration')} s at {p.span(f'logs.{k}.rate_hz')} Hz, driven by "
-              f"{_esc(lg['drive'])}{kind}.{thr}{blocked}</p>")
+              f"{_esc(lg['drive'])}{kind}.{_start(p, k)}{thr}{blocked}{_units(lg)}</p>")
+        about = _why(p.m, lambda n, k=k: n["log_index"] == k)
+        if about:
+            p.add(f"<p>{about}</p>")
         for f in lg["figures"]:
             p.img(f, figs[f], f"{lg['name']} {f}")
         p.add("</section>")
@@ -208,7 +305,8 @@ def _overview(p: Page) -> None:
                             for s in m["mean"] if s in ba["mean_before"])
             p.add(f"<tr><th>before the added effects</th>{cells}</tr>")
         p.add("</table>")
-    links = [("parameters", "parameters"), ("errors", "errors per log and signal")]
+    links = [("notes", "warnings and notes"), ("parameters", "parameters"),
+             ("errors", "errors per log and signal")]
     if m.get("before_after"):
         links.append(("before-after", "before and after"))
     if m.get("summary"):
@@ -227,10 +325,14 @@ def render(metrics: dict, figs: dict[str, bytes]) -> str:
           f"<title>{_esc(title)}</title><style>{CSS}</style></head><body>")
     p.add(f"<h1>{_esc(title)}</h1>")
     p.add(f"<p class='note'>pmdcid {_esc(metrics['version'])}, {_esc(metrics['created'])}. "
-          f"{len(metrics['logs'])} log(s). Model simulated open loop from rest on each log's "
-          f"input and compared with what the log measured. All numbers are in "
+          f"{len(metrics['logs'])} log(s). The model is simulated open loop on each log's "
+          f"input, from the state the log measured at its first sample (at rest unless it "
+          f"starts turning; a blocked rotor held still), and compared with what the log "
+          f"measured: <span class='legend-meas'></span> measured, "
+          f"<span class='legend-sim'></span> model. All numbers are in "
           f"<code>metrics.json</code>.</p>")
     _overview(p)
+    _notes(p)
     _params(p)
     _errors(p, figs)
     if metrics.get("before_after"):

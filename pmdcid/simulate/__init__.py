@@ -76,6 +76,27 @@ class SimResult:
     def get(self, name: str) -> np.ndarray:
         return getattr(self, name)
 
+    def __repr__(self) -> str:
+        from pmdcid.io.plot import describe
+
+        spans = "; ".join(f"{n} {np.nanmin(a):.4g}..{np.nanmax(a):.4g} {u}"
+                          for n, a, u in (("omega", self.omega, "rad/s"), ("i", self.i, "A"))
+                          if len(a) and np.isfinite(a).any())
+        return f"SimResult({describe(self.t)}; {spans})"
+
+    def plot(self, log=None):
+        """The simulated current, speed and angle against time (matplotlib Figure); with
+        ``log`` (the :class:`~pmdcid.io.Log` it was simulated on) its input on top and its
+        measurements drawn beside the model's."""
+        from pmdcid.io.plot import plot_columns
+
+        sim = {n: a for n, a in (("i", self.i), ("omega", self.omega), ("theta", self.theta))
+               if np.isfinite(a).any()}
+        if log is None:
+            return plot_columns(self.t, sim, "simulated")
+        meas = {c: a for c, a in log.data.items() if c in sim or c == log.drive}
+        return plot_columns(log.t, meas, "measured", styles={"model": sim})
+
     def to_pandas(self):
         """A DataFrame of t [s], i [A], omega [rad/s], theta [rad] (as the sensors read them)."""
         import pandas as pd
@@ -217,7 +238,3 @@ __all__ = [
     "neutral_values", "param_values", "param_vector", "run_kernel", "simulate", "simulate_log",
     "simulate_values",
 ]
-
-from pmdcid._callable import make_callable  # noqa: E402
-
-make_callable(__name__)  # pmdcid.simulate(...) calls pmdcid.api.simulate

@@ -78,8 +78,10 @@ def table_log(p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
         raise LogError("has no data rows", p)
     frame = PlainFrame(names, [np.asarray(sig.series[k].x, dtype=float) for k in names])
     data, extra, skipped = frame_columns(frame, mapping, p)
-    return validated_log(p, data, extra, sig.meta, mapping.cutoff_hz, skipped=skipped,
-                         defer=defer)
+    log = validated_log(p, data, extra, sig.meta, mapping.cutoff_hz, skipped=skipped,
+                        defer=defer)
+    log.sources = mapping.sources(data)
+    return log
 
 
 def _sorted(sig: Signals, name: str, p: str):
@@ -244,6 +246,7 @@ def series_log(p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
                                measured)
     log = validated_log(p, data, {}, sig.meta, mapping.cutoff_hz, skipped=skipped,
                         defer=defer, resampled=resampled)
+    log.sources = mapping.sources(data)
     if resampled is None:
         for note in notes:
             log.notes.append(note)
