@@ -137,7 +137,7 @@ def test_a_diverged_joint_fit_is_retried_then_dropped_never_blamed_on_units(monk
 
     calls = []
 
-    def fake(priors):
+    def fake(priors, controller=None):
         def run(logs, model):
             calls.append(priors)
             return _Diverged()
@@ -285,7 +285,10 @@ def test_fit_mechanical_uses_the_logs_with_steps_and_says_which_have_none():
 
     steps = _fixture_steps()
     t = steps[0].t
-    flat = Log("flat.csv", t, {"v": np.full(len(t), 1.0), "omega": steps[0]["omega"]})
+    # turning at a steady speed throughout (a log that starts at rest with the input on from
+    # its first sample is a step from rest: io's lego-ev3 rule)
+    turning = np.full(len(t), float(np.mean(steps[0]["omega"][-200:])))
+    flat = Log("flat.csv", t, {"v": np.full(len(t), 1.0), "omega": turning})
     model = Model()
     for k in ("R", "L", "km"):
         model.set(k, PAPER[k])

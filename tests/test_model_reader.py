@@ -99,7 +99,8 @@ def test_diagnose_does_not_overwrite_a_concurrent_stage(tmp_path, monkeypatch):
         other = json.loads(Path("model.json").read_text())  # another process's stage
         other["parameters"]["R"] = 2.5
         Path("model.json").write_text(json.dumps(other))
-        return SimpleNamespace(model=model.copy(), summary={"added": []}, table=lambda: "")
+        return SimpleNamespace(model=model.copy(), summary={"added": []}, table=lambda: "",
+                               record_notes=lambda model: None)
 
     monkeypatch.setattr(files, "diagnose_logs", concurrent)
     res = CliRunner().invoke(main, ["diagnose", "step.csv", "-m", "model.json", "-o",
