@@ -10,7 +10,8 @@ PKG = Path(__file__).resolve().parents[1] / "pmdcid"
 #: lower layers first: a module may import from its own layer and the layers before it only
 #: (function-level imports included: a lazy import is still a dependency)
 LAYERS = ["errors", "_callable", "progress", "io", "model", "simulate", "synth", "identify",
-          "diagnose", "report", "plan", "export", "pipeline", "demo", "api", "cli", "__main__"]
+          "diagnose", "report", "plan", "export", "pipeline", "fleet", "demo", "api", "cli",
+          "__main__"]
 #: the one upward import, and why: a subpackage called as a function (``pmdcid.simulate(...)``,
 #: docs/api.md) forwards to the front door at call time
 ALLOWED = {("pmdcid._callable", "pmdcid.api")}

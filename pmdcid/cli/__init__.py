@@ -123,6 +123,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                              "(python-control, C, MATLAB)."),
     "plan": ("cmd_plan", "Input profiles to record, and the standard error each parameter will "
                          "have."),
+    "fleet": ("cmd_fleet", "Identify every unit of a fleet on a Dask cluster: units.parquet, "
+                           "outliers, drift, fleet.html."),
 }
 
 
@@ -213,5 +215,5 @@ def _register() -> None:
 
 #: command modules, each registering its command(s) on ``main`` at import
 COMMAND_MODULES = ["cmd_simulate", "cmd_fit", "cmd_report", "cmd_demo", "cmd_diagnose",
-                   "cmd_identify", "cmd_export", "cmd_plan"]
+                   "cmd_identify", "cmd_export", "cmd_plan", "cmd_fleet"]
 _register()
