@@ -89,7 +89,8 @@ def columns(rows: list[dict], names: list[str], pooled: list[str], attrs: list[s
 def parquet_bytes(cols: dict[str, list]) -> bytes:
     """``cols`` as a parquet file's bytes (types: text, UTC timestamps, float64, bool)."""
     pa, pq = _pyarrow()
-    types = {"time": pa.timestamp("us", tz="UTC"), "lumped": pa.bool_(), "pass": pa.bool_()}
+    types = {"time": pa.timestamp("us", tz="UTC"), "lumped": pa.bool_(), "pass": pa.bool_(),
+             "seconds": pa.float64()}
     arrays, fields = [], []
     for name, vals in cols.items():
         typ = types.get(name)

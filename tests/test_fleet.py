@@ -1,0 +1,227 @@
+"""pmdcid fleet on real local Dask clusters: a small synthetic fleet with known truth (one
+outlier, one drifting unit, one unit that cannot be identified, one missing log), run with 1
+and 2 worker processes and on a cluster started separately; the numbers must be the same bits
+as a lone identify of each unit. The population rules, drift, priors and limits are also
+checked on hand-made rows with known answers (no cluster)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+pytest.importorskip("distributed")
+pq = pytest.importorskip("pyarrow.parquet")
+
+from pmdcid.cli import main  # noqa: E402
+from pmdcid.fleet.synthetic import FleetSpec, Protocol, write_fleet  # noqa: E402
+
+KM = 0.0502
+#: a short end-of-line test keeps each unit near half a second
+SMALL = Protocol(blocked_s=0.1, step_s=1.0, triangle_s=6.0, triangle_period=3.0)
+SPEC = FleetSpec(units=6, spread=0.05, outliers={1: ("bc", 2.0)}, drifting={2: {"R": 1.08}},
+                 protocol=SMALL)
+PARAMS = ("R", "L", "J", "bv", "bc", "dz")
+#: round-trip tolerance of each parameter on these short, low-noise tests (relative)
+TOL = {"R": 0.01, "L": 0.02, "J": 0.02, "bv": 0.03, "bc": 0.05, "dz": 0.05}
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    """(manifest, truth) of the small fleet, plus a unit whose log is not a log and a unit
+    whose log is missing."""
+    root = tmp_path_factory.mktemp("fleet")
+    manifest, truth = write_fleet(str(root), SPEC, np.random.default_rng(2028))
+    (root / "bad.csv").write_text("t,v\n0,1\n0.001,x\n")
+    with open(manifest, "a") as fh:
+        fh.write("X-bad,bad.csv,2026-03-05T10:00:00Z,B9\n")
+        fh.write("X-gone,nowhere.csv,,B9\n")
+    return manifest, truth
+
+
+def run(args):
+    res = CliRunner().invoke(main, ["fleet", *args])
+    return res.exit_code, res.output
+
+
+def table(out_dir):
+    return pq.read_table(os.path.join(out_dir, "units.parquet")).to_pylist()
+
+
+@pytest.fixture(scope="module")
+def two_workers(fleet, tmp_path_factory):
+    out = str(tmp_path_factory.mktemp("two") / "out")
+    code, text = run([fleet[0], "-o", out, "--km", str(KM), "--workers", "2"])
+    assert code == 0, text
+    return out, text
+
+
+def test_a_fleet_round_trips_with_its_outlier_drift_and_failures(fleet, two_workers):
+    manifest, truth = fleet
+    rows = table(two_workers[0])
+    assert [(r["unit"], r["status"]) for r in rows][-2:] == [("X-bad", "error"),
+                                                             ("X-gone", "error")]
+    assert all("\n" not in r["error"] and r["error"] for r in rows[-2:])
+    assert "nowhere.csv" in rows[-1]["error"]
+    ok = rows[:-2]
+    assert len(ok) == len(truth) == 7 and all(r["status"] == "ok" for r in ok)
+    for r, t in zip(ok, truth, strict=True):
+        assert r["unit"] == t["unit"] and r["batch"] == t["batch"]
+        for p in PARAMS:
+            assert abs(r[p] / t["params"][p] - 1) < TOL[p], (r["unit"], p, r[p])
+    assert {(r["unit"], r["outlier"]) for r in ok if r["outlier"]} == {("M002", "bc")}
+    with open(os.path.join(two_workers[0], "outliers.csv")) as fh:
+        lines = fh.read().splitlines()
+    assert lines[0] == "unit,parameter,value,reason" and lines[1].startswith("M002,bc,")
+    assert {r["unit"] for r in ok if "R" in r["drifting"].split(",")} == {"M003"}
+    assert all(r["drifting"] in ("", "R") for r in ok)
+    page = open(os.path.join(two_workers[0], "fleet.html"), encoding="utf-8").read()
+    assert "M002" in page and "X-bad" in page and "data:image/png;base64," in page
+
+
+@pytest.fixture(scope="module")
+def one_worker():
+    """A Dask cluster of one worker process started apart from the command (as `dask
+    scheduler` and `dask worker` would be): its scheduler's address goes to --scheduler."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
+def test_one_worker_on_a_separate_scheduler_gives_the_same_bits_as_two_and_a_lone_identify(
+        fleet, two_workers, one_worker, tmp_path):
+    from pmdcid.pipeline import run_identify
+
+    out1 = str(tmp_path / "one")
+    code, text = run([fleet[0], "-o", out1, "--km", str(KM), "--scheduler", one_worker])
+    assert code == 0, text
+    one, two = table(out1), table(two_workers[0])
+    cols = [c for c in two[0] if c.split("_")[0] in (*PARAMS, "km", "b")]
+    assert len(cols) >= 3 * len(PARAMS)
+    assert [[r[c] for c in cols] for r in one] == [[r[c] for c in cols] for r in two]
+    first = two[0]
+    alone = run_identify(first["logs"].split(";"), str(tmp_path / "m.json"), km=KM).model
+    for p in PARAMS:
+        assert first[p] == alone.parameters[p].value  # the same bits
+        assert first[f"{p}_stderr"] == alone.parameters[p].stderr
+
+
+def test_a_rerun_skips_done_units_and_finishes_the_rest(fleet, two_workers, one_worker,
+                                                         tmp_path):
+    out = str(tmp_path / "resume")
+    shutil.copytree(two_workers[0], out)
+    before = table(out)
+    code, text = run([fleet[0], "-o", out, "--km", str(KM)])  # all done: no cluster needed
+    assert code == 0, text
+    assert "0 run now, 8 from earlier runs" in text  # the unit that failed too
+    assert table(out) == before  # nothing lost, nothing doubled
+    # a killed run: one result never committed, another torn (a stray temporary file)
+    results = os.path.join(out, "results")
+    gone = os.path.join(results, f"{before[3]['key']}.json")
+    os.unlink(gone)
+    with open(os.path.join(results, ".half.tmp"), "w") as fh:
+        fh.write('{"key": ')
+    os.unlink(os.path.join(out, "units.parquet"))
+    code, text = run([fleet[0], "-o", out, "--km", str(KM), "--scheduler", one_worker])
+    assert code == 0, text
+    assert "1 run now, 7 from earlier runs" in text
+    after = table(out)
+    assert [r["key"] for r in after] == [r["key"] for r in before]
+    assert after[3]["R"] == before[3]["R"]
+    # another option is another result: --km changes every key
+    code, text = run([fleet[0], "-o", out, "--km", "0.05", "--no-diagnose", "--workers", "1",
+                      "--limits", os.path.join(out, "nowhere.json")])
+    assert code == 1 and text.count("\n") == 1 and "nowhere.json" in text
+
+
+def test_limits_add_pass_and_failed(fleet, two_workers, tmp_path):
+    out = str(tmp_path / "limits")
+    shutil.copytree(two_workers[0], out)
+    lim = tmp_path / "limits.json"
+    lim.write_text(json.dumps({"bc": [0.004, 0.006], "R": [None, 100.0]}))
+    code, text = run([fleet[0], "-o", out, "--km", str(KM), "--limits", str(lim)])
+    assert code == 0, text
+    rows = table(out)
+    by = {(r["unit"], r["time"]): r for r in rows}
+    for r in rows:
+        if r["status"] != "ok":
+            assert r["pass"] is False and r["failed"] == "not identified"
+        else:
+            assert r["pass"] == (0.004 <= r["bc"] <= 0.006)
+            assert r["failed"] == ("" if r["pass"] else "bc")
+    assert [r["pass"] for r in rows if r["unit"] == "M002"] == [False]
+    assert len(by) == len(rows)
+    lim.write_text(json.dumps({"nonsense": [0, 1]}))
+    code, text = run([fleet[0], "-o", out, "--limits", str(lim)])
+    assert code == 1 and "nonsense" in text and text.count("\n") == 1
+
+
+# ---- the rules, on hand-made rows with known answers (no cluster) ----
+
+def _row(unit, x, s, time=None, name="R"):
+    return {"unit": unit, "time": time, "status": "ok", "params": {name: [x, s, "ohm"]}}
+
+
+def test_an_outlier_needs_both_the_fleet_spread_and_its_own_stderr():
+    from pmdcid.fleet.population import outliers, stats
+
+    rng = np.random.default_rng(7)
+    rows = [_row(f"U{k}", 2.0 + 0.02 * rng.standard_normal(), 0.001) for k in range(20)]
+    rows += [_row("far-sure", 2.5, 0.001), _row("far-unsure", 2.5, 0.3)]
+    found = outliers(rows, stats(rows))
+    assert [(o.unit, o.parameter) for o in found] == [("far-sure", "R")]
+    assert "above the fleet median" in found[0].reason
+
+
+def test_a_poorly_determined_unit_borrows_from_the_fleet_by_precision():
+    from pmdcid.fleet.population import ParamStats, pool
+
+    st = ParamStats("bc", "N m", 30, median=0.005, sigma=0.0005, stderr=0.0001, tau=0.0004)
+    v, se, weight = pool(0.006, 0.0004, st)  # as uncertain as the fleet's spread: halfway
+    assert math.isclose(v, 0.0055) and math.isclose(weight, 0.5)
+    assert math.isclose(se, 0.0004 / math.sqrt(2))
+    v, se, weight = pool(0.006, 1e-6, st)  # a well determined unit keeps its own value
+    assert abs(v - 0.006) < 1e-8 and weight < 1e-4
+
+
+def test_drift_is_found_from_the_stderrs_and_a_steady_unit_is_not():
+    from pmdcid.fleet.drift import drifts
+
+    t0, t1 = "2026-03-01T00:00:00+00:00", "2026-04-01T00:00:00+00:00"
+    rows = [_row("wearing", 2.00, 0.002, t0), _row("wearing", 2.10, 0.002, t1),
+            _row("steady", 2.00, 0.002, t0), _row("steady", 2.003, 0.002, t1),
+            _row("noisy", 2.00, 0.05, t0), _row("noisy", 2.10, 0.05, t1)]
+    sig = {(d.unit, d.parameter): d for d in drifts(rows) if d.significant}
+    assert list(sig) == [("wearing", "R")]
+    assert math.isclose(sig[("wearing", "R")].change, 0.05)
+
+
+def test_a_manifest_problem_is_one_line_and_exit_1(tmp_path):
+    m = tmp_path / "m.csv"
+    m.write_text("unit,file\nA,a.csv\n")
+    code, text = run([str(m), "-o", str(tmp_path / "o")])
+    assert code == 1 and "lacks the column(s) log" in text and text.count("\n") == 1
+    m.write_text("unit,log,time\nA,a.csv,last tuesday\n")
+    code, text = run([str(m), "-o", str(tmp_path / "o")])
+    assert code == 1 and "ISO 8601" in text and "row 2" in text
+    m.write_text("unit,log\nA,a.csv\n")  # nothing can run: the only log is missing
+    code, text = run([str(m), "-o", str(tmp_path / "o")])
+    assert code == 1 and "a.csv" in text
+    assert not (tmp_path / "o").exists()
+
+
+def test_without_dask_the_error_names_the_extra(monkeypatch, tmp_path):
+    import sys
+
+    from pmdcid.fleet.cluster import ClusterError, client_for
+
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with pytest.raises(ClusterError, match=r"pip install 'pmdcid\[fleet\]'"), client_for():
+        pass
