@@ -225,3 +225,95 @@ def test_without_dask_the_error_names_the_extra(monkeypatch, tmp_path):
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(ClusterError, match=r"pip install 'pmdcid\[fleet\]'"), client_for():
         pass
+
+
+# ---- slow: the issue's 24-unit fleet, a killed run, a dying worker ----
+
+TARGET = FleetSpec(units=24, spread=0.05, outliers={1: ("bc", 1.8), 12: ("R", 1.25)},
+                   drifting={3: {"R": 1.06}, 5: {"bc": 1.4}, 7: {"J": 0.9, "bv": 1.3}},
+                   repeated=(4, 6))
+#: round-trip tolerance of the production test (blocked pulse, two steps, 15 s triangle)
+TARGET_TOL = {"R": 0.01, "L": 0.02, "J": 0.02, "bv": 0.02, "bc": 0.03, "dz": 0.03}
+
+
+@pytest.mark.slow
+def test_the_issue_target_fleet_of_24_units(tmp_path, one_worker):
+    manifest, truth = write_fleet(str(tmp_path / "fleet"), TARGET, np.random.default_rng(24))
+    out2, out1 = str(tmp_path / "two"), str(tmp_path / "one")
+    code, text = run([manifest, "-o", out2, "--km", str(KM), "--workers", "2"])
+    assert code == 0, text
+    code, text = run([manifest, "-o", out1, "--km", str(KM), "--scheduler", one_worker])
+    assert code == 0, text
+    rows, rows1 = table(out2), table(out1)
+    assert len(rows) == len(truth) == 29 and all(r["status"] == "ok" for r in rows)
+    for r, t in zip(rows, truth, strict=True):
+        for p in PARAMS:
+            assert abs(r[p] / t["params"][p] - 1) < TARGET_TOL[p], (r["unit"], p, r[p])
+    cols = [f"{p}{x}" for p in PARAMS for x in ("", "_stderr")]
+    assert [[r[c] for c in cols] for r in rows] == [[r[c] for c in cols] for r in rows1]
+    found = {(r["unit"], p) for r in rows for p in r["outlier"].split(",") if p}
+    assert {("M002", "bc"), ("M013", "R")} <= found and len(found) <= 3, found
+    moving = {(r["unit"], p) for r in rows for p in r["drifting"].split(",") if p}
+    assert moving == {("M004", "R"), ("M006", "bc"), ("M008", "J"), ("M008", "bv")}, moving
+
+
+@pytest.mark.slow
+def test_a_killed_run_loses_and_doubles_nothing(fleet, tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = str(tmp_path / "killed")
+    cmd = [sys.executable, "-c", "import sys; from pmdcid.cli import main; main()", "fleet",
+           fleet[0], "-o", out, "--km", str(KM), "--workers", "1"]
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    proc = subprocess.Popen(cmd, cwd=root, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    results = os.path.join(out, "results")
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if os.path.isdir(results) and len(os.listdir(results)) >= 2:
+            break
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    for name in os.listdir(results):  # every committed result is whole
+        if name.endswith(".json"):
+            with open(os.path.join(results, name)) as fh:
+                assert json.load(fh)["key"] == name[:-5]
+    code, text = run([fleet[0], "-o", out, "--km", str(KM), "--workers", "1"])
+    assert code == 0, text
+    rows = table(out)
+    assert len(rows) == 9 and len({r["key"] for r in rows}) == 9
+    assert "from earlier runs" in text and "(9 run now" not in text
+
+
+def _die_once(job):
+    """Kill the worker the first time a job runs (a marker file remembers), then succeed."""
+    if not os.path.exists(job["marker"]):
+        open(job["marker"], "w").close()
+        os._exit(1)
+    return {"key": job["key"], "status": "ok"}
+
+
+def _die_always(job):
+    os._exit(1)
+
+
+@pytest.mark.slow
+def test_a_worker_that_dies_is_retried_and_one_that_keeps_dying_is_recorded(tmp_path):
+    import dask
+    from distributed import Client, LocalCluster
+
+    from pmdcid.fleet.cluster import run_jobs
+
+    job = {"key": "k1", "unit": "U", "time": None, "logs": [], "hashes": [],
+           "marker": str(tmp_path / "died")}
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                         dashboard_address=None) as cluster, Client(cluster) as client:
+        assert list(run_jobs(client, [job], _die_once)) == [{"key": "k1", "status": "ok"}]
+        (row,) = run_jobs(client, [{**job, "key": "k2"}], _die_always)
+    assert row["status"] == "error" and "worker died" in row["error"]
+    assert row["journal"] is False  # tried again by the next run
