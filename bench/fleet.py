@@ -148,8 +148,9 @@ def priors(units: int, seed: int, folder: str, lengths=(15.0, 8.0, 4.0, 2.0, 1.0
             manifest, truth = write_fleet(sub, FleetSpec(units=units, spread=0.05,
                                                          protocol=proto),
                                           np.random.default_rng(seed))
-            rows = list(run_jobs(client, jobs_of(manifest), run_unit))
-            res = FleetResult("bench", "", rows)
+            jobs = jobs_of(manifest)
+            done = {r["key"]: r for r in run_jobs(client, jobs, run_unit)}
+            res = FleetResult("bench", "", [done[j["key"]] for j in jobs])  # manifest order
             analyse(res)
             table[T] = _errors(res.rows, truth)
     return table
@@ -204,6 +205,17 @@ def report(tp: dict | None, pr: dict | None) -> str:
             cells = [f"{100 * pr[T][p]['own']:.2f} -> {100 * pr[T][p]['pooled']:.2f} %"
                      for T in lens]
             lines.append(f"| {p} | " + " | ".join(cells) + " |")
+        lines += ["", "the pooled estimates of a T s triangle are as accurate as the unit's own "
+                  "estimates of a T' s one (T' = the shortest length whose own error is no "
+                  "larger; '>15' when none is):",
+                  "| parameter | " + " | ".join(f"T = {T:g}" for T in lens) + " |",
+                  "|---|" + "---|" * len(lens)]
+        for p in ("bv", "bc", "dz"):
+            cells = []
+            for T in lens:
+                eq = shortest(pr, p, pr[T][p]["pooled"], "own")
+                cells.append(f"T' = {eq:g}" if eq is not None else f"T' > {max(lens):g}")
+            lines.append(f"| {p} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -213,12 +225,14 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=2028)
     ap.add_argument("--priors", action="store_true", help="also the population-priors table")
     ap.add_argument("--priors-only", action="store_true")
+    ap.add_argument("--prior-units", type=int, default=24,
+                    help="units of the priors' fleet (one per triangle length)")
     ap.add_argument("--out", default=None, help="write the figures as JSON here")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="fleetbench-") as d:
         tp = None if args.priors_only else throughput(args.units, args.seed, os.path.join(d, "a"))
-        pr = priors(12, args.seed, os.path.join(d, "b")) if (args.priors or args.priors_only) \
-            else None
+        want = args.priors or args.priors_only
+        pr = priors(args.prior_units, args.seed, os.path.join(d, "b")) if want else None
     print(report(tp, pr))
     if args.out:
         with open(args.out, "w") as fh:

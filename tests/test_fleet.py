@@ -39,7 +39,7 @@ def fleet(tmp_path_factory):
     manifest, truth = write_fleet(str(root), SPEC, np.random.default_rng(2028))
     (root / "bad.csv").write_text("t,v\n0,1\n0.001,x\n")
     with open(manifest, "a") as fh:
-        fh.write("X-bad,bad.csv,2026-03-05T10:00:00Z,B9\n")
+        fh.write("X-<b>bad</b>,bad.csv,2026-03-05T10:00:00Z,B9\n")
         fh.write("X-gone,nowhere.csv,,B9\n")
     return manifest, truth
 
@@ -64,7 +64,7 @@ def two_workers(fleet, tmp_path_factory):
 def test_a_fleet_round_trips_with_its_outlier_drift_and_failures(fleet, two_workers):
     manifest, truth = fleet
     rows = table(two_workers[0])
-    assert [(r["unit"], r["status"]) for r in rows][-2:] == [("X-bad", "error"),
+    assert [(r["unit"], r["status"]) for r in rows][-2:] == [("X-<b>bad</b>", "error"),
                                                              ("X-gone", "error")]
     assert all("\n" not in r["error"] and r["error"] for r in rows[-2:])
     assert "nowhere.csv" in rows[-1]["error"]
@@ -81,7 +81,8 @@ def test_a_fleet_round_trips_with_its_outlier_drift_and_failures(fleet, two_work
     assert {r["unit"] for r in ok if "R" in r["drifting"].split(",")} == {"M003"}
     assert all(r["drifting"] in ("", "R") for r in ok)
     page = open(os.path.join(two_workers[0], "fleet.html"), encoding="utf-8").read()
-    assert "M002" in page and "X-bad" in page and "data:image/png;base64," in page
+    assert "M002" in page and "data:image/png;base64," in page
+    assert "X-&lt;b&gt;bad&lt;/b&gt;" in page and "<b>bad" not in page  # escaped
 
 
 @pytest.fixture(scope="module")

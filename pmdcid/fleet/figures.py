@@ -75,6 +75,8 @@ def drift_figure(rows: list[dict], drifts) -> bytes | None:
     """Value against time of the drifting parameters (module doc); None when none drifts."""
     from datetime import datetime
 
+    from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
+
     names = sorted({d.parameter for d in drifts if d.significant})
     if not names:
         return None
@@ -93,6 +95,9 @@ def drift_figure(rows: list[dict], drifts) -> bytes | None:
             ax.errorbar(t, x, yerr=np.where(np.isfinite(s), s, 0.0), fmt="o-" if solid else "o:",
                         ms=3, lw=1.2 if solid else 0.6, color=None if solid else "#999999",
                         label=plain(unit) if solid else None)
+        loc = AutoDateLocator(maxticks=6)
+        ax.xaxis.set_major_locator(loc)
+        ax.xaxis.set_major_formatter(ConciseDateFormatter(loc))
         ax.set_title(name, fontsize=9)
         ax.tick_params(labelsize=7)
         ax.legend(fontsize=7)

@@ -182,10 +182,11 @@ def analyse(res: FleetResult) -> None:
     mark each row: ``pooled``, ``borrowed``, ``outlier``, ``drifting``, ``pass``/``failed``."""
     from pmdcid.fleet import drift, limits, population
 
-    res.stats = population.stats(res.rows)
-    res.outliers = population.outliers(res.rows, res.stats)
-    res.drifts = drift.drifts(res.rows)
-    now = {id(r) for r in population.latest(res.rows)}
+    pop = _comparable(res)
+    res.stats = population.stats(pop)
+    res.outliers = population.outliers(pop, res.stats)
+    res.drifts = drift.drifts(pop)
+    now = {id(r) for r in population.latest(pop)}
     flagged: dict[str, list[str]] = {}
     for o in res.outliers:
         flagged.setdefault(o.unit, []).append(o.parameter)
@@ -193,8 +194,11 @@ def analyse(res: FleetResult) -> None:
     for d in res.drifts:
         if d.significant:
             moving.setdefault(d.unit, []).append(d.parameter)
+    same = {id(r) for r in pop}
     for r in res.rows:
-        _pool_row(r, res)
+        r.update(pooled={}, borrowed=[])
+        if id(r) in same:
+            _pool_row(r, res)
         r["outlier"] = flagged.get(r["unit"], []) if id(r) in now else []
         r["drifting"] = moving.get(r["unit"], [])
         if res.limits is not None:
@@ -205,10 +209,23 @@ def analyse(res: FleetResult) -> None:
                             + ", ".join(sorted(versions)))
 
 
+def _comparable(res: FleetResult) -> list[dict]:
+    """The rows whose parameters are in the same units as most: SI, or per volt (lumped: no
+    current and no km); the others are left out of the population, said in the warnings."""
+    ok = [r for r in res.rows if r["status"] == "ok"]
+    lumped = sum(bool(r.get("lumped")) for r in ok)
+    if lumped in (0, len(ok)):
+        return res.rows
+    keep = lumped > len(ok) - lumped
+    res.warnings.append(f"{lumped} of {len(ok)} measurements were identified per volt (lumped: "
+                        "no current or no km) and the others in SI: the population statistics "
+                        f"use the {'lumped' if keep else 'SI'} ones only; give --km")
+    return [r for r in res.rows if bool(r.get("lumped")) == keep or r["status"] != "ok"]
+
+
 def _pool_row(r: dict, res: FleetResult) -> None:
     from pmdcid.fleet.population import BORROW, pool
 
-    r["pooled"], r["borrowed"] = {}, []
     if r["status"] != "ok":
         return
     for name, st in res.stats.items():
