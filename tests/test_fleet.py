@@ -318,3 +318,36 @@ def test_a_worker_that_dies_is_retried_and_one_that_keeps_dying_is_recorded(tmp_
         (row,) = run_jobs(client, [{**job, "key": "k2"}], _die_always)
     assert row["status"] == "error" and "worker died" in row["error"]
     assert row["journal"] is False  # tried again by the next run
+
+
+def test_the_progress_bar_shows_on_a_terminal_only():
+    import io
+
+    from pmdcid.fleet.cluster import Bar
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    tty, pipe = Tty(), io.StringIO()
+    for stream in (tty, pipe):
+        bar = Bar(2, stream)
+        bar.update({"status": "ok"})
+        bar.update({"status": "error"})
+    assert "2/2 units, 1 errors" in tty.getvalue() and tty.getvalue().endswith("\n")
+    assert pipe.getvalue() == ""
+
+
+def test_a_unit_whose_rows_disagree_on_an_attribute_is_refused(tmp_path):
+    from pmdcid.errors import LogError
+    from pmdcid.fleet.manifest import read_manifest
+
+    m = tmp_path / "m.csv"
+    m.write_text("# a comment\nunit,log,time,line\nA,a.csv,2026-01-01,L1\nA,b.csv,2026-01-01,L2\n")
+    with pytest.raises(LogError, match="line='L1'"):
+        read_manifest(m)
+    m.write_text("unit,log,time,line\nA,a.csv,2026-01-01,L1\nA,b.csv,2026-01-01T00:00Z,\n"
+                 "A,c.csv,2026-02-01,L1\n")
+    got = read_manifest(m)
+    assert [(g.unit, len(g.logs), g.attrs) for g in got] == [("A", 2, {"line": "L1"}),
+                                                              ("A", 1, {"line": "L1"})]
