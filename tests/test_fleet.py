@@ -351,3 +351,18 @@ def test_a_unit_whose_rows_disagree_on_an_attribute_is_refused(tmp_path):
     got = read_manifest(m)
     assert [(g.unit, len(g.logs), g.attrs) for g in got] == [("A", 2, {"line": "L1"}),
                                                               ("A", 1, {"line": "L1"})]
+
+
+def test_the_local_workers_run_the_callers_pmdcid_on_one_thread(tmp_path):
+    import pmdcid
+    from pmdcid.fleet.cluster import worker_env
+
+    env = worker_env()
+    first = env["PYTHONPATH"].split(os.pathsep)[0]
+    assert os.path.join(first, "pmdcid", "__init__.py") == os.path.abspath(pmdcid.__file__)
+    assert env["PMDCID_THREADS"] == "1"
+    m = tmp_path / "m.csv"
+    m.write_text("unit,log\nA,a.csv\n")
+    code, text = run([str(m), "-o", str(tmp_path / "o"), "--workers", "2",
+                      "--scheduler", "tcp://127.0.0.1:1"])
+    assert code == 2 and "--workers" in text
