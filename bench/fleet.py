@@ -42,7 +42,7 @@ def spec(units: int, protocol=None):
     k = max(units, 8)
     return FleetSpec(units=units, spread=0.05,
                      outliers={1: ("bc", 1.8), k // 2: ("R", 1.25)},
-                     drifting={3: {"R": 1.06}, 5: {"bc": 1.4}, 7: {"J": 0.9, "bv": 1.3}},
+                     drifting={3: {"R": 1.06}, 5: {"bc": 1.1}, 7: {"J": 0.93, "bv": 1.1}},
                      repeated=(4, 6), protocol=protocol or Protocol())
 
 
@@ -177,8 +177,14 @@ def _rms(v) -> float:
 
 
 def shortest(table: dict, p: str, target: float, which: str) -> float | None:
-    ok = [T for T, e in table.items() if e[p][which] <= target]
-    return min(ok) if ok else None
+    """The shortest length L such that every length from the longest down to L has an error
+    ``which`` no larger than ``target`` (None when even the longest has more)."""
+    best = None
+    for T in sorted(table, reverse=True):
+        if table[T][p][which] > target:
+            break
+        best = T
+    return best
 
 
 def report(tp: dict | None, pr: dict | None) -> str:
@@ -206,8 +212,8 @@ def report(tp: dict | None, pr: dict | None) -> str:
                      for T in lens]
             lines.append(f"| {p} | " + " | ".join(cells) + " |")
         lines += ["", "the pooled estimates of a T s triangle are as accurate as the unit's own "
-                  "estimates of a T' s one (T' = the shortest length whose own error is no "
-                  "larger; '>15' when none is):",
+                  "estimates of a T' s one (T': every length from the longest down to it has an "
+                  "own error no larger):",
                   "| parameter | " + " | ".join(f"T = {T:g}" for T in lens) + " |",
                   "|---|" + "---|" * len(lens)]
         for p in ("bv", "bc", "dz"):

@@ -231,7 +231,7 @@ def test_without_dask_the_error_names_the_extra(monkeypatch, tmp_path):
 # ---- slow: the issue's 24-unit fleet, a killed run, a dying worker ----
 
 TARGET = FleetSpec(units=24, spread=0.05, outliers={1: ("bc", 1.8), 12: ("R", 1.25)},
-                   drifting={3: {"R": 1.06}, 5: {"bc": 1.4}, 7: {"J": 0.9, "bv": 1.3}},
+                   drifting={3: {"R": 1.06}, 5: {"bc": 1.1}, 7: {"J": 0.93, "bv": 1.1}},
                    repeated=(4, 6))
 #: round-trip tolerance of the production test (blocked pulse, two steps, 15 s triangle)
 TARGET_TOL = {"R": 0.01, "L": 0.02, "J": 0.02, "bv": 0.02, "bc": 0.03, "dz": 0.03}
@@ -255,7 +255,10 @@ def test_the_issue_target_fleet_of_24_units(tmp_path, one_worker):
     found = {(r["unit"], p) for r in rows for p in r["outlier"].split(",") if p}
     assert {("M002", "bc"), ("M013", "R")} <= found and len(found) <= 3, found
     moving = {(r["unit"], p) for r in rows for p in r["drifting"].split(",") if p}
-    assert moving == {("M004", "R"), ("M006", "bc"), ("M008", "J"), ("M008", "bv")}, moving
+    want = {("M004", "R"), ("M006", "bc"), ("M008", "J"), ("M008", "bv")}
+    # b is the paper's viscous coefficient with the Coulomb friction lumped in: it moves with
+    # bv and bc, and saying so is right
+    assert want <= moving and {p for _, p in moving - want} <= {"b"}, moving
 
 
 @pytest.mark.slow

@@ -194,6 +194,7 @@ def analyse(res: FleetResult) -> None:
     for d in res.drifts:
         if d.significant:
             moving.setdefault(d.unit, []).append(d.parameter)
+    _drift_reasons(res)
     same = {id(r) for r in pop}
     for r in res.rows:
         r.update(pooled={}, borrowed=[])
@@ -207,6 +208,15 @@ def analyse(res: FleetResult) -> None:
     if len(versions) > 1:
         res.warnings.append("the units ran on different pmdcid versions: "
                             + ", ".join(sorted(versions)))
+
+
+def _drift_reasons(res: FleetResult) -> None:
+    """An outlier that drifted there says so in its reason (worn, not born so)."""
+    lines = {(d.unit, d.parameter): d for d in res.drifts if d.significant}
+    for o in res.outliers:
+        d = lines.get((o.unit, o.parameter))
+        if d is not None:
+            o.reason += f"; it drifted {100 * d.change:+.1f} % since its first measurement"
 
 
 def _comparable(res: FleetResult) -> list[dict]:
