@@ -31,17 +31,41 @@ PARAMS = ("R", "L", "J", "bv", "bc", "dz")
 TOL = {"R": 0.01, "L": 0.02, "J": 0.02, "bv": 0.03, "bc": 0.05, "dz": 0.05}
 
 
+def _shared(tmp_path_factory):
+    """A folder every pytest-xdist worker of this session sees (the module's costly fleet run
+    is made once, under a lock, and read by all)."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent
+    d = root / "fleet-shared"
+    d.mkdir(exist_ok=True)
+    return d
+
+
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
     """(manifest, truth) of the small fleet, plus a unit whose log is not a log and a unit
-    whose log is missing."""
-    root = tmp_path_factory.mktemp("fleet")
-    manifest, truth = write_fleet(str(root), SPEC, np.random.default_rng(2028))
-    (root / "bad.csv").write_text("t,v\n0,1\n0.001,x\n")
+    whose log is missing; and the fleet's run on a local cluster of 2 workers (DIR, output)."""
+    import fcntl
+
+    d = _shared(tmp_path_factory)
+    with open(d / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (d / "done.json").exists():
+            (d / "done.json").write_text(json.dumps(_make_fleet(d)))
+        return json.loads((d / "done.json").read_text())
+
+
+def _make_fleet(root):
+    manifest, truth = write_fleet(str(root / "fleet"), SPEC, np.random.default_rng(2028))
+    (root / "fleet" / "bad.csv").write_text("t,v\n0,1\n0.001,x\n")
     with open(manifest, "a") as fh:
         fh.write("X-<b>bad</b>,bad.csv,2026-03-05T10:00:00Z,B9\n")
         fh.write("X-gone,nowhere.csv,,B9\n")
-    return manifest, truth
+    out = str(root / "two")
+    code, text = run([manifest, "-o", out, "--km", str(KM), "--workers", "2"])
+    assert code == 0, text
+    return [manifest, truth, out, text]
 
 
 def run(args):
@@ -54,11 +78,8 @@ def table(out_dir):
 
 
 @pytest.fixture(scope="module")
-def two_workers(fleet, tmp_path_factory):
-    out = str(tmp_path_factory.mktemp("two") / "out")
-    code, text = run([fleet[0], "-o", out, "--km", str(KM), "--workers", "2"])
-    assert code == 0, text
-    return out, text
+def two_workers(fleet):
+    return fleet[2], fleet[3]
 
 
 def test_a_fleet_round_trips_with_its_outlier_drift_and_failures(fleet, two_workers):

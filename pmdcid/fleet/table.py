@@ -8,8 +8,8 @@ effects added, comma-separated), ``lumped`` (per-volt parameters), every paramet
 ``p_pooled_stderr`` with ``borrowed`` (the parameters where the prior's weight is 10 % or more,
 comma-separated), ``outlier`` (the parameters on which the unit is an outlier), ``drifting``
 (the parameters drifting significantly), ``pass`` and ``failed`` (with ``--limits``),
-``warnings``, ``logs`` (the log files, ``;``-separated), ``seconds`` (the task's wall time)
-and ``key`` (the journal key).
+``warnings``, ``logs`` (the log files, ``;``-separated), ``seconds`` and ``cpu_seconds`` (the
+task's wall and CPU time) and ``key`` (the journal key).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ EXTRA = "pip install 'pmdcid[fleet]'"
 
 #: the columns of every table besides attributes and parameters
 FIXED = ("unit", "time", "status", "error", "effects", "lumped", "borrowed", "outlier",
-         "drifting", "pass", "failed", "warnings", "logs", "seconds", "key")
+         "drifting", "pass", "failed", "warnings", "logs", "seconds", "cpu_seconds", "key")
 
 
 def _pyarrow():
@@ -82,6 +82,7 @@ def columns(rows: list[dict], names: list[str], pooled: list[str], attrs: list[s
     cols["warnings"] = [" | ".join(r.get("warnings", [])) for r in rows]
     cols["logs"] = [";".join(r.get("logs", [])) for r in rows]
     cols["seconds"] = [_num(r.get("seconds")) for r in rows]
+    cols["cpu_seconds"] = [_num(r.get("cpu_seconds")) for r in rows]
     cols["key"] = [r["key"] for r in rows]
     return cols
 
@@ -90,7 +91,7 @@ def parquet_bytes(cols: dict[str, list]) -> bytes:
     """``cols`` as a parquet file's bytes (types: text, UTC timestamps, float64, bool)."""
     pa, pq = _pyarrow()
     types = {"time": pa.timestamp("us", tz="UTC"), "lumped": pa.bool_(), "pass": pa.bool_(),
-             "seconds": pa.float64()}
+             "seconds": pa.float64(), "cpu_seconds": pa.float64()}
     arrays, fields = [], []
     for name, vals in cols.items():
         typ = types.get(name)

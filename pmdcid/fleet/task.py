@@ -74,12 +74,13 @@ def run_unit(job: dict) -> dict:
     or None), ``logs`` (paths), ``hashes`` (their SHA-256), and the options ``km`` [N m/A],
     ``diagnose``, ``mapping``. Returns the row: the job's fields, ``status`` (``ok`` or
     ``error``), ``error`` (one line), ``params`` (name -> [value, stderr, unit]), ``effects``,
-    ``lumped``, ``warnings``, ``seconds`` (wall time of the task [s]) and ``journal``
+    ``lumped``, ``warnings``, ``seconds`` (wall time of the task [s]), ``cpu_seconds`` (CPU
+    time of its thread [s]: one-thread workers) and ``journal``
     (False for a failure that may not happen again: an internal error)."""
     import pmdcid
 
     _threads_per_task()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     row = {k: job[k] for k in ("key", "unit", "time", "logs", "hashes")}
     row.update(status="ok", error="", params={}, effects=[], lumped=False, warnings=[],
                journal=True, version=pmdcid.__version__)
@@ -93,6 +94,7 @@ def run_unit(job: dict) -> dict:
         row.update(status="error", journal=False,
                    error=one_line(f"internal error {type(exc).__name__}: {msg[:160]}"))
     row["seconds"] = time.perf_counter() - t0
+    row["cpu_seconds"] = time.thread_time() - c0
     return row
 
 
