@@ -75,7 +75,7 @@ def client_for(scheduler: str | None = None, workers: int | None = None):
     n = workers or default_workers()
     try:
         cluster = distributed.LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
             silence_logs=logging.ERROR, env=worker_env())
     except (OSError, TimeoutError, RuntimeError) as exc:
         raise ClusterError(f"cannot start a local Dask cluster of {n} workers: "
