@@ -130,7 +130,8 @@ def throughput(units: int, seed: int, folder: str) -> dict:
     return out
 
 
-def priors(units: int, seed: int, folder: str, lengths=(15.0, 8.0, 4.0, 2.0, 1.0)) -> dict:
+def priors(units: int, seed: int, folder: str, lengths=(15.0, 8.0, 4.0, 2.0, 1.0),
+           spread: float = 0.05) -> dict:
     """Own and pooled RMS relative errors against the truth per triangle length [s]."""
     import numpy as np
 
@@ -146,7 +147,7 @@ def priors(units: int, seed: int, folder: str, lengths=(15.0, 8.0, 4.0, 2.0, 1.0
         for T in lengths:
             proto = Protocol(triangle_s=T, triangle_period=T / 2, step_s=1.0, noise=noisy)
             sub = os.path.join(folder, f"T{T:g}")
-            manifest, truth = write_fleet(sub, FleetSpec(units=units, spread=0.05,
+            manifest, truth = write_fleet(sub, FleetSpec(units=units, spread=spread,
                                                          protocol=proto),
                                           np.random.default_rng(seed))
             jobs = jobs_of(manifest)
@@ -177,15 +178,21 @@ def _rms(v) -> float:
     return math.sqrt(sum(x * x for x in v) / len(v)) if v else math.nan
 
 
-def shortest(table: dict, p: str, target: float, which: str) -> float | None:
-    """The shortest length L such that every length from the longest down to L has an error
-    ``which`` no larger than ``target`` (None when even the longest has more)."""
-    best = None
-    for T in sorted(table, reverse=True):
-        if table[T][p][which] > target:
-            break
-        best = T
-    return best
+def equivalent(table: dict, p: str, target: float) -> float | None:
+    """The triangle length [s] at which the units' own error would be ``target``: log-log
+    interpolation between the two lengths, read from the longest down, whose own errors
+    bracket it (None outside the measured range or where the own error is not monotone)."""
+    import math
+
+    lens = sorted(table, reverse=True)
+    for a, b in zip(lens, lens[1:], strict=False):
+        ea, eb = table[a][p]["own"], table[b][p]["own"]
+        if eb < ea:
+            return None  # no longer monotone: no honest reading
+        if ea <= target <= eb and eb > ea:
+            f = math.log(target / ea) / math.log(eb / ea)
+            return a * (b / a) ** f
+    return None
 
 
 def report(tp: dict | None, pr: dict | None) -> str:
@@ -219,15 +226,14 @@ def report(tp: dict | None, pr: dict | None) -> str:
                      for T in lens]
             lines.append(f"| {p} | " + " | ".join(cells) + " |")
         lines += ["", "the pooled estimates of a T s triangle are as accurate as the unit's own "
-                  "estimates of a T' s one (T': every length from the longest down to it has an "
-                  "own error no larger):",
+                  "estimates of a T' s one would be (log-log interpolation of the own errors):",
                   "| parameter | " + " | ".join(f"T = {T:g}" for T in lens) + " |",
                   "|---|" + "---|" * len(lens)]
         for p in ("bc", "dz"):
             cells = []
             for T in lens:
-                eq = shortest(pr, p, pr[T][p]["pooled"], "own")
-                cells.append(f"T' = {eq:g}" if eq is not None else f"T' > {max(lens):g}")
+                eq = equivalent(pr, p, pr[T][p]["pooled"])
+                cells.append(f"T' = {eq:.2g}" if eq is not None else "-")
             lines.append(f"| {p} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -238,6 +244,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=2028)
     ap.add_argument("--priors", action="store_true", help="also the population-priors table")
     ap.add_argument("--priors-only", action="store_true")
+    ap.add_argument("--spread", type=float, default=0.05,
+                    help="manufacturing spread (relative std) of the priors' fleet")
     ap.add_argument("--prior-units", type=int, default=24,
                     help="units of the priors' fleet (one per triangle length)")
     ap.add_argument("--out", default=None, help="write the figures as JSON here")
@@ -245,7 +253,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="fleetbench-") as d:
         tp = None if args.priors_only else throughput(args.units, args.seed, os.path.join(d, "a"))
         want = args.priors or args.priors_only
-        pr = priors(args.prior_units, args.seed, os.path.join(d, "b")) if want else None
+        pr = priors(args.prior_units, args.seed, os.path.join(d, "b"),
+                    spread=args.spread) if want else None
     print(report(tp, pr))
     if args.out:
         with open(args.out, "w") as fh:
