@@ -83,9 +83,11 @@ def timed_run(jobs: list[dict], workers: int) -> tuple[float, list[dict], float]
     t0 = time.perf_counter()
     with client_for(None, workers) as client:
         warm(client)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         rows = list(run_jobs(client, jobs, run_unit))
-        t2 = time.perf_counter()
+        t2, c2 = time.perf_counter(), time.process_time()
+    for r in rows:
+        r["client_cpu"] = (c2 - c1) / len(rows)  # the caller's (scheduler's) CPU per unit
     return t2 - t1, rows, t1 - t0
 
 
@@ -124,6 +126,7 @@ def throughput(units: int, seed: int, folder: str) -> dict:
         out[f"per_hour_{n}"] = len(jobs) / secs * 3600.0
         out[f"task_seconds_{n}"] = float(np.median([r["seconds"] for r in rows]))
         out[f"cpu_seconds_{n}"] = float(np.median([r["cpu_seconds"] for r in rows]))
+        out[f"client_cpu_{n}"] = rows[0]["client_cpu"]
         rows2 = rows if n == 2 else rows2
     out["efficiency"] = out["per_hour_2"] / out["per_hour_1"] / 2.0
     out["population"] = population(rows2, truth)
@@ -210,6 +213,8 @@ def report(tp: dict | None, pr: dict | None) -> str:
         lines.append(f"\nscaling efficiency 1 -> 2 workers: {tp['efficiency']:.2f}; one unit's "
                      f"CPU time {tp['cpu_seconds_1']:.2f} s = {3600 / tp['cpu_seconds_1']:.0f} "
                      "units per CPU-hour")
+        lines.append(f"the caller's own CPU (client and scheduler) per unit: "
+                     f"{tp['client_cpu_1']:.3f} s (1 worker), {tp['client_cpu_2']:.3f} s (2)")
         lines.append(f"load average while measured: {os.getloadavg()[0]:.1f} "
                      f"on {os.cpu_count()} CPUs")
         pop = tp["population"]
