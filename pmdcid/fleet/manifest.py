@@ -45,6 +45,8 @@ def parse_time(text: str, where: str) -> datetime | None:
     text = text.strip()
     if not text:
         return None
+    if text[-1:] in ("Z", "z"):  # UTC designator (Python 3.10's parser lacks it)
+        text = text[:-1] + "+00:00"
     try:
         t = datetime.fromisoformat(text)
     except ValueError:
