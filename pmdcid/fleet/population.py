@@ -3,8 +3,10 @@
 Every statistic reads each unit once, at its latest measurement (a unit measured weekly
 counts once, as it is now). Per parameter [its own unit]:
 
-- the median and the robust sigma ``1.4826 MAD`` (:class:`ParamStats`); rank (Spearman)
-  correlations between parameters (:func:`correlations`);
+- the median and the robust sigma ``1.4826 MAD``, at least the median of the units' own
+  standard errors (a spread smaller than the measurements' own errors is a small sample's
+  accident: six repeats of one real motor had a MAD spread of bc below its stderr)
+  (:class:`ParamStats`); rank (Spearman) correlations between parameters (:func:`correlations`);
 - an **outlier** (:func:`outliers`) is a unit whose value lies at least :data:`Z_POP` robust
   sigmas from the median AND at least :data:`Z_OWN` of its own standard errors from it: a unit
   whose own uncertainty is too large to tell is never called an outlier;
@@ -117,6 +119,8 @@ def stats(rows: list[dict]) -> dict[str, ParamStats]:
         sigma = MAD_SIGMA * float(np.median(np.abs(x[ok] - med)))
         se = s[ok & np.isfinite(s)]
         med_se = float(np.median(se)) if se.size else math.nan
+        if math.isfinite(med_se) and sigma > 0:
+            sigma = max(sigma, med_se)  # a spread below the units' own errors: a small sample
         tau = math.nan
         if se.size >= MIN_UNITS and sigma > 0:
             tau = math.sqrt(max(sigma ** 2 - float(np.median(se ** 2)), sigma ** 2 / 10.0))

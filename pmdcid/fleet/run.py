@@ -194,7 +194,7 @@ def analyse(res: FleetResult) -> None:
     for d in res.drifts:
         if d.significant:
             moving.setdefault(d.unit, []).append(d.parameter)
-    _drift_reasons(res)
+    _drift_reasons(res, pop)
     same = {id(r) for r in pop}
     for r in res.rows:
         r.update(pooled={}, borrowed=[])
@@ -210,13 +210,25 @@ def analyse(res: FleetResult) -> None:
                             + ", ".join(sorted(versions)))
 
 
-def _drift_reasons(res: FleetResult) -> None:
-    """An outlier that drifted there says so in its reason (worn, not born so)."""
+def _drift_reasons(res: FleetResult, pop: list[dict]) -> None:
+    """An outlier that drifted there says so in its reason (worn, not born so), and one whose
+    model holds other effects than most units' says which (its parameters mean other things)."""
+    from collections import Counter
+
+    from pmdcid.fleet.population import latest
+
+    now = {r["unit"]: r for r in latest(pop)}
+    usual = Counter(tuple(r.get("effects", [])) for r in now.values()).most_common(1)
+    usual = list(usual[0][0]) if usual else []
     lines = {(d.unit, d.parameter): d for d in res.drifts if d.significant}
     for o in res.outliers:
         d = lines.get((o.unit, o.parameter))
         if d is not None:
             o.reason += f"; it drifted {100 * d.change:+.1f} % since its first measurement"
+        mine = list(now[o.unit].get("effects", [])) if o.unit in now else usual
+        if mine != usual:
+            o.reason += (f"; its model adds [{', '.join(mine)}] where most units' add "
+                         f"[{', '.join(usual)}]")
 
 
 def _comparable(res: FleetResult) -> list[dict]:
