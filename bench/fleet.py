@@ -91,6 +91,28 @@ def timed_run(jobs: list[dict], workers: int) -> tuple[float, list[dict], float]
     return t2 - t1, rows, t1 - t0
 
 
+def _spin(n: int) -> int:
+    s = 0
+    for i in range(n):
+        s += i
+    return s
+
+
+def machine_scaling(n: int = 20_000_000) -> float:
+    """This machine's own 1 -> 2 process efficiency right now: four pure-Python loops on a pool
+    of 1, then 2 processes (no I/O, nothing shared). On an idle 2-core machine it is ~1; other
+    jobs on the CPUs bring it down, and the fleet's figure is to be read against it."""
+    import multiprocessing as mp
+
+    times = []
+    for k in (1, 2):
+        t = time.perf_counter()
+        with mp.get_context("spawn").Pool(k) as pool:
+            pool.map(_spin, [n] * 4)
+        times.append(time.perf_counter() - t)
+    return times[0] / times[1] / 2.0
+
+
 def population(rows: list[dict], truth: dict) -> dict:
     """Outliers and drifts found against the spec's truth."""
     from pmdcid.fleet.run import FleetResult, analyse
@@ -129,6 +151,7 @@ def throughput(units: int, seed: int, folder: str) -> dict:
         out[f"client_cpu_{n}"] = rows[0]["client_cpu"]
         rows2 = rows if n == 2 else rows2
     out["efficiency"] = out["per_hour_2"] / out["per_hour_1"] / 2.0
+    out["machine_efficiency"] = machine_scaling()
     out["population"] = population(rows2, truth)
     return out
 
@@ -213,6 +236,8 @@ def report(tp: dict | None, pr: dict | None) -> str:
         lines.append(f"\nscaling efficiency 1 -> 2 workers: {tp['efficiency']:.2f}; one unit's "
                      f"CPU time {tp['cpu_seconds_1']:.2f} s = {3600 / tp['cpu_seconds_1']:.0f} "
                      "units per CPU-hour")
+        lines.append(f"the machine's own 1 -> 2 process efficiency just after (pure CPU loops): "
+                     f"{tp['machine_efficiency']:.2f}")
         lines.append(f"the caller's own CPU (client and scheduler) per unit: "
                      f"{tp['client_cpu_1']:.3f} s (1 worker), {tp['client_cpu_2']:.3f} s (2)")
         lines.append(f"load average while measured: {os.getloadavg()[0]:.1f} "
