@@ -402,3 +402,18 @@ def test_the_local_workers_run_the_callers_pmdcid_on_one_thread(tmp_path):
     code, text = run([str(m), "-o", str(tmp_path / "o"), "--workers", "2",
                       "--scheduler", "tcp://127.0.0.1:1"])
     assert code == 2 and "--workers" in text
+
+
+def test_the_bench_reads_an_equivalent_test_length_from_the_own_errors():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from bench.fleet import equivalent
+
+    # own error halves each time the test doubles: an error of 2 % is the 8 s test's, and
+    # 2.83 % (halfway in log) lies halfway between 8 s and 4 s in log length
+    table = {T: {"bc": {"own": 0.16 / T}} for T in (16.0, 8.0, 4.0)}
+    assert math.isclose(equivalent(table, "bc", 0.02), 8.0)
+    assert math.isclose(equivalent(table, "bc", 0.02 * math.sqrt(2)), 8.0 / math.sqrt(2))
+    assert equivalent(table, "bc", 0.5) is None  # beyond the shortest test measured
