@@ -9,7 +9,7 @@ AOT := pmdcid/simulate/_compiled.sha1
 AOT_SOURCES := pmdcid/simulate/terms.py pmdcid/simulate/layout.py pmdcid/simulate/kernel.py \
 	pmdcid/identify/grid.py pmdcid/simulate/aot.py
 
-.PHONY: install test test-fast lint bench realbench demo fixtures clean aot
+.PHONY: install test test-fast lint bench realbench fleetbench demo fixtures clean aot
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || python3 -m venv $(VENV)
@@ -38,6 +38,11 @@ bench: $(STAMP) $(AOT)
 
 realbench: $(STAMP) $(AOT)
 	$(PY) bench/realbench.py --write docs/real-data.md
+
+# a synthetic fleet of 24 units on local Dask clusters of 1 and 2 workers: units per hour, the
+# scaling, the outliers and drifts found, the population priors' shorter tests (docs/fleet.md)
+fleetbench: $(STAMP) $(AOT)
+	$(PY) bench/fleet.py --priors
 
 # the whole rig in one command (identify: every stage, the joint fit, diagnose, the report) on the
 # bundled logs that carry an effect nobody declared; `pmdcid demo` shows the stages one by one

@@ -160,6 +160,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                          "have."),
     "channels": ("cmd_channels", "List the signals FILE holds (any format pmdcid reads): name, "
                                  "samples, rate, unit."),
+    "fleet": ("cmd_fleet", "Identify every unit of a fleet on a Dask cluster: units.parquet, "
+                           "outliers, drift, fleet.html."),
 }
 
 
@@ -250,5 +252,5 @@ def _register() -> None:
 
 #: command modules, each registering its command(s) on ``main`` at import
 COMMAND_MODULES = ["cmd_simulate", "cmd_fit", "cmd_report", "cmd_demo", "cmd_diagnose",
-                   "cmd_identify", "cmd_export", "cmd_plan", "cmd_channels"]
+                   "cmd_identify", "cmd_export", "cmd_plan", "cmd_channels", "cmd_fleet"]
 _register()

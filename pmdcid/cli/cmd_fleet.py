@@ -1,0 +1,43 @@
+"""``pmdcid fleet MANIFEST -o DIR [--scheduler ADDRESS] [--workers N] [--km X] [--limits FILE]``:
+every unit of a fleet identified on a Dask cluster (docs/fleet.md)."""
+
+from __future__ import annotations
+
+import click
+
+from pmdcid.cli import main
+from pmdcid.cli.options import FiniteFloat, log_options
+
+
+@main.command("fleet")
+@click.argument("manifest", type=click.Path(dir_okay=False), metavar="MANIFEST")
+@click.option("-o", "--output", "out_dir", type=click.Path(), required=True, metavar="DIR",
+              help="Folder for units.parquet, outliers.csv, fleet.html (and the results/ "
+                   "journal a rerun resumes from).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run on the existing Dask cluster of this scheduler (tcp://HOST:PORT); "
+                   "default: a local cluster started and stopped here.")
+@click.option("--workers", type=click.IntRange(min=1, max=4096), default=None, metavar="N",
+              help="Worker processes of the local cluster (default: the CPUs).")
+@click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
+              help="Torque constant [N m/A] (datasheet) every unit uses.")
+@click.option("--limits", "limits_path", type=click.Path(dir_okay=False), default=None,
+              metavar="FILE", help='End-of-line limits, JSON {"R": [min, max], ...}: adds '
+                                   "pass and failed to units.parquet.")
+@click.option("--no-diagnose", is_flag=True,
+              help="Skip each unit's effect search after its joint fit (faster).")
+@log_options
+def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnose, mapping):
+    """Identify every unit of a fleet on a Dask cluster: DIR/units.parquet, DIR/outliers.csv,
+    DIR/fleet.html."""
+    from pmdcid.fleet.run import run_fleet
+
+    if scheduler is not None and workers is not None:
+        raise click.UsageError("--workers sizes the local cluster; with --scheduler the "
+                               "cluster's own workers run the units")
+    res = run_fleet(manifest, out_dir, scheduler=scheduler, workers=workers, km=km,
+                    limits=limits_path, diagnose=not no_diagnose, mapping=mapping or None)
+    click.echo(res.table())
+    for w in res.warnings:
+        click.echo(f"warning: {w}", err=True)
+    click.echo(f"wrote {out_dir}/units.parquet, outliers.csv, fleet.html")
