@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import click
 
-from pmdcid.cli import main
+from pmdcid.cli import echo, main
 from pmdcid.cli.options import FiniteFloat, log_options
 
 
@@ -37,7 +37,7 @@ def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnos
                                "cluster's own workers run the units")
     res = run_fleet(manifest, out_dir, scheduler=scheduler, workers=workers, km=km,
                     limits=limits_path, diagnose=not no_diagnose, mapping=mapping or None)
-    click.echo(res.table())
+    echo(res.table())
     for w in res.warnings:
-        click.echo(f"warning: {w}", err=True)
-    click.echo(f"wrote {out_dir}/units.parquet, outliers.csv, fleet.html")
+        echo(f"warning: {w}", err=True)
+    echo(f"wrote {out_dir}/units.parquet, outliers.csv, fleet.html")

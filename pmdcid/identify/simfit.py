@@ -15,7 +15,6 @@ import threading
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.signal import lfilter
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
@@ -128,8 +127,9 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     # columns may run on several), dropped before the covariance
     bufs: dict[int, list] = {}
 
-    def sims(x):
-        """Each log's simulation at ``x``; its arrays are valid until this thread's next call."""
+    def sims(x, held=None):
+        """Each log's simulation at ``x`` (``held``: values of held parameters replacing the
+        model's); its arrays are valid until this thread's next call."""
         out = []
         xs = state(x)
         tid = threading.get_ident()
@@ -139,6 +139,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         for k, log in enumerate(logs):
             vals = dict(base[k])
             vals.update(dict(zip(free, x[:npar], strict=True)))
+            vals.update(held or {})
             if simulator is not None:
                 out.append(simulator(log, vals, xs[k]))
                 continue
@@ -155,11 +156,11 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
 
     whiten: list = [None] * len(plan)  # per block: the AR whitening filter, once estimated
 
-    def resid(z, out=None):
+    def resid(z, out=None, held=None):
         """(simulated - measured) / sigma per block (whitened when a noise model is on), then
         the prior rows; into ``out``."""
         x = z * scale
-        ss = sims(x)
+        ss = sims(x, held)
         out = np.empty(nrows) if out is None else out
         _fill_blocks(out, ss, plan, segments, whiten)
         if prior_rows:
@@ -200,9 +201,13 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
         Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale, cov_step,
                                 parallel)
         Jm /= scale[None, :]
+        held = _held_columns(resid, sol.z, nrows, held_uncertain(model, free, base[0]),
+                             cov_step, parallel)
     bufs.clear()  # no simulation until the last: freed for the covariance
     try:
+        extra = propagated(Jm, *held)  # before _covariance, which rescales Jm's columns
         cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
+        cov = cov + extra
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = cov / np.outer(se, se)
@@ -240,8 +245,8 @@ def _fill_blocks(out, ss, plan, segments, whiten) -> None:
         np.subtract(ss[k].get(s), meas, out=r)
         np.divide(r, sd, out=r)
         r[~np.isfinite(r)] = 0.0
-        if whiten[j] is not None:
-            r[:] = lfilter(whiten[j], [1.0], r)
+        if whiten[j] is not None:  # the FIR filter A(q): numpy, not scipy.signal (1 s import)
+            r[:] = np.convolve(r, whiten[j])[: len(r)]
 
 
 def ar_whitener(r: np.ndarray, order: int, before=None) -> np.ndarray | None:
@@ -250,6 +255,8 @@ def ar_whitener(r: np.ndarray, order: int, before=None) -> np.ndarray | None:
     undone first, so that the filter is estimated on the raw residual). None when the block is
     too short, the filter not invertible, or the block already white (every |a_j| < 1e-3)."""
     if before is not None:  # r is whitened by ``before``: undo it to estimate on the raw block
+        from scipy.signal import lfilter  # only with a noise model: the import costs ~1 s
+
         r = lfilter([1.0], before, r)
     n = len(r)
     if n < 20 * max(order, 1):
@@ -260,6 +267,49 @@ def ar_whitener(r: np.ndarray, order: int, before=None) -> np.ndarray | None:
     if not np.all(np.isfinite(a)) or np.max(np.abs(np.roots(a))) >= 0.999:
         return None  # not invertible: keep the block white
     return a if np.max(np.abs(coef)) > 1e-3 else None
+
+
+def held_uncertain(model: Model, free, kernel_values: dict[str, float]
+                   ) -> dict[str, tuple[float, float]]:
+    """Parameters a fit holds at the model's values that carry a standard error from the stage
+    that identified them (R and L from the blocked rotor; a datasheet km has none) and that the
+    simulation uses: name -> (value, standard error)."""
+    out = {}
+    for name, par in model.parameters.items():
+        v = kernel_values.get(name)
+        if name in free or v is None or v == 0 or not math.isfinite(v):
+            continue
+        if math.isfinite(par.stderr) and par.stderr > 0:
+            out[name] = (float(v), float(par.stderr))
+    return out
+
+
+def _held_columns(resid, z, nrows: int, held: dict[str, tuple[float, float]], rel, parallel):
+    """(the residual's derivatives with respect to each held parameter, their standard
+    errors): central differences of relative step ``rel`` about the held values."""
+    names = list(held)
+    cols = np.empty((nrows, len(names)))
+    step = float(np.max(np.atleast_1d(rel)))
+
+    def column(j):
+        v = held[names[j]][0]
+        h = step * abs(v)
+        up = resid(z, held={names[j]: v + h})
+        cols[:, j] = up - resid(z, held={names[j]: v - h})
+        cols[:, j] /= 2 * h
+
+    pmap(column, range(len(names)), parallel)
+    return cols, np.array([held[n][1] for n in names])
+
+
+def propagated(jac: np.ndarray, held_jac: np.ndarray, held_se: np.ndarray) -> np.ndarray:
+    """The covariance the held parameters' own uncertainty adds to the fitted ones (a two-step
+    estimator: the fitted values move by G = -(J'J)^-1 J'J_h per unit of the held ones, so
+    cov += G diag(se_h^2) G')."""
+    if held_jac.shape[1] == 0:
+        return np.zeros((jac.shape[1], jac.shape[1]))
+    g = -np.linalg.lstsq(jac, held_jac, rcond=None)[0]
+    return (g * held_se**2) @ g.T
 
 
 def _per_log(plan, final, nlogs: int):
