@@ -29,6 +29,8 @@ from pathlib import Path
 import numpy as np
 
 PARAMS = ("J", "bv", "bc", "dz")
+#: internal steps per sample of the truth: 20-40 per L/R, finer than any fit (continuous time)
+NSUB = 64
 
 
 def truth_for(seed: int) -> dict:
@@ -45,7 +47,8 @@ def truth_for(seed: int) -> dict:
     dz = bc * rng.uniform(1.15, 1.35)  # the dead zone above Coulomb, as the paper's motor
     si = {"R": R, "L": tau_e * R, "km": km, "ke": km, "J": J, "bv": bv, "bc": bc, "dz": dz}
     g = R / km
-    per_volt = {"J": J * g, "bv": bv * g + km, "bc": bc * g, "dz": dz * g, "tau_e": tau_e}
+    per_volt = {"J": J * g, "bv": bv * g + km, "bc": bc * g, "dz": dz * g, "tau_e": tau_e,
+                "ke_share": km / (bv * g + km)}
     rate = 1000.0 if seed % 2 == 0 else 500.0
     return {"si": si, "per_volt": per_volt, "rate": rate}
 
@@ -64,10 +67,10 @@ def logs_for_seed(seed: int):
     t = np.arange(int(1.5 / dt)) * dt
     for a in (2.0, 4.0, 6.0, 8.0):
         u = step(t, a, 0.2)
-        sims.append((f"step_{a:g}V", t, u, simulate_values(t, u, vals).omega))
+        sims.append((f"step_{a:g}V", t, u, simulate_values(t, u, vals, nsub=NSUB).omega))
     tt = np.arange(int(8.0 / dt)) * dt
     u = triangle(tt, 8.0, 4.0)
-    sims.append(("triangle", tt, u, simulate_values(tt, u, vals).omega))
+    sims.append(("triangle", tt, u, simulate_values(tt, u, vals, nsub=NSUB).omega))
     sigma = 0.003 * max(float(np.ptp(s[3])) for s in sims)
     logs = [Log(path=name, t=t_, data={"v": u_, "omega": w + rng.normal(0.0, sigma, w.size)},
                 meta={}) for name, t_, u_, w in sims]
@@ -76,7 +79,7 @@ def logs_for_seed(seed: int):
 
 def _row(model, truth) -> dict:
     out = {}
-    for k in (*PARAMS, "tau_e"):
+    for k in (*PARAMS, "tau_e", "ke_share"):
         if not model.has(k):
             continue
         p = model.parameters[k]
@@ -112,7 +115,7 @@ def run_seed(seed: int) -> dict:
 def summary(rows: list[dict]) -> str:
     lines = [f"{len(rows)} seeds"]
     for where in ("joint", "final"):
-        for k in (*PARAMS, "tau_e"):
+        for k in (*PARAMS, "tau_e", "ke_share"):
             got = [r[where][k] for r in rows if k in r[where]]
             if not got:
                 continue
@@ -130,6 +133,12 @@ def summary(rows: list[dict]) -> str:
             added[e] = added.get(e, 0) + 1
     lines.append("diagnose added: " + (", ".join(f"{e} in {n}" for e, n in added.items())
                                        or "nothing"))
+    effects: dict[str, int] = {}
+    for r in rows:
+        for e in r["effects"]:
+            effects[e] = effects.get(e, 0) + 1
+    lines.append("effects in the final model: " + (
+        ", ".join(f"{e} in {n}" for e, n in effects.items()) or "none"))
     lines.append(f"cpu per seed {np.mean([r['cpu'] for r in rows]):.1f} s")
     return "\n".join(lines)
 

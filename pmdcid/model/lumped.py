@@ -34,6 +34,43 @@ NOTE = ("per-volt parameters (voltage and speed only: no current, no datasheet):
         "torque [V]; give km and R (fit-electrical, --km) to convert to SI")
 #: parameters that have no meaning in a lumped model (the electrical side is folded in)
 ELECTRICAL = ("R", "L", "km", "ke")
+#: a lumped model's own electrical side: the time constant L/R [s] and the back-EMF's share of
+#: bv; mapped onto the kernel's R, L, km, ke, bv by :func:`kernel_values` (no kernel slots)
+LUMPED_ONLY = ("tau_e", "ke_share")
+
+
+#: internal steps per electrical time constant of a lumped model (:func:`lag_substeps`)
+LAG_STEPS = 8.0
+
+
+def lag_substeps(dt: float, tau_e: float) -> int:
+    """Internal steps per sample for a lumped model with lag ``tau_e`` [s]: h <= tau_e /
+    :data:`LAG_STEPS`. The linear dynamics are exact at any step, but the dead zone's mode is
+    taken at each step's start while the torque (per volt, the lagged v - ke w) moves on the
+    scale of tau_e: a coarser step puts its events (and the fit's cost) on a staircase."""
+    return max(1, int(math.ceil(dt * LAG_STEPS / tau_e - 1e-9)))
+
+
+def kernel_values(vals: dict[str, float], torque_driven: bool) -> tuple[dict[str, float], bool]:
+    """The kernel's view of a lumped model's values: (values, torque_driven).
+
+    A lumped model with an electrical time constant ``tau_e`` > 0, simulated on a voltage log
+    (the log's view is torque-driven, :func:`pmdcid.simulate.logs_for`), runs the kernel's own
+    voltage-driven structure scaled per volt: R = 1 and km = 1 (the "current" is R i, in V),
+    L = tau_e, the back-EMF ke = ke_share bv and the mechanical viscous friction
+    (1 - ke_share) bv, so that ``tau_e (R i)' = v - R i - ke w`` and
+    ``J' w' = DZ(R i) - (1 - ke_share) bv w - f'(w)``: the dead zone acts on the torque, per
+    volt on ``v - ke w`` lagged by tau_e, where the physics puts it. Anything else (SI models,
+    torque logs, an old lumped model without tau_e, i.e. tau_e = 0) is returned as it is.
+    """
+    tau_e = float(vals.get("tau_e", 0.0) or 0.0)
+    if not (torque_driven and tau_e > 0.0):
+        return vals, torque_driven
+    share = min(max(float(vals.get("ke_share", 1.0)), 0.0), 1.0)
+    bv = float(vals["bv"])
+    out = dict(vals)
+    out.update(R=1.0, km=1.0, L=tau_e, ke=share * bv, bv=(1.0 - share) * bv)
+    return out, False
 
 
 def is_lumped(model: Model) -> bool:
