@@ -6,8 +6,9 @@ electrical lag L/R of 2-4 ms, identified by ``pmdcid identify`` without --km (is
 
 Each seed: an SI motor (R = 2 ohm, km = ke moved by +-20 %, L/R uniform in 2-4 ms, the
 mechanical time constant 30-60 ms, back-EMF 90 % of the damping, Coulomb friction and a dead
-zone 15-35 % above it, as the paper's), sampled at 0.5 or 1 kHz (alternating), speed noise 0.3 % of its range from
-``numpy.random.default_rng(seed)``. Logs: four steps from rest (2, 4, 6, 8 V, 1.5 s) and a
+zone 15-35 % above it, as the paper's), sampled at 0.5 or 1 kHz (alternating), speed noise
+0.3 % of its range from ``numpy.random.default_rng(seed)``, simulated 64 substeps a sample.
+Logs: four steps from rest (2, 4, 6, 8 V, 1.5 s) and a
 +-8 V triangle (2 periods of 4 s), columns t, v, omega only (no current: the lumped path).
 Identified by :func:`pmdcid.pipeline.identify` (the library function ``pmdcid identify``
 calls) with diagnose. Per-volt truth: J' = J R/km, bv' = bv R/km + ke, bc' = bc R/km,
@@ -89,8 +90,8 @@ def _row(model, truth) -> dict:
 
 
 def run_seed(seed: int) -> dict:
-    from pmdcid.pipeline import identify
     from pmdcid.model import Model
+    from pmdcid.pipeline import identify
 
     tr, logs = logs_for_seed(seed)
     t0 = time.process_time()
