@@ -53,6 +53,9 @@ STAGE = "fit-nonlinear"
 #: grid points per axis of the global stage
 GRID_N = 7
 GRID_BV = 7
+#: a lumped model's tau_e is fitted down to this fraction of the sample period (at 0 the model
+#: has no lag and its dead zone acts on v, pmdcid/model/lumped.py: a different model)
+TAU_E_FLOOR = 0.01
 #: grid of a lumped model's back-EMF share of bv (ke_share, pmdcid/model/lumped.py)
 KE_SHARES = (0.5, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0)
 #: relative finite-difference steps of the local stage: the switching parameters move events by
@@ -212,9 +215,13 @@ def _grid_search(logs, base_vals, start, free, signals, sigma, tscale):
         nsets += switching()
     if "ke_share" in free:
         # a lumped model's back-EMF share moves where its dead zone acts (the torque per volt
-        # is v - ke w): the local stage does not cross between its valleys, a grid does; then
-        # the switching parameters again at the share found
-        sets = [{"ke_share": v} for v in sorted({*KE_SHARES, best["ke_share"]})]
+        # is v - ke w): the local stage does not cross between its valleys, a grid over the
+        # share and dz together does (at a share of 1 a dead zone above bc would hold every
+        # steady state, so dz alone looks masked); then the switching parameters again
+        shares = sorted({*KE_SHARES, best["ke_share"]})
+        dzs = list(_axis("dz", start, tscale)) + [best["dz"]] if "dz" in free else [None]
+        sets = [{"ke_share": v, **({"dz": d} if d is not None else {})}
+                for v in shares for d in dzs]
         cost = run(sets)
         nsets += len(sets)
         best.update(sets[int(np.argmin(cost))])
@@ -336,6 +343,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     bounds = {k: (start[k] / REFINE_RANGE ** (3 if k in guessed else 1),
                   start[k] * REFINE_RANGE)
               for k in ("J", "bv") if k in free and start[k] > 0}
+    if "tau_e" in free:  # a lumped model's lag stays a lag: tau_e = 0 is the model without it
+        bounds["tau_e"] = (TAU_E_FLOOR * min(lg.dt for lg in logs), 1.0)
     # how a slow log's input varied between samples, when it matters (.hold)
     prof = hold_profile(logs, start, free, partial(
         _chisqr_and_J, logs, work, ls_free, signals, best, sigma, max_nfev, bounds, prior))

@@ -40,15 +40,20 @@ LUMPED_ONLY = ("tau_e", "ke_share")
 
 
 #: internal steps per electrical time constant of a lumped model (:func:`lag_substeps`)
-LAG_STEPS = 8.0
+LAG_STEPS = 32.0
+#: at most this many per sample: a lag far below the sample period hardly shows in the speed
+MAX_LAG_SUBSTEPS = 64
 
 
 def lag_substeps(dt: float, tau_e: float) -> int:
     """Internal steps per sample for a lumped model with lag ``tau_e`` [s]: h <= tau_e /
     :data:`LAG_STEPS`. The linear dynamics are exact at any step, but the dead zone's mode is
     taken at each step's start while the torque (per volt, the lagged v - ke w) moves on the
-    scale of tau_e: a coarser step puts its events (and the fit's cost) on a staircase."""
-    return max(1, int(math.ceil(dt * LAG_STEPS / tau_e - 1e-9)))
+    scale of tau_e: a coarser step puts its events (and the fit's cost) on a staircase (measured
+    on bench/lumped_coverage.py's seed 4: bumps of 5 chi-square units at tau_e/8, of about 1 at
+    tau_e/32), which stops the local fits and makes their Jacobian claim more than the cost's
+    rise. At most :data:`MAX_LAG_SUBSTEPS` a sample."""
+    return max(1, min(int(math.ceil(dt * LAG_STEPS / tau_e - 1e-9)), MAX_LAG_SUBSTEPS))
 
 
 def kernel_values(vals: dict[str, float], torque_driven: bool) -> tuple[dict[str, float], bool]:
