@@ -141,6 +141,8 @@ def step_lag(logs, model) -> dict | None:
     te, d = best["tau_e"], best["delay"]
     if te.value > LAG_SIGMAS * te.stderr and te.value > 0.05 * dt:
         out["tau_e"] = (te.value, te.stderr)
+    elif math.isfinite(te.stderr):  # not resolved: a bound, said in words
+        out["tau_e_bound"] = te.value + 2.0 * te.stderr
     if d.value >= MIN_SAMPLES * dt:
         out["delay"] = (d.value, d.stderr)
     if "tau_e" not in out:  # no lag: the latency as the kernel's shift finds it (unchanged)

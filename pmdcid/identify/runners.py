@@ -173,6 +173,12 @@ def _step_latency(result, logs, model) -> None:
         result.warnings.append(
             f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts: "
             "kept as the lumped model's tau_e, not as a latency")
+    elif "tau_e_bound" in found:
+        result.warnings.append(
+            f"the electrical lag L/R is not resolved by these logs (tau_e below "
+            f"{1e3 * found['tau_e_bound']:.3g} ms at two standard errors, sample period "
+            f"{1e3 * logs[0].dt:.3g} ms): the lumped model has none (tau_e = 0), the lag is "
+            "folded into J and the dead zone acts on the applied voltage")
     if "delay" in found:
         result.estimates["delay"] = Estimate("delay", *found["delay"], "s")
 
