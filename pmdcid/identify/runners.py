@@ -173,6 +173,13 @@ def _step_latency(result, logs, model) -> None:
         result.warnings.append(
             f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts: "
             "kept as the lumped model's tau_e, not as a latency")
+    elif "lag_and_latency" in found:
+        lag, late = found["lag_and_latency"]
+        result.warnings.append(
+            f"the steps' late start fits a lag of {1e3 * lag:.3g} ms (L/R) with a latency of "
+            f"{1e3 * late:.3g} ms: on voltage and speed alone the two trade off, so it is kept "
+            "as a latency (sensor_delay) and the model has no tau_e (a current log would tell "
+            "them apart)")
     elif "tau_e_bound" in found:
         result.warnings.append(
             f"the electrical lag L/R is not resolved by these logs (tau_e below "
