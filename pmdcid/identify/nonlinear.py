@@ -294,6 +294,8 @@ def _polish(logs, work, free, signals, fit, sigma, max_nfev, bounds, priors, hel
 #: the secant check moves each parameter by this many of its standard errors (at 2 the rise
 #: is dominated by the cost's small bumps, which make it steeper, not flatter)
 SECANT_SE = 4.0
+#: the most a standard error is widened by the secant check
+SECANT_MAX = 10.0
 
 
 def secant_errors(logs, base_vals, fit, signals, sigma, warns) -> dict[str, Estimate]:
@@ -329,11 +331,13 @@ def secant_errors(logs, base_vals, fit, signals, sigma, warns) -> dict[str, Esti
     out, wide = {}, []
     for j, k in enumerate(free):
         rise = 0.5 * (cost[1 + 2 * j] + cost[2 + 2 * j]) - cost[0]
-        factor = math.sqrt(expect / rise) if rise < expect else 1.0
+        # a cost lower out there (the local stage stopped short of the valley's floor): the
+        # widest factor, SECANT_MAX
+        factor = min(math.sqrt(expect / max(rise, 1e-300)), SECANT_MAX) if rise < expect else 1.0
         if factor > 1.0:
             e = fit.estimates[k]
-            out[k] = Estimate(k, e.value, e.stderr * min(factor, 1e3), e.unit)
-            wide.append(f"{k} x{min(factor, 1e3):.2g}")
+            out[k] = Estimate(k, e.value, e.stderr * factor, e.unit)
+            wide.append(f"{k} x{factor:.2g}")
     if wide:
         warns.append("standard errors widened where the cost rises less over +-4 standard "
                      "errors than the local curvature says (the dead zone's events make it "
