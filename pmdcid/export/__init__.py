@@ -19,6 +19,7 @@ from pathlib import Path
 
 from pmdcid.errors import ModelError, PmdcidError
 from pmdcid.model import Model, load_model
+from pmdcid.model.lumped import kernel_values
 from pmdcid.simulate import NAMES, param_values
 
 #: first line of every generated file: how the tool recognises a file it may overwrite
@@ -99,6 +100,9 @@ def spec_of(model: Model) -> ExportSpec:
     skip = {p for e in NOT_PORTED for p in EFFECTS[e].param_names}
     drive = drive_of(model)
     vals = param_values(model, torque_driven=drive != "v")
+    if drive == "lumped":  # with an electrical lag: the voltage structure per volt (R = km = 1)
+        vals, torque = kernel_values(vals, True)
+        drive = "lumped" if torque else "v"
     return ExportSpec({n: float(vals[n]) for n in PORTED if n not in skip}, drive,
                       float(vals.get("delay", 0.0)),
                       float(vals.get("omega0", 0.0)),

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from pmdcid.model.lumped import kernel_values, lag_substeps
 from pmdcid.simulate import aot, param_vector
 from pmdcid.simulate.kernel import _run_into, discretize
 from pmdcid.simulate.layout import (
@@ -69,12 +70,23 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     (default rest). Returns one cost per set (dimensionless chi-square).
     """
     torque = log.drive == "tau"
-    P = np.array([param_vector(v) for v in vals_list], dtype=float)
+    mapped = [kernel_values(v, torque) for v in vals_list]  # a lumped model's electrical lag
+    if len({m[1] for m in mapped}) > 1:  # sets with and without it: one call each
+        cost = np.empty(len(vals_list))
+        for flag in (False, True):
+            idx = [k for k, m in enumerate(mapped) if m[1] == flag]
+            cost[idx] = batch_cost(log, [vals_list[k] for k in idx], sigma, nsub, x0)
+        return cost
+    lag = torque and not mapped[0][1]  # a lumped model's lag: steps that resolve it
+    torque = mapped[0][1]
+    P = np.array([param_vector(v) for v, _ in mapped], dtype=float)
     if torque:
         P[:, [R, L, KM]] = np.where(np.isfinite(P[:, [R, L, KM]]), P[:, [R, L, KM]], 1.0)
     dt = log.dt
     if nsub is None:
         nsub = max(choose_substeps(dt, p) for p in P)
+    if lag:
+        nsub = max(nsub, max(lag_substeps(dt, v["L"]) for v, _ in mapped))
     h = dt / nsub
     Phi = np.empty((len(P), 2, 3, 3))
     Gam = np.empty((len(P), 2, 3, 3))

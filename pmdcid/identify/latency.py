@@ -49,22 +49,11 @@ def parabola_min(curve: np.ndarray, j: int) -> float:
     return float(j) + (0.5 * (a - c) / den if den > 0 else 0.0)
 
 
-def step_latency(logs, model) -> tuple[float, float] | None:
-    """(latency [s], its white-noise standard error [s]) of the measured speed behind
-    ``model`` simulated on ``logs`` (module docstring), including a ``sensor_delay`` the model
-    already has; None when it is under :data:`MIN_SAMPLES` samples or no log measures a speed."""
+def _shift_totals(use, model, kmax) -> tuple[np.ndarray, int]:
+    """Summed squared speed error of ``model`` on the logs ``use`` for each shift -kmax..kmax."""
     from pmdcid.simulate import input_is_torque, param_values, simulate_values
     from pmdcid.simulate.initial import initial_state
 
-    use = [lg for lg in logs if lg.has("omega") and "omega" not in lg.derived and lg.n > 20]
-    if not use:
-        return None
-    dt = use[0].dt
-    use = [lg for lg in use if abs(lg.dt - dt) <= 1e-6 * dt]
-    base = 0.0
-    if "sensor_delay" in model.effects and "delay" in model.parameters:
-        base = float(model.parameters["delay"].value)
-    kmax = max(2, min(lg.n for lg in use) // 50)
     total, nsamp = np.zeros(2 * kmax + 1), 0
     for lg in use:
         torque = input_is_torque(lg, model)
@@ -75,6 +64,23 @@ def step_latency(logs, model) -> tuple[float, float] | None:
             continue
         total += lg.n * shift_curve(np.pad(sim, kmax, mode="edge"), meas, 0, lg.n, kmax)
         nsamp += lg.n
+    return total, nsamp
+
+
+def step_latency(logs, model) -> tuple[float, float] | None:
+    """(latency [s], its white-noise standard error [s]) of the measured speed behind
+    ``model`` simulated on ``logs`` (module docstring), including a ``sensor_delay`` the model
+    already has; None when it is under :data:`MIN_SAMPLES` samples or no log measures a speed."""
+    use = [lg for lg in logs if lg.has("omega") and "omega" not in lg.derived and lg.n > 20]
+    if not use:
+        return None
+    dt = use[0].dt
+    use = [lg for lg in use if abs(lg.dt - dt) <= 1e-6 * dt]
+    base = 0.0
+    if "sensor_delay" in model.effects and "delay" in model.parameters:
+        base = float(model.parameters["delay"].value)
+    kmax = max(2, min(lg.n for lg in use) // 50)
+    total, nsamp = _shift_totals(use, model, kmax)
     if nsamp == 0:
         return None
     j = int(np.argmin(total))
@@ -88,4 +94,72 @@ def step_latency(logs, model) -> tuple[float, float] | None:
     return latency, se
 
 
-__all__ = ["MIN_SAMPLES", "parabola_min", "shift_curve", "step_latency"]
+#: the lag is kept when its estimate exceeds this many standard errors, and a latency only when
+#: it exceeds :data:`MIN_SAMPLES` sample periods
+LAG_SIGMAS = 3.0
+
+
+def step_lag(logs, model) -> dict | None:
+    """A lumped model's electrical time constant and latency from its step logs, fitted
+    together: ``{"tau_e": (value, se), "delay": (value, se), "J": (value, se)}`` [s, s,
+    V s^2/rad] (a key left out when not found), or None when no log measures a speed.
+
+    The steps' curve fits fold an electrical lag into their dead time and J. Here the model
+    with the steps' bv and bc is simulated on the step logs (per volt, the kernel's voltage
+    structure, :func:`pmdcid.model.lumped.kernel_values`) with J, bv, bc, tau_e and a sensor
+    delay free, from two starts (all the steps' dead time as lag, or all as latency), the
+    better kept. A lag rounds the start of each step, a latency moves it whole: where the
+    sampling resolves the lag, the speed error tells them apart. tau_e is kept when it exceeds
+    :data:`LAG_SIGMAS` standard errors, the delay when it exceeds :data:`MIN_SAMPLES` samples;
+    when both are found, the latency alone is kept (``lag_and_latency`` says what was found).
+    """
+    from pmdcid.errors import PmdcidError
+    from pmdcid.identify.simfit import fit_simulation
+    from pmdcid.simulate import logs_for
+
+    use = [lg for lg in logs if lg.has("omega") and "omega" not in lg.derived and lg.n > 20]
+    if not use or not (model.has("J") and model.has("bv")):
+        return None
+    dt = use[0].dt
+    use = logs_for([lg for lg in use if abs(lg.dt - dt) <= 1e-6 * dt], model)
+    shift = step_latency(use, model)
+    d0 = max(shift[0] if shift else 0.0, dt)
+    free = ["J", "bv", "bc", "tau_e", "delay"]
+    base = {"J": model.value("J"), "bv": model.value("bv"),
+            "bc": max(model.value("bc") if model.has("bc") else 0.0, 1e-6)}
+    fits = []
+    for tau, delay in ((d0, 0.05 * dt), (0.05 * dt, d0)):
+        try:
+            fits.append(fit_simulation(use, model, free, signals=("omega",),
+                                       start={**base, "tau_e": tau, "delay": delay},
+                                       diff_step={"bc": 1e-2}, max_nfev=100))
+        except PmdcidError:
+            continue
+    if not fits:
+        return None
+    best = min(fits, key=lambda f: f.stats.chisqr).estimates
+    out = {"J": (best["J"].value, best["J"].stderr)}
+    te, d = best["tau_e"], best["delay"]
+    if te.value > LAG_SIGMAS * te.stderr and te.value > 0.05 * dt:
+        out["tau_e"] = (te.value, te.stderr)
+    elif math.isfinite(te.stderr):  # not resolved: a bound, said in words
+        out["tau_e_bound"] = te.value + 2.0 * te.stderr
+    if d.value >= MIN_SAMPLES * dt:
+        out["delay"] = (d.value, d.stderr)
+    if "tau_e" in out and "delay" in out:
+        # a lag and a latency together: on voltage and speed alone they trade off (both late
+        # onsets; the course-lab kit's 2 kHz steps gave 1.8 ms of lag and 2.0 +- 0.6 ms of
+        # latency, and the lag model then predicted its held-out runs worse, 0.053 against
+        # 0.033). Kept as a latency, as before, and said
+        out["lag_and_latency"] = (out.pop("tau_e")[0], out.pop("delay")[0])
+    if "tau_e" not in out:  # no lag: the latency as the kernel's shift finds it (unchanged)
+        out.pop("J")
+        if shift:
+            out["delay"] = shift
+        else:
+            out.pop("delay", None)
+    return out
+
+
+__all__ = ["LAG_SIGMAS", "MIN_SAMPLES", "parabola_min", "shift_curve", "step_lag",
+           "step_latency"]

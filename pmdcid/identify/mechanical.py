@@ -98,7 +98,7 @@ class MechanicalResult(ResultProtocol):
         if self.km_from_option:
             e = self.estimates["km"]
             model.set("km", e.value, math.nan, e.unit, stage="datasheet")
-        for name in ("b", "bv", "bc", "J"):
+        for name in ("b", "bv", "bc", "J", "tau_e"):  # tau_e: a lumped model's lag
             e = self.estimates.get(name)
             if e is not None and e.vary and math.isfinite(e.value):
                 model.set(name, e.value, e.stderr, e.unit, stage=STAGE)

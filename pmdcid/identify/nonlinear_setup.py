@@ -16,7 +16,10 @@ SIGNALS = ("omega", "theta")
 #: free parameters fitted by default: voltage-driven and torque-driven logs
 FREE_V = ("J", "bv", "bc", "dz")
 FREE_TAU = ("J", "bv", "bc", "tau0")
-KNOWN_FREE = ("J", "bv", "bc", "dz", "tau0")
+#: a lumped model's electrical time constant and the back-EMF's share of its bv
+#: (pmdcid/model/lumped.py): fitted with the others when the model has a tau_e
+LUMPED_FREE = ("tau_e", "ke_share")
+KNOWN_FREE = ("J", "bv", "bc", "dz", "tau0", *LUMPED_FREE)
 #: fewest samples per log
 MIN_SAMPLES = 50
 
@@ -71,9 +74,10 @@ def start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set
             except FitError as exc2:
                 warns.append(f"inverse dynamics gave no start ({exc}; {exc2}); starting from "
                              "the model")
-    for name in ("J", "bv", "bc", "dz", "tau0"):
+    for name in ("J", "bv", "bc", "dz", "tau0", *LUMPED_FREE):
         if name not in start and model.has(name):
             start[name] = model.value(name)
+    start.setdefault("ke_share", 1.0)
     if "bv" not in start and model.has("b"):
         start["bv"] = model.value("b")
     missing = [n for n in ("J", "bv") if n not in start]
@@ -198,7 +202,7 @@ def working_model(logs, model: Model, free, warns):
     start, guessed = start_values(logs, work, free, warns)
     if "dz" not in free and not work.has("dz"):
         start["dz"] = 0.0
-    for name in ("J", "bv", "bc", "dz", "tau0"):
-        if name in free or (not work.has(name) and name != "tau0"):
+    for name in ("J", "bv", "bc", "dz", "tau0", *LUMPED_FREE):
+        if name in free or (not work.has(name) and name in ("J", "bv", "bc", "dz")):
             work.set(name, start[name], stage="start")
     return work, start, guessed

@@ -148,6 +148,8 @@ def stage_nonlinear(logs, model, controller=None, **opts):
 
     if is_lumped(model) and not opts.get("free"):
         opts["free"] = ["J", "bv", "bc", "dz"]
+        if model.has("tau_e") and model.value("tau_e") > 0:  # its electrical lag, and the
+            opts["free"] += ["tau_e", "ke_share"]  # back-EMF's share of bv (model/lumped.py)
     seen = logs_for(logs, model)
     if controller is not None:
         opts.pop("dead_zone", None)
@@ -177,16 +179,40 @@ def lumped_mechanical(logs, model, fit):
 
 
 def _step_latency(result, logs, model) -> None:
-    """The steps' latency (:mod:`pmdcid.identify.latency`) as the result's ``delay``: the model
-    with the steps' estimates, simulated on them, against their measured speed."""
-    from pmdcid.identify.latency import step_latency
+    """The steps' electrical lag and latency (:mod:`pmdcid.identify.latency`) as the result's
+    ``tau_e`` (with J less the lag it folded in) and ``delay``: the model with the steps'
+    estimates, simulated on them, against their measured speed. The lag first, so that no
+    latency stands in for the armature's L/R."""
+    from pmdcid.identify.latency import step_lag
     from pmdcid.identify.results import Estimate
 
     fitted = model.copy()
     result.apply(fitted)
-    found = step_latency(logs, fitted)
-    if found is not None:
-        result.estimates["delay"] = Estimate("delay", found[0], found[1], "s")
+    found = step_lag(logs, fitted)
+    if not found:
+        return
+    if "tau_e" in found:
+        tau, se = found["tau_e"]
+        result.estimates["tau_e"] = Estimate("tau_e", tau, se, "s")
+        result.estimates["J"] = Estimate("J", *found["J"], result.estimates["J"].unit)
+        result.warnings.append(
+            f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts: "
+            "kept as the lumped model's tau_e, not as a latency")
+    elif "lag_and_latency" in found:
+        lag, late = found["lag_and_latency"]
+        result.warnings.append(
+            f"the steps' late start fits a lag of {1e3 * lag:.3g} ms (L/R) with a latency of "
+            f"{1e3 * late:.3g} ms: on voltage and speed alone the two trade off, so it is kept "
+            "as a latency (sensor_delay) and the model has no tau_e (a current log would tell "
+            "them apart)")
+    elif "tau_e_bound" in found:
+        result.warnings.append(
+            f"the electrical lag L/R is not resolved by these logs (tau_e below "
+            f"{1e3 * found['tau_e_bound']:.3g} ms at two standard errors, sample period "
+            f"{1e3 * logs[0].dt:.3g} ms): the lumped model has none (tau_e = 0), the lag is "
+            "folded into J and the dead zone acts on the applied voltage")
+    if "delay" in found:
+        result.estimates["delay"] = Estimate("delay", *found["delay"], "s")
 
 
 def run_fit_mechanical(paths, model_path, mapping=None, km=None, force=False):

@@ -1,22 +1,26 @@
 """Lumped (per-volt) models: voltage and speed logged, no current sensor and no datasheet.
 
-From v -> omega alone only ratios are identifiable. Dividing the mechanical equation
-``J w' = (km/R)(v - ke w) - bv w - f(w)`` by km/R (the electrical lag L/R neglected, it is far
-below the mechanical one on every motor we know) gives
+From v -> omega alone only ratios are identifiable. Divided by km/R, the motor
+``L i' = v - R i - ke w``, ``J w' = DZ(km i) - bv w - f(w)`` becomes, with ``x = R i`` [V]:
 
-    J' w' = v - bv' w - f'(w),   J' = J R/km [V s^2/rad], bv' = bv R/km + ke [V s/rad],
-                                  bc', dz', tau0' = (R/km) x torque [V]
+    tau_e x' = v - x - ke w,     J' w' = DZ'(x) - bv'' w - f'(w)
+    tau_e = L/R [s], J' = J R/km [V s^2/rad], bv'' = bv R/km, ke [V s/rad],
+    bc', dz', tau0' = (R/km) x torque [V]
 
-which is the kernel's torque-driven equation with the voltage as its input. A lumped model file
-says ``"lumped": true`` and carries these parameters with their per-volt units; every command
-that reads a model accepts it. :func:`to_si` converts it when km and R are known.
+which is the kernel's own voltage-driven structure with R = km = 1 and L = tau_e
+(:func:`kernel_values`): the dead zone acts on the torque, per volt on v - ke w lagged by
+tau_e, where the physics puts it. The model file keeps the per-volt damping as one number,
+``bv = bv'' + ke`` [V s/rad] (the steady state sees only the sum), and the back-EMF's share of
+it, ``ke_share = ke/bv`` (the split is weak in the dynamics: the characteristic polynomial is
+``tau_e J' s^2 + (J' + tau_e bv'') s + bv``; where the dead zone acts pins it, docs/model.md).
+A lumped model file says ``"lumped": true`` and carries these parameters with their per-volt
+units; every command that reads a model accepts it. :func:`to_si` converts it when km and R are
+known.
 
-Approximation stated: the hard dead zone acts on the applied voltage here (on the current in
-the SI model); both agree at standstill, where the dead zone matters. And the electrical lag is
-folded into the inertia: a per-volt model has one time constant where the motor has two, so the
-fitted J' is about (J R/km) + (L/R) bv' — on the paper's motor (L/R = 7.5 ms, J/bv = 99 ms) J'
-comes out 7.7 % above J R/km (measured: `identify` on fixtures/paper/triangle.csv without
---km). Where L/R is known (a free-running electrical fit), J R/km is about J' - (L/R) bv'.
+A lumped model without tau_e (older files, or logs whose sampling does not resolve the lag) is
+``tau_e = 0``: the kernel's torque-driven equation ``J' w' = DZ(v) - bv w - f'(w)`` with the
+voltage as input, the dead zone on the applied voltage and the lag folded into J (J' about
+J R/km + (L/R) bv: 7.7 % on the paper's motor).
 """
 
 from __future__ import annotations
@@ -29,11 +33,55 @@ from pmdcid.model.params import Model
 
 KEY = "lumped"
 NOTE = ("per-volt parameters (voltage and speed only: no current, no datasheet): "
-        "J = J_SI R/km [V s^2/rad] (plus about (L/R) bv: the electrical lag is folded in), "
-        "bv = bv_SI R/km + ke [V s/rad], bc, dz, tau0 = R/km x "
-        "torque [V]; give km and R (fit-electrical, --km) to convert to SI")
+        "J = J_SI R/km [V s^2/rad], bv = bv_SI R/km + ke [V s/rad], bc, dz, tau0 = R/km x "
+        "torque [V]; tau_e = L/R [s], the electrical lag (without it, folded into J: about "
+        "(L/R) bv more), ke_share = ke/bv (the back-EMF's share of bv; the dead zone acts on "
+        "the torque, per volt on v - ke omega lagged by tau_e); give km and R "
+        "(fit-electrical, --km) to convert to SI")
 #: parameters that have no meaning in a lumped model (the electrical side is folded in)
 ELECTRICAL = ("R", "L", "km", "ke")
+#: a lumped model's own electrical side: the time constant L/R [s] and the back-EMF's share of
+#: bv; mapped onto the kernel's R, L, km, ke, bv by :func:`kernel_values` (no kernel slots)
+LUMPED_ONLY = ("tau_e", "ke_share")
+
+
+#: internal steps per electrical time constant of a lumped model (:func:`lag_substeps`)
+LAG_STEPS = 32.0
+#: at most this many per sample: a lag far below the sample period hardly shows in the speed
+MAX_LAG_SUBSTEPS = 64
+
+
+def lag_substeps(dt: float, tau_e: float) -> int:
+    """Internal steps per sample for a lumped model with lag ``tau_e`` [s]: h <= tau_e /
+    :data:`LAG_STEPS`. The linear dynamics are exact at any step, but the dead zone's mode is
+    taken at each step's start while the torque (per volt, the lagged v - ke w) moves on the
+    scale of tau_e: a coarser step puts its events (and the fit's cost) on a staircase (measured
+    on bench/lumped_coverage.py's seed 4: bumps of 5 chi-square units at tau_e/8, of about 1 at
+    tau_e/32), which stops the local fits and makes their Jacobian claim more than the cost's
+    rise. At most :data:`MAX_LAG_SUBSTEPS` a sample."""
+    return max(1, min(int(math.ceil(dt * LAG_STEPS / tau_e - 1e-9)), MAX_LAG_SUBSTEPS))
+
+
+def kernel_values(vals: dict[str, float], torque_driven: bool) -> tuple[dict[str, float], bool]:
+    """The kernel's view of a lumped model's values: (values, torque_driven).
+
+    A lumped model with an electrical time constant ``tau_e`` > 0, simulated on a voltage log
+    (the log's view is torque-driven, :func:`pmdcid.simulate.logs_for`), runs the kernel's own
+    voltage-driven structure scaled per volt: R = 1 and km = 1 (the "current" is R i, in V),
+    L = tau_e, the back-EMF ke = ke_share bv and the mechanical viscous friction
+    (1 - ke_share) bv, so that ``tau_e (R i)' = v - R i - ke w`` and
+    ``J' w' = DZ(R i) - (1 - ke_share) bv w - f'(w)``: the dead zone acts on the torque, per
+    volt on ``v - ke w`` lagged by tau_e, where the physics puts it. Anything else (SI models,
+    torque logs, an old lumped model without tau_e, i.e. tau_e = 0) is returned as it is.
+    """
+    tau_e = float(vals.get("tau_e", 0.0) or 0.0)
+    if not (torque_driven and tau_e > 0.0):
+        return vals, torque_driven
+    share = min(max(float(vals.get("ke_share", 1.0)), 0.0), 1.0)
+    bv = float(vals["bv"])
+    out = dict(vals)
+    out.update(R=1.0, km=1.0, L=tau_e, ke=share * bv, bv=(1.0 - share) * bv)
+    return out, False
 
 
 def is_lumped(model: Model) -> bool:
@@ -74,6 +122,8 @@ def to_si(model: Model, km: float, R: float) -> Model:
     Torque-like parameters scale by km/R; J too; ``bv' = bv R/km + ke`` with ke = km (SI)
     gives ``bv = (bv' - km) km/R``, and the back-EMF becomes an explicit effect. A bv' smaller
     than km is impossible for that km and R (the motor would be faster than unloaded): refused.
+    The lag tau_e becomes L = tau_e R (an L already in the model is kept); ke_share is dropped
+    (its back-EMF, ke_share bv', is the ideal motor's km: compare it with the km given).
     """
     if not (math.isfinite(km) and km > 0 and math.isfinite(R) and R > 0):
         raise ModelError("converting a lumped model needs positive km and R", model.path)
@@ -97,6 +147,10 @@ def to_si(model: Model, km: float, R: float) -> Model:
             raise ModelError(f"the lumped {bv_name} = {raw:.4g} V s/rad is below km = {km:.4g}: "
                              "this km and R cannot produce the logged speeds", model.path)
         par.value = (raw - km) * g
+    tau_e = out.parameters.pop("tau_e", None)  # the lag L/R: L = tau_e R
+    out.parameters.pop("ke_share", None)  # the back-EMF's share: ke = km of an ideal motor here
+    if tau_e is not None and tau_e.value > 0 and not out.has("L"):
+        out.set("L", tau_e.value * R, tau_e.stderr * R, "H", stage="lumped->SI (L = tau_e R)")
     out.set("ke", km, stage="lumped->SI (ke = km)")
     out.add_effect("back_emf")
     out.set("km", km, stage="datasheet")

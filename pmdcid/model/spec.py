@@ -41,6 +41,11 @@ BASE_PARAMS: dict[str, ParamSpec] = {
                   10.0),
         ParamSpec("dz_offset", "N m", "jump k-hat of the hard dead zone (paper eq. 7)", 0.0,
                   -1e6, 1e6),
+        # a lumped (per-volt) model's electrical side (pmdcid/model/lumped.py); not kernel slots
+        ParamSpec("tau_e", "s", "electrical time constant L/R of a lumped (per-volt) model "
+                  "(0: none, the torque follows the voltage at once)", 0.0, 0.0, 1.0),
+        ParamSpec("ke_share", "1", "share of a lumped model's viscous damping bv that is "
+                  "back-EMF (the rest is mechanical viscous friction)", 1.0, 0.0, 1.0),
     ]
 }
 

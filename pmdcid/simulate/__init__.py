@@ -13,7 +13,13 @@ import numpy as np
 
 from pmdcid.errors import ModelError
 from pmdcid.model import EFFECTS, Model
-from pmdcid.model.lumped import ELECTRICAL, is_lumped
+from pmdcid.model.lumped import (
+    ELECTRICAL,
+    LUMPED_ONLY,
+    is_lumped,
+    kernel_values,
+    lag_substeps,
+)
 from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate.cache import invalidate_if_stale
 
@@ -28,7 +34,9 @@ def check_layout() -> None:
     from pmdcid.simulate import layout
 
     slots = set(layout.NAMES) | set(layout.SENSOR_NAMES)
-    declared = set(BASE_PARAMS) - {"b"}  # b: the paper's lumped viscous, simulated as bv
+    # b: the paper's lumped viscous, simulated as bv; a lumped model's tau_e and ke_share are
+    # mapped onto R, L, km, ke, bv (pmdcid.model.lumped.kernel_values)
+    declared = set(BASE_PARAMS) - {"b", *LUMPED_ONLY}
     declared |= {p.name for e in EFFECTS.values() for p in e.params}
     missing = sorted(declared - slots)
     if missing:
@@ -169,7 +177,12 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     t = np.asarray(t, dtype=float)
     if dt is None:
         dt = float((t[-1] - t[0]) / (len(t) - 1))
+    measured_current = not torque_driven
+    vals, torque_driven = kernel_values(vals, torque_driven)  # a lumped model's electrical lag
     p = param_vector(vals)
+    if torque_driven != (not measured_current):  # mapped: steps that resolve the lag
+        nsub = max(choose_substeps(dt, p) if nsub is None else nsub,
+                   lag_substeps(dt, vals["L"]))
     latency = float(vals.get("latency", 0.0))
     # the input read between samples (drive.ramp_input): when a fit reads it, every value
     # (0 included) runs on the fine grid, so the cost is continuous in it
@@ -184,7 +197,7 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}
     w, theta = x[:, OMEGA_STATE], x[:, THETA_STATE]
     om, th = apply_sensors(t, w, theta, sensor)
-    i = np.full(len(t), np.nan) if torque_driven else x[:, I_STATE]
+    i = x[:, I_STATE] if measured_current else np.full(len(t), np.nan)
     return SimResult(t, i, om, th, w, theta)
 
 
