@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError, PmdcidError
+from pmdcid.identify.nonlinear_setup import closed_loop_logs
 from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau
 from pmdcid.identify.results import ResultProtocol, notes_of
 from pmdcid.identify.steps import held_steps
@@ -253,7 +254,10 @@ def _mechanical_start(res: IdentifyResult, groups, say) -> None:
     if groups["step"]:
         say("fit-mechanical")
         _stage(res, "fit-mechanical", groups["step"], _mechanical)
-    inside = [lg for lg in groups["rich"] if not _has_mech(res.model) and _any_step(lg)]
+    # a controller's output (a closed-loop log: a set-point column) is no step experiment: its
+    # jumps answer the measured speed, and a step fit there reads the loop's lag as a latency
+    inside = [lg for lg in groups["rich"] if not _has_mech(res.model)
+              and not closed_loop_logs([lg]) and _any_step(lg)]
     if inside:
         say("fit-mechanical")
         _stage(res, "fit-mechanical (steps inside the rich logs)", inside, _mechanical)

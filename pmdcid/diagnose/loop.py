@@ -39,6 +39,7 @@ from pmdcid.errors import ModelError
 from pmdcid.identify.cpus import pmap
 from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import EFFECTS, Model
+from pmdcid.model.lumped import is_lumped
 from pmdcid.simulate import param_values
 
 #: base parameters diagnose refits along with the effects (those the logs inform)
@@ -282,7 +283,12 @@ def _pool(problem: Problem, model: Model, effects) -> list[str]:
             raise ModelError(f"unknown effect(s) {', '.join(unknown)} "
                              f"(known: {', '.join(EFFECTS)})")
     wanted = (lambda e: EFFECTS[e].screened) if effects is None else (lambda e: e in effects)
+    # a lumped (per-volt) model folds the electrical side in (model/lumped.py): an effect on the
+    # armature circuit (back-EMF, a brush drop) means nothing there, and a brush drop's dead band
+    # would only stand in for the per-volt dead zone and Coulomb friction
+    lumped = is_lumped(model)
     return [e for e in EFFECTS if e not in model.effects and wanted(e)
+            and not (lumped and EFFECTS[e].acts_on == "electrical")
             and all(problem.measures(s) for s in EFFECTS[e].requires)]
 
 

@@ -1,7 +1,7 @@
 """Do the printed standard errors cover the truth as often as they say? (issue "Real rigs, round
 three", honest uncertainty)
 
-    .venv/bin/python bench/coverage.py [--seeds 20] [--effect stribeck] [--no-diagnose]
+    .venv/bin/python bench/stderr_coverage.py [--seeds 20] [--effect stribeck] [--no-diagnose]
 
 Each seed: the paper's motor with every parameter moved by up to 20 % (tests/ident_util.py),
 fresh noisy logs of its three protocols (blocked-rotor steps, free-speed steps, a triangle), then
