@@ -1,4 +1,6 @@
 import os
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +16,17 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def paper_step(tmp_path, monkeypatch):
+    """A folder (the working directory) holding the paper's true model ``m.json`` and one of
+    its step logs ``step.csv``: what a command-line test runs on."""
+    fix = Path(__file__).resolve().parents[1] / "fixtures" / "paper"
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(fix / "truth.json", tmp_path / "m.json")
+    shutil.copy(fix / "step_1.5V.csv", tmp_path / "step.csv")
+    return tmp_path
 
 
 @pytest.fixture

@@ -33,27 +33,19 @@ def _one_error(res, pattern: str) -> str:
     return lines[0]
 
 
-@pytest.fixture
-def rig(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    shutil.copy(FIX / "paper" / "truth.json", tmp_path / "m.json")
-    shutil.copy(FIX / "paper" / "step_1.5V.csv", tmp_path / "step.csv")
-    return tmp_path
-
-
 @pytest.mark.parametrize("args", [
     ["simulate", "step.csv", "-m", "m.json", "-o", "out.csv", "--force"],
     ["export", "-m", "m.json", "--to", "c", "-o", "out.csv", "--force"],
 ], ids=["simulate", "export"])
-def test_a_fifo_output_is_refused_up_front(rig, args):
+def test_a_fifo_output_is_refused_up_front(paper_step, args):
     """A FIFO output hung the command (it was opened to see who wrote it)."""
-    os.mkfifo(rig / "out.csv")
+    os.mkfifo(paper_step / "out.csv")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([*EXE, *args], cwd=rig, capture_output=True, text=True, env=env,
+    proc = subprocess.run([*EXE, *args], cwd=paper_step, capture_output=True, text=True, env=env,
                           timeout=60)
     assert proc.returncode == 1, proc.stderr
     assert "FIFO" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
-    assert (rig / "out.csv").is_fifo()
+    assert (paper_step / "out.csv").is_fifo()
 
 
 def test_devices_are_never_outputs():
@@ -64,41 +56,41 @@ def test_devices_are_never_outputs():
         check_target("/dev/null")  # -o /dev/null --force must never replace it
 
 
-def test_report_never_writes_through_a_link_out_of_its_folder(rig):
-    (rig / "rep").mkdir()
-    outside = rig / "precious.png"
+def test_report_never_writes_through_a_link_out_of_its_folder(paper_step):
+    (paper_step / "rep").mkdir()
+    outside = paper_step / "precious.png"
     outside.write_bytes(b"mine")
-    (rig / "rep" / "step_overlay.png").symlink_to(outside)
+    (paper_step / "rep" / "step_overlay.png").symlink_to(outside)
     _one_error(_invoke(["report", "step.csv", "-m", "m.json", "-o", "rep"]), "symlink")
     _one_error(_invoke(["report", "step.csv", "-m", "m.json", "-o", "rep", "--force"]),
                "symlink")
     assert outside.read_bytes() == b"mine"
-    assert not (rig / "rep" / "report.html").exists()
+    assert not (paper_step / "rep" / "report.html").exists()
 
 
 @pytest.mark.parametrize("name", ["report.html", "metrics.json"])
-def test_report_keeps_a_file_it_did_not_write(rig, name):
-    (rig / "rep").mkdir()
-    (rig / "rep" / name).write_text("my notes\n")
+def test_report_keeps_a_file_it_did_not_write(paper_step, name):
+    (paper_step / "rep").mkdir()
+    (paper_step / "rep" / name).write_text("my notes\n")
     _one_error(_invoke(["report", "step.csv", "-m", "m.json", "-o", "rep"]),
                "not written by pmdcid")
-    assert (rig / "rep" / name).read_text() == "my notes\n"
-    assert sorted(p.name for p in (rig / "rep").iterdir()) == [name]
+    assert (paper_step / "rep" / name).read_text() == "my notes\n"
+    assert sorted(p.name for p in (paper_step / "rep").iterdir()) == [name]
     res = _invoke(["report", "step.csv", "-m", "m.json", "-o", "rep", "--force"])
     assert res.exit_code == 0, res.stderr
     res = _invoke(["report", "step.csv", "-m", "m.json", "-o", "rep"])  # ours now: replaced
     assert res.exit_code == 0, res.stderr
 
 
-def test_a_model_that_is_a_symlink_loop_is_refused(rig):
-    shutil.copy(FIX / "paper" / "blocked_1.5V.csv", rig / "b.csv")
-    (rig / "loop1.json").symlink_to("loop2.json")
-    (rig / "loop2.json").symlink_to("loop1.json")
+def test_a_model_that_is_a_symlink_loop_is_refused(paper_step):
+    shutil.copy(FIX / "paper" / "blocked_1.5V.csv", paper_step / "b.csv")
+    (paper_step / "loop1.json").symlink_to("loop2.json")
+    (paper_step / "loop2.json").symlink_to("loop1.json")
     _one_error(_invoke(["fit-electrical", "b.csv", "-m", "loop1.json"]), "symlink loop")
-    assert (rig / "loop1.json").is_symlink() and (rig / "loop2.json").is_symlink()
+    assert (paper_step / "loop1.json").is_symlink() and (paper_step / "loop2.json").is_symlink()
 
 
-def test_a_full_disk_leaves_no_new_folder(rig, monkeypatch):
+def test_a_full_disk_leaves_no_new_folder(paper_step, monkeypatch):
     """The library's report (outside a command's transaction) on a full disk."""
     import pmdcid
     from pmdcid.errors import PmdcidError
@@ -110,4 +102,4 @@ def test_a_full_disk_leaves_no_new_folder(rig, monkeypatch):
     monkeypatch.setattr(logs_mod.os, "fsync", full)
     with pytest.raises(PmdcidError, match="No space"):
         pmdcid.report("step.csv", "m.json", "new/sub")
-    assert not (rig / "new").exists()
+    assert not (paper_step / "new").exists()

@@ -4,7 +4,6 @@ the file: a line of a log, a mapping expression's length and nesting, diagnose's
 from __future__ import annotations
 
 import io
-import shutil
 from pathlib import Path
 
 import pytest
@@ -16,14 +15,6 @@ from pmdcid.errors import LogError
 FIX = Path(__file__).resolve().parents[1] / "fixtures"
 
 
-@pytest.fixture
-def rig(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    shutil.copy(FIX / "paper" / "truth.json", tmp_path / "m.json")
-    shutil.copy(FIX / "paper" / "step_1.5V.csv", tmp_path / "step.csv")
-    return tmp_path
-
-
 def _one_error(res, *patterns: str) -> str:
     lines = res.stderr.strip().splitlines()
     assert res.exit_code == 1 and len(lines) == 1, res.stderr
@@ -33,12 +24,12 @@ def _one_error(res, *patterns: str) -> str:
 
 
 @pytest.mark.parametrize("shape", ["one-row-of-fields", "one-huge-cell", "middle"])
-def test_a_huge_line_fails_at_once_naming_the_file(rig, shape):
+def test_a_huge_line_fails_at_once_naming_the_file(paper_step, shape):
     """A 50 MB single line took 62 s and 5.5 GB, then an error naming no file."""
     from pmdcid.io import bounds
 
     n = bounds.MAX_LINE_BYTES + 1000
-    with open(rig / "big.csv", "w") as fh:
+    with open(paper_step / "big.csv", "w") as fh:
         if shape == "one-row-of-fields":
             fh.write("1," * (n // 2) + "\n")
         elif shape == "one-huge-cell":
@@ -70,7 +61,7 @@ def test_the_line_scan_counts_lines_and_accepts_long_logs(monkeypatch):
     "v=" + "-(" * 40 + "v" + ")" * 40,
     "v=" + "+".join(["(v)"] * 3000),
 ], ids=["deep", "signs", "long"])
-def test_mapping_expressions_are_bounded(rig, expr, tmp_path):
+def test_mapping_expressions_are_bounded(paper_step, expr, tmp_path):
     """Deep or long expressions raised RecursionError ('internal error')."""
     res = CliRunner().invoke(main, ["simulate", "step.csv", "-m", "m.json", "-o", "o.csv",
                                     "-c", expr], catch_exceptions=False)
@@ -82,7 +73,7 @@ def test_mapping_expressions_are_bounded(rig, expr, tmp_path):
     _one_error(res, "map.txt: column mapping")
 
 
-def test_diagnose_refuses_more_rows_than_it_can_take(rig, monkeypatch):
+def test_diagnose_refuses_more_rows_than_it_can_take(paper_step, monkeypatch):
     """5 million rows: 6.5 min and 4.5 GB; past the bound diagnose says how to proceed."""
     from pmdcid.io import bounds
 
@@ -90,10 +81,10 @@ def test_diagnose_refuses_more_rows_than_it_can_take(rig, monkeypatch):
     res = CliRunner().invoke(main, ["diagnose", "step.csv", "-m", "m.json", "-o", "new.json"],
                              catch_exceptions=False)
     _one_error(res, "step.csv: diagnose takes at most 2,000 rows", "keep one row in 2")
-    assert not (rig / "new.json").exists()
+    assert not (paper_step / "new.json").exists()
 
 
-def test_out_of_memory_names_the_file(rig, monkeypatch):
+def test_out_of_memory_names_the_file(paper_step, monkeypatch):
     """'out of memory: the log is too large' named no file."""
     from pmdcid.io import bounds
 
