@@ -108,6 +108,8 @@ def page(rig):
                "candidates": [CANDIDATE, {**CANDIDATE, "effect": "cogging", "chosen": False,
                                           "reason": "no gain on the held-out logs"}],
                "before": {"omega_nrmse": 0.05}, "after": {"omega_nrmse": 0.01},
+               "untestable": [{"effect": "quadratic_drag", "record": "steady speeds spanning "
+                               "the range", "reason": "possible, not testable with these logs"}],
                "notes": [], "warnings": [DELAY]}
     res = make_report([log], model, tmp / "rep", summary=summary)
     assert len(repr(res)) < 200 and "report.html" in repr(res)  # not the metrics
@@ -139,6 +141,8 @@ def test_diagnose_table_in_words_and_header_true_about_the_start(page):
     diag = " ".join(p.by_id["diagnose"].split())
     assert "change of BIC" in diag and "standard errors from zero" in diag
     assert "not added: no gain on the held-out logs" in diag
+    assert ("Possible, not testable with these logs" in diag
+            and "quadratic_drag: record steady speeds spanning the range" in diag)
     assert "from rest on each" not in text
     assert "from the state the log measured at its first sample" in text
     x0 = metrics["logs"][0]["initial_state"]

@@ -228,12 +228,23 @@ def _candidates(p: Page, cands: list[dict]) -> None:
     p.add("</table></div>")
 
 
+def _untestable(p: Page, rows: list) -> None:
+    """Effects the fit part supports but no held-out log here can test: not added, and what to
+    record so that they can be (diagnose/testable.py)."""
+    items = "".join(f"<li><b>{_esc(u.get('effect', ''))}</b>: record {_esc(u.get('record', ''))}"
+                    "</li>" for u in rows if isinstance(u, dict))
+    if items:
+        p.add("<p>Possible, not testable with these logs (not added: no log held out can tell "
+              f"them from the parameters the model has):</p><ul>{items}</ul>")
+
+
 def _summary(p: Page) -> None:
     s = p.m["summary"]
     p.add('<section id="diagnose"><h2>What diagnose found</h2>')
     added = ", ".join(s.get("added", [])) or "nothing significant"
     p.add(f"<p>Added: <b>{_esc(added)}</b>. Structure left in the residual that no catalogue "
           f"effect explains: <b>{'yes' if s.get('unexplained') else 'no'}</b>.</p>")
+    _untestable(p, s.get("untestable") or [])
     cands = [c for c in s.get("candidates", []) if isinstance(c, dict)]
     if cands:
         _candidates(p, cands)
