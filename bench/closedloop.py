@@ -43,10 +43,10 @@ EMPS_SPEC = {"type": "PID", "kp": KP * KV, "kd": KV, "measured": "theta",
 AUTHORS = {"J": 95.1089, "bv": 203.5034, "bc": 20.3935, "tau0": -3.1648}
 
 
-# -- TEMPORARY: loop-timed logs until pmdcid.io reads non-uniform samples (another branch) -----
+# -- the loop-timed logs on their own instants: the controller route steps each logged period as
+# it was (pmdcid.io puts them on a uniform grid, which the other routes use: io/clock.py) -------
 def read_loop_timed(path):
-    """A loop-timed micromouse CSV as a :class:`~pmdcid.io.Log` on its own (non-uniform) times:
-    the controller route steps each logged period as it was. TEMPORARY helper."""
+    """A loop-timed micromouse CSV as a :class:`~pmdcid.io.Log` on its own (non-uniform) times."""
     from pmdcid.io.logs import Log
 
     a = np.loadtxt(path, delimiter=",", comments="#", skiprows=2)
@@ -54,17 +54,18 @@ def read_loop_timed(path):
     return Log(Path(path).name, t - t[0], {"v": v, "omega": w}, extra={"omega_ref": r})
 
 
-def uniform(log, dt: float | None = None):
-    """``log`` on a uniform grid of its median period: the input held, the measurements
-    interpolated. TEMPORARY helper until pmdcid.io reads loop-timed logs."""
-    from pmdcid.io.logs import Log
+def uniform_log(path):
+    """The log as every command reads it: on a uniform grid of its median period, the input
+    held, the measurements interpolated (:func:`pmdcid.io.read_log`, io/clock.py)."""
+    import warnings
 
-    dt = dt or float(np.median(np.diff(log.t)))
-    t = np.arange(0.0, log.t[-1] + 1e-12, dt)
-    held = np.searchsorted(log.t, t, side="right") - 1
-    return Log(log.path, t, {"v": log["v"][held], "omega": np.interp(t, log.t, log["omega"])},
-               extra={"omega_ref": log.extra["omega_ref"][held]})
-# -- end of the temporary helpers -----------------------------------------------------------
+    from pmdcid.io import read_log
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the one-line resampling note, once per log
+        return read_log(path)
+
+
 
 
 def micromouse(folder: Path = MICROMOUSE) -> dict:
@@ -79,10 +80,11 @@ def micromouse(folder: Path = MICROMOUSE) -> dict:
     spec = controller_from_dict(MICROMOUSE_SPEC)
     fit_raw = [read_loop_timed(folder / n) for n in FIT]
     held_raw = [read_loop_timed(folder / n) for n in HELD]
-    held = [uniform(lg) for lg in held_raw]
-    lin = fit_linear([uniform(lg) for lg in fit_raw])
+    held = [uniform_log(folder / n) for n in HELD]
+    fit_grid = [uniform_log(folder / n) for n in FIT]
+    lin = fit_linear(fit_grid)
     out = {"linear": [nrmse(linear_sim(lin, lg), lg["omega"]) for lg in held]}
-    for route, logs, ctrl in (("logged output", [uniform(lg) for lg in fit_raw], None),
+    for route, logs, ctrl in (("logged output", fit_grid, None),
                               ("controller", fit_raw, spec)):
         model = Model()
         mark_lumped(model)

@@ -60,7 +60,7 @@ def micromouse(args) -> dict:
 
     t0 = time.perf_counter()
     print("... micromouse-pid", file=sys.stderr, flush=True)
-    fit = [closedloop.uniform(closedloop.read_loop_timed(closedloop.MICROMOUSE / n))
+    fit = [closedloop.uniform_log(closedloop.MICROMOUSE / n)
            for n in closedloop.FIT]
     paper = Model()
     mark_lumped(paper)
@@ -72,7 +72,7 @@ def micromouse(args) -> dict:
     lin = realdata.fit_linear(fit)
     rows = []
     for name in closedloop.HELD:
-        lg = closedloop.uniform(closedloop.read_loop_timed(closedloop.MICROMOUSE / name))
+        lg = closedloop.uniform_log(closedloop.MICROMOUSE / name)
         row = {"log": name, "protocol": "other period", "floor": float("nan"),
                "linear": realdata.nrmse(realdata.linear_sim(lin, lg), lg["omega"])}
         row.update({k: realdata.predict(m, lg) for k, m in models.items()})
