@@ -1,15 +1,15 @@
 """Shared by the export tests: models with effects on, inputs from the fixtures, the reference."""
 
-from pathlib import Path
 
 import numpy as np
+from repo_paths import FIXTURES
 
 from pmdcid.io import read_log
 from pmdcid.model import save_model
 from pmdcid.simulate import simulate
 from pmdcid.synth import PAPER, truth_model
 
-FIX = Path(__file__).resolve().parents[1] / "fixtures" / "paper"
+FIX = FIXTURES / "paper"
 
 #: paper's motor with back-EMF, Stribeck and both sensor effects (delay of 2.5 samples at 1 ms)
 EFFECTS = ["back_emf", "stribeck", "sensor_delay", "speed_offset"]

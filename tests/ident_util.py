@@ -4,12 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from pmdcid.identify.electrical import fit_electrical
+from pmdcid.identify.mechanical import fit_mechanical
+from pmdcid.identify.nonlinear import fit_nonlinear
 from pmdcid.io import Log
+from pmdcid.model import Model
 from pmdcid.simulate import neutral_values
 from pmdcid.synth import PAPER, PAPER_NOISE, step, synth_log, triangle
 
 AMPLITUDES = (0.5, 1.0, 1.5, 2.0, 2.5)
 MOVED = ("R", "L", "J", "bv", "bc", "dz")
+#: a motor in per-volt units (J R/km, bv R/km + ke, friction R/km): the paper's motor with
+#: back-EMF, R = 2.37 ohm, km = ke = 50.2e-3
+G = PAPER["km"] / PAPER["R"]
+LUMPED = {"J": PAPER["J"] / G, "bv": PAPER["bv"] / G + PAPER["km"], "bc": PAPER["bc"] / G,
+          "dz": 1.5 * PAPER["dz"] / G}
 
 
 def perturbed_truth(rng: np.random.Generator, spread: float = 0.25, **extra) -> dict:
@@ -96,3 +105,14 @@ def extreme_numbers(rng: np.random.Generator, n: int) -> np.ndarray:
     x[::7, 1] = -0.0
     x[::11, 2] = rng.integers(-5, 5, len(x[::11, 2]))
     return x
+
+
+def paper_stages(truth: dict, rng: np.random.Generator):
+    """The paper's three stages on fresh noisy logs; returns (all logs, fitted model)."""
+    logs = [*blocked_logs(truth, rng), *step_logs(truth, rng), triangle_log(truth, rng)]
+    model = Model()
+    model.set("km", truth["km"], stage="datasheet")
+    fit_electrical(logs[:5], model).apply(model)
+    fit_mechanical(logs[5:10], model).apply(model)
+    fit_nonlinear([logs[10]], model).apply(model)
+    return logs, model

@@ -5,15 +5,15 @@ never an AttributeError or TypeError from deep inside."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import FIXTURES
 
 import pmdcid
 from pmdcid import Log, Model
 
-FIX = Path(__file__).resolve().parents[1] / "fixtures"
+FIX = FIXTURES
 STEP = str(FIX / "paper" / "step_1.5V.csv")
 TRUTH = str(FIX / "paper" / "truth.json")
 T = np.arange(100) * 1e-3

@@ -6,7 +6,9 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-PKG = Path(__file__).resolve().parents[1] / "pmdcid"
+from repo_paths import REPO
+
+PKG = REPO / "pmdcid"
 #: lower layers first: a module may import from its own layer and the layers before it only
 #: (function-level imports included: a lazy import is still a dependency)
 LAYERS = ["errors", "notes", "progress", "io", "model", "simulate", "synth", "identify",

@@ -13,11 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import REPO
 
 import pmdcid
 from pmdcid import api
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = REPO
 PAPER_DIR = REPO / "fixtures" / "paper"
 NAMES = ("identify", "diagnose", "simulate", "report", "plan", "export")
 

@@ -11,13 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from repo_paths import FIXTURES
 
 import pmdcid
 from pmdcid.cli import main
 from pmdcid.io.logs import write_log
 from pmdcid.notes import Note, as_note, to_records
 
-PAPER_DIR = Path(__file__).resolve().parents[1] / "fixtures" / "paper"
+PAPER_DIR = FIXTURES / "paper"
 NAMES = ("dz", "bc", "L", "R", "sensor_delay", "delay")
 
 

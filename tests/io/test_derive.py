@@ -1,0 +1,158 @@
+"""Speed from angle (zero-phase filter + derivative), angle from speed, --cutoff, units mapping."""
+
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from repo_paths import REPO
+
+from pmdcid.cli import main
+from pmdcid.errors import LogError
+from pmdcid.io import ColumnMap, parse_mapping, read_log, write_log
+from pmdcid.io.derive import (
+    check_cutoff,
+    default_cutoff,
+    position_from_speed,
+    speed_from_position,
+)
+
+DOCS = REPO / "docs"
+
+
+def _motion(fs: float, duration: float, amp: float, f: float):
+    """Speed amp*sin(2 pi f t) + amp/3 [rad/s] and its exact angle [rad]."""
+    t = np.arange(int(duration * fs)) / fs
+    w = 2 * np.pi * f
+    omega = amp * np.sin(w * t) + amp / 3
+    theta = amp * (1 - np.cos(w * t)) / w + amp / 3 * t
+    return t, omega, theta
+
+
+@pytest.mark.parametrize("fs, amp, f", [(1000.0, 10.0, 2.0), (10000.0, 100.0, 5.0),
+                                        (200.0, 1.0, 0.5)])
+def test_speed_from_clean_angle_has_no_lag(fs, amp, f):
+    t, omega, theta = _motion(fs, 4.0, amp, f)
+    est = speed_from_position(theta, 1 / fs)
+    inner = slice(len(t) // 10, -len(t) // 10)
+    err = est[inner] - omega[inner]
+    # a lag of one sample alone would give an error of amp*2*pi*f/fs
+    assert np.max(np.abs(err)) < 0.05 * amp * 2 * np.pi * f / fs
+
+
+@pytest.mark.parametrize("counts", [4096, 50000])
+def test_speed_from_encoder_counts(counts):
+    fs = 1000.0
+    t, omega, theta = _motion(fs, 4.0, 20.0, 1.0)
+    q = 2 * np.pi / counts
+    est = speed_from_position(np.round(theta / q) * q, 1 / fs)
+    inner = slice(200, -200)
+    rel = np.sqrt(np.mean((est[inner] - omega[inner]) ** 2)) / np.std(omega)
+    # quantisation noise q/sqrt(12) differentiated through a 100 Hz band, well under 5 %
+    assert rel < 0.05
+    # a lower cut-off rejects more of the quantisation noise
+    est20 = speed_from_position(np.round(theta / q) * q, 1 / fs, 20.0)
+    rel20 = np.sqrt(np.mean((est20[inner] - omega[inner]) ** 2)) / np.std(omega)
+    assert rel20 < rel
+
+
+def test_position_from_speed():
+    fs = 500.0
+    t, omega, theta = _motion(fs, 3.0, 5.0, 1.5)
+    est = position_from_speed(omega, 1 / fs)
+    assert est[0] == 0.0
+    assert np.max(np.abs(est - theta)) < 1e-4 * np.max(np.abs(theta))
+
+
+def _write(tmp_path, name, cols, fs=1000.0):
+    n = len(next(iter(cols.values())))
+    p = tmp_path / name
+    write_log(p, np.arange(n) / fs, cols)
+    return p
+
+
+def test_read_log_derives_the_missing_column(tmp_path):
+    fs = 1000.0
+    t, omega, theta = _motion(fs, 2.0, 10.0, 2.0)
+    tau = np.zeros_like(t)
+    only_theta = read_log(_write(tmp_path, "a.csv", {"tau": tau, "theta": theta}))
+    assert only_theta.derived == {"omega"}
+    assert np.allclose(only_theta["omega"], speed_from_position(only_theta["theta"], 1 / fs))
+    only_omega = read_log(_write(tmp_path, "b.csv", {"tau": tau, "omega": omega}))
+    assert only_omega.derived == {"theta"}
+    assert np.max(np.abs(only_omega["theta"] - theta)) < 1e-3 * np.max(theta)
+    both = read_log(_write(tmp_path, "c.csv", {"tau": tau, "omega": omega, "theta": theta}))
+    assert both.derived == set()
+    assert np.array_equal(both["omega"], read_log(tmp_path / "c.csv")["omega"])
+    # the user's cut-off reaches the filter
+    low = read_log(tmp_path / "a.csv", ColumnMap(cutoff_hz=5.0))
+    assert low.cutoff_hz == 5.0
+    assert np.allclose(low["omega"], speed_from_position(low["theta"], 1 / fs, 5.0))
+    assert not np.allclose(low["omega"], only_theta["omega"])
+
+
+def test_cutoff_is_checked(tmp_path):
+    with pytest.raises(LogError, match="Nyquist"):
+        check_cutoff(600.0, 1e-3, "x.csv")
+    assert check_cutoff(default_cutoff(1e-3), 1e-3) < 500.0
+    assert default_cutoff(1e-2) < 50.0
+    fs = 1000.0
+    t, omega, theta = _motion(fs, 1.0, 10.0, 2.0)
+    p = _write(tmp_path, "a.csv", {"tau": np.zeros_like(t), "theta": theta})
+    with pytest.raises(LogError, match="a.csv.*Nyquist"):
+        read_log(p, ColumnMap(cutoff_hz=700.0))
+
+
+def test_cli_cutoff(tmp_path):
+    fs = 1000.0
+    t, omega, theta = _motion(fs, 1.0, 10.0, 2.0)
+    p = _write(tmp_path, "a.csv", {"tau": np.zeros_like(t), "theta": theta})
+    model = tmp_path / "m.json"
+    model.write_text('{"parameters": {"J": {"value": 0.01}}, "effects": []}')
+    run = CliRunner().invoke
+    bad = run(main, ["simulate", str(p), "-m", str(model), "-o", str(tmp_path / "o.csv"),
+                     "--cutoff", "800"])
+    assert bad.exit_code == 1
+    assert "Nyquist" in bad.output and "a.csv" in bad.output
+    neg = run(main, ["simulate", str(p), "-m", str(model), "-o", str(tmp_path / "o.csv"),
+                     "--cutoff", "-5"])
+    assert neg.exit_code == 2
+    ok = run(main, ["simulate", str(p), "-m", str(model), "-o", str(tmp_path / "o.csv"),
+                    "--cutoff", "30"])
+    assert ok.exit_code == 0, ok.output
+
+
+#: the mappings of docs/units.md, with the raw column each is fed from the SI truth
+UNIT_CASES = [
+    ("omega=speed_rpm*rpm", "speed_rpm", lambda s: s["omega"] * 60 / (2 * np.pi)),
+    ("theta=angle_deg*deg", "angle_deg", lambda s: s["theta"] * 180 / np.pi),
+    ("theta=encoder*rev/8000", "encoder", lambda s: np.round(s["theta"] / (2 * np.pi) * 8000)),
+    ("omega=tacho_V*1000/3*rpm", "tacho_V", lambda s: s["omega"] * 60 / (2 * np.pi) * 3 / 1000),
+    ("v=pwm*24/255", "pwm", lambda s: np.round(s["v"] / 24 * 255)),
+    ("v=pwm*12/512-12", "pwm", lambda s: np.round(s["v"] / 12 * 512 + 512)),
+    ("t=time_ms*ms", "time_ms", lambda s: s["t"] * 1e3),
+    ("i=current_mA*mA-0.002", "current_mA", lambda s: (s["i"] + 0.002) * 1e3),
+    ("theta=pos_mm*mm", "pos_mm", lambda s: s["theta"] * 1e3),
+]
+
+
+@pytest.mark.parametrize("text, raw, to_raw", UNIT_CASES, ids=[c[0] for c in UNIT_CASES])
+def test_units_through_mapping(tmp_path, text, raw, to_raw):
+    assert f"`{text}`" in (DOCS / "units.md").read_text()
+    fs = 1000.0
+    t, omega, theta = _motion(fs, 1.0, 30.0, 2.0)
+    v = 6.0 * np.sin(2 * np.pi * t)
+    truth = {"t": t, "omega": omega, "theta": theta, "v": v, "i": 0.3 * v}
+    canon = text.split("=")[0]
+    cols = {k: truth[k] for k in ("v", "i", "omega", "theta") if k != canon}
+    p = tmp_path / "raw.csv"
+    if canon == "t":
+        write_log(p, t * 1e3, cols)
+        p.write_text(p.read_text().replace("t,", "time_ms,", 1))
+    else:
+        write_log(p, t, {**cols, raw: to_raw(truth)})
+    log = read_log(p, parse_mapping([text]))
+    got = log.t if canon == "t" else log[canon]
+    # encoder and PWM counts are quantised: one count of error at most
+    tol = {"encoder": 2 * np.pi / 8000, "pwm": 24 / 255}.get(raw, 1e-6 * np.max(np.abs(got)))
+    want = truth[canon] - truth[canon][0] if canon == "t" else truth[canon]
+    assert np.max(np.abs(got - want)) <= tol

@@ -1,0 +1,237 @@
+"""EMPS (real, measured; Janot, Gautier, Brunot 2019, see fixtures/emps/CITATION.md).
+
+The authors' figures are the reference: their inverse-dynamics estimates (M, Fv, Fc, offset) and
+the open-loop velocity error of their model (4.90 % estimation, 7.27 % validation).
+"""
+
+import hashlib
+import re
+
+import pytest
+from repo_paths import REPO
+
+from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics
+from pmdcid.identify.openloop import velocity_error
+from pmdcid.io import parse_mapping, read_log
+from pmdcid.model import Model
+
+ROOT = REPO
+#: the benchmark's files are read where the workplace keeps them (no licence: never copied here)
+DATA = ROOT.parent / "shared" / "data" / "emps"
+FIX = ROOT / "fixtures" / "emps"  # the citation and the files' hashes
+TRAIN = DATA / "emps_train_DATA_EMPS.csv"
+TEST = DATA / "emps_test_DATA_EMPS_PULSES.csv"
+pytestmark = pytest.mark.skipif(not TRAIN.exists(), reason=f"EMPS data not under {DATA}")
+MAPPING = ["tau=force_N", "theta=qm_meas_m", "t=t_s"]
+#: the authors' IDIM-LS estimates on the estimation file (pmdcid names)
+AUTHORS = {"J": 95.1089, "bv": 203.5034, "bc": 20.3935, "tau0": -3.1648}
+AUTHORS_ERR = {"train": 4.90, "test": 7.27}
+#: agreement with the authors' estimates (a different criterion: inverse dynamics)
+TOL_AUTHORS = 0.05
+
+
+@pytest.fixture(scope="module")
+def logs():
+    m = parse_mapping(MAPPING)
+    return read_log(TRAIN, m), read_log(TEST, m)
+
+
+def _model(values):
+    model = Model()
+    for k, v in values.items():
+        model.set(k, v)
+    model.add_effect("torque_offset")
+    return model
+
+
+def _rel(values):
+    return {k: values[k] / AUTHORS[k] - 1 for k in AUTHORS}
+
+
+def test_fixtures_are_the_published_files():
+    table = (FIX / "CITATION.md").read_text()
+    for path in (TRAIN, TEST):
+        m = re.search(rf"`{path.name}`.*`([0-9a-f]{{64}})`", table)
+        assert m, path.name
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == m.group(1)
+
+
+def test_read_with_mapping_derives_speed(logs):
+    train, test = logs
+    assert train.drive == "tau" and train.derived == {"omega"}
+    assert train.n == test.n == 24841
+    assert train.dt == pytest.approx(1e-3, rel=1e-4)
+
+
+def test_velocity_error_reproduces_the_benchmark(logs):
+    """Our figure is the benchmark's: the authors' parameters give their published errors."""
+    train, test = logs
+    model = _model(AUTHORS)
+    assert velocity_error(train, model) == pytest.approx(AUTHORS_ERR["train"], abs=0.05)
+    assert velocity_error(test, model) == pytest.approx(AUTHORS_ERR["test"], abs=0.02)
+
+
+def test_authors_estimator_reproduced(logs):
+    """IDIM-LS as published (every row, torque not centred): within 0.5 % of their values."""
+    res = fit_inverse_dynamics([logs[0]], rest_fraction=0.0, centre_zoh=False)
+    for name, rel in _rel(res.values()).items():
+        assert abs(rel) < 0.005, name
+    assert 3.0 < res.rel_torque_error < 5.0
+
+
+def test_our_inverse_dynamics_within_5_percent(logs):
+    res = fit_inverse_dynamics([logs[0]])
+    assert res.cutoff_hz == pytest.approx(100.0)  # a fine encoder: the benchmark's own cut-off
+    for name, rel in _rel(res.values()).items():
+        assert abs(rel) < 0.05, name
+        # standard errors allow for the correlated residual (model error): a few %, and the
+        # authors' values lie within 3 of them (the white formula gave 0.07-0.75 % and put the
+        # authors' values 4-12 of its standard errors away)
+        assert res.estimates[name].rel_stderr < 0.1, name
+        assert abs(res.estimates[name].value - AUTHORS[name]) < 3 * res.estimates[name].stderr
+    assert res.warnings == []
+
+
+def _nonlinear(logs, signals=None):
+    from pmdcid.identify.nonlinear import fit_nonlinear
+
+    res = fit_nonlinear([logs[0]], Model(), signals=signals)
+    model = Model()
+    res.apply(model)
+    return res, model
+
+
+@pytest.fixture(scope="module")
+def nonlinear_fit(logs):
+    """fit-nonlinear with its defaults (the speed, derived from the encoder)."""
+    return _nonlinear(logs)
+
+
+def test_simulation_error_fit_beats_the_authors_open_loop(logs):
+    """fit-nonlinear on the (derived) speed of the estimation file, as docs/examples/emps.md
+    runs it: J, bv, bc within 5 % of the authors', open-loop velocity error on the validation
+    file below their 7.27 %."""
+    res, model = _nonlinear(logs, ("omega",))
+    rel = _rel(res.values())
+    for name in ("J", "bv", "bc"):
+        assert abs(rel[name]) < TOL_AUTHORS, (name, rel)
+    assert "torque_offset" in model.effects
+    assert velocity_error(logs[1], model) < AUTHORS_ERR["test"]
+
+
+@pytest.mark.xfail(strict=True, reason="issue #6 targets not all met by the symmetric model: "
+                   "offset +9.9 % (> 5 %) and validation error 6.55 % (> 6.3 %) before diagnose "
+                   "(M -1.4 %, Fv -2.6 %, Fc +3.4 % and 'lower after diagnose', 6.55 -> 4.99 %, "
+                   "are met). The screw's viscous friction depends on the direction (authors: "
+                   "167 / 240 N s/m); a symmetric model puts the difference into the offset, whose "
+                   "value then depends on the criterion (no criterion, cut-off or start tried "
+                   "meets both; criteria that come close trade it for Fv or Fc beyond 5 %, or "
+                   "for J at its bound on logs with an undeclared load: docs/examples/emps.md, "
+                   "docs/examples/emps_criteria.py)")
+def test_issue_targets_offset_and_validation_error(logs, nonlinear_fit):
+    """All of issue #6's EMPS targets with fit-nonlinear's defaults: J, bv, bc, offset within
+    5 %, validation error <= 6.3 % before diagnose and lower after it (diagnose on the
+    estimation file)."""
+    res, model = nonlinear_fit
+    before = velocity_error(logs[1], model)
+    assert before <= 6.3
+    for name, rel in _rel(res.values()).items():
+        assert abs(rel) < 0.05, name
+    from pmdcid.diagnose import diagnose
+
+    assert velocity_error(logs[1], diagnose([logs[0]], model).model) < before
+
+
+@pytest.mark.slow
+def test_diagnose_finds_the_direction_dependent_viscous_friction(logs, nonlinear_fit):
+    """The authors measure Fv+ = 166.7 and Fv- = 240.4 N s/m (their section 4.2). diagnose on
+    the estimation file adds viscous_asymmetry first; bv +- dbv within 5 % of theirs, and the
+    validation error falls below 5.3 % (from 6.55 %)."""
+    from pmdcid.diagnose import diagnose
+
+    _, model = nonlinear_fit
+    out = diagnose([logs[0]], model)
+    assert out.summary["added"][:1] == ["viscous_asymmetry"]
+    bv, dbv = out.model.value("bv"), out.model.value("dbv")
+    assert (bv + dbv) / 166.7 - 1 == pytest.approx(0, abs=0.05)
+    assert (bv - dbv) / 240.4 - 1 == pytest.approx(0, abs=0.05)
+    assert velocity_error(logs[1], out.model) < 5.3
+
+
+@pytest.mark.slow
+def test_cli_walk_through(tmp_path, logs):
+    """docs/examples/emps.md: map, fit on the estimation file, report on the validation file,
+    then diagnose (when the command exists)."""
+    import json
+
+    from click.testing import CliRunner
+
+    from pmdcid.cli import main
+    from pmdcid.model import load_model
+
+    run = CliRunner().invoke
+    mp = tmp_path / "emps.map"
+    mp.write_text("\n".join(MAPPING) + "\n")
+    model = tmp_path / "emps.json"
+    res = run(main, ["fit-nonlinear", str(TRAIN), "-m", str(model), "--map", str(mp),
+                     "--signals", "omega"])
+    assert res.exit_code == 0, res.output
+    fitted = load_model(model)
+    assert "torque_offset" in fitted.effects
+    for name in ("J", "bv", "bc"):
+        assert abs(fitted.value(name) / AUTHORS[name] - 1) < TOL_AUTHORS, name
+    out = tmp_path / "rep"
+    res = run(main, ["report", str(TEST), "-m", str(model), "-o", str(out), "--map", str(mp)])
+    assert res.exit_code == 0, res.output
+    metrics = json.loads((out / "metrics.json").read_text())
+    # the report's speed NRMSE (RMS error / std) is close to the benchmark's figure
+    nrmse = metrics["logs"][0]["signals"]["omega"]["nrmse"]
+    assert nrmse * 100 == pytest.approx(velocity_error(logs[1], fitted), abs=0.2)
+    # diagnose, as the walk-through ends
+    new = tmp_path / "emps-diag.json"
+    summ = tmp_path / "summary.json"
+    res = run(main, ["diagnose", str(TRAIN), "-m", str(model), "-o", str(new),
+                     "--summary", str(summ), "--map", str(mp)])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(summ.read_text())
+    assert set(summary) >= {"added", "candidates", "before", "after", "unexplained"}
+    assert summary["added"]  # the issue: a lower validation error after diagnose
+    assert velocity_error(logs[1], load_model(new)) < velocity_error(logs[1], fitted)
+
+
+def test_criteria_script_in_the_docs_runs(capsys, monkeypatch):
+    """docs/examples/emps_criteria.py (the table of criteria in docs/examples/emps.md) runs and
+    prints every row the page quotes."""
+    import runpy
+
+    monkeypatch.chdir(FIX.parents[1])
+    runpy.run_path(str(FIX.parents[1] / "docs" / "examples" / "emps_criteria.py"),
+                   run_name="__main__")
+    out = capsys.readouterr().out
+    for label in ("default: speed", "weighted by spread", "residual-weighted", "DIDIM",
+                  "least absolute", "best symmetric model", "undeclared load"):
+        assert label in out, label
+
+
+def test_cli_fit_inverse_dynamics_as_published(tmp_path):
+    """`pmdcid fit-inverse-dynamics --as-published` gives the authors' IDIM-LS on the estimation
+    file (within 0.5 %) and writes it, with the torque offset, into the model."""
+    from click.testing import CliRunner
+
+    from pmdcid.cli import main
+    from pmdcid.model import load_model
+
+    model = tmp_path / "idim.json"
+    args = ["fit-inverse-dynamics", str(TRAIN), "-m", str(model), "--as-published"]
+    for m in MAPPING:
+        args += ["-c", m]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    saved = load_model(model)
+    assert "torque_offset" in saved.effects
+    for name, ref in AUTHORS.items():
+        assert saved.value(name) == pytest.approx(ref, rel=0.005), name
+    r = CliRunner().invoke(main, ["fit-inverse-dynamics", str(FIX.parent / "paper" /
+                                                            "triangle.csv"), "-m",
+                                  str(tmp_path / "v.json")])
+    assert r.exit_code == 1 and "give --km" in r.output and "Traceback" not in r.output
