@@ -1,10 +1,10 @@
 """Pairs of catalogue effects at once, through the paper's stages and diagnose (issue #14's
-"named alone and in pairs" for the effects added after tests/system/test_diagnose_round_trips.py's pair test).
+"named alone and in pairs" for the effects added after tests/system/test_diagnose.py's pair test).
 
     .venv/bin/python -m bench.effect_pairs [CASE ...]
 
 Prints, per case, the effects diagnose added (both must be named) and the held-out speed NRMSE
-on a random staircase (tests/system/test_diagnose_round_trips.py's measure); about 20-60 s per case on 2 cores.
+on a random staircase (tests/system/test_diagnose.py's measure); about 20-60 s per case on 2 cores.
 Not a test: each case costs a round trip the suite cannot afford.
 """
 

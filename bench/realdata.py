@@ -1,7 +1,7 @@
 """Real rigs: fit on some logs, predict the others, against a linear baseline and the repeat floor.
 
-Used by ``make realbench`` (bench/realbench.py) and tests/system/test_real_rigs.py. The data are read
-from ``../shared/data`` (never copied into the repository).
+Used by ``make realbench`` (bench/realbench.py) and tests/system/test_real_rigs.py. The data are
+read from ``../shared/data`` (never copied into the repository).
 
 - **linear baseline**: a first-order model with an input offset, ``T w' = K (u - u0) - w``,
   fitted by simulation error (exact zero-order hold) on the same fit logs;

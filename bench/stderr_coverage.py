@@ -7,7 +7,7 @@ Each seed: the paper's motor with every parameter moved by up to 20 % (tests/ide
 fresh noisy logs of its three protocols (blocked-rotor steps, free-speed steps, a triangle), then
 ``pmdcid.identify`` with the datasheet km (the whole rig: stages, joint fit, diagnose unless
 ``--no-diagnose``). ``--effect`` hides one catalogue effect at the tests' visible size
-(tests/system/test_diagnose_round_trips.py). For J, bv, bc, dz, R, L (and the effect's parameters when it was
+(tests/system/test_diagnose.py). For J, bv, bc, dz, R, L (and the effect's parameters when it was
 added) the z-score (estimate - truth)/stderr: the share with |z| <= 2 (95 % for an honest
 Gaussian standard error), the mean and RMS of z, and how many seeds added exactly the hidden
 effect. Not a test: it prints; docs/identification.md quotes its figures.

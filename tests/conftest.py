@@ -10,7 +10,8 @@ from pmdcid.synth import PAPER
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
     # pytest -n already runs a worker per CPU: the fits' Jacobian threads would oversubscribe
-    # (identify/fdjac.py; tests/identify/test_fdjac.py runs the threads itself). Children inherit it.
+    # (identify/fdjac.py; tests/identify/test_fdjac.py runs the threads itself). Children
+    # inherit it.
     os.environ.setdefault("PMDCID_THREADS", "1")
 
 

@@ -6,6 +6,10 @@ column mapping (units, renames) to a table; :func:`validated_log` checks the tim
 increasing; uniform, or loop-timed and resampled: :mod:`pmdcid.io.clock`), fills short NaN
 gaps, runs the plausibility checks (:mod:`pmdcid.io.checks`) and derives speed from angle
 or the reverse (:mod:`pmdcid.io.derive`).
+
+The functions that make a log take its class (``log_type``: :class:`~pmdcid.io.logs.Log`) from
+their caller, so that this module, and the format readers calling it, never import the module
+whose ``Log.from_*`` constructors call them: imports flow one way, with no cycle.
 """
 
 from __future__ import annotations
@@ -13,7 +17,6 @@ from __future__ import annotations
 import numpy as np
 
 from pmdcid.errors import LogError, short_list, warn
-from pmdcid.io.logs import NAN_MAX_FRACTION, NAN_MAX_RUN, Log
 from pmdcid.io.mapping import CANONICAL, ColumnMap, parse_mapping
 
 
@@ -83,6 +86,10 @@ def frame_columns(df, mapping: ColumnMap, path: str):
 #: at most this many unmapped numeric columns are kept in ``Log.extra`` (a transposed export
 #: of 120 000 columns must not cost 120 000 conversions)
 MAX_EXTRA = 64
+#: NaN cells are interpolated (with a warning) up to this fraction of a column ...
+NAN_MAX_FRACTION = 0.01
+#: ... and this many consecutive samples
+NAN_MAX_RUN = 10
 #: |values| at or above this are instrument overload / not-a-number markers (SCPI's 9.9e37),
 #: never a motor's voltage, current, speed or angle in SI units
 OVERLOAD = 1e30
@@ -120,11 +127,12 @@ def fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
     return x
 
 
-def validated_log(path: str, data: dict[str, np.ndarray], extra: dict | None = None,
-                  meta: dict | None = None, cutoff_hz: float | None = None, *,
-                  skipped: dict | None = None, defer: bool = False,
-                  resampled=None) -> Log:
-    """The checked :class:`Log` of canonical SI columns ``data`` (``t`` [s] among them).
+def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
+                  extra: dict | None = None, meta: dict | None = None,
+                  cutoff_hz: float | None = None, *, skipped: dict | None = None,
+                  defer: bool = False, resampled=None):
+    """The checked ``log_type`` (:class:`~pmdcid.io.logs.Log`) of canonical SI columns ``data``
+    (``t`` [s] among them).
 
     The time column is examined (:func:`pmdcid.io.clock.examine`): a uniform one is put on its
     grid from 0 (the original kept as ``t_file``); a loop-timed one is resampled onto a uniform
@@ -146,7 +154,7 @@ def validated_log(path: str, data: dict[str, np.ndarray], extra: dict | None = N
         data, extra, resampled = resample_columns(t, data, clock, extra)
     t_file = clock.grid if resampled is not None else t
     t = clock.grid - clock.grid[0]
-    log = Log(path=path, t=t, data=data, meta=dict(meta or {}), extra=extra,
+    log = log_type(path=path, t=t, data=data, meta=dict(meta or {}), extra=extra,
               cutoff_hz=cutoff_hz, t_file=t_file, skipped=dict(skipped or {}),
               resampled=resampled)
     if resampled is not None:
@@ -165,9 +173,9 @@ def validated_log(path: str, data: dict[str, np.ndarray], extra: dict | None = N
     return log
 
 
-def log_from_frame(df, mapping: ColumnMap | None = None, path: str = "<dataframe>",
-                   meta: dict | None = None) -> Log:
-    """A checked :class:`Log` from a pandas DataFrame (columns mapped as for a CSV file)."""
+def log_from_frame(log_type: type, df, mapping: ColumnMap | None = None,
+                   path: str = "<dataframe>", meta: dict | None = None):
+    """A checked ``log_type`` from a pandas DataFrame (columns mapped as for a CSV file)."""
     mapping = mapping or ColumnMap()
     cols = [" ".join(str(c).splitlines()).strip() for c in df.columns]
     dups = sorted({c for c in cols if cols.count(c) > 1})
@@ -177,14 +185,14 @@ def log_from_frame(df, mapping: ColumnMap | None = None, path: str = "<dataframe
         raise LogError("has no data rows", path)
     df = df.set_axis(cols, axis=1)
     data, extra, skipped = frame_columns(df, mapping, path)
-    log = validated_log(path, data, extra, meta, mapping.cutoff_hz, skipped=skipped)
+    log = validated_log(log_type, path, data, extra, meta, mapping.cutoff_hz, skipped=skipped)
     log.sources = mapping.sources(data)
     return log
 
 
-def log_from_arrays(t, name: str = "<arrays>", cutoff_hz: float | None = None,
-                    meta: dict | None = None, **columns) -> Log:
-    """A checked :class:`Log` from 1-D arrays in SI units (``t`` [s], ``v`` [V], ...)."""
+def log_from_arrays(log_type: type, t, name: str = "<arrays>", cutoff_hz: float | None = None,
+                    meta: dict | None = None, **columns):
+    """A checked ``log_type`` from 1-D arrays in SI units (``t`` [s], ``v`` [V], ...)."""
     data = {"t": np.asarray(t, dtype=float)}
     for k, v in columns.items():
         if v is not None:
@@ -196,4 +204,4 @@ def log_from_arrays(t, name: str = "<arrays>", cutoff_hz: float | None = None,
     if len(data) == 1:
         raise LogError("needs an input ('v' [V] or 'tau' [N m]) and a measurement besides t",
                        name)
-    return validated_log(name, data, None, meta, cutoff_hz)
+    return validated_log(log_type, name, data, None, meta, cutoff_hz)

@@ -18,17 +18,18 @@ from pathlib import Path
 import numpy as np
 
 from pmdcid.errors import LogError, short_list
+from pmdcid.io.build import (
+    as_mapping,
+    frame_columns,
+    log_from_arrays,
+    log_from_frame,
+    validated_log,
+)
 from pmdcid.io.clock import JITTER_TOL  # noqa: F401 - the one definition, re-exported here
 from pmdcid.io.kinds import is_blocked
 from pmdcid.io.mapping import ColumnMap
 
 UNITS = {"t": "s", "v": "V", "tau": "N m", "i": "A", "omega": "rad/s", "theta": "rad"}
-
-#: NaN cells are interpolated (with a warning) up to this fraction of a column ...
-NAN_MAX_FRACTION = 0.01
-#: ... and this many consecutive samples
-NAN_MAX_RUN = 10
-
 
 @dataclass
 class Log:
@@ -158,8 +159,6 @@ class Log:
         """Read a CSV log as ``pmdcid`` commands do. ``columns``: mappings as a dict
         ``{"omega": "speed*rpm"}`` or a list of ``"omega=speed*rpm"`` (the ``-c`` option),
         ``map_file``: a mapping file (``--map``), ``cutoff_hz`` (``--cutoff``)."""
-        from pmdcid.io.build import as_mapping
-
         return read_log(path, as_mapping(columns, map_file, cutoff_hz))
 
     @classmethod
@@ -173,9 +172,8 @@ class Log:
                        meta: dict | None = None) -> Log:
         """A log from a pandas DataFrame, mapped and checked exactly as a CSV file is."""
         from pmdcid.io.args import frame_arg
-        from pmdcid.io.build import as_mapping, log_from_frame
 
-        return log_from_frame(frame_arg(df), as_mapping(columns, None, cutoff_hz), name, meta)
+        return log_from_frame(cls, frame_arg(df), as_mapping(columns, None, cutoff_hz), name, meta)
 
     @classmethod
     def from_arrays(cls, t, *, v=None, tau=None, i=None, omega=None, theta=None,
@@ -184,11 +182,10 @@ class Log:
         [rad/s], ``theta`` [rad]; checked as a CSV file is (uniform time, finite values, speed
         derived from the angle or the reverse)."""
         from pmdcid.io.args import array_arg
-        from pmdcid.io.build import log_from_arrays
 
         cols = {k: None if a is None else array_arg(a, k)
                 for k, a in dict(v=v, tau=tau, i=i, omega=omega, theta=theta).items()}
-        return log_from_arrays(array_arg(t, "t"), name, cutoff_hz, meta, **cols)
+        return log_from_arrays(cls, array_arg(t, "t"), name, cutoff_hz, meta, **cols)
 
 
 def _split_comments(text: str, path: str) -> tuple[dict[str, str], int]:
@@ -225,15 +222,13 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
     if is_other_format(path):
         from pmdcid.io.formats import read
 
-        return read(path, mapping, defer)
+        return read(Log, path, mapping, defer)
     p = str(path)
     df, meta = read_table(p)
-    from pmdcid.io.build import frame_columns, validated_log
-
     mapping = mapping or ColumnMap()
     data, extra, skipped = frame_columns(df, mapping, p)
     del df  # the table is no longer needed: freed before the checks' temporaries
-    log = validated_log(p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
+    log = validated_log(Log, p, data, extra, meta, mapping.cutoff_hz, skipped=skipped, defer=defer)
     log.sources = mapping.sources(data)
     return log
 

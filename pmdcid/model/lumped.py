@@ -26,10 +26,13 @@ J R/km + (L/R) bv: 7.7 % on the paper's motor).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from pmdcid.errors import ModelError
 from pmdcid.model.effects import unit_of
-from pmdcid.model.params import Model
+
+if TYPE_CHECKING:  # annotations only: Model.to_si calls to_si here
+    from pmdcid.model.params import Model
 
 KEY = "lumped"
 NOTE = ("per-volt parameters (voltage and speed only: no current, no datasheet): "

@@ -250,7 +250,8 @@ def test_a_sensor_delay_without_current_may_be_latency():
 
 def test_exporters_take_a_late_input():
     """The exporters step the late input themselves (agreement with simulate:
-    tests/export/test_ports.py, tests/system/test_export_native.py): the latency is in the exported values,
+    tests/export/test_ports.py, tests/system/test_export_native.py): the latency is in the
+    exported values,
     0 when the effect is off."""
     from pmdcid.export import spec_of
 

@@ -16,7 +16,7 @@ import pytest
 from scipy.optimize import brentq
 
 from pmdcid.identify.simfit import fit_simulation
-from pmdcid.io.build import log_from_arrays
+from pmdcid.io import Log
 from pmdcid.model import EFFECTS, load_model
 from pmdcid.simulate import neutral_values, param_values, param_vector, simulate_values
 from pmdcid.simulate.kernel import run_kernel
@@ -150,7 +150,7 @@ def staircase_log(rng, truth, sd, name="stair.csv", seconds=10.0):
     t = np.arange(int(seconds / DT)) * DT
     u = np.repeat(rng.uniform(-1.3, 1.3, int(seconds / 0.5)) * BC, int(0.5 / DT))
     sim = simulate_values(t, u, {**neutral_values(), **truth}, True)
-    return log_from_arrays(t, name=name, tau=u, theta=sim.theta + rng.normal(0, sd, len(t)))
+    return Log.from_arrays(t, name=name, tau=u, theta=sim.theta + rng.normal(0, sd, len(t)))
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -183,7 +183,8 @@ def test_model_file_round_trip(tmp_path):
 
 def test_export_takes_lugre(tmp_path):
     """The exporters step the bristles themselves (agreement with the kernel:
-    tests/export/test_ports.py, tests/system/test_export_native.py): sigma0, sigma1 are in the exported
+    tests/export/test_ports.py, tests/system/test_export_native.py): sigma0, sigma1 are in the
+    exported
     values and in the generated C."""
     from click.testing import CliRunner
 

@@ -94,9 +94,10 @@ def load(path, wanted: list[str] | None = None) -> Signals:
     return sig
 
 
-def read(path, mapping=None, defer: bool = False):
-    """A checked :class:`~pmdcid.io.logs.Log` from a non-CSV file: signals named by ``mapping``
-    (``-c CANON=SOURCE``, the CSV syntax); series on several clocks put on the input's clock."""
+def read(log_type: type, path, mapping=None, defer: bool = False):
+    """A checked ``log_type`` (:class:`~pmdcid.io.logs.Log`, given by the caller:
+    :mod:`pmdcid.io.build`) from a non-CSV file: signals named by ``mapping`` (``-c
+    CANON=SOURCE``, the CSV syntax); series on several clocks put on the input's clock."""
     from pmdcid.io.formats.assemble import series_log, table_log
     from pmdcid.io.mapping import ColumnMap
 
@@ -106,8 +107,8 @@ def read(path, mapping=None, defer: bool = False):
               for s in mapping.specs.values()]
     sig = load(p, wanted)
     if sig.table:
-        return table_log(p, sig, mapping, defer)
-    return series_log(p, sig, mapping, defer)
+        return table_log(log_type, p, sig, mapping, defer)
+    return series_log(log_type, p, sig, mapping, defer)
 
 
 @dataclass

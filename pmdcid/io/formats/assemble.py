@@ -57,7 +57,7 @@ def _time_source(sig: Signals, mapping: ColumnMap) -> str | None:
     return "t" if "t" in sig.series else None
 
 
-def table_log(p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
+def table_log(log_type: type, p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
     """A table's columns as a CSV file's: the time column ``t`` (or ``-c t=SOURCE``) and the
     columns as long as it; a mapped column of another length is one clear line."""
     from pmdcid.io.build import frame_columns, validated_log
@@ -78,7 +78,7 @@ def table_log(p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
         raise LogError("has no data rows", p)
     frame = PlainFrame(names, [np.asarray(sig.series[k].x, dtype=float) for k in names])
     data, extra, skipped = frame_columns(frame, mapping, p)
-    log = validated_log(p, data, extra, sig.meta, mapping.cutoff_hz, skipped=skipped,
+    log = validated_log(log_type, p, data, extra, sig.meta, mapping.cutoff_hz, skipped=skipped,
                         defer=defer)
     log.sources = mapping.sources(data)
     return log
@@ -225,7 +225,7 @@ class _OnClock:
                 f"{hz:.4g} Hz, {span}): the input held, {what} interpolated linearly")
 
 
-def series_log(p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
+def series_log(log_type: type, p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
     """Series on their own clocks -> a checked :class:`~pmdcid.io.logs.Log` (module doc)."""
     from pmdcid.io.build import validated_log
 
@@ -244,7 +244,7 @@ def series_log(p: str, sig: Signals, mapping: ColumnMap, defer: bool = False):
         inputs = {c: zoh(*on._held_union(specs[c]), t_out) for c in specs if c in INPUTS}
         resampled = Resampling(t_out, inputs, on.clock.grid, "; ".join([*notes, *loop]),
                                measured)
-    log = validated_log(p, data, {}, sig.meta, mapping.cutoff_hz, skipped=skipped,
+    log = validated_log(log_type, p, data, {}, sig.meta, mapping.cutoff_hz, skipped=skipped,
                         defer=defer, resampled=resampled)
     log.sources = mapping.sources(data)
     if resampled is None:
