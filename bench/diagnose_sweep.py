@@ -5,10 +5,10 @@ that a faster search decides the same).
     PYTHONPATH=/path/to/old/checkout .venv/bin/python bench/diagnose_sweep.py --out old.json
     .venv/bin/python bench/diagnose_sweep.py --compare old.json new.json
 
-Each case: the paper's motor with every parameter moved by up to 20 %, one catalogue effect at
-the visible size of tests/system/test_diagnose.py (and at half of it), fresh noisy logs of
-the paper's three protocols, the paper's stages, then diagnose (one thread); plus clean rigs that
-must get nothing. A row: what was added, the held-out speed NRMSE before and after (a 60 s staircase), the
+Each case: the paper's motor with every parameter moved by up to 20 %, one catalogue effect at the
+visible size of tests/system/test_diagnose.py (and at half of it), fresh noisy logs of the paper's
+three protocols, the paper's stages, then diagnose (one thread); plus clean rigs that must get
+nothing. A row: what was added, the held-out speed NRMSE before and after (a 60 s staircase), the
 CPU seconds. Not a test: nothing here asserts; ``--compare`` prints where two runs decide
 differently. About 4 minutes.
 """
