@@ -34,7 +34,7 @@ def main(argv=None) -> int:
 
     import numpy as np
 
-    import pmdcid.identify.solver as solver
+    import pmdcid.fit.solver as solver
     from pmdcid import pipeline
     from pmdcid.diagnose import problem
     from pmdcid.diagnose.loop import diagnose

@@ -9,7 +9,7 @@ from pmdcid.synth import PAPER
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
     # pytest -n already runs a worker per CPU: the fits' Jacobian threads would oversubscribe
-    # (identify/fdjac.py; tests/test_fdjac.py runs the threads itself). Children inherit it.
+    # (fit/fdjac.py; tests/test_fdjac.py runs the threads itself). Children inherit it.
     os.environ.setdefault("PMDCID_THREADS", "1")
 
 

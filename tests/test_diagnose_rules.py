@@ -249,7 +249,7 @@ def test_unidentified_dead_zone_is_said_in_the_models_unit(monkeypatch, lumped):
 
     from pmdcid.diagnose import final as fin
     from pmdcid.diagnose.problem import FitOutcome
-    from pmdcid.identify.results import FitStats
+    from pmdcid.fit.results import FitStats
     from pmdcid.model import Model
     from pmdcid.model.lumped import mark_lumped
 

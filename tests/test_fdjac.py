@@ -1,4 +1,4 @@
-"""The fits' preallocated forward-difference Jacobian (pmdcid.identify.fdjac) gives bit for bit
+"""The fits' preallocated forward-difference Jacobian (pmdcid.fit.fdjac) gives bit for bit
 what scipy's jac="2-point" gives: the Jacobian itself, at and away from bounds, and whole fits."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import pytest
 from ident_util import triangle_fit_problem
 from scipy.optimize._numdiff import approx_derivative
 
+import pmdcid.fit.fdjac as fdjac
 import pmdcid.identify.cpus as cpus
-import pmdcid.identify.fdjac as fdjac
-from pmdcid.identify.fdjac import ForwardJacobian
+from pmdcid.fit.fdjac import ForwardJacobian
 from pmdcid.identify.simfit import fit_simulation
 
 

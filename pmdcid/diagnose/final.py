@@ -18,8 +18,8 @@ import numpy as np
 from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.starts import profile_stderr
+from pmdcid.fit.results import Estimate
 from pmdcid.identify.nonlinear import masked_upper
-from pmdcid.identify.results import Estimate
 from pmdcid.model import EFFECTS
 from pmdcid.model.lumped import is_lumped, lumped_unit
 

@@ -36,8 +36,8 @@ from pmdcid.diagnose.screen import Screen, Screener
 from pmdcid.diagnose.starts import grid_start, profile_best, staged_fit
 from pmdcid.diagnose.summary import DiagnoseResult, summarise, write_model
 from pmdcid.errors import ModelError
+from pmdcid.fit.solver import blas_single_thread
 from pmdcid.identify.cpus import pmap
-from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.lumped import is_lumped
 from pmdcid.simulate import param_values

@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError, LogError
-from pmdcid.identify.covariance import CovarianceInfo, block_covariance
-from pmdcid.identify.results import Estimate, FitStats
+from pmdcid.fit.covariance import CovarianceInfo, block_covariance
+from pmdcid.fit.results import Estimate, FitStats
+from pmdcid.fit.solver import scale_of, solve, white_covariance
 from pmdcid.identify.simfit import envelope_jacobian, noise_level
-from pmdcid.identify.solver import scale_of, solve, white_covariance
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.model.spec import BASE_PARAMS
@@ -231,7 +231,7 @@ class Problem:
 
     def residual(self, sims: list[SimResult], ch: Channel) -> np.ndarray:
         """Simulated - measured at channel ``ch``'s samples (the sign of every fit of pmdcid,
-        :mod:`pmdcid.identify.solver`), in the signal's unit."""
+        :mod:`pmdcid.fit.solver`), in the signal's unit."""
         return self.simulated(sims, ch) - ch.meas
 
     def weighted(self, sims: list[SimResult], part: str = "fit") -> np.ndarray:
@@ -326,7 +326,7 @@ class Problem:
     def correlated_stderr(self, vals: dict[str, float], free: Sequence[str],
                           rel: float = 1e-2) -> tuple[dict[str, float], CovarianceInfo | None]:
         """Standard errors of ``free`` at ``vals`` on all the data, allowing for a residual
-        correlated in time (block sandwich, :mod:`pmdcid.identify.covariance`): the refits'
+        correlated in time (block sandwich, :mod:`pmdcid.fit.covariance`): the refits'
         white-residual errors count every sample as independent evidence. Central differences
         with relative step ``rel`` (2 simulations per parameter)."""
         free = [n for n in free if n in vals]

@@ -13,7 +13,7 @@ from pmdcid.diagnose.problem import FitOutcome
 from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, pooled, whiteness
 from pmdcid.diagnose.rules import UNTESTABLE
 from pmdcid.diagnose.shape import residual_shapes
-from pmdcid.identify.results import ResultProtocol
+from pmdcid.fit.results import ResultProtocol
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.params import copy_model_into
 

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.fit.priors import prior_terms, stage_priors
+from pmdcid.fit.solver import blas_single_thread
 from pmdcid.identify.nonlinear import (
     DIFF_STEP,
     REFINE_RANGE,
@@ -28,9 +30,7 @@ from pmdcid.identify.nonlinear import (
 )
 from pmdcid.identify.nonlinear_setup import REFERENCE_COLUMNS
 from pmdcid.identify.nonlinear_setup import closed_loop_logs as setup_closed
-from pmdcid.identify.priors import prior_terms, stage_priors
 from pmdcid.identify.simfit import fit_simulation, noise_level
-from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import Model
 from pmdcid.simulate.closedloop import feedforward_of, reference_of, simulate_closed_loop
 from pmdcid.simulate.controller import ControllerSpec

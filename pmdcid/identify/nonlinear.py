@@ -28,6 +28,9 @@ from functools import partial
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.fit.priors import prior_terms, stage_priors
+from pmdcid.fit.results import Estimate, ResultProtocol, SimFitResult
+from pmdcid.fit.solver import blas_single_thread
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.hold import hold_profile
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
@@ -42,10 +45,7 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     free_parameters,
     working_model,
 )
-from pmdcid.identify.priors import prior_terms, stage_priors
-from pmdcid.identify.results import Estimate, ResultProtocol, SimFitResult
 from pmdcid.identify.simfit import fit_simulation, format_estimates, noise_level
-from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import Model
 from pmdcid.simulate import param_values
 

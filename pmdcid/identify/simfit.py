@@ -17,11 +17,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.identify.covariance import block_covariance
+from pmdcid.fit.covariance import block_covariance
+from pmdcid.fit.results import Estimate, FitStats, SimFitResult, nrmse
+from pmdcid.fit.solver import blas_single_thread, solve, white_covariance
+from pmdcid.fit.tall import BLOCK_ROWS, TALL_ROWS
 from pmdcid.identify.cpus import pmap
-from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
-from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
-from pmdcid.identify.tall import BLOCK_ROWS, TALL_ROWS
 from pmdcid.model import Model
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.simulate import param_values, simulate_values

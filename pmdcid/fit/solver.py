@@ -77,8 +77,8 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     ``parallel``: the Jacobian's columns run on threads (``fun_z`` must then be safe to call from
     several threads at once: no shared scratch buffers); the same numbers for any thread count.
     """
-    from pmdcid.identify.fdjac import ForwardJacobian
-    from pmdcid.identify.tall import TALL_ROWS, Compressed
+    from pmdcid.fit.fdjac import ForwardJacobian
+    from pmdcid.fit.tall import TALL_ROWS, Compressed
 
     z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
     fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills, parallel=parallel)

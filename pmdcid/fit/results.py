@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.identify.covariance import CovarianceInfo
+from pmdcid.fit.covariance import CovarianceInfo
 
 
 class ResultProtocol:

@@ -19,7 +19,7 @@ square root will do: ``B = R22`` up to an orthogonal factor), from two BLAS prod
 full matrix and no m x n copy. The fit's result, its full residual and its full Jacobian are
 those of the uncompressed problem.
 
-Used by :func:`pmdcid.identify.solver.solve` only for problems of at least :data:`TALL_ROWS`
+Used by :func:`pmdcid.fit.solver.solve` only for problems of at least :data:`TALL_ROWS`
 rows, so every ordinary log takes the uncompressed path bit for bit; on tall problems the
 answers agree with it to rounding (``tests/test_tall.py``: about 1e-12 relative).
 """
@@ -53,7 +53,7 @@ def compressed_jacobian(f: np.ndarray, JT: np.ndarray) -> np.ndarray:
 
 class Compressed:
     """``least_squares``' residual and Jacobian callables for the compressed problem of a
-    :class:`~pmdcid.identify.fdjac.ForwardJacobian` ``fd`` (whose ``fun`` and ``__call__`` give
+    :class:`~pmdcid.fit.fdjac.ForwardJacobian` ``fd`` (whose ``fun`` and ``__call__`` give
     the full residual and Jacobian); :meth:`full` gives them back at the solution."""
 
     def __init__(self, fd):
