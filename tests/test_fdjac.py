@@ -11,7 +11,7 @@ from scipy.optimize._numdiff import approx_derivative
 import pmdcid.fit.fdjac as fdjac
 import pmdcid.identify.cpus as cpus
 from pmdcid.fit.fdjac import ForwardJacobian
-from pmdcid.identify.simfit import fit_simulation
+from pmdcid.fit.simfit import FitOptions, fit_simulation
 
 
 def _toy(x, out=None):
@@ -40,7 +40,8 @@ def test_jacobian_bit_identical_to_scipy_2_point(where):
 
 
 def _fit(log, model, free):
-    return fit_simulation([log], model, free, signals=("omega", "theta"), max_nfev=30)
+    return fit_simulation([log], model, free, signals=("omega", "theta"),
+                          options=FitOptions(max_nfev=30))
 
 
 def test_fit_bit_identical_to_scipy_2_point_and_recovers_truth(monkeypatch):

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pmdcid.diagnose.problem import Problem, as_slice
+from pmdcid.fit.problem import Problem, as_slice
 from pmdcid.io import read_log
 from pmdcid.simulate import param_values
 from pmdcid.synth import truth_model

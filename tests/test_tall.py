@@ -9,8 +9,8 @@ import pytest
 from ident_util import triangle_fit_problem
 
 import pmdcid.fit.tall as tall
+from pmdcid.fit.simfit import FitOptions, fit_simulation
 from pmdcid.fit.solver import solve
-from pmdcid.identify.simfit import fit_simulation
 
 
 def test_compressed_jacobian_keeps_the_normal_equations():
@@ -52,7 +52,8 @@ def test_simulation_fit_same_answer_as_uncompressed(monkeypatch):
     truth, log, model, free = triangle_fit_problem()
 
     def fit():
-        return fit_simulation([log], model, free, signals=("omega", "theta"), max_nfev=30)
+        return fit_simulation([log], model, free, signals=("omega", "theta"),
+                          options=FitOptions(max_nfev=30))
 
     ref = fit()
     monkeypatch.setattr(tall, "TALL_ROWS", 1)

@@ -1,11 +1,13 @@
-"""Simulation-error fitting engine shared by fit-nonlinear, diagnose and the real-log stages.
+"""Simulation-error fits of fit-mechanical's joint fit, fit-nonlinear and the real-log stages.
 
-The residual is (simulated - measured) / sigma for each chosen signal of each log, the simulation
-being the shared exact kernel from rest on the log's own input. sigma is the signal's noise level,
-estimated from the data (second differences, robust) unless given. The cost is only piecewise
-smooth (stiction, dead-zone switching): we use scipy's trust-region reflective least squares with
-finite-difference steps large enough to step over the kernel's event quantisation
-(``diff_step``), started from a global stage done elsewhere (grid / inverse dynamics).
+A thin layer over :class:`~pmdcid.fit.problem.Problem`: every sample of the chosen signals of
+every log is fitted, each log from its measured start (a log that starts turning has its
+starting speed fitted too). The cost is only piecewise smooth (stiction, dead-zone switching):
+scipy's trust-region reflective least squares with finite-difference steps large enough to
+step over the kernel's event quantisation (:class:`~pmdcid.fit.parameters.Parameter`'s
+``step``), started from a global stage done elsewhere (grid / inverse dynamics). Priors,
+an autoregressive noise model and the held parameters' own uncertainty enter here; the
+covariance is :mod:`pmdcid.fit.covariance`'s.
 """
 
 from __future__ import annotations
@@ -13,218 +15,246 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.fit.covariance import block_covariance
+from pmdcid.fit.covariance import (
+    block_covariance,
+    envelope_jacobian,
+    parameter_covariance,
+    propagated,
+    white_covariance,
+)
+from pmdcid.fit.parameters import STEP, Parameters
+from pmdcid.fit.problem import Problem, Simulation
 from pmdcid.fit.results import Estimate, FitStats, SimFitResult, nrmse
-from pmdcid.fit.solver import blas_single_thread, solve, white_covariance
-from pmdcid.fit.tall import BLOCK_ROWS, TALL_ROWS
+from pmdcid.fit.solver import blas_single_thread, scale_of, solve
+from pmdcid.fit.tall import TALL_ROWS
 from pmdcid.identify.cpus import pmap
 from pmdcid.model import Model
-from pmdcid.model.effects import bounds_of, unit_of
-from pmdcid.simulate import param_values, simulate_values
-from pmdcid.simulate.initial import initial_state, moving_start
+from pmdcid.model.effects import unit_of
+from pmdcid.simulate import param_values
+from pmdcid.simulate.initial import moving_start
 from pmdcid.simulate.layout import NSTATE
 
 
-def noise_level(x: np.ndarray) -> float:
-    """Robust white-noise std of a signal from its second difference (MAD), same unit as ``x``.
+@dataclass(frozen=True)
+class FitOptions:
+    """How a simulation-error fit runs: at most ``max_nfev`` evaluations; ``nsub`` internal
+    steps per sample (None: the kernel's choice); each log from its measured first samples
+    (``initial``, :mod:`pmdcid.simulate.initial`) or from rest; ``cov_step``: the relative step
+    of the central differences giving the covariance; ``correlated``: the covariance allows
+    for a residual correlated in time (block sandwich) or is the white-residual formula
+    ``(J'J)^-1 redchi``; ``noise_model``: order p of an autoregressive noise model (0: white):
+    after a first fit each residual block's AR(p) whitening filter is estimated and the fit
+    repeated on the filtered residual (prediction error; :func:`ar_whitener`), so that noise
+    coloured in time that a controller fed back into the input cannot be explained by the
+    model."""
 
-    For a quantised signal (encoder angle) the floor is quantum/sqrt(12).
+    max_nfev: int = 200
+    nsub: int | None = None
+    initial: bool = True
+    cov_step: float = 1e-2
+    correlated: bool = True
+    noise_model: int = 0
+
+
+def fit_simulation(logs, model: Model, params: Parameters | Sequence[str],
+                   signals=("omega", "theta"), *,
+                   sigma: list[dict[str, float]] | None = None,
+                   options: FitOptions = FitOptions(), simulator=None) -> SimFitResult:
+    """Fit the varying ``params`` of ``model`` by simulation error on ``logs``.
+
+    ``params``: a :class:`~pmdcid.fit.parameters.Parameters` (start, bounds, prior, step of
+    each, a parameter without a value starting from the model's; its fixed ones held for every
+    log's simulation beyond the model's values, e.g. fit-nonlinear's ``ramp``, how the input
+    varied between samples), or names to fit from the model's values within the catalogue's
+    bounds. Other parameters stay at the model's values
+    (effects not in ``model.effects`` off). ``sigma`` gives per-log noise std per signal
+    (estimated when omitted). Priors add ``(x - mean)/std`` rows to the residual (see
+    docs/identification.md). ``simulator``: ``f(log, vals, x0)`` replacing the open-loop
+    simulation (:class:`~pmdcid.fit.problem.Simulation`). Returns a :class:`SimFitResult`; the
+    model is not modified.
     """
-    from pmdcid.io.derive import noise_std
-
-    x = np.asarray(x, float)
-    x = x[np.isfinite(x)]
-    if len(x) < 5:
-        return 1.0
-    s = noise_std(x)
-    if s <= 0 or not math.isfinite(s):
-        s = max(float(np.std(x)) * 1e-3, 1e-12)
-    return s
-
-
-def _per_parameter(step, free, default: float, extra: int):
-    """A relative step: one for all, or per parameter name (``default`` for the others and for
-    the ``extra`` starting speeds)."""
-    if not isinstance(step, dict):
-        return float(step)
-    return np.array([float(step.get(n, default)) for n in free] + [default] * extra)
-
-
-def _bounds(name: str, user: dict | None) -> tuple[float, float]:
-    return user[name] if user and name in user else bounds_of(name)
-
-
-def available_signals(log, signals: Sequence[str]) -> list[str]:
-    """The ``signals`` a log can be compared on; ``u`` is its input column (a closed-loop
-    simulation computes it: :mod:`pmdcid.simulate.closedloop`)."""
-    return [s for s in signals if s == "u" or log.compares(s)]
-
-
-def _measured(log, s: str) -> np.ndarray:
-    return log.u if s == "u" else log[s]
-
-
-def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "theta"),
-                   start: dict[str, float] | None = None,
-                   bounds: dict[str, tuple[float, float]] | None = None,
-                   sigma: list[dict[str, float]] | None = None, max_nfev: int = 200,
-                   diff_step: float | dict[str, float] = 1e-3, nsub: int | None = None,
-                   cov_step: float = 1e-2, correlated: bool = True,
-                   priors: dict[str, tuple[float, float]] | None = None,
-                   initial: bool = True,
-                   overrides: dict[str, float] | None = None,
-                   simulator=None, noise_model: int = 0) -> SimFitResult:
-    """Fit ``free`` parameters of ``model`` by simulation error on ``logs``.
-
-    Other parameters stay at the model's values (effects not in ``model.effects`` off).
-    ``start`` overrides starting values; ``bounds`` maps name -> (lower, upper) in SI units;
-    ``sigma`` gives per-log noise std per signal (estimated when omitted). ``diff_step``: relative
-    finite-difference step, one for all or per parameter name (default 1e-3). ``cov_step``: relative
-    step of the central differences giving the covariance (standard errors, correlations), one
-    for all or per parameter name like ``diff_step``.
-    ``correlated``: the covariance allows for a residual correlated in time (block sandwich,
-    :mod:`.covariance`); False gives the white-residual formula ``(J'J)^-1 redchi``.
-    ``priors``: name -> (mean, std) Gaussian terms from earlier stages (``(x - mean)/std`` rows
-    added to the residual; see docs/identification.md). ``initial``: each log starts from its
-    measured first samples (:mod:`.initial`), a log that starts turning has its starting speed
-    fitted too; False starts every log from rest. ``overrides``: values held for every log's
-    simulation beyond the model's (e.g. fit-nonlinear's ``ramp``, how the input varied between
-    samples, :mod:`pmdcid.simulate.drive`).
-    ``simulator``: ``f(log, vals, x0)`` -> a result with ``.get(signal)`` replacing the
-    open-loop simulation of each log (the closed loop, :mod:`pmdcid.simulate.closedloop`).
-    ``noise_model``: order p of an autoregressive noise model (0: white, as by default): after a
-    first fit each residual block's AR(p) whitening filter is estimated and the fit repeated on
-    the filtered residual (prediction error; :func:`ar_whitener`), so that noise coloured in
-    time that a controller fed back into the input cannot be explained by the model.
-    Returns a :class:`SimFitResult`; the model is not modified.
-    """
-    free = list(free)
+    params = (params if isinstance(params, Parameters) else Parameters.of(params, {})).filled(
+        param_values(model, logs[0].drive == "tau"))
+    free = params.free
     if not free:
         raise FitError("nothing to fit: no free parameters")
-    base = [{**param_values(model, log.drive == "tau"), **(overrides or {})} for log in logs]
-    sig_list = sigma or []
-    starts = _initial_states(logs, sig_list, initial)
-    moving = [k for k, x in enumerate(starts) if moving_start(x)]
-    x0, lo, hi = _start_vector(free, start, base[0], [starts[k][1] for k in moving], bounds)
-    scale = np.where(np.abs(x0) > 0, np.abs(x0), 1.0)
-    npar = len(free)
-    prior_rows = [(j, *priors[n]) for j, n in enumerate(free)
-                  if priors and n in priors and priors[n][1] > 0 and math.isfinite(priors[n][1])]
-    plan, segments = _residual_plan(logs, signals, sig_list)
-    ndata = int(sum(np.isfinite(m).sum() for _, _, m, _ in plan))
+    fixed = {n: p.value for n, p in params.items() if not p.vary}
+    base = [{**param_values(model, log.drive == "tau"), **fixed} for log in logs]
+    problem = Problem(logs, max_samples=None, plan=["fit"] * len(logs), signals=signals,
+                      sigma=sigma, simulation=Simulation(options.nsub, initial=options.initial,
+                                                         simulator=simulator))
+    return _Fit(problem, params, base, options).run(held_uncertain(model, free, base[0]))
 
-    def state(x):
-        out = [x0k.copy() for x0k in starts]
-        for j, k in enumerate(moving):
-            out[k][1] = x[npar + j]
+
+class _Fit:
+    """One simulation-error fit: the solver's vector (the varying parameters, then each moving
+    log's starting speed), its residual, the solve, the covariance."""
+
+    def __init__(self, problem: Problem, params: Parameters, base, options: FitOptions):
+        self.problem, self.base, self.options = problem, base, options
+        self.free = params.free
+        self.moving = [k for k, x in enumerate(problem.x0) if moving_start(x)]
+        speeds = [problem.x0[k][1] for k in self.moving]
+        lo, hi = params.bounds()
+        self.lo = np.concatenate([lo, np.full(len(speeds), -np.inf)])
+        self.hi = np.concatenate([hi, np.full(len(speeds), np.inf)])
+        start = params.start()
+        self.x0 = np.concatenate([start, speeds])
+        self.scale = np.concatenate([params.scales(start), scale_of(np.array(speeds, float))])
+        self.steps = np.concatenate([params.steps(), np.full(len(speeds), STEP)])
+        self.prior_rows = params.prior_rows()
+        self.nd = problem.rows("all")  # data rows; the prior rows follow them
+        self.nrows = self.nd + len(self.prior_rows)
+        # columns on threads, each with its own kernel buffers: not for a tall residual, whose
+        # buffers per thread would cost more memory than the threads save time
+        self.parallel = self.nrows < TALL_ROWS
+        self.whiten: list = [None] * len(problem.blocks("all"))  # per block: the AR filter
+        self.weight = 1.0  # the prior rows' weight: the data's honest information (below)
+        # the kernel's state buffers, reused across simulations: one set per thread (the
+        # Jacobian's columns may run on several), dropped before the covariance
+        self.bufs: dict[int, list] = {}
+
+    def state(self, x) -> list[np.ndarray]:
+        out = [x0k.copy() for x0k in self.problem.x0]
+        for j, k in enumerate(self.moving):
+            out[k][1] = x[len(self.free) + j]
         return out
 
-    # the kernel's state buffers, reused across simulations: one set per thread (the Jacobian's
-    # columns may run on several), dropped before the covariance
-    bufs: dict[int, list] = {}
-
-    def sims(x, held=None):
+    def sims(self, x, held=None):
         """Each log's simulation at ``x`` (``held``: values of held parameters replacing the
         model's); its arrays are valid until this thread's next call."""
-        out = []
-        xs = state(x)
+        xs = self.state(x)
         tid = threading.get_ident()
-        mine = bufs.get(tid)
+        mine = self.bufs.get(tid)
         if mine is None:  # this thread's first simulation of the fit
-            mine = bufs.setdefault(tid, [None] * len(logs))
-        for k, log in enumerate(logs):
-            vals = dict(base[k])
-            vals.update(dict(zip(free, x[:npar], strict=True)))
+            mine = self.bufs.setdefault(tid, [None] * len(self.problem.logs))
+        out = []
+        for k, log in enumerate(self.problem.logs):
+            vals = dict(self.base[k])
+            vals.update(dict(zip(self.free, x[:len(self.free)], strict=True)))
             vals.update(held or {})
-            if simulator is not None:
-                out.append(simulator(log, vals, xs[k]))
-                continue
-            if mine[k] is None:
+            if mine[k] is None and self.problem.simulation.simulator is None:
                 mine[k] = np.empty((len(log.t), NSTATE))
-            out.append(simulate_values(log.t, log.u, vals, log.drive == "tau", nsub, xs[k],
-                                       mine[k]))
+            out.append(self.problem.simulate(vals, k, x0=xs[k], out=mine[k]))
         return out
 
-    nrows = segments[-1][2] + len(prior_rows)
-    # columns on threads, each with its own kernel buffers: not for a tall residual, whose
-    # buffers per thread would cost more memory than the threads save time
-    parallel = nrows < TALL_ROWS
-
-    whiten: list = [None] * len(plan)  # per block: the AR whitening filter, once estimated
-
-    def resid(z, out=None, held=None):
+    def resid(self, z, out=None, held=None):
         """(simulated - measured) / sigma per block (whitened when a noise model is on), then
         the prior rows; into ``out``."""
-        x = z * scale
-        ss = sims(x, held)
-        out = np.empty(nrows) if out is None else out
-        _fill_blocks(out, ss, plan, segments, whiten)
-        if prior_rows:
-            out[segments[-1][2]:] = [weight[0] * (x[j] - m) / sd for j, m, sd in prior_rows]
+        x = z * self.scale
+        out = np.empty(self.nrows) if out is None else out
+        self.problem.weighted(self.sims(x, held), "all", out, self.whiten)
+        if self.prior_rows:
+            out[self.nd:] = [self.weight * (x[j] - m) / sd for j, m, sd in self.prior_rows]
         return out
 
-    steps = _per_parameter(diff_step, free, 1e-3, len(moving))
-    cov_step = _per_parameter(cov_step, free, 1e-2, len(moving))
-    weight = [1.0]  # the prior rows' weight: the data's honest information (below)
-
-    def run(z0):
-        s = solve(resid, z0, lo / scale, hi / scale, scale=scale, diff_step=steps, fills=True,
-                  max_nfev=max_nfev, what="simulation-error fit", rows=nrows, parallel=parallel)
+    def solve(self, z0):
+        s = solve(self.resid, z0, self.lo / self.scale, self.hi / self.scale, scale=self.scale,
+                  diff_step=self.steps, fills=True, max_nfev=self.options.max_nfev,
+                  what="simulation-error fit", rows=self.nrows, parallel=self.parallel)
         s.jac = None  # unused here (the covariance takes wider central differences): frees m x n
         return s
 
-    sol = run(x0 / scale)
-    nd = len(sol.fun) - len(prior_rows)  # data rows; the prior rows follow them
-    sol = _with_noise_model(run, sol, segments, whiten, noise_model)
-    if prior_rows:
-        # the data rows are weighted by the noise; when the model leaves a residual many times
-        # the noise, correlated in time, the logs carry far less information than that weight
-        # says: the priors are weighed against the data's honest information, the reduced
-        # chi-square times the correlated-residual inflation squared (docs/identification.md)
-        w = _data_discount(resid, sol, nd, segments, lo / scale, hi / scale, cov_step,
-                               parallel)
-        if w > 1.5:
-            weight[0] = w
-            sol = run(sol.z)
-    x = sol.x
-    chisqr = float(np.sum(sol.fun[:nd] ** 2))
-    stats = FitStats(ndata, len(x), chisqr, int(sol.nfev), bool(sol.success), str(sol.message))
-    # covariance from the Jacobian at the solution, scaled by the reduced chi-square. The
-    # solver's forward differences (diff_step) may not cross any switching event for a
-    # parameter like dz (a zero column, hence a zero standard error): the covariance uses
-    # central differences over a wider step, the slope of the cost's smooth envelope.
-    with blas_single_thread():
-        Jm = envelope_jacobian(resid, sol.z, sol.fun, lo / scale, hi / scale, cov_step,
-                                parallel)
-        Jm /= scale[None, :]
-        held = _held_columns(resid, sol.z, nrows, held_uncertain(model, free, base[0]),
-                             cov_step, parallel)
-    bufs.clear()  # no simulation until the last: freed for the covariance
+    def jacobian(self, sol) -> np.ndarray:
+        """The residual's envelope Jacobian at ``sol`` (:func:`envelope_jacobian`), in z."""
+        return envelope_jacobian(self.resid, sol.z, sol.fun, self.lo / self.scale,
+                                 self.hi / self.scale, self.options.cov_step, self.parallel)
+
+    def run(self, held: dict[str, tuple[float, float]]) -> SimFitResult:
+        sol = self.solve(self.x0 / self.scale)
+        sol = _with_noise_model(self.solve, sol, self.problem.segments("all"), self.whiten,
+                                self.options.noise_model)
+        if self.prior_rows:
+            # the data rows are weighted by the noise; when the model leaves a residual many
+            # times the noise, correlated in time, the logs carry far less information than
+            # that weight says: the priors are weighed against the data's honest information,
+            # the reduced chi-square times the correlated-residual inflation squared
+            # (docs/identification.md)
+            w = self.data_discount(sol)
+            if w > 1.5:
+                self.weight = w
+                sol = self.solve(sol.z)
+        return self.result(sol, held)
+
+    def data_discount(self, sol) -> float:
+        """sqrt(reduced chi-square) x the correlated-residual inflation of the data rows at
+        ``sol`` (>= 1): by how much the noise weights overstate the logs' information."""
+        r = sol.fun[:self.nd]
+        redchi = float(np.sum(r**2)) / max(self.nd - len(sol.z), 1)
+        with blas_single_thread():
+            Jd = self.jacobian(sol)[:self.nd]
+        try:
+            white = white_covariance(Jd, r)
+            _, info = block_covariance(Jd, r, self.problem.segments("all"), white)
+            infl = max(float(info.inflation), 1.0)
+        except np.linalg.LinAlgError:
+            infl = 1.0
+        return math.sqrt(max(redchi, 1.0)) * infl
+
+    def result(self, sol, held: dict[str, tuple[float, float]]) -> SimFitResult:
+        x, free, npar = sol.x, self.free, len(self.free)
+        ndata = int(sum(np.isfinite(ch.meas).sum() for ch in self.problem.channels))
+        chisqr = float(np.sum(sol.fun[:self.nd] ** 2))
+        stats = FitStats(ndata, len(x), chisqr, int(sol.nfev), bool(sol.success),
+                         str(sol.message))
+        # covariance from the Jacobian at the solution, scaled by the reduced chi-square. The
+        # solver's forward differences may not cross any switching event for a parameter like
+        # dz (a zero column, hence a zero standard error): the covariance uses central
+        # differences over a wider step, the slope of the cost's smooth envelope.
+        with blas_single_thread():
+            Jm = self.jacobian(sol)
+            Jm /= self.scale[None, :]
+            hjac, hse = self.held_columns(sol.z, held)
+        self.bufs.clear()  # no simulation until the last: freed for the covariance
+        se, corr, info = _errors(Jm, sol.fun, self, stats.redchi, hjac, hse)
+        est = {n: Estimate(n, float(v), float(e), unit_of(n))
+               for n, v, e in zip(free, x[:npar], se[:npar], strict=True)}
+        correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
+                  for i, a in enumerate(free)}
+        with blas_single_thread():
+            errs, sig_out = _per_log(self.problem, self.sims(x))
+        res = SimFitResult(est, stats, correl, errs, sig_out, info)
+        res.initial = self.state(x)
+        res.priors = {free[j]: (m, sd) for j, m, sd in self.prior_rows}
+        return res
+
+    def held_columns(self, z, held: dict[str, tuple[float, float]]):
+        """(the residual's derivatives with respect to each held parameter, their standard
+        errors): central differences of relative step ``cov_step`` about the held values."""
+        names = list(held)
+        cols = np.empty((self.nrows, len(names)))
+        step = self.options.cov_step
+
+        def column(j):
+            v = held[names[j]][0]
+            h = step * abs(v)
+            up = self.resid(z, held={names[j]: v + h})
+            cols[:, j] = up - self.resid(z, held={names[j]: v - h})
+            cols[:, j] /= 2 * h
+
+        pmap(column, range(len(names)), self.parallel)
+        return cols, np.array([held[n][1] for n in names])
+
+
+def _errors(Jm, fun, fit: _Fit, redchi: float, hjac, hse):
+    """(standard errors, correlation matrix, CovarianceInfo or None) of the fit's vector."""
+    n = Jm.shape[1]
     try:
-        extra = propagated(Jm, *held)  # before _covariance, which rescales Jm's columns
-        cov, info = _covariance(Jm, sol.fun, nd, segments, stats.redchi, correlated, weight[0])
+        extra = propagated(Jm, hjac, hse)  # before the covariance, which rescales Jm's columns
+        cov, info = parameter_covariance(Jm, fun, fit.nd, fit.problem.segments("all"), redchi,
+                                         fit.options.correlated, fit.weight)
         cov = cov + extra
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = cov / np.outer(se, se)
     except np.linalg.LinAlgError:
-        info = None
-        se = np.full(len(x), math.nan)
-        corr = np.full((len(x), len(x)), math.nan)
-    est = {n: Estimate(n, float(v), float(e), unit_of(n))
-           for n, v, e in zip(free, x[:npar], se[:npar], strict=True)}
-    correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
-              for i, a in enumerate(free)}
-    with blas_single_thread():
-        errs, sig_out = _per_log(plan, sims(x), len(logs))
-    res = SimFitResult(est, stats, correl, errs, sig_out, info)
-    res.initial = state(x)
-    res.priors = {free[j]: (m, sd) for j, m, sd in prior_rows}
-    return res
+        return np.full(n, math.nan), np.full((n, n), math.nan), None
+    return se, corr, info
 
 
 def _with_noise_model(run, sol, segments, whiten: list, order: int):
@@ -235,18 +265,6 @@ def _with_noise_model(run, sol, segments, whiten: list, order: int):
                      in zip(segments, whiten, strict=True)]
         sol = run(sol.z)
     return sol
-
-
-def _fill_blocks(out, ss, plan, segments, whiten) -> None:
-    """The data rows of the residual into ``out``: (simulated - measured) / sigma per block,
-    whitened by the block's filter when it has one, non-finite rows 0."""
-    for j, ((k, s, meas, sd), (_, a, b)) in enumerate(zip(plan, segments, strict=True)):
-        r = out[a:b]
-        np.subtract(ss[k].get(s), meas, out=r)
-        np.divide(r, sd, out=r)
-        r[~np.isfinite(r)] = 0.0
-        if whiten[j] is not None:  # the FIR filter A(q): numpy, not scipy.signal (1 s import)
-            r[:] = np.convolve(r, whiten[j])[: len(r)]
 
 
 def ar_whitener(r: np.ndarray, order: int, before=None) -> np.ndarray | None:
@@ -284,186 +302,14 @@ def held_uncertain(model: Model, free, kernel_values: dict[str, float]
     return out
 
 
-def _held_columns(resid, z, nrows: int, held: dict[str, tuple[float, float]], rel, parallel):
-    """(the residual's derivatives with respect to each held parameter, their standard
-    errors): central differences of relative step ``rel`` about the held values."""
-    names = list(held)
-    cols = np.empty((nrows, len(names)))
-    step = float(np.max(np.atleast_1d(rel)))
-
-    def column(j):
-        v = held[names[j]][0]
-        h = step * abs(v)
-        up = resid(z, held={names[j]: v + h})
-        cols[:, j] = up - resid(z, held={names[j]: v - h})
-        cols[:, j] /= 2 * h
-
-    pmap(column, range(len(names)), parallel)
-    return cols, np.array([held[n][1] for n in names])
-
-
-def propagated(jac: np.ndarray, held_jac: np.ndarray, held_se: np.ndarray) -> np.ndarray:
-    """The covariance the held parameters' own uncertainty adds to the fitted ones (a two-step
-    estimator: the fitted values move by G = -(J'J)^-1 J'J_h per unit of the held ones, so
-    cov += G diag(se_h^2) G')."""
-    if held_jac.shape[1] == 0:
-        return np.zeros((jac.shape[1], jac.shape[1]))
-    g = -np.linalg.lstsq(jac, held_jac, rcond=None)[0]
-    return (g * held_se**2) @ g.T
-
-
-def _per_log(plan, final, nlogs: int):
+def _per_log(problem: Problem, final):
     """Per log: signal -> NRMSE of the final simulation, and signal -> the noise std used."""
-    errs: list[dict[str, float]] = [dict() for _ in range(nlogs)]
-    sig_out: list[dict[str, float]] = [dict() for _ in range(nlogs)]
-    for k, s, meas, sd in plan:
-        errs[k][s] = nrmse(final[k].get(s), meas)
-        sig_out[k][s] = sd
+    errs: list[dict[str, float]] = [dict() for _ in problem.logs]
+    sig_out: list[dict[str, float]] = [dict() for _ in problem.logs]
+    for ch in problem.channels:
+        errs[ch.log][ch.signal] = nrmse(final[ch.log].get(ch.signal), ch.meas)
+        sig_out[ch.log][ch.signal] = ch.sigma
     return errs, sig_out
 
 
-def _start_vector(free, start, base, speeds, bounds):
-    """Start, lower and upper bounds of the solver's vector: the free parameters [their SI
-    units], then each moving log's starting speed [rad/s]; raises when a start is missing."""
-    x0 = []
-    for name in free:
-        v = (start or {}).get(name, base.get(name, math.nan))
-        if not math.isfinite(v):
-            raise FitError(f"no starting value for '{name}'")
-        x0.append(v)
-    lo = np.array([_bounds(n, bounds)[0] for n in free] + [-np.inf] * len(speeds))
-    hi = np.array([_bounds(n, bounds)[1] for n in free] + [np.inf] * len(speeds))
-    return np.clip(np.array(x0 + list(speeds), float), lo, hi), lo, hi
-
-
-def _residual_plan(logs, signals, sig_list):
-    """The residual's blocks: (log index, signal, measured, noise std) each, and their rows
-    (log index, first row, end row) in the residual vector."""
-    plan = []
-    segments = []
-    for k, log in enumerate(logs):
-        given = sig_list[k] if k < len(sig_list) else {}
-        for s in available_signals(log, signals):
-            meas = _measured(log, s)
-            plan.append((k, s, meas, float(given.get(s, noise_level(meas)))))
-            row = segments[-1][2] if segments else 0
-            segments.append((k, row, row + len(meas)))
-    if not plan:
-        raise FitError(f"no log carries any of the signals {', '.join(signals)} to fit")
-    return plan, segments
-
-
-def _initial_states(logs, sig_list, initial: bool) -> list[np.ndarray]:
-    """Each log's starting state (:mod:`.initial`), or rest for every log."""
-    if not initial:
-        return [np.zeros(3) for _ in logs]
-    out = []
-    for k, log in enumerate(logs):
-        given = sig_list[k] if k < len(sig_list) else {}
-        out.append(initial_state(log, given.get("omega")))
-    return out
-
-
-def _data_discount(resid, sol, nd, segments, lo, hi, cov_step, parallel=True) -> float:
-    """sqrt(reduced chi-square) x the correlated-residual inflation of the data rows at ``sol``
-    (>= 1): by how much the noise weights overstate the logs' information."""
-    r = sol.fun[:nd]
-    redchi = float(np.sum(r**2)) / max(nd - len(sol.z), 1)
-    with blas_single_thread():
-        Jd = envelope_jacobian(resid, sol.z, sol.fun, lo, hi, cov_step, parallel)[:nd]
-    try:
-        white = white_covariance(Jd, r)
-        _, info = block_covariance(Jd, r, segments, white)
-        infl = max(float(info.inflation), 1.0)
-    except np.linalg.LinAlgError:
-        infl = 1.0
-    return math.sqrt(max(redchi, 1.0)) * infl
-
-
-def _covariance(Jm, fun, nd, segments, redchi, correlated, weight=1.0):
-    """Parameter covariance: the data rows' (white or correlated-residual sandwich), combined
-    with the prior rows' information: ``(Hd + P)^-1 (Sd + w^2 P) (Hd + P)^-1`` where ``Sd`` is
-    the data score's covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision
-    and ``w`` their weight (the prior means' own variance, scaled like their rows).
-
-    Computed with the Jacobian's columns scaled to unit norm (``Jm`` is scaled in place) and
-    scaled back (the same covariance): parameters of very different sizes (LuGre's sigma0 ~
-    1e2 N m/rad beside bc ~ 1e-3 N m) would otherwise give J'J a condition number past the
-    pseudo-inverse's cut-off, which then zeroes the small direction's variance."""
-    norms = _column_norms(Jm)
-    d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
-    Jm *= d  # in place: the caller's matrix, not used after (no m x n copy on long logs)
-    cov, info = _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight)
-    return cov * np.outer(d, d), info
-
-
-def _column_norms(J: np.ndarray) -> np.ndarray:
-    """Euclidean norm of each column; on a tall matrix a block of rows at a time (no m x n
-    square), which agrees with ``np.linalg.norm(J, axis=0)`` to rounding."""
-    if len(J) < TALL_ROWS:
-        return np.linalg.norm(J, axis=0)
-    ss = np.zeros(J.shape[1])
-    for a in range(0, len(J), BLOCK_ROWS):
-        ss += np.einsum("ij,ij->j", J[a:a + BLOCK_ROWS], J[a:a + BLOCK_ROWS])
-    return np.sqrt(ss)
-
-
-def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
-    Jd = Jm[:nd]
-    Hd = Jd.T @ Jd
-    cov = np.linalg.pinv(Hd) * redchi
-    info = None
-    if correlated:
-        cov, info = block_covariance(Jd, fun[:nd], segments, cov)
-    if nd == len(fun):
-        return cov, info
-    Jp = Jm[nd:]
-    P = Jp.T @ Jp
-    Sd = Hd @ cov @ Hd
-    Hinv = np.linalg.pinv(Hd + P)
-    return Hinv @ (Sd + weight**2 * P) @ Hinv, info
-
-
-def envelope_jacobian(fun, z, f0, lo, hi, rel, parallel: bool = True) -> np.ndarray:
-    """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one for all or
-    one per column; one-sided at a bound); columns that still come out zero fall back to a 5x
-    wider step. With ``parallel`` the columns are shared with the spare CPUs
-    (:func:`pmdcid.identify.cpus.pmap`): ``fun`` must be safe to call from several threads;
-    the same bits for any number of threads."""
-    J = np.empty((len(f0), len(z)))  # filled column by column: no list of columns to stack
-    rels = np.broadcast_to(np.asarray(rel, float), (len(z),))
-
-    def column(j):
-        for r in (rels[j], 5 * rels[j]):
-            h = r * max(abs(z[j]), 1e-12)
-            up, dn = min(z[j] + h, hi[j]), max(z[j] - h, lo[j])
-            if up <= dn:
-                J[:, j] = 0.0
-                break
-            zu, zd = z.copy(), z.copy()
-            zu[j], zd[j] = up, dn
-            fu = fun(zu) if up > z[j] else f0
-            fd = fun(zd) if dn < z[j] else f0
-            d = fu - fd  # then divided in place: one temporary of the residual's length
-            d /= up - dn
-            J[:, j] = d
-            del d
-            if np.any(J[:, j] != 0):
-                break
-
-    pmap(column, range(len(z)), parallel)
-    return J
-
-
-def format_estimates(estimates, width: int = 10) -> list[str]:
-    """Table lines ``name  value ± stderr  unit`` (``fixed`` when the parameter did not vary)."""
-    lines = [f"{'parameter':<{width}} {'value':>13}   {'± stderr':<11} unit"]
-    for e in estimates:
-        if not e.vary:
-            se = "(fixed)"
-        elif math.isfinite(e.stderr):
-            se = f"± {e.stderr:.2g}"
-        else:
-            se = "± ?"
-        lines.append(f"{e.name:<{width}} {e.value:13.6g}   {se:<11} {e.unit}".rstrip())
-    return lines
+__all__ = ["FitOptions", "ar_whitener", "fit_simulation", "held_uncertain"]

@@ -29,8 +29,7 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.fit.covariance import block_covariance
-from pmdcid.fit.results import Estimate, FitStats
-from pmdcid.identify.simfit import format_estimates
+from pmdcid.fit.results import Estimate, FitStats, format_estimates
 from pmdcid.model import Model
 
 STAGE = "fit-electrical"
