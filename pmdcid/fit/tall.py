@@ -30,7 +30,8 @@ import numpy as np
 
 #: residuals with at least this many rows are compressed (a 17-minute log at 1 kHz, one signal)
 TALL_ROWS = 1 << 20
-#: rows per block where a tall matrix is reduced a block at a time (simfit._column_norms)
+#: rows per block where a tall matrix is reduced a block at a time
+#: (:func:`.covariance.column_norms`)
 BLOCK_ROWS = 1 << 15
 
 

@@ -9,8 +9,8 @@ and the parameters minimise the weighted squared error of the simulated speed an
    logs (``tau`` column, R, L, km not needed) from inverse dynamics;
 2. global stage: a coarse grid over the two switching parameters (bc and dz, or bc and tau0),
    then over bv, all sets of a stage simulated in one compiled batch (:mod:`.grid`);
-3. local stage: trust-region least squares (:func:`.simfit.fit_simulation`) from the best set,
-   with finite-difference steps wide enough to step over the kernel's event quantisation;
+3. local stage: trust-region least squares (:func:`pmdcid.fit.simfit.fit_simulation`) from the
+   best set, with finite-difference steps wide enough to step over the kernel's event quantisation;
    standard errors and correlations from the Jacobian at the solution.
 
 Why not a gradient method alone: the cost is piecewise smooth (breakaway and dead-zone
