@@ -15,7 +15,7 @@ LAYERS = ["errors", "notes", "progress", "io", "model", "simulate", "synth", "fi
 #: upward imports allowed, each with its reason: ``identify/cpus.py`` (``pmap``) moves to
 #: ``pmdcid/runtime/`` on another branch; the fit engine imports it from where it is until then
 ALLOWED: set[tuple[str, str]] = {(f"pmdcid.fit.{m}", "pmdcid.identify.cpus")
-                                 for m in ("fdjac", "covariance", "problem", "simfit")}
+                                 for m in ("fdjac", "covariance", "simfit")}
 
 
 def _module(path: Path) -> str:
