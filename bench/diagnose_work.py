@@ -34,10 +34,10 @@ def main(argv=None) -> int:
 
     import numpy as np
 
-    import pmdcid.identify.solver as solver
+    import pmdcid.fit.solver as solver
     from pmdcid import pipeline
-    from pmdcid.diagnose import problem
     from pmdcid.diagnose.loop import diagnose
+    from pmdcid.fit import problem
     from pmdcid.io import read_logs
     from pmdcid.model import Model
     from pmdcid.simulate import logs_for

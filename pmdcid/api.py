@@ -7,7 +7,7 @@ keyword-only. Each function runs exactly what the matching command runs (the CLI
 share these steps: :mod:`pmdcid.identify.runners`, :mod:`pmdcid.diagnose.files`), including the
 lumped (per-volt) path for voltage+speed logs.
 
-Results follow one protocol (:class:`~pmdcid.identify.results.ResultProtocol`): ``str()`` is
+Results follow one protocol (:class:`~pmdcid.fit.results.ResultProtocol`): ``str()`` is
 the table, ``_repr_html_()``, ``to_dict()``, ``to_pandas()``, ``apply(model)``.
 
 An argument of the wrong type (a scalar for a log, a dict for a Model) raises a TypeError naming

@@ -120,10 +120,10 @@ def _diagnose_available() -> bool:
 
 def run_demo(out_dir="demo-output", echo=print) -> dict:
     """Run the pipeline; returns paths, the final model, the diagnose summary and timings."""
+    from pmdcid.fit.results import record_notes
     from pmdcid.identify.electrical import fit_electrical
     from pmdcid.identify.mechanical import fit_mechanical
     from pmdcid.identify.nonlinear import fit_nonlinear
-    from pmdcid.identify.results import record_notes
     from pmdcid.io import read_logs
     from pmdcid.model import Model, save_model
     from pmdcid.report import check_out_dir, make_out_dir, make_report

@@ -2,7 +2,7 @@
 
 The logs are sorted (``# kind:`` metadata where present, else by content), the paper's stages run
 on the logs each applies to, every later stage combining its logs with what the earlier ones
-determined (:mod:`pmdcid.identify.priors`), then one joint simulation-error fit over every log
+determined (:mod:`pmdcid.fit.priors`), then one joint simulation-error fit over every log
 that moves, then
 diagnose and the report. Each decision is printed with its reason.
 
@@ -37,9 +37,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError, PmdcidError
+from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import closed_loop_logs
 from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau
-from pmdcid.identify.results import ResultProtocol, notes_of
 from pmdcid.identify.steps import held_steps
 from pmdcid.io.kinds import canonical, describe, stage_class
 from pmdcid.model import Model
@@ -97,7 +97,7 @@ class IdentifyResult(ResultProtocol):
     def all_notes(self) -> list:
         """Every stage's warnings, identify's own notes and diagnose's, as
         :class:`~pmdcid.notes.Note` (what each concerns, severity, stage)."""
-        from pmdcid.identify.results import known_names
+        from pmdcid.fit.results import known_names
         from pmdcid.notes import as_note
 
         names, logs = known_names(), [p.path for p in self.plan]

@@ -11,12 +11,13 @@ from repo_paths import REPO
 PKG = REPO / "pmdcid"
 #: lower layers first: a module may import from its own layer and the layers before it only
 #: (function-level imports included: a lazy import is still a dependency)
-LAYERS = ["errors", "notes", "progress", "io", "model", "simulate", "synth", "identify",
+LAYERS = ["errors", "notes", "progress", "io", "model", "simulate", "synth", "fit", "identify",
           "diagnose", "report", "plan", "export", "pipeline", "fleet", "demo", "api",
           "cli", "__main__"]
-#: upward imports allowed, each with its reason (none today: ``pmdcid.identify(...)`` is the
-#: function of pmdcid.api itself, no subpackage forwards to it)
-ALLOWED: set[tuple[str, str]] = set()
+#: upward imports allowed, each with its reason: ``identify/cpus.py`` (``pmap``) moves to
+#: ``pmdcid/runtime/`` on another branch; the fit engine imports it from where it is until then
+ALLOWED: set[tuple[str, str]] = {(f"pmdcid.fit.{m}", "pmdcid.identify.cpus")
+                                 for m in ("fdjac", "covariance", "simfit")}
 
 
 def _module(path: Path) -> str:
@@ -62,7 +63,7 @@ def _sources():
 
 def test_sources_are_found():
     mods = {_module(p) for p in _sources()}
-    assert {"pmdcid.io.logs", "pmdcid.simulate.kernel", "pmdcid.identify.solver",
+    assert {"pmdcid.io.logs", "pmdcid.simulate.kernel", "pmdcid.fit.solver",
             "pmdcid.diagnose.loop", "pmdcid.cli"} <= mods
 
 

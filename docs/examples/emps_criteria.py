@@ -18,9 +18,10 @@ import pandas as pd
 from numba import njit
 from scipy.optimize import least_squares, minimize
 
+from pmdcid.fit.parameters import Parameters
+from pmdcid.fit.simfit import fit_simulation
 from pmdcid.identify.nonlinear import DIFF_STEP, fit_nonlinear
 from pmdcid.identify.openloop import measured_speed, velocity_error
-from pmdcid.identify.simfit import fit_simulation
 from pmdcid.io import parse_mapping, read_log
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_log, simulate_values
@@ -44,8 +45,8 @@ def model_of(values) -> Model:
 def spread_weighted(logs, model, start):
     """Speed and angle, each weighted by its spread (the sum of the two NRMSE squared)."""
     sig = [{s: float(np.std(lg[s])) for s in ("omega", "theta")} for lg in logs]
-    return fit_simulation(logs, model, NAMES, ("omega", "theta"), start=start, sigma=sig,
-                          diff_step=DIFF_STEP).values()
+    return fit_simulation(logs, model, Parameters.of(NAMES, start, steps=DIFF_STEP),
+                          ("omega", "theta"), sigma=sig).values()
 
 
 def residual_weighted(logs, model, start, rounds=4):
@@ -56,8 +57,8 @@ def residual_weighted(logs, model, start, rounds=4):
         sims = [simulate_log(lg, model_of(x)) for lg in logs]
         sig = [{s: float(np.sqrt(np.nanmean((sm.get(s) - lg[s]) ** 2))) for s in ("omega", "theta")}
                for lg, sm in zip(logs, sims, strict=True)]
-        x = fit_simulation(logs, model, NAMES, ("omega", "theta"), start=x, sigma=sig,
-                           diff_step=DIFF_STEP).values()
+        x = fit_simulation(logs, model, Parameters.of(NAMES, x, steps=DIFF_STEP),
+                           ("omega", "theta"), sigma=sig).values()
     return x
 
 
@@ -186,8 +187,8 @@ def undeclared_load(seed=41):
         ("speed + angle, weighted by spread", ("omega", "theta"),
          [{s: float(np.std(cols[s])) for s in ("omega", "theta")}]),
     ):
-        x = fit_simulation([log], m, list(start), signals, start=start, sigma=sig,
-                           diff_step=DIFF_STEP, bounds=bounds).values()
+        x = fit_simulation([log], m, Parameters.of(start, start, bounds, DIFF_STEP), signals,
+                           sigma=sig).values()
         pred = simulate_values(t, cols["v"], {**vals, **x, "tau0": 0.0})
         rel = "  ".join(f"{k} {100 * (x[k] / PAPER[k] - 1):+7.1f} %" for k in start)
         om = np.std(pred.omega - cols["omega"]) / np.std(cols["omega"])

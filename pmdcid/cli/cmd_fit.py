@@ -34,7 +34,7 @@ def _names(allowed):
 
 def _show(result, model_path):
     from pmdcid.cli.notes import echo_notes
-    from pmdcid.identify.results import notes_of
+    from pmdcid.fit.results import notes_of
 
     echo(result.table())
     echo_notes(notes_of(result))

@@ -15,12 +15,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.diagnose.problem import FitOutcome, bounds_of
 from pmdcid.diagnose.residuals import error_table, pooled
 from pmdcid.diagnose.rules import at_bound, failed_refit
 from pmdcid.diagnose.testable import HeldoutTest, heldout_test
+from pmdcid.fit.problem import FitOutcome
 from pmdcid.identify.cpus import pmap
 from pmdcid.model import EFFECTS
+from pmdcid.model.effects import bounds_of
 from pmdcid.model.signatures import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
 
 #: factors applied to the guess's effect parameters when the first starts fail
@@ -199,7 +200,8 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
         elif eff.implausible and (why := eff.implausible(fo.values, run.ctx0, run.vals0)):
             c.status, c.reason = "implausible", why + "; not counted"
         else:
-            floor = max(run.rules.min_z ** 2, run.rules.min_gain * ref["held"]) if n_held else 1.0
+            rules = run.settings.rules
+            floor = max(rules.min_z ** 2, rules.min_gain * ref["held"]) if n_held else 1.0
             others = [p for p in free if p in eff.interacts]
             c.test = heldout_test(run.problem, fo.values, name, others,
                                   run.ctx0.torque_scale, floor)

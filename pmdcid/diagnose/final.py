@@ -16,10 +16,10 @@ import math
 import numpy as np
 
 from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
-from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.starts import profile_stderr
+from pmdcid.fit.problem import FitOutcome, Problem
+from pmdcid.fit.results import Estimate
 from pmdcid.identify.nonlinear import masked_upper
-from pmdcid.identify.results import Estimate
 from pmdcid.model import EFFECTS
 from pmdcid.model.lumped import is_lumped, lumped_unit
 
@@ -87,7 +87,7 @@ def _unchoose(history, name: str) -> None:
 def prune(run, final: FitOutcome, added: list[str], notes: list[str],
           history) -> FitOutcome:
     """Backward elimination on all the data (``added`` is updated in place)."""
-    weak = _weakest(run.problem, final, added, run.base_free, run.fit, run.rules.bic)
+    weak = _weakest(run.problem, final, added, run.base_free, run.fit, run.settings.rules.bic)
     while weak is not None:
         # an effect that the final fit no longer needs (another one took its part) goes
         added.remove(weak[0])
@@ -95,7 +95,7 @@ def prune(run, final: FitOutcome, added: list[str], notes: list[str],
         notes.append(f"{weak[0]} dropped: with the other added effects it no longer "
                      "improves the fit decisively")
         _unchoose(history, weak[0])
-        weak = _weakest(run.problem, final, added, run.base_free, run.fit, run.rules.bic)
+        weak = _weakest(run.problem, final, added, run.base_free, run.fit, run.settings.rules.bic)
     return final
 
 
@@ -162,7 +162,7 @@ def finalise(run, cur: FitOutcome, added: list[str], notes: list[str], history):
         info: list[str] = []
         honest_errors(run, final, free, info)
         sizes = {e: effect_z(EFFECTS[e], final) for e in added}
-        weak = [e for e in added if not sizes[e] >= run.rules.min_z]
+        weak = [e for e in added if not sizes[e] >= run.settings.rules.min_z]
         bad = unphysical(final, run.ctx0)
         lowering = [e for e in added if e in LOWERING]
         if not weak and not (bad and lowering):
@@ -171,7 +171,7 @@ def finalise(run, cur: FitOutcome, added: list[str], notes: list[str], history):
         if weak:
             e = min(weak, key=lambda a: sizes[a])
             why = (f"{sizes[e]:.2g} standard errors in the final model (all data, correlated "
-                   f"residual allowed for) < {run.rules.min_z:g}")
+                   f"residual allowed for) < {run.settings.rules.min_z:g}")
         else:
             e, why = lowering[-1], f"in the final model, {bad}"
         added.remove(e)

@@ -29,15 +29,16 @@ from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
 from pmdcid.diagnose.hold import read_slow_inputs
 from pmdcid.diagnose.named import generalises, prefer_named, with_named
-from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import context, error_table, typical_scales
 from pmdcid.diagnose.rules import Rules, judge, same_rows
 from pmdcid.diagnose.screen import Screen, Screener
+from pmdcid.diagnose.settings import Settings
 from pmdcid.diagnose.starts import grid_start, profile_best, staged_fit
 from pmdcid.diagnose.summary import DiagnoseResult, summarise, write_model
 from pmdcid.errors import ModelError
+from pmdcid.fit.problem import FitOutcome, Problem
+from pmdcid.fit.solver import blas_single_thread
 from pmdcid.identify.cpus import pmap
-from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.lumped import is_lumped
 from pmdcid.simulate import param_values
@@ -68,11 +69,10 @@ def _free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[s
 class Run:
     """One diagnose run's shared state: the problem, the start, the rules, the refits."""
 
-    def __init__(self, problem: Problem, model: Model, rules: Rules, max_nfev: int):
+    def __init__(self, problem: Problem, model: Model, settings: Settings):
         self.problem = problem
         self.model = model
-        self.rules = rules
-        self.max_nfev = max_nfev
+        self.settings = settings
         self.say = lambda msg: None  # progress: told each round and refit
         torque_only = all(log.drive == "tau" for log in problem.logs)
         self.vals0 = param_values(model, torque_driven=torque_only)
@@ -91,8 +91,8 @@ class Run:
 
     def fit(self, start, free, part="fit", nfev=None) -> FitOutcome:
         """Local refit of ``free`` from ``start`` (:func:`staged_fit`)."""
-        return staged_fit(self.problem, start, free, part, nfev or self.max_nfev, self.typ,
-                          self.limits)
+        budget = nfev or self.settings.max_nfev
+        return staged_fit(self.problem, start, free, part, budget, self.typ, self.limits)
 
     def robust_fit(self, start, free, part="fit", nfev=None) -> FitOutcome:
         """Grid start over the friction, local fit, then a profile polish of bc and dz (the cost
@@ -197,15 +197,15 @@ def accept(cands: list[Candidate], rules: Rules) -> Candidate | None:
     return best
 
 
-def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_rounds: int,
-           notes: list[str]):
+def search(run: Run, cur: FitOutcome, pool: list[str], notes: list[str]):
     """Rounds of screen, refit the strongest, accept; returns (fit, added, every row seen,
     every refit in order)."""
     added: list[str] = []
     seen: dict[str, Candidate] = {}
     history: list[Candidate] = []
     cur_free = list(run.base_free)
-    for rnd in range(1, max_rounds + 1):
+    refit_top = run.settings.refit_top
+    for rnd in range(1, run.settings.max_rounds + 1):
         fl = run.at_floor(cur)
         if fl is not None:
             notes.append(f"the model predicts the repeated logs within their repeatability floor "
@@ -235,9 +235,10 @@ def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_round
             if ref["values"] is not cur.values and (rebase is None
                                                     or ref["chi2"]["fit"] < rebase[1]["fit"]):
                 rebase = (ref["values"], ref["chi2"])
-        best = accept(cands, run.rules)
+        best = accept(cands, run.settings.rules)
         if best is None:
-            if rebase is not None and rebase[1]["fit"] < (1 - run.rules.min_gain) * cur.chi2["fit"]:
+            gain = run.settings.rules.min_gain
+            if rebase is not None and rebase[1]["fit"] < (1 - gain) * cur.chi2["fit"]:
                 # no effect, but the current model fits clearly better elsewhere: move there
                 # and screen again
                 better = run.fit(rebase[0], cur_free)
@@ -248,20 +249,18 @@ def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_round
         added.append(best.effect)
         pool.remove(best.effect)
         cur_free = run.base_free + [p for e in added for p in effect_free(e)]
-        cur = run.robust_fit(best.outcome.values, cur_free, nfev=4 * run.max_nfev)
+        cur = run.robust_fit(best.outcome.values, cur_free, nfev=4 * run.settings.max_nfev)
     return cur, added, seen, history
 
 
 def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
-             split: float = 0.6, max_samples: int = 20000, refit_top: int = 3,
-             bic_threshold: float = -10.0, heldout_threshold: float = -10.0,
-             max_nfev: int = 40, max_rounds: int = 4, min_z: float = 5.0,
-             min_gain: float = 0.01, max_rise: float = 0.05,
-             progress=None, ramp: float | None = None) -> DiagnoseResult:
+             settings: Settings | None = None, progress=None,
+             ramp: float | None = None) -> DiagnoseResult:
     """Find the catalogue effects ``model`` lacks on ``logs``, add them, refit, report.
 
     ``effects`` restricts the catalogue searched (default: every effect screened by default,
-    i.e. all but ``lugre``, not already in the model).
+    i.e. all but ``lugre``, not already in the model). ``settings``: how the search runs and
+    the rules a candidate must pass (:class:`~pmdcid.diagnose.settings.Settings`).
     The input model is not modified. ``progress(msg)`` is called as each round starts and
     before each candidate's refit. ``ramp``: how slowly logged, continuously varying inputs
     varied between samples (fit-nonlinear's reading; :mod:`pmdcid.diagnose.hold`), profiled
@@ -270,10 +269,9 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
     from pmdcid.io import bounds
 
     bounds.check_rows(logs, bounds.MAX_DIAGNOSE_ROWS, "diagnose")  # before the work
-    rules = Rules(bic_threshold, heldout_threshold, min_z, min_gain, max_rise)
     with blas_single_thread():
-        return _diagnose(logs, model, effects, split, max_samples, refit_top, rules,
-                         max_nfev, max_rounds, progress or (lambda msg: None), ramp)
+        return _diagnose(logs, model, effects, settings or Settings(),
+                         progress or (lambda msg: None), ramp)
 
 
 def _pool(problem: Problem, model: Model, effects) -> list[str]:
@@ -292,16 +290,15 @@ def _pool(problem: Problem, model: Model, effects) -> list[str]:
             and all(problem.measures(s) for s in EFFECTS[e].requires)]
 
 
-def _diagnose(logs, model, effects, split, max_samples, refit_top, rules, max_nfev,
-              max_rounds, say, ramp=None) -> DiagnoseResult:
-    problem = Problem(logs, split, max_samples, holdout_plan(logs))
+def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> DiagnoseResult:
+    problem = Problem(logs, settings.split, settings.max_samples, holdout_plan(logs))
     pool = _pool(problem, model, effects)
-    run = Run(problem, model, rules, max_nfev)
+    run = Run(problem, model, settings)
     run.say = say
     notes: list[str] = []
     read_slow_inputs(run, ramp, notes)
     base = baseline(run)
-    cur, added, seen, history = search(run, base, pool, refit_top, max_rounds, notes)
+    cur, added, seen, history = search(run, base, pool, notes)
     new = model.copy()
     final = None
     if added:
@@ -315,4 +312,4 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, rules, max_nf
     return summarise(run, new, base, final_vals, added, seen, history, notes)
 
 
-__all__ = ["Candidate", "DiagnoseResult", "diagnose"]
+__all__ = ["Candidate", "DiagnoseResult", "Settings", "diagnose"]

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtrc  # scipy.stats.chi2.sf without scipy.stats' 0.4 s import
 
-from pmdcid.diagnose.problem import Problem
-from pmdcid.identify.results import nrmse
+from pmdcid.fit.problem import Problem
+from pmdcid.fit.results import nrmse
 from pmdcid.model.residual import LogResidual, ResidualContext
 from pmdcid.simulate import SimResult
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.diagnose.problem import Problem
+from pmdcid.fit.problem import Problem
 from pmdcid.identify.cpus import pmap
 from pmdcid.model.effects import Effect
 from pmdcid.model.residual import ResidualContext

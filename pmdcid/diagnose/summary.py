@@ -9,11 +9,11 @@ from dataclasses import dataclass, field
 from pmdcid.diagnose.candidates import Candidate, effect_free
 from pmdcid.diagnose.drive import drive_warnings
 from pmdcid.diagnose.folds import floor_of
-from pmdcid.diagnose.problem import FitOutcome
 from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, pooled, whiteness
 from pmdcid.diagnose.rules import UNTESTABLE
 from pmdcid.diagnose.shape import residual_shapes
-from pmdcid.identify.results import ResultProtocol
+from pmdcid.fit.problem import FitOutcome
+from pmdcid.fit.results import ResultProtocol
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.params import copy_model_into
 
@@ -92,7 +92,7 @@ def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
     if unexplained:
         dp = drift_problem(problem)
         if dp is not None:
-            notes.extend(drift_notes(dp, final_vals, run.max_nfev))
+            notes.extend(drift_notes(dp, final_vals, run.settings.max_nfev))
         shapes = residual_shapes(problem, final_sims,
                                  floor_of(run.floors), pooled(after)["omega_nrmse"])
     cands = sorted(seen.values(), key=lambda c: (not c.chosen, c.delta_bic))

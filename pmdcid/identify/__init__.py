@@ -1,1 +1,1 @@
-"""Identification stages of the paper, each in its own module, and the shared fitting engine."""
+"""Identification stages of the paper, each in its own module (their fits: :mod:`pmdcid.fit`)."""

@@ -20,6 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.fit.parameters import Parameters
+from pmdcid.fit.priors import prior_terms, stage_priors
+from pmdcid.fit.problem import noise_level
+from pmdcid.fit.simfit import FitOptions, fit_simulation
+from pmdcid.fit.solver import blas_single_thread
 from pmdcid.identify.nonlinear import (
     DIFF_STEP,
     REFINE_RANGE,
@@ -28,9 +33,6 @@ from pmdcid.identify.nonlinear import (
 )
 from pmdcid.identify.nonlinear_setup import REFERENCE_COLUMNS
 from pmdcid.identify.nonlinear_setup import closed_loop_logs as setup_closed
-from pmdcid.identify.priors import prior_terms, stage_priors
-from pmdcid.identify.simfit import fit_simulation, noise_level
-from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import Model
 from pmdcid.simulate.closedloop import feedforward_of, reference_of, simulate_closed_loop
 from pmdcid.simulate.controller import ControllerSpec
@@ -114,10 +116,9 @@ def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
               for k in ("J", "bv") if k in start and start[k] > 0}
     prior = stage_priors(model, free, STAGE) if priors else {}
     try:
-        fit = fit_simulation(logs, work, free, signals=signals, start=start,
-                             sigma=sigma, max_nfev=max_nfev, diff_step=DIFF_STEP,
-                             bounds=bounds, priors=prior_terms(prior),
-                             simulator=loop_simulator(spec))
+        params = Parameters.of(free, start, bounds, DIFF_STEP, prior_terms(prior))
+        fit = fit_simulation(logs, work, params, signals, sigma=sigma,
+                             options=FitOptions(max_nfev), simulator=loop_simulator(spec))
     except FitError as exc:
         raise FitError(f"closed-loop fit failed: {exc}") from None
     est = dict(fit.estimates)

@@ -19,9 +19,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.fit.results import Estimate, FitStats, ResultProtocol, format_estimates
 from pmdcid.identify.freerun import fit_free_running, loaded_current, rotor_turns
-from pmdcid.identify.results import Estimate, FitStats, ResultProtocol
-from pmdcid.identify.simfit import format_estimates
 from pmdcid.identify.steps import (
     StepInfo,
     find_steps,

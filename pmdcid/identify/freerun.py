@@ -28,9 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.identify.covariance import block_covariance
-from pmdcid.identify.results import Estimate, FitStats
-from pmdcid.identify.simfit import format_estimates
+from pmdcid.fit.covariance import block_covariance
+from pmdcid.fit.results import Estimate, FitStats, format_estimates
 from pmdcid.model import Model
 
 STAGE = "fit-electrical"

@@ -44,7 +44,7 @@ class RampProfile:
 
     def estimates(self, J=None) -> dict:
         """``ramp`` and, given the fit's J (an Estimate), J with the ramp's share of its error."""
-        from pmdcid.identify.results import Estimate
+        from pmdcid.fit.results import Estimate
 
         out = {"ramp": Estimate("ramp", self.value, self.stderr, "")}
         if J is not None:

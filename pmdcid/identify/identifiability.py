@@ -32,7 +32,7 @@ def poorly_determined(estimates, friction_level: float) -> list[str]:
     """Names with their relative (or, for :data:`NEAR_ZERO`, absolute) standard error, e.g.
     ``['J (± 55 %)', 'tau0 (± 0.0017 N m)']``, for the estimates the data do not determine.
 
-    ``estimates``: name -> :class:`~pmdcid.identify.results.Estimate`; ``friction_level``: the
+    ``estimates``: name -> :class:`~pmdcid.fit.results.Estimate`; ``friction_level``: the
     torque [N m] a near-zero parameter is judged against (e.g. max(bc, 1 % of the largest
     torque)).
     """
@@ -80,7 +80,7 @@ def hold_matters(log, J: float, bv: float) -> bool:
 
 def hold_warning(logs, J: float, bv: float, ramp=None) -> str | None:
     """A warning for the first log where :func:`hold_matters`; ``ramp``: the fitted reading of
-    the input between samples (an :class:`~pmdcid.identify.results.Estimate`), when the fit
+    the input between samples (an :class:`~pmdcid.fit.results.Estimate`), when the fit
     found it."""
     for log in logs:
         if not hold_matters(log, J, bv):

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 from pmdcid.errors import PmdcidError
-from pmdcid.identify.results import Estimate
+from pmdcid.fit.results import Estimate
 
 #: an L whose standard error exceeds this fraction of its value is carried into J, bv, bc
 L_POOR = 0.25

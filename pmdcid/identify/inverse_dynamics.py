@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.identify.covariance import block_covariance
-from pmdcid.identify.results import Estimate, ResultProtocol
+from pmdcid.fit.covariance import block_covariance
+from pmdcid.fit.results import Estimate, ResultProtocol
 from pmdcid.io.derive import check_cutoff, choose_cutoff, log_cutoff, log_kinematics, lowpass
 from pmdcid.model import Model
 from pmdcid.model.spec import BASE_PARAMS

@@ -114,7 +114,8 @@ def step_lag(logs, model) -> dict | None:
     when both are found, the latency alone is kept (``lag_and_latency`` says what was found).
     """
     from pmdcid.errors import PmdcidError
-    from pmdcid.identify.simfit import fit_simulation
+    from pmdcid.fit.parameters import Parameters
+    from pmdcid.fit.simfit import FitOptions, fit_simulation
     from pmdcid.simulate import logs_for
 
     use = [lg for lg in logs if lg.has("omega") and "omega" not in lg.derived and lg.n > 20]
@@ -130,9 +131,10 @@ def step_lag(logs, model) -> dict | None:
     fits = []
     for tau, delay in ((d0, 0.05 * dt), (0.05 * dt, d0)):
         try:
-            fits.append(fit_simulation(use, model, free, signals=("omega",),
-                                       start={**base, "tau_e": tau, "delay": delay},
-                                       diff_step={"bc": 1e-2}, max_nfev=100))
+            params = Parameters.of(free, {**base, "tau_e": tau, "delay": delay},
+                                   steps={"bc": 1e-2})
+            fits.append(fit_simulation(use, model, params, ("omega",),
+                                       options=FitOptions(max_nfev=100)))
         except PmdcidError:
             continue
     if not fits:

@@ -30,8 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.identify.results import Estimate, ResultProtocol
-from pmdcid.identify.simfit import format_estimates
+from pmdcid.fit.results import Estimate, ResultProtocol, format_estimates
 from pmdcid.model import Model
 from pmdcid.model.lumped import is_lumped
 

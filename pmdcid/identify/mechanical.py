@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.fit.results import Estimate, FitStats, ResultProtocol, format_estimates
 from pmdcid.identify.inductance import carry_inductance_error
 from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-exported
     MOVE_SIGMAS,
@@ -36,8 +37,6 @@ from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-expo
     paper_mechanical,
     speed_noise,
 )
-from pmdcid.identify.results import Estimate, FitStats, ResultProtocol
-from pmdcid.identify.simfit import format_estimates
 from pmdcid.identify.steps import despike, find_steps, lsq
 from pmdcid.model import Model
 

@@ -9,8 +9,8 @@ and the parameters minimise the weighted squared error of the simulated speed an
    logs (``tau`` column, R, L, km not needed) from inverse dynamics;
 2. global stage: a coarse grid over the two switching parameters (bc and dz, or bc and tau0),
    then over bv, all sets of a stage simulated in one compiled batch (:mod:`.grid`);
-3. local stage: trust-region least squares (:func:`.simfit.fit_simulation`) from the best set,
-   with finite-difference steps wide enough to step over the kernel's event quantisation;
+3. local stage: trust-region least squares (:func:`pmdcid.fit.simfit.fit_simulation`) from the
+   best set, with finite-difference steps wide enough to step over the kernel's event quantisation;
    standard errors and correlations from the Jacobian at the solution.
 
 Why not a gradient method alone: the cost is piecewise smooth (breakaway and dead-zone
@@ -28,6 +28,12 @@ from functools import partial
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.fit.parameters import Parameters
+from pmdcid.fit.priors import prior_terms, stage_priors
+from pmdcid.fit.problem import noise_level
+from pmdcid.fit.results import Estimate, ResultProtocol, SimFitResult, format_estimates
+from pmdcid.fit.simfit import FitOptions, fit_simulation
+from pmdcid.fit.solver import blas_single_thread
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.hold import hold_profile
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
@@ -42,10 +48,6 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     free_parameters,
     working_model,
 )
-from pmdcid.identify.priors import prior_terms, stage_priors
-from pmdcid.identify.results import Estimate, ResultProtocol, SimFitResult
-from pmdcid.identify.simfit import fit_simulation, format_estimates, noise_level
-from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import Model
 from pmdcid.simulate import param_values
 
@@ -266,10 +268,17 @@ def masked_upper(dzs, cost, thr) -> float:
 def _chisqr_and_J(logs, work, free, signals, start, sigma, max_nfev, bounds, prior,
                   ramp: float) -> tuple[float, float]:
     """The local fit with the input read at ``ramp`` between samples: (chi-square, J)."""
-    f = fit_simulation(logs, work, free, signals=signals, start={k: start[k] for k in free},
-                       sigma=sigma, max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
-                       priors=prior_terms(prior), overrides={"ramp": ramp})
+    params = _parameters(free, start, bounds, DIFF_STEP, prior_terms(prior), {"ramp": ramp})
+    f = fit_simulation(logs, work, params, signals, sigma=sigma, options=FitOptions(max_nfev))
     return f.stats.chisqr, f.estimates["J"].value if "J" in f.estimates else 0.0
+
+
+def _parameters(free, start, bounds, steps, priors, held: dict[str, float]) -> Parameters:
+    """The local stage's parameters: ``free`` from ``start``, the input reading ``held``."""
+    params = Parameters.of(free, start, bounds, steps, priors)
+    for n, v in held.items():
+        params.fix(n, v)
+    return params
 
 
 #: relative finite-difference steps of the polishing fits of a lumped model with an electrical
@@ -288,10 +297,11 @@ def _polish(logs, work, free, signals, fit, sigma, max_nfev, bounds, priors, hel
     best = fit
     for step in POLISH_STEPS if "tau_e" in free else ():
         try:
-            f = fit_simulation(logs, work, free, signals=signals, start=best.values(),
-                               sigma=sigma, max_nfev=max_nfev,
-                               diff_step={k: max(step, DIFF_STEP.get(k, 0.0)) for k in free},
-                               bounds=bounds, priors=priors, overrides=held)
+            params = _parameters(free, best.values(), bounds,
+                                 {k: max(step, DIFF_STEP.get(k, 0.0)) for k in free}, priors,
+                                 held)
+            f = fit_simulation(logs, work, params, signals, sigma=sigma,
+                               options=FitOptions(max_nfev))
         except FitError:
             continue
         if f.stats.chisqr < best.stats.chisqr:
@@ -366,7 +376,7 @@ def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool =
     torque-driven logs. R, L, km (voltage logs) and the model's other parameters are held.
     ``priors``: combine with the estimates earlier stages wrote (:func:`stage_priors`); False
     lets these logs alone decide. ``noise_model``: the local stage's AR noise model order (0:
-    white; closed-loop logs, :func:`pmdcid.identify.simfit.fit_simulation`).
+    white; closed-loop logs, :func:`pmdcid.fit.simfit.fit_simulation`).
     The model is not modified: call :meth:`NonlinearResult.apply`.
     """
     with blas_single_thread():
@@ -419,10 +429,10 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
         _chisqr_and_J, logs, work, ls_free, signals, best, sigma, max_nfev, bounds, prior))
     held = {"ramp": prof.value} if prof else {}
     base_vals = [{**b, **held} for b in base_vals]
-    fit = fit_simulation(logs, work, ls_free, signals=signals,
-                         start={k: best[k] for k in ls_free}, sigma=sigma, max_nfev=max_nfev,
-                         diff_step=DIFF_STEP, bounds=bounds,
-                         priors=prior_terms(prior), overrides=held, noise_model=noise_model)
+    opts = FitOptions(max_nfev, noise_model=noise_model)
+    fit = fit_simulation(logs, work, _parameters(ls_free, best, bounds, DIFF_STEP,
+                                                 prior_terms(prior), held),
+                         signals, sigma=sigma, options=opts)
     fit = _polish(logs, work, ls_free, signals, fit, sigma, max_nfev, bounds,
                   prior_terms(prior), held)
     if "dz" in free and len(free) > 1:
@@ -434,11 +444,9 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
         dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
         if c.min() < cfit - thr:
             start2 = {**point, "dz": float(dzs[int(np.argmin(c))])}
-            fit = fit_simulation(logs, work, free, signals=signals,
-                                 start={k: start2[k] for k in free}, sigma=sigma,
-                                 max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
-                                 priors=prior_terms(prior), overrides=held,
-                                 noise_model=noise_model)
+            fit = fit_simulation(logs, work, _parameters(free, start2, bounds, DIFF_STEP,
+                                                         prior_terms(prior), held),
+                                 signals, sigma=sigma, options=opts)
             point = {**best, **fit.values()}
             dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
         # identified only if the dead zone improves the fit clearly: by more than two standard

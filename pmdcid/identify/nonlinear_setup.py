@@ -108,12 +108,12 @@ def closed_loop_logs(logs, names=REFERENCE_COLUMNS) -> bool:
 def closed_loop_start(logs, model: Model, idm: dict[str, float]) -> dict[str, float]:
     """Closed-loop logs: inverse dynamics regresses the torque on a speed and an acceleration
     whose noise the controller fed back into that torque (biased: bv 1e-4 of its value on a PI
-    loop with 1 rad/s of speed noise, tests/test_closedloop.py). The quasi-static friction
+    loop with 1 rad/s of speed noise, tests/simulate/test_closedloop.py). The quasi-static friction
     (torque against the speed at the samples, no acceleration) with inverse dynamics' J
     competes with it by simulation error; the lower wins."""
+    from pmdcid.fit.problem import noise_level
     from pmdcid.identify.grid import batch_cost
     from pmdcid.identify.inverse_dynamics import fit_quasi_static
-    from pmdcid.identify.simfit import noise_level
     from pmdcid.simulate import param_values
     from pmdcid.simulate.initial import initial_state
 

@@ -20,8 +20,8 @@ import math
 import os
 
 from pmdcid.errors import LogError
+from pmdcid.fit.results import record_notes
 from pmdcid.identify.plausibility import gate, gate_result
-from pmdcid.identify.results import record_notes
 from pmdcid.io import read_logs
 from pmdcid.io.outputs import locked
 from pmdcid.model import load_model, save_model
@@ -183,8 +183,8 @@ def _step_latency(result, logs, model) -> None:
     ``tau_e`` (with J less the lag it folded in) and ``delay``: the model with the steps'
     estimates, simulated on them, against their measured speed. The lag first, so that no
     latency stands in for the armature's L/R."""
+    from pmdcid.fit.results import Estimate
     from pmdcid.identify.latency import step_lag
-    from pmdcid.identify.results import Estimate
 
     fitted = model.copy()
     result.apply(fitted)

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.identify.covariance import block_covariance
-from pmdcid.identify.solver import scale_of, solve, white_covariance
+from pmdcid.fit.covariance import block_covariance, white_covariance
+from pmdcid.fit.solver import scale_of, solve
 
 #: Strejc's table: Tu/Tn of the tangent at the inflection point for n equal lags, n = 1..6
 STREJC_TU_TN = (0.0, 0.104, 0.218, 0.319, 0.410, 0.493)

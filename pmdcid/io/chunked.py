@@ -6,7 +6,7 @@ the columns are copied out of it: a 100 MB, 2-million-row log took ~430 MB of re
 to read (docs/performance.md). :func:`read_chunked` reads it ``CHUNK_ROWS`` rows at a time with
 the same parser and options as the whole-file read, every column as float64, and joins the
 columns one at a time: the same numbers, bit for bit, as the whole-file read gives
-(``tests/test_read_chunked.py``), in about the size of the numbers plus one column.
+(``tests/io/test_chunked.py``), in about the size of the numbers plus one column.
 
 It steps aside (returns None, and the whole-file read serves, with its messages) for anything
 where the two could differ: a cell that is not a number (text, booleans), a parse error, or a

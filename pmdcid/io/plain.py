@@ -7,7 +7,7 @@ data rows hold nothing but digits, signs, points, exponents, commas and newlines
 None for anything else (quotes, spaces, empty or text cells, ``nan``, a byte-order mark, another
 separator, a ragged row), and for any file where pandas could give other numbers: pandas is
 then the reader, with its messages, exactly as before. On the files it accepts the two give the
-same bits (``tests/test_read_plain.py``: fixtures and random numbers in many formats).
+same bits (``tests/io/test_plain.py``: fixtures and random numbers in many formats).
 """
 
 from __future__ import annotations

@@ -92,7 +92,7 @@ def _log_signals(log, drive: fi.Drive, blocked: bool) -> tuple[str, ...]:
 
 def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
     """Predicted standard errors from ``logs`` (their inputs, their noise) at ``model``."""
-    from pmdcid.identify.simfit import noise_level
+    from pmdcid.fit.problem import noise_level
 
     drive = _log_drive(logs, model)
     vals = fi.model_values(model, drive)

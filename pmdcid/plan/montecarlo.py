@@ -2,7 +2,7 @@
 
 Each run simulates every free-rotor profile of the plan at the true values with white noise of
 the plan's levels (a ``numpy.random.Generator`` passed in) and fits it as the pipeline does, by
-simulation error with the tool's engine (:func:`pmdcid.identify.simfit.fit_simulation`): R and
+simulation error with the tool's engine (:func:`pmdcid.fit.simfit.fit_simulation`): R and
 L from the blocked-rotor step's current (``identify``'s fit-electrical: the free profiles'
 current is not used for R, so neither here nor in the prediction,
 :func:`pmdcid.plan.fisher.staged_stderr`), then J, bv, bc, dz from the speeds with R, L held at
@@ -59,8 +59,9 @@ def recorded_logs(plan: Plan, vals: dict[str, float], rng: np.random.Generator,
 def fit_once(plan: Plan, model: Model, rng: np.random.Generator,
              nsub: int | None = None) -> dict[str, float]:
     """One simulated recording of ``plan`` on ``model`` (the truth) and its fit."""
+    from pmdcid.fit.parameters import Parameters
+    from pmdcid.fit.simfit import FitOptions, fit_simulation
     from pmdcid.identify.nonlinear import DIFF_STEP
-    from pmdcid.identify.simfit import fit_simulation
 
     vals = fi.model_values(model, plan.drive)
     nsub = nsub or fi.internal_steps(plan.profiles[-1].t)
@@ -71,19 +72,19 @@ def fit_once(plan: Plan, model: Model, rng: np.random.Generator,
     if elec:
         # the current's simulation is exact at any internal step (linear, no back-EMF): 1
         held = [lg for lg, p in zip(logs, plan.profiles, strict=True) if p.blocked]
-        res = fit_simulation(held, work, elec, signals=("i",),
-                             start={n: vals[n] * START_OFF[n] for n in elec},
-                             sigma=[{"i": plan.noise["i"]}] * len(held), nsub=1,
-                             correlated=False)
+        res = fit_simulation(held, work,
+                             Parameters.of(elec, {n: vals[n] * START_OFF[n] for n in elec}),
+                             ("i",), sigma=[{"i": plan.noise["i"]}] * len(held),
+                             options=FitOptions(nsub=1, correlated=False))
         out.update(res.values())
         for n in elec:
             work.set(n, out[n])
     free = [n for n in FITTED if n in plan.names]
     moving = [lg for lg in logs if lg.has("omega")]
-    res = fit_simulation(moving, work, free, signals=("omega",),
-                         start={n: vals[n] * START_OFF[n] for n in free},
+    params = Parameters.of(free, {n: vals[n] * START_OFF[n] for n in free}, steps=DIFF_STEP)
+    res = fit_simulation(moving, work, params, ("omega",),
                          sigma=[{"omega": plan.noise["omega"]}] * len(moving),
-                         diff_step=DIFF_STEP, nsub=nsub, correlated=False)
+                         options=FitOptions(nsub=nsub, correlated=False))
     out.update(res.values())
     return out
 

@@ -36,7 +36,7 @@ class FigurePool:
     A reused figure is emptied of everything the figure functions add (lines, collections,
     patches, texts, legends, titles, labels, scales, limits) but keeps its axes and their tick
     objects, which are most of a figure's build cost. It draws the same pixels as a new one
-    (``tests/test_report_speed.py``).
+    (``tests/report/test_decimate.py``).
     """
 
     def __init__(self):

@@ -23,7 +23,7 @@ def _params_of(names, effects: dict) -> list[str]:
 def report_notes(model, summary: dict | None, logs) -> list[dict]:
     """Records (text, about, severity, stage, log, ``rows``: the parameter rows it qualifies,
     ``log_index``: the report's log it is about or None), warnings first, each text once."""
-    from pmdcid.identify.results import known_names
+    from pmdcid.fit.results import known_names
     from pmdcid.model import EFFECTS
     from pmdcid.notes import as_note
 

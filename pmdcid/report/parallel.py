@@ -11,7 +11,7 @@ one shared counter, each drawing with its own ``FigurePool``; a worker sends bac
 and never writes a file. Whatever a worker does not deliver (it did not start, died, stalled for
 :data:`STALL_SECONDS`, or its job raised) the caller draws itself, so the report is complete,
 fails as the serial path fails, and every PNG has the serial path's bytes
-(``tests/test_report_parallel.py``).
+(``tests/system/test_report_parallel.py``).
 """
 
 from __future__ import annotations

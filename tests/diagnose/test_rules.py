@@ -195,7 +195,8 @@ def test_final_model_keeps_only_what_it_supports(tau0, kept):
     size, and the rest refitted."""
     from pmdcid.diagnose.final import finalise
     from pmdcid.diagnose.loop import Run, baseline
-    from pmdcid.diagnose.problem import Problem
+    from pmdcid.diagnose.settings import Settings
+    from pmdcid.fit.problem import Problem
     from pmdcid.model import Model
 
     truth = _truth(tau0=tau0)
@@ -204,7 +205,7 @@ def test_final_model_keeps_only_what_it_supports(tau0, kept):
     for k in ("J", "bv", "bc"):
         model.set(k, truth[k])
     problem = Problem([log], plan=["split"])
-    run = Run(problem, model, Rules(), 40)
+    run = Run(problem, model, Settings())
     cur = baseline(run)
     added, notes = ["torque_offset"], []
     final, free = finalise(run, cur, added, notes, [])
@@ -220,8 +221,8 @@ def test_drift_is_compared_only_where_it_can_show():
     """A step's plateau is never compared with its transient; a periodic input's two parts
     are; repeats are compared run against run."""
     from pmdcid.diagnose.folds import holdout_plan
-    from pmdcid.diagnose.problem import Problem
     from pmdcid.diagnose.residuals import drift_problem
+    from pmdcid.fit.problem import Problem
 
     rng = np.random.default_rng(5)
     t = np.arange(6000) / 1000.0
@@ -248,8 +249,8 @@ def test_unidentified_dead_zone_is_said_in_the_models_unit(monkeypatch, lumped):
     from types import SimpleNamespace
 
     from pmdcid.diagnose import final as fin
-    from pmdcid.diagnose.problem import FitOutcome
-    from pmdcid.identify.results import FitStats
+    from pmdcid.fit.problem import FitOutcome
+    from pmdcid.fit.results import FitStats
     from pmdcid.model import Model
     from pmdcid.model.lumped import mark_lumped
 

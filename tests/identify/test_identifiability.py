@@ -7,10 +7,10 @@ import pytest
 from ident_util import as_log, slow_triangle
 
 from pmdcid.errors import FitError
+from pmdcid.fit.results import Estimate
 from pmdcid.identify.identifiability import poorly_determined
 from pmdcid.identify.inverse_dynamics import fit_quasi_static
 from pmdcid.identify.nonlinear import fit_nonlinear
-from pmdcid.identify.results import Estimate
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_values
 from pmdcid.synth import PAPER

@@ -8,11 +8,11 @@ import pytest
 from click.testing import CliRunner
 from ident_util import as_log, blocked_logs, perturbed_truth, step_logs, triangle_log
 
+from pmdcid.fit.results import nrmse
 from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.mechanical import fit_mechanical
 from pmdcid.identify.nonlinear import fit_nonlinear
-from pmdcid.identify.results import nrmse
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, param_values, simulate_values
 from pmdcid.synth import PAPER, PAPER_NOISE, staircase, synth_log, triangle

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pmdcid.diagnose.problem import Problem
 from pmdcid.diagnose.residuals import error_table
+from pmdcid.fit.problem import Problem
 from pmdcid.io import read_log, write_log
 from pmdcid.simulate import param_values
 from pmdcid.synth import NoiseSpec, simulate_file, synth_log, truth_model

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pmdcid.identify.simfit import fit_simulation
+from pmdcid.fit.parameters import Parameters
+from pmdcid.fit.simfit import FitOptions, fit_simulation
 from pmdcid.io import Log
 from pmdcid.model import EFFECTS, load_model
 from pmdcid.simulate import neutral_values, param_values, param_vector, simulate_values
@@ -161,9 +162,10 @@ def test_fit_round_trip_sigma0_sigma1(seed):
     truth = {**BASE, "sigma0": SIGMA0, "sigma1": SIGMA1}
     sd = 3e-5
     log = staircase_log(rng, truth, sd)
-    res = fit_simulation([log], truth_model(truth, ["lugre"]), ["sigma0", "sigma1", "bc"],
-                         signals=("theta",), sigma=[{"theta": sd}], initial=False,
-                         start={"sigma0": 2 * SIGMA0, "sigma1": 0.5 * SIGMA1, "bc": 1.2 * BC})
+    start = {"sigma0": 2 * SIGMA0, "sigma1": 0.5 * SIGMA1, "bc": 1.2 * BC}
+    res = fit_simulation([log], truth_model(truth, ["lugre"]), Parameters.of(start, start),
+                         signals=("theta",), sigma=[{"theta": sd}],
+                         options=FitOptions(initial=False))
     assert res.stats.redchi == pytest.approx(1.0, abs=0.1)
     for name, est in res.estimates.items():
         assert 0 < est.stderr < 0.02 * truth[name]

@@ -105,10 +105,10 @@ def test_log_that_starts_turning_is_not_credited_to_an_effect(tmp_path):
     m2 = Model()
     for k, v in LUMPED.items():
         m2.set(k, v * 1.3, stage="start")
-    from pmdcid.identify import simfit
+    from pmdcid.fit import simfit
 
     rest = simfit.fit_simulation(steps, m2, ["J", "bv", "bc"], signals=("omega",),
-                                 initial=False)
+                                 options=simfit.FitOptions(initial=False))
     assert max(abs(rest.values()[k] / LUMPED[k] - 1) for k in ("J", "bv", "bc")) > 0.05
 
 

@@ -1,13 +1,13 @@
 """The one least-squares solver every fit of pmdcid goes through.
 
-fit-electrical's and fit-mechanical's curve fits (:mod:`.steps`), the simulation-error engine
-(:mod:`.simfit`: fit-mechanical's joint fit, fit-nonlinear, inverse dynamics' refinement) and
-every diagnose refit (:mod:`pmdcid.diagnose.problem`) call :func:`solve`: scipy's trust-region
-reflective least squares on a scaled vector ``z = x / scale`` (each parameter of order one, so
-bounds, steps and tolerances mean the same for an inertia of 1e-6 kg m^2 and a resistance of
-3 ohm), one BLAS thread, and a solver failure turned into a :class:`~pmdcid.errors.FitError`.
-:func:`white_covariance` is the textbook covariance the correlated-residual sandwich
-(:mod:`.covariance`) starts from.
+fit-electrical's and fit-mechanical's curve fits (:mod:`pmdcid.identify.steps`), the
+simulation-error fits (:mod:`.simfit`: fit-mechanical's joint fit, fit-nonlinear, inverse
+dynamics' refinement) and every diagnose refit (:meth:`.problem.Problem.fit`) call
+:func:`solve`: scipy's trust-region reflective least squares on a scaled vector
+``z = x / scale`` (each parameter of order one, so bounds, steps and tolerances mean the same
+for an inertia of 1e-6 kg m^2 and a resistance of 3 ohm), one BLAS thread, and a solver
+failure turned into a :class:`~pmdcid.errors.FitError`.
+Covariances (the textbook one and the correlated-residual sandwich) are :mod:`.covariance`'s.
 
 The residual convention is the caller's, but every caller in pmdcid uses ``(simulated -
 measured) / sigma``.
@@ -77,8 +77,8 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     ``parallel``: the Jacobian's columns run on threads (``fun_z`` must then be safe to call from
     several threads at once: no shared scratch buffers); the same numbers for any thread count.
     """
-    from pmdcid.identify.fdjac import ForwardJacobian
-    from pmdcid.identify.tall import TALL_ROWS, Compressed
+    from pmdcid.fit.fdjac import ForwardJacobian
+    from pmdcid.fit.tall import TALL_ROWS, Compressed
 
     z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
     fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills, parallel=parallel)
@@ -106,12 +106,4 @@ def _least_squares(fun, z0, bounds, diff_step, max_nfev, x_scale, jac="2-point")
                          max_nfev=max_nfev, x_scale=x_scale)
 
 
-def white_covariance(jac: np.ndarray, resid: np.ndarray, dof: int | None = None) -> np.ndarray:
-    """Textbook covariance ``(J'J)^+ s^2``, ``s^2 = sum(r^2) / dof`` (``dof`` default: rows minus
-    columns, at least 1). Raises numpy's LinAlgError when J'J cannot be pseudo-inverted."""
-    r = np.asarray(resid, float)
-    dof = max(len(r) - jac.shape[1], 1) if dof is None else max(dof, 1)
-    return np.linalg.pinv(jac.T @ jac) * float(r @ r) / dof
-
-
-__all__ = ["Solution", "blas_single_thread", "scale_of", "solve", "white_covariance"]
+__all__ = ["Solution", "blas_single_thread", "scale_of", "solve"]

@@ -1,4 +1,4 @@
-"""identify/simfit.py: a fit's standard errors carry the uncertainty of the parameters it holds
+"""fit/simfit.py: a fit's standard errors carry the uncertainty of the parameters it holds
 (R and L from the blocked rotor) into the ones it fits (two-step estimator)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from ident_util import step_logs
 
-from pmdcid.identify.simfit import fit_simulation, held_uncertain
+from pmdcid.fit.simfit import fit_simulation, held_uncertain
 from pmdcid.model import Model
 from pmdcid.simulate import param_values
 from pmdcid.synth import PAPER

@@ -1,4 +1,4 @@
-"""Standard errors under correlated residuals (pmdcid.identify.covariance), by Monte Carlo on a
+"""Standard errors under correlated residuals (pmdcid.fit.covariance), by Monte Carlo on a
 linear regression whose true sampling spread is known from repetition."""
 
 import numpy as np
@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import lfilter
 
-from pmdcid.identify.covariance import block_covariance, integrated_time
+from pmdcid.fit.covariance import block_covariance, integrated_time
 
 
 @pytest.mark.parametrize(("rho", "theory"), [(0.0, 1.0), (0.9, 19.0), (0.98, 99.0)])

@@ -3,7 +3,7 @@
 Each stage writes its estimates with honest standard errors (the correlated-residual sandwich).
 A later simulation-error fit adds one residual row ``(x - value)/stderr`` per such parameter,
 so the posterior combines both data sets; the covariance step counts the prior's information
-(:func:`pmdcid.identify.simfit.fit_simulation`). The statistics: docs/identification.md.
+(:func:`pmdcid.fit.simfit.fit_simulation`). The statistics: docs/identification.md.
 """
 
 from __future__ import annotations
@@ -47,5 +47,5 @@ def stage_priors(model: Model, names, stage: str) -> dict[str, tuple[str, float,
 
 
 def prior_terms(prior) -> dict[str, tuple[float, float]]:
-    """name -> (mean, std) for :func:`~pmdcid.identify.simfit.fit_simulation`."""
+    """name -> (mean, std) for :func:`~pmdcid.fit.simfit.fit_simulation`."""
     return {n: (v, se) for n, (_, v, se) in prior.items()}

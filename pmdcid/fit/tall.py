@@ -19,9 +19,9 @@ square root will do: ``B = R22`` up to an orthogonal factor), from two BLAS prod
 full matrix and no m x n copy. The fit's result, its full residual and its full Jacobian are
 those of the uncompressed problem.
 
-Used by :func:`pmdcid.identify.solver.solve` only for problems of at least :data:`TALL_ROWS`
+Used by :func:`pmdcid.fit.solver.solve` only for problems of at least :data:`TALL_ROWS`
 rows, so every ordinary log takes the uncompressed path bit for bit; on tall problems the
-answers agree with it to rounding (``tests/test_tall.py``: about 1e-12 relative).
+answers agree with it to rounding (``tests/fit/test_tall.py``: about 1e-12 relative).
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ import numpy as np
 
 #: residuals with at least this many rows are compressed (a 17-minute log at 1 kHz, one signal)
 TALL_ROWS = 1 << 20
-#: rows per block where a tall matrix is reduced a block at a time (simfit._column_norms)
+#: rows per block where a tall matrix is reduced a block at a time
+#: (:func:`.covariance.column_norms`)
 BLOCK_ROWS = 1 << 15
 
 
@@ -41,7 +42,7 @@ def compressed_jacobian(f: np.ndarray, JT: np.ndarray) -> np.ndarray:
 
     From the Gram matrix ``J'J`` (one BLAS product, ~20 ms on 2 M rows with five parameters)
     rather than a Householder QR of ``[f J]`` (~180 ms, blocked): the solver's quantities agree
-    to ~1e-14 relative (``tests/test_tall.py``) and the fit's answer to rounding; the eigen
+    to ~1e-14 relative (``tests/fit/test_tall.py``) and the fit's answer to rounding; the eigen
     square root accepts the rank-deficient J (a zero column) that a Cholesky factor would not.
     """
     rho = float(np.sqrt(np.dot(f, f)))
@@ -53,7 +54,7 @@ def compressed_jacobian(f: np.ndarray, JT: np.ndarray) -> np.ndarray:
 
 class Compressed:
     """``least_squares``' residual and Jacobian callables for the compressed problem of a
-    :class:`~pmdcid.identify.fdjac.ForwardJacobian` ``fd`` (whose ``fun`` and ``__call__`` give
+    :class:`~pmdcid.fit.fdjac.ForwardJacobian` ``fd`` (whose ``fun`` and ``__call__`` give
     the full residual and Jacobian); :meth:`full` gives them back at the solution."""
 
     def __init__(self, fd):

@@ -1,4 +1,4 @@
-"""The fits' preallocated forward-difference Jacobian (pmdcid.identify.fdjac) gives bit for bit
+"""The fits' preallocated forward-difference Jacobian (pmdcid.fit.fdjac) gives bit for bit
 what scipy's jac="2-point" gives: the Jacobian itself, at and away from bounds, and whole fits."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ import pytest
 from ident_util import triangle_fit_problem
 from scipy.optimize._numdiff import approx_derivative
 
+import pmdcid.fit.fdjac as fdjac
 import pmdcid.identify.cpus as cpus
-import pmdcid.identify.fdjac as fdjac
-from pmdcid.identify.fdjac import ForwardJacobian
-from pmdcid.identify.simfit import fit_simulation
+from pmdcid.fit.fdjac import ForwardJacobian
+from pmdcid.fit.simfit import FitOptions, fit_simulation
 
 
 def _toy(x, out=None):
@@ -40,7 +40,8 @@ def test_jacobian_bit_identical_to_scipy_2_point(where):
 
 
 def _fit(log, model, free):
-    return fit_simulation([log], model, free, signals=("omega", "theta"), max_nfev=30)
+    return fit_simulation([log], model, free, signals=("omega", "theta"),
+                          options=FitOptions(max_nfev=30))
 
 
 def test_fit_bit_identical_to_scipy_2_point_and_recovers_truth(monkeypatch):

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.identify.covariance import CovarianceInfo
+from pmdcid.fit.covariance import CovarianceInfo
 
 
 class ResultProtocol:
@@ -205,6 +205,20 @@ class SimFitResult:
 
     def correlation(self, a: str, b: str) -> float:
         return self.correl.get(a, {}).get(b, math.nan)
+
+
+def format_estimates(estimates, width: int = 10) -> list[str]:
+    """Table lines ``name  value ± stderr  unit`` (``fixed`` when the parameter did not vary)."""
+    lines = [f"{'parameter':<{width}} {'value':>13}   {'± stderr':<11} unit"]
+    for e in estimates:
+        if not e.vary:
+            se = "(fixed)"
+        elif math.isfinite(e.stderr):
+            se = f"± {e.stderr:.2g}"
+        else:
+            se = "± ?"
+        lines.append(f"{e.name:<{width}} {e.value:13.6g}   {se:<11} {e.unit}".rstrip())
+    return lines
 
 
 def nrmse(sim: np.ndarray, meas: np.ndarray) -> float:

@@ -1,4 +1,4 @@
-"""Tall least-squares problems compressed before the solver (pmdcid.identify.tall) give the
+"""Tall least-squares problems compressed before the solver (pmdcid.fit.tall) give the
 uncompressed answer to rounding: the R factor, a smooth toy problem and a whole
 simulation-error fit (compression forced on a log of ordinary length)."""
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from ident_util import triangle_fit_problem
 
-import pmdcid.identify.tall as tall
-from pmdcid.identify.simfit import fit_simulation
-from pmdcid.identify.solver import solve
+import pmdcid.fit.tall as tall
+from pmdcid.fit.simfit import FitOptions, fit_simulation
+from pmdcid.fit.solver import solve
 
 
 def test_compressed_jacobian_keeps_the_normal_equations():
@@ -52,7 +52,8 @@ def test_simulation_fit_same_answer_as_uncompressed(monkeypatch):
     truth, log, model, free = triangle_fit_problem()
 
     def fit():
-        return fit_simulation([log], model, free, signals=("omega", "theta"), max_nfev=30)
+        return fit_simulation([log], model, free, signals=("omega", "theta"),
+                          options=FitOptions(max_nfev=30))
 
     ref = fit()
     monkeypatch.setattr(tall, "TALL_ROWS", 1)

@@ -8,7 +8,7 @@ long fit. :class:`ForwardJacobian` gives ``least_squares`` a ``jac`` callable th
 same numbers (scipy's own step rule and bound handling, the same differences and quotients in
 the same memory layout) with each evaluation written straight into its row of one matrix,
 allocated once per solve. The fits' results are bit for bit those of ``jac="2-point"``
-(``tests/test_fdjac.py``); when scipy's step helpers are not importable (a later scipy
+(``tests/fit/test_fdjac.py``); when scipy's step helpers are not importable (a later scipy
 renamed them), :meth:`ForwardJacobian.jac` is ``"2-point"`` itself.
 
 The columns are independent simulations: with ``parallel``, they are shared with the spare

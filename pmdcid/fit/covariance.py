@@ -22,6 +22,11 @@ independent samples shrinks. The block length is four times the residual's integ
 autocorrelation time (Sokal's automatic window), capped so that every log keeps at least
 :data:`MIN_BLOCKS` blocks. The estimate is consistent but biased low when a log spans few
 correlation times; :class:`CovarianceInfo` then says the errors are lower bounds.
+
+Every fit's covariance is formed here: the textbook one (:func:`white_covariance`), the
+sandwich, a simulation-error fit's with prior rows and held parameters
+(:func:`parameter_covariance`, :func:`propagated`), from the Jacobian of the cost's smooth
+envelope (:func:`envelope_jacobian`).
 """
 
 from __future__ import annotations
@@ -31,12 +36,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pmdcid.fit.tall import BLOCK_ROWS, TALL_ROWS
+from pmdcid.identify.cpus import pmap
+
 #: fewest blocks per log (a variance from fewer blocks is too noisy to use)
 MIN_BLOCKS = 10
 #: block length in integrated autocorrelation times (longer: less bias, fewer blocks)
 BLOCK_TAUS = 4.0
 #: a log shorter than this many correlation times gives standard errors biased low (Monte Carlo
-#: of fit-nonlinear: ~0.5x the true spread at 50, 0.8-1.1x at 150, tests/test_covariance.py)
+#: of fit-nonlinear: ~0.5x the true spread at 50, 0.8-1.1x at 150, tests/fit/test_covariance.py)
 MIN_TAUS = 50.0
 #: Sokal's window constant: sum the autocorrelation up to the first lag W >= C * tau(W)
 SOKAL_C = 5.0
@@ -156,3 +164,109 @@ def block_covariance(jac: np.ndarray, resid: np.ndarray, segments, white_cov: np
     ratio = ratio[np.isfinite(ratio)]
     inflation = float(ratio.max()) if len(ratio) else 1.0
     return cov, CovarianceInfo(block, nb, tau, short, inflation)
+
+
+def white_covariance(jac: np.ndarray, resid: np.ndarray, dof: int | None = None) -> np.ndarray:
+    """Textbook covariance ``(J'J)^+ s^2``, ``s^2 = sum(r^2) / dof`` (``dof`` default: rows minus
+    columns, at least 1). Raises numpy's LinAlgError when J'J cannot be pseudo-inverted."""
+    r = np.asarray(resid, float)
+    dof = max(len(r) - jac.shape[1], 1) if dof is None else max(dof, 1)
+    return np.linalg.pinv(jac.T @ jac) * float(r @ r) / dof
+
+
+def correlated_covariance(jac: np.ndarray, resid: np.ndarray, segments):
+    """``(cov, CovarianceInfo)``: the block sandwich (:func:`block_covariance`) started from the
+    textbook covariance of ``jac`` and ``resid``."""
+    return block_covariance(jac, resid, segments, white_covariance(jac, resid))
+
+
+def parameter_covariance(jac, fun, nd, segments, redchi, correlated, weight=1.0):
+    """Parameter covariance of a simulation-error fit: the data rows' (the first ``nd`` rows of
+    ``jac`` and ``fun``; white or correlated-residual sandwich), combined with the prior rows'
+    information: ``(Hd + P)^-1 (Sd + w^2 P) (Hd + P)^-1`` where ``Sd`` is the data score's
+    covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision and ``w`` their
+    weight (the prior means' own variance, scaled like their rows). Returns ``(cov, info)``.
+
+    Computed with the Jacobian's columns scaled to unit norm (``jac`` is scaled in place) and
+    scaled back (the same covariance): parameters of very different sizes (LuGre's sigma0 ~
+    1e2 N m/rad beside bc ~ 1e-3 N m) would otherwise give J'J a condition number past the
+    pseudo-inverse's cut-off, which then zeroes the small direction's variance."""
+    norms = column_norms(jac)
+    d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+    jac *= d  # in place: the caller's matrix, not used after (no m x n copy on long logs)
+    cov, info = _scaled_covariance(jac, fun, nd, segments, redchi, correlated, weight)
+    return cov * np.outer(d, d), info
+
+
+def column_norms(J: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each column; on a tall matrix a block of rows at a time (no m x n
+    square), which agrees with ``np.linalg.norm(J, axis=0)`` to rounding."""
+    if len(J) < TALL_ROWS:
+        return np.linalg.norm(J, axis=0)
+    ss = np.zeros(J.shape[1])
+    for a in range(0, len(J), BLOCK_ROWS):
+        ss += np.einsum("ij,ij->j", J[a:a + BLOCK_ROWS], J[a:a + BLOCK_ROWS])
+    return np.sqrt(ss)
+
+
+def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
+    Jd = Jm[:nd]
+    Hd = Jd.T @ Jd
+    cov = np.linalg.pinv(Hd) * redchi
+    info = None
+    if correlated:
+        cov, info = block_covariance(Jd, fun[:nd], segments, cov)
+    if nd == len(fun):
+        return cov, info
+    Jp = Jm[nd:]
+    P = Jp.T @ Jp
+    Sd = Hd @ cov @ Hd
+    Hinv = np.linalg.pinv(Hd + P)
+    return Hinv @ (Sd + weight**2 * P) @ Hinv, info
+
+
+def propagated(jac: np.ndarray, held_jac: np.ndarray, held_se: np.ndarray) -> np.ndarray:
+    """The covariance the held parameters' own uncertainty adds to the fitted ones (a two-step
+    estimator: the fitted values move by G = -(J'J)^-1 J'J_h per unit of the held ones, so
+    cov += G diag(se_h^2) G')."""
+    if held_jac.shape[1] == 0:
+        return np.zeros((jac.shape[1], jac.shape[1]))
+    g = -np.linalg.lstsq(jac, held_jac, rcond=None)[0]
+    return (g * held_se**2) @ g.T
+
+
+def envelope_jacobian(fun, z, f0, lo, hi, rel, parallel: bool = True) -> np.ndarray:
+    """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one for all or
+    one per column; one-sided at a bound); columns that still come out zero fall back to a 5x
+    wider step: the slope of the cost's smooth envelope, where the solver's forward differences
+    may cross no switching event (a zero column, hence a zero standard error). With
+    ``parallel`` the columns are shared with the spare CPUs (:func:`pmap`): ``fun`` must be safe
+    to call from several threads; the same bits for any number of threads."""
+    J = np.empty((len(f0), len(z)))  # filled column by column: no list of columns to stack
+    rels = np.broadcast_to(np.asarray(rel, float), (len(z),))
+
+    def column(j):
+        for r in (rels[j], 5 * rels[j]):
+            h = r * max(abs(z[j]), 1e-12)
+            up, dn = min(z[j] + h, hi[j]), max(z[j] - h, lo[j])
+            if up <= dn:
+                J[:, j] = 0.0
+                break
+            zu, zd = z.copy(), z.copy()
+            zu[j], zd[j] = up, dn
+            fu = fun(zu) if up > z[j] else f0
+            fd = fun(zd) if dn < z[j] else f0
+            d = fu - fd  # then divided in place: one temporary of the residual's length
+            d /= up - dn
+            J[:, j] = d
+            del d
+            if np.any(J[:, j] != 0):
+                break
+
+    pmap(column, range(len(z)), parallel)
+    return J
+
+
+__all__ = ["CovarianceInfo", "block_covariance", "column_norms", "correlated_covariance",
+           "envelope_jacobian", "integrated_time", "parameter_covariance", "propagated",
+           "white_covariance"]

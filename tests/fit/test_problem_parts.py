@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from repo_paths import FIXTURES
 
-from pmdcid.diagnose.problem import Problem, as_slice
+from pmdcid.fit.problem import Problem, as_slice
 from pmdcid.io import read_log
 from pmdcid.simulate import param_values
 from pmdcid.synth import truth_model

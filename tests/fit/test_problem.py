@@ -1,0 +1,88 @@
+"""The fit engine's parameter set (pmdcid.fit.parameters) and its one problem (pmdcid.fit.problem):
+bounds, fixed values and priors reach the fit; the residual is (simulated - measured) / sigma
+per channel; a simulation-error fit and diagnose's refit of the same data agree."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from ident_util import triangle_fit_problem
+
+from pmdcid.errors import FitError
+from pmdcid.fit.parameters import Parameters
+from pmdcid.fit.problem import SWITCH_STEP, Problem, Simulation
+from pmdcid.fit.simfit import FitOptions, fit_simulation
+from pmdcid.model.effects import bounds_of
+from pmdcid.simulate import param_values
+
+
+def test_parameter_set_bounds_fixed_and_priors():
+    ps = Parameters.of(["J", "bv", "bc"], {"J": 2e-3, "bv": 0.5, "bc": math.nan},
+                       bounds={"bv": (0.0, 0.1)}, priors={"J": (3e-3, 1e-4), "bv": (0.1, 0.0)},
+                       steps={"bc": 1e-2})
+    assert (ps["J"].lower, ps["J"].upper) == bounds_of("J")
+    ps.tighten("J", 1e-3, math.inf)  # never widens
+    assert ps["J"].lower == 1e-3 and ps["J"].upper == bounds_of("J")[1]
+    with pytest.raises(FitError, match="bc"):
+        ps.start()
+    full = ps.filled({"bc": 4e-3, "J": 9.0})  # only the missing value is taken
+    assert full["bc"].value == 4e-3 and full["J"].value == 2e-3 and math.isnan(ps["bc"].value)
+    np.testing.assert_array_equal(full.start(), [2e-3, 0.1, 4e-3])  # bv clipped to its bound
+    np.testing.assert_array_equal(full.steps(), [1e-3, 1e-3, 1e-2])
+    assert full.prior_rows() == [(0, 3e-3, 1e-4)]  # a zero-width prior is none
+    full.fix("dz", 0.01)
+    assert full.free == ["J", "bv", "bc"] and len(full.start()) == 3
+
+
+def test_residual_is_simulated_minus_measured_over_sigma():
+    truth, log, model, _ = triangle_fit_problem()
+    vals = param_values(model)
+    pr = Problem([log], max_samples=None, plan=["fit"], signals=("theta", "omega"),
+                 sigma=[{"omega": 0.5}], simulation=Simulation())
+    assert [ch.signal for ch in pr.channels] == ["theta", "omega"]
+    assert pr.channels[1].sigma == 0.5
+    sims = pr.simulate_all(vals)
+    r = pr.weighted(sims, "all")
+    assert len(r) == 2 * log.n == pr.rows("all") and pr.rows("held") == 0
+    sim = sims[0]
+    np.testing.assert_allclose(r[log.n:], (sim.omega - log["omega"]) / 0.5, rtol=1e-12)
+    np.testing.assert_allclose(r[:log.n], (sim.theta - log["theta"]) / pr.channels[0].sigma,
+                               rtol=1e-12)
+
+
+def test_a_fixed_parameter_is_the_one_simulated():
+    """bc held at the truth lets J and bv come back near the truth; held 40 % high, the fit
+    must move them to pay for it (the fixed value reaches every simulation)."""
+    truth, log, model, _ = triangle_fit_problem()
+    free = ["J", "bv"]
+
+    def fit(bc):
+        ps = Parameters.of(free, {k: truth[k] * 1.15 for k in free})
+        ps.fix("bc", bc)
+        ps.fix("dz", truth["dz"])
+        return fit_simulation([log], model, ps, ("omega",), options=FitOptions(max_nfev=60))
+
+    right, wrong = fit(truth["bc"]), fit(1.4 * truth["bc"])
+    for k in free:
+        assert right.estimates[k].value == pytest.approx(truth[k], rel=0.02)
+    assert wrong.stats.chisqr > 1.5 * right.stats.chisqr
+    assert abs(wrong.values()["bv"] / truth["bv"] - 1) > 0.02
+
+
+def test_simulation_fit_and_diagnose_refit_agree():
+    """The same data, parameters, start and finite-difference steps through fit_simulation and
+    through diagnose's refit (Problem.fit, its own part 'all', uncapped internal steps): the same
+    minimum within 1 %, near the truth."""
+    truth, log, model, free = triangle_fit_problem()
+    vals = param_values(model)
+    ps = Parameters.of(free, vals, steps={"bc": SWITCH_STEP, "dz": SWITCH_STEP})
+    a = fit_simulation([log], model, ps, ("omega",), options=FitOptions(initial=False))
+    pr = Problem([log], max_samples=None, plan=["fit"], signals=("omega",),
+                 simulation=Simulation(initial=False))
+    b = pr.fit(vals, free, "all", max_nfev=200)
+    for k in free:
+        assert b.values[k] == pytest.approx(a.values()[k], rel=0.01)
+        assert a.values()[k] == pytest.approx(truth[k], rel=0.05)
+    assert b.chi2["all"] == pytest.approx(a.stats.chisqr, rel=0.01)
