@@ -6,7 +6,8 @@ together. The step fits need only a Savitzky-Golay smoothing and slope (Strejc's
 tangent) and a 5-point running median (isolated speed spikes), the latency searches one
 correlation: :func:`savgol`, :func:`medfilt5` and :func:`correlate_valid` compute what
 ``scipy.signal.savgol_filter(..., mode="interp")``, ``scipy.signal.medfilt(y, 5)`` and
-``scipy.signal.correlate(a, v, mode="valid")`` do, to rounding (tests/identify/test_filters.py compares
+``scipy.signal.correlate(a, v, mode="valid")`` do, to rounding
+(tests/identify/test_filters.py compares
 them).
 """
 

@@ -13,7 +13,7 @@ its stamp matches the current sources, so an edited physics term never runs stal
 otherwise, or when it was not built (no C compiler, a numba without ``numba.pycc``, or
 ``PMDCID_JIT=1``), the callers use numba's JIT as before (:mod:`pmdcid.simulate.lazyjit`).
 Both are LLVM code of the same source without fast-math and give the same bits
-(``tests/simulate/test_aot.py``). The batch runs its parameter sets one after another here (``prange`` is
+(``tests/test_aot.py``). The batch runs its parameter sets one after another here (``prange`` is
 a plain loop ahead of time), on threads under the JIT; each set's cost is summed in the same
 order.
 """
