@@ -1,7 +1,7 @@
 """A slowly logged, continuously varying input in diagnose: read between its samples as
 fit-nonlinear reads it (:mod:`pmdcid.identify.hold`).
 
-Read as held (CONTRACT.md's zero-order hold), a continuous command logged slowly acts half a
+Read as held (docs/io.md's zero-order hold), a continuous command logged slowly acts half a
 sample late; where the sample period is not small against J/bv, a refit turns that lag into a
 wrong inertia, and the search turns it into an effect nobody has (on the paper's motor with its
 triangle logged at 10 Hz, diagnose added ``input_delay`` and rewrote J). The logs where the

@@ -79,7 +79,6 @@ class Run:
         self.base_free = _free_base(problem, self.vals0, model)
         self.refresh()
         self.floors = repeatability(problem.logs)
-        self.held_ref: list[dict[str, float]] | None = None
 
     def refresh(self) -> None:
         """The start's residual context, typical scales and the effects' limits (again after

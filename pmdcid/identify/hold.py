@@ -1,6 +1,6 @@
 """How a slowly logged input varied between its samples: held, or straight to the next sample.
 
-CONTRACT.md reads ``v`` and ``tau`` as held between samples (zero-order hold). A command that
+docs/io.md reads ``v`` and ``tau`` as held between samples (zero-order hold). A command that
 varies continuously (a ramp, a sine generated faster than it is logged) is not: read as held, it
 acts half a sample late, and when the sample period is not small against the mechanical time
 constant J/bv a fit turns that lag into a wrong inertia with a small standard error

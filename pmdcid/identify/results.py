@@ -208,7 +208,7 @@ class SimFitResult:
 
 
 def nrmse(sim: np.ndarray, meas: np.ndarray) -> float:
-    """RMS error divided by the standard deviation of the measurement (CONTRACT.md)."""
+    """RMS error divided by the standard deviation of the measurement (docs/report.md)."""
     ok = np.isfinite(sim) & np.isfinite(meas)
     if ok.sum() < 2:
         return math.nan

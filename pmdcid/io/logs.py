@@ -8,7 +8,6 @@ A log is comma-separated text with one header row. ``#`` lines before the header
 from __future__ import annotations
 
 import io as _io
-import math
 import os
 import tempfile
 from collections import Counter
@@ -405,10 +404,3 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
 def write_log(path, t, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None) -> None:
     """Write a canonical log atomically, streaming it in chunks."""
     atomic_write(path, lambda fh: write_csv(fh, np.asarray(t), columns, meta))
-
-
-def is_finite_number(x) -> bool:
-    try:
-        return math.isfinite(float(x))
-    except (TypeError, ValueError):
-        return False

@@ -1,6 +1,6 @@
 """Model parameters and the model file (JSON, written atomically).
 
-Base parameters (CONTRACT.md): ``R`` [ohm], ``L`` [H], ``km`` [N m/A], ``J`` [kg m^2],
+Base parameters (docs/model.md): ``R`` [ohm], ``L`` [H], ``km`` [N m/A], ``J`` [kg m^2],
 ``b`` [N m s/rad] (linear viscous from fit-mechanical), ``bv`` [N m s/rad], ``bc`` [N m],
 ``dz`` [N m] (torque break point of the hard dead zone). Effect parameters are declared by the
 effects in :mod:`pmdcid.model.effects`.

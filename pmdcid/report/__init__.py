@@ -115,7 +115,7 @@ def _is_num(x) -> bool:
 
 
 def _summary_shape_error(obj: dict) -> str | None:
-    """What in a diagnose summary has the wrong type (None: its fields are as CONTRACT.md)."""
+    """What in a diagnose summary has the wrong type (None: fields as in docs/cli.md)."""
     added = obj.get("added", [])
     if not isinstance(added, list) or not all(isinstance(a, str) for a in added):
         return "field 'added' must be a list of effect names"
@@ -169,7 +169,7 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
                 force: bool = False) -> ReportResult:
     """Compare ``model`` with every log and write the report into ``out_dir`` (see module doc).
 
-    ``summary`` is a diagnose summary (CONTRACT.md) shown on the page; without it a
+    ``summary`` is a diagnose summary (docs/cli.md) shown on the page; without it a
     ``diagnose`` record in ``model.extra`` is used. When the model carries effects (or
     ``before_model`` is given) the page shows the error before and after them.
     ``progress(msg)`` is called before each log's simulation and before the figures.

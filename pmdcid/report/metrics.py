@@ -2,7 +2,7 @@
 
 Definitions (every one is reported in ``metrics.json``):
 
-- ``nrmse`` = RMS(sim - meas) / std(meas) (CONTRACT.md; the same as MATLAB ``compare``'s
+- ``nrmse`` = RMS(sim - meas) / std(meas) (docs/report.md; the same as MATLAB ``compare``'s
   NRMSE cost) and ``fit_percent`` = 100 (1 - nrmse), MATLAB ``compare``'s fit.
 - ``rms``, ``max_abs`` [unit of the signal]: RMS and largest absolute error.
 - Regimes: ``low_speed`` holds the samples where |omega_meas| < ``omega_threshold``
