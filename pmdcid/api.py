@@ -92,7 +92,7 @@ def identify(logs, model=None, *, km: float | None = None, diagnose: bool = True
     Returns a :class:`~pmdcid.pipeline.IdentifyResult` (``.model`` is the identified model)."""
     from pmdcid.io.args import number_arg
     from pmdcid.pipeline import identify as run
-    from pmdcid.progress import resolve
+    from pmdcid.runtime.progress import resolve
 
     km = number_arg(km, "km", positive=True)
     return run(_logs(logs), _model(model), km=km, run_diagnose=diagnose, priors=priors,
@@ -178,7 +178,7 @@ def diagnose(logs, model, *, effects=None, progress=None):
     :class:`~pmdcid.diagnose.loop.DiagnoseResult` (``.model`` has the effects added)."""
     from pmdcid.diagnose.files import diagnose_logs
     from pmdcid.io.args import names_arg
-    from pmdcid.progress import resolve
+    from pmdcid.runtime.progress import resolve
 
     effects = names_arg(effects, "effects")
     return diagnose_logs(_logs(logs), _model(model), effects=effects,
@@ -202,8 +202,8 @@ def report(logs, model, out_dir, *, summary=None, before=None, progress=None):
     as ``pmdcid report``. ``summary``: a diagnose summary dict; ``before``: a model to show as
     'before'. Returns a :class:`~pmdcid.report.ReportResult`."""
     from pmdcid.io.args import path_arg
-    from pmdcid.progress import resolve
     from pmdcid.report import make_report
+    from pmdcid.runtime.progress import resolve
 
     out_dir = path_arg(out_dir, "out_dir")
     if summary is not None and not isinstance(summary, dict):

@@ -439,8 +439,8 @@ def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_dia
     from pmdcid.errors import LogError
     from pmdcid.identify.plausibility import gate, gate_result
     from pmdcid.io import read_logs
-    from pmdcid.io.outputs import locked
     from pmdcid.model import load_model, save_model
+    from pmdcid.runtime.outputs import locked
     from pmdcid.simulate.substeps import bounded_for
 
     for p in paths:

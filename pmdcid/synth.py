@@ -211,7 +211,7 @@ def simulate_files(input_paths: list[str], model_path, out_dir, echo=None, **opt
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise LogError("is a file, not a folder: with several INPUTs, -o names a folder", str(out))
-    from pmdcid.io.outputs import output_folder
+    from pmdcid.runtime.outputs import output_folder
 
     written = []
     with output_folder(out):  # removed again if the first write fails

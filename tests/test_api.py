@@ -180,7 +180,7 @@ class _Tty(io.StringIO):
 
 
 def test_progress_lines_only_on_a_terminal():
-    from pmdcid.progress import resolve, stage_lines
+    from pmdcid.runtime.progress import resolve, stage_lines
 
     quiet, tty = io.StringIO(), _Tty()
     stage_lines(quiet)("joint fit")

@@ -8,8 +8,8 @@ import pytest
 from ident_util import triangle_fit_problem
 from scipy.optimize._numdiff import approx_derivative
 
-import pmdcid.identify.cpus as cpus
 import pmdcid.identify.fdjac as fdjac
+import pmdcid.runtime.cpus as cpus
 from pmdcid.identify.fdjac import ForwardJacobian
 from pmdcid.identify.simfit import fit_simulation
 

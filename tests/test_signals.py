@@ -64,7 +64,7 @@ def test_sighup_is_handled_like_sigterm(tmp_path, stage, log, where, after):
 def test_an_interrupt_cancels_the_remaining_pieces(monkeypatch):
     """Ctrl-C in one piece of a map: no thread takes another piece (diagnose's refits took
     16-34 s to stop, the pool finishing its pieces first)."""
-    from pmdcid.identify import cpus
+    from pmdcid.runtime import cpus
 
     monkeypatch.setenv("PMDCID_THREADS", "2")
     if cpus.workers() < 2:
@@ -96,7 +96,7 @@ def test_an_interrupt_cancels_the_remaining_pieces(monkeypatch):
 def test_nohup_keeps_sighup_ignored(tmp_path):
     """Under nohup (SIGHUP ignored) a closed terminal must not end the command."""
     code = ("import signal, sys; signal.signal(signal.SIGHUP, signal.SIG_IGN)\n"
-            "from pmdcid.io.outputs import install_sigterm\n"
+            "from pmdcid.runtime.signals import install_sigterm\n"
             "install_sigterm()\n"
             "sys.exit(0 if signal.getsignal(signal.SIGHUP) == signal.SIG_IGN else 3)\n")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

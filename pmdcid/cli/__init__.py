@@ -42,7 +42,8 @@ class _Group(click.Group):
             elif os.environ.get("PMDCID_DEBUG"):
                 echo(f"warning: {category.__name__}: {message}", err=True)
 
-        from pmdcid.io.outputs import Terminated, install_sigterm, transaction
+        from pmdcid.runtime.outputs import transaction
+        from pmdcid.runtime.signals import Terminated, install_sigterm
 
         with warnings.catch_warnings():  # click 8.2 deprecates protected_args (9: in args)
             warnings.simplefilter("ignore", DeprecationWarning)
@@ -103,10 +104,10 @@ def echo(text="", err: bool = False) -> None:
 
 
 def progress_lines():
-    """The commands' progress callback: :func:`pmdcid.progress.stage_lines`, its messages
+    """The commands' progress callback: :func:`pmdcid.runtime.progress.stage_lines`, its messages
     passed through :func:`pmdcid.io.escape.terminal`."""
     from pmdcid.io.escape import terminal
-    from pmdcid.progress import stage_lines
+    from pmdcid.runtime.progress import stage_lines
 
     lines = stage_lines()
     return lambda msg: lines(terminal(msg))

@@ -99,15 +99,15 @@ def _check(logs, model_path, settings, out_dir, mapping) -> None:
     from pathlib import Path
 
     from pmdcid.io import read_logs
-    from pmdcid.io.logs import atomic_write_text
     from pmdcid.model import load_model
     from pmdcid.plan.check import check_logs
+    from pmdcid.runtime.outputs import atomic_write_text
 
     res = check_logs(read_logs(logs, mapping), load_model(model_path), settings)
     for line in res.lines():
         echo(line)
     if out_dir:
-        from pmdcid.io.outputs import output_folder
+        from pmdcid.runtime.outputs import output_folder
 
         with output_folder(out_dir) as d:
             atomic_write_text(d / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")

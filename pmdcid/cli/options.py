@@ -81,12 +81,12 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
 
     Runs at the edge before the command does any work, so no command can overwrite a user's log;
     every output (and the model a stage writes) passes the one output guard first
-    (:func:`pmdcid.io.outputs.check_target`: no FIFO, device or symlink loop).
+    (:func:`pmdcid.runtime.outputs.check_target`: no FIFO, device or symlink loop).
     """
     import os
 
     from pmdcid.errors import LogError
-    from pmdcid.io.outputs import check_target
+    from pmdcid.runtime.outputs import check_target
 
     ctx = ctx or click.get_current_context(silent=True)
     if ctx is None:

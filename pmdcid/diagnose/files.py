@@ -49,9 +49,8 @@ def run_diagnose(paths, model_path, out_path, summary_path=None, mapping=None, e
     """
     from pmdcid.identify.plausibility import gate
     from pmdcid.io import read_logs
-    from pmdcid.io.logs import atomic_write_text
-    from pmdcid.io.outputs import check_overwrite, locked
     from pmdcid.model import load_model, save_model
+    from pmdcid.runtime.outputs import atomic_write_text, check_overwrite, locked
     from pmdcid.simulate.substeps import bounded_for
 
     for p in paths:

@@ -36,10 +36,10 @@ from pmdcid.diagnose.screen import Screen, Screener
 from pmdcid.diagnose.starts import grid_start, profile_best, staged_fit
 from pmdcid.diagnose.summary import DiagnoseResult, summarise, write_model
 from pmdcid.errors import ModelError
-from pmdcid.identify.cpus import pmap
 from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.lumped import is_lumped
+from pmdcid.runtime.cpus import pmap
 from pmdcid.simulate import param_values
 
 #: base parameters diagnose refits along with the effects (those the logs inform)
@@ -223,7 +223,7 @@ def search(run: Run, cur: FitOutcome, pool: list[str], refit_top: int, max_round
         cands = []
         for s in ranked:
             run.say(f"diagnose round {rnd}: refitting {s.effect}")
-        # the candidates' refits are independent: shared with the spare CPUs (identify/cpus.py;
+        # the candidates' refits are independent: shared with the spare CPUs (runtime/cpus.py;
         # the same results in the same order for any number of threads)
         done = pmap(lambda s, cur=cur, free=cur_free, rnd=rnd:
                     evaluate(run, s, cur, effect_free(s.effect) + free, rnd), ranked)

@@ -140,7 +140,7 @@ def _is_ours(path: Path) -> bool:
 
 def check_outputs(paths: list[Path], model_path: str, force: bool) -> None:
     """Refuse to overwrite the model, or (without ``force``) a file pmdcid export did not write."""
-    from pmdcid.io.outputs import check_target
+    from pmdcid.runtime.outputs import check_target
 
     for out in paths:
         check_target(out)  # a FIFO would hang the check below; a device is never replaced
@@ -202,7 +202,7 @@ def export_model(model_path: str, fmt: str, output: str, force: bool = False,
                  note: Callable[[str], None] | None = None) -> list[str]:
     """``pmdcid export``: write ``fmt`` code for the model in ``model_path``; returns the paths.
     ``note(line)`` receives what the format approximates (MuJoCo), one line each."""
-    from pmdcid.io.logs import atomic_write
+    from pmdcid.runtime.outputs import atomic_write
 
     if fmt not in FORMATS:
         raise ExportError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})")

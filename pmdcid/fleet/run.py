@@ -266,7 +266,7 @@ def write_outputs(res: FleetResult) -> None:
     """units.parquet, outliers.csv and fleet.html into DIR, each atomically."""
     from pmdcid.fleet import figures, page, table
     from pmdcid.fleet.population import param_names
-    from pmdcid.io.logs import atomic_write, atomic_write_text
+    from pmdcid.runtime.outputs import atomic_write, atomic_write_text
 
     names = param_names(res.rows)
     attrs = list(dict.fromkeys(a for r in res.rows for a in r.get("attrs", {})))

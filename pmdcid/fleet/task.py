@@ -4,7 +4,7 @@
 runs, on the measurement's log files with the fleet's options, writing the model into a
 temporary folder of the worker; the parameters are the same bits as a lone ``pmdcid identify``
 of those logs gives (every fit is bit for bit the same for any number of threads,
-:mod:`pmdcid.identify.cpus`). It never raises for a unit's own problem: a
+:mod:`pmdcid.runtime.cpus`). It never raises for a unit's own problem: a
 :class:`~pmdcid.errors.PmdcidError` becomes a row with ``status="error"`` and the one-line
 message, so the other units go on.
 

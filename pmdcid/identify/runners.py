@@ -6,7 +6,7 @@ written in one atomic rename after the fit succeeded: a failed fit leaves it unt
 
 Before anything is written the plausibility gate (:mod:`pmdcid.identify.plausibility`) checks
 the logs' units and the fitted time constants; ``force`` turns its refusals into warnings. The
-model's read-modify-write holds a lock (:func:`pmdcid.io.outputs.locked`) and re-reads the file
+model's read-modify-write holds a lock (:func:`pmdcid.runtime.outputs.locked`) and re-reads the file
 under it: two stages run at once on one model both land their updates.
 
 Voltage and speed logs without current, on a model without R, make a lumped (per-volt) model
@@ -23,10 +23,10 @@ from pmdcid.errors import LogError
 from pmdcid.identify.plausibility import gate, gate_result
 from pmdcid.identify.results import record_notes
 from pmdcid.io import read_logs
-from pmdcid.io.outputs import locked
 from pmdcid.model import load_model, save_model
 from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.notes import Note
+from pmdcid.runtime.outputs import locked
 from pmdcid.simulate import logs_for
 from pmdcid.simulate.substeps import bounded_for
 

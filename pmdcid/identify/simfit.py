@@ -18,12 +18,12 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.identify.covariance import block_covariance
-from pmdcid.identify.cpus import pmap
 from pmdcid.identify.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.identify.solver import blas_single_thread, solve, white_covariance
 from pmdcid.identify.tall import BLOCK_ROWS, TALL_ROWS
 from pmdcid.model import Model
 from pmdcid.model.effects import bounds_of, unit_of
+from pmdcid.runtime.cpus import pmap
 from pmdcid.simulate import param_values, simulate_values
 from pmdcid.simulate.initial import initial_state, moving_start
 from pmdcid.simulate.layout import NSTATE
@@ -428,7 +428,7 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel, parallel: bool = True) -> np.ndar
     """Central-difference Jacobian of ``fun`` at ``z`` with relative step ``rel`` (one for all or
     one per column; one-sided at a bound); columns that still come out zero fall back to a 5x
     wider step. With ``parallel`` the columns are shared with the spare CPUs
-    (:func:`pmdcid.identify.cpus.pmap`): ``fun`` must be safe to call from several threads;
+    (:func:`pmdcid.runtime.cpus.pmap`): ``fun`` must be safe to call from several threads;
     the same bits for any number of threads."""
     J = np.empty((len(f0), len(z)))  # filled column by column: no list of columns to stack
     rels = np.broadcast_to(np.asarray(rel, float), (len(z),))

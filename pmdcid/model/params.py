@@ -282,7 +282,7 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
 
     p = path_arg(path, "path")
     if os.path.islink(p) and not os.path.exists(p):
-        from pmdcid.io.outputs import check_target
+        from pmdcid.runtime.outputs import check_target
 
         check_target(p, option="-m")  # a symlink loop: one line (a dangling link: created)
     if not os.path.exists(p):
@@ -363,10 +363,10 @@ def save_model(model: Model, path: str | os.PathLike) -> None:
     Every value is checked against the bounds (and the plausibility rule) the loader applies
     first: the tool never writes a model it would then refuse to read. A model read from
     ``path`` is written back only if the file still holds what was read (:func:`check_unchanged`,
-    optimistic locking; the stage runners call this under :func:`pmdcid.io.outputs.locked`).
+    optimistic locking; the stage runners call this under :func:`pmdcid.runtime.outputs.locked`).
     """
     from pmdcid.io.args import path_arg
-    from pmdcid.io.logs import atomic_write_text
+    from pmdcid.runtime.outputs import atomic_write_text
 
     path_arg(path, "path")
     if not isinstance(model, Model):

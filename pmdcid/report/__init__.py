@@ -48,7 +48,7 @@ def check_out_dir(out_dir) -> Path:
 
 
 def make_out_dir(out_dir) -> Path:
-    from pmdcid.io.outputs import current
+    from pmdcid.runtime.outputs import current
 
     p = check_out_dir(out_dir)
     first_new = next((a for a in reversed([p, *p.parents]) if not a.exists()), None)
@@ -63,7 +63,7 @@ def make_out_dir(out_dir) -> Path:
 
 def write_bytes_atomic(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    from pmdcid.io.logs import atomic_write
+    from pmdcid.runtime.outputs import atomic_write
 
     atomic_write(path, lambda fh: fh.write(data), binary=True)
 
@@ -174,15 +174,15 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     ``before_model`` is given) the page shows the error before and after them.
     ``progress(msg)`` is called before each log's simulation and before the figures.
     An existing report.html, metrics.json or figure pmdcid did not write is replaced only with
-    ``force`` (:func:`pmdcid.io.outputs.check_folder_outputs`).
+    ``force`` (:func:`pmdcid.runtime.outputs.check_folder_outputs`).
     """
     from pmdcid import __version__
-    from pmdcid.io.outputs import check_folder_outputs, output_folder
     from pmdcid.report import html
     from pmdcid.report.compare import compare_log, mean_errors, unique_names
     from pmdcid.report.metrics import LOW_SPEED_FRACTION, MAX_LAG
     from pmdcid.report.notes import report_notes
     from pmdcid.report.parallel import FigureDrawer
+    from pmdcid.runtime.outputs import check_folder_outputs, output_folder
 
     if not logs:
         raise LogError("no log files given")
