@@ -10,7 +10,7 @@ PKG = Path(__file__).resolve().parents[1] / "pmdcid"
 #: lower layers first: a module may import from its own layer and the layers before it only
 #: (function-level imports included: a lazy import is still a dependency)
 LAYERS = ["errors", "notes", "runtime", "io", "model", "simulate", "synth", "identify",
-          "diagnose", "report", "plan", "export", "pipeline", "fleet", "demo", "api",
+          "diagnose", "report", "plan", "export", "pipeline", "files", "fleet", "demo", "api",
           "cli", "__main__"]
 #: upward imports allowed, each with its reason (none today: ``pmdcid.identify(...)`` is the
 #: function of pmdcid.api itself, no subpackage forwards to it)

@@ -47,7 +47,7 @@ def _child(tmp_path, module, name, args, sig, after: bool):
 
 
 @pytest.mark.parametrize("stage, log, where, after", [
-    ("fit-electrical", "blocked_1.5V.csv", ("pmdcid.identify.runners", "save_model"), True),
+    ("fit-electrical", "blocked_1.5V.csv", ("pmdcid.files", "save_model"), True),
     ("fit-nonlinear", "triangle.csv", ("pmdcid.identify.solver", "solve"), False),
 ], ids=["after-the-model-write", "during-the-fit"])
 def test_sighup_is_handled_like_sigterm(tmp_path, stage, log, where, after):

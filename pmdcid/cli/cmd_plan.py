@@ -75,14 +75,11 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
     if check:
         _check(logs, model_path, settings, out_dir, mapping)
         return
-    from pmdcid.model import load_model
-    from pmdcid.plan.design import plan_for_model
-    from pmdcid.plan.guess import guess_plan
-    from pmdcid.plan.output import write_plan
+    from pmdcid import api
 
-    plan = guess_plan(settings) if guess else plan_for_model(load_model(model_path), settings)
-    command = "pmdcid plan " + " ".join(sys.argv[2:])
-    write_plan(plan, out_dir, command)
+    plan = api.plan(None if guess else model_path, out_dir, vmax=vmax, taumax=taumax,
+                    speed_max=speed_max, rate=rate, budget=budget, noise_omega=noise_omega,
+                    noise_i=noise_i, command="pmdcid plan " + " ".join(sys.argv[2:]))
     echo(f"wrote {len(plan.profiles)} profiles ({plan.seconds:.1f} s) and plan.json, "
                f"plan.md into {out_dir}")
     for note in plan.notes:

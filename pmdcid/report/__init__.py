@@ -265,14 +265,13 @@ def _file_names(names: list[str]) -> list[str]:
 
 def _refuse_overwriting_inputs(out_dir, names, inputs) -> None:
     """An input log or the model file must never be one of the report's outputs."""
+    from pmdcid.runtime.outputs import input_at
+
     for name in names:
-        target = Path(out_dir) / name
-        if not target.exists():
-            continue
-        for src in inputs:
-            if src and os.path.exists(src) and os.path.samefile(src, target):
-                raise LogError(f"the report would overwrite this input ({name}); choose another -o",
-                               src)
+        src = input_at(Path(out_dir) / name, inputs)
+        if src is not None:
+            raise LogError(f"the report would overwrite this input ({name}); choose another -o",
+                           src)
 
 
 def model_errors_from(cmps) -> list[dict]:

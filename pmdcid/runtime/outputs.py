@@ -9,6 +9,8 @@
   every promised file was written; a non-zero exit leaves nothing new behind.
 - :func:`locked`: an exclusive ``flock`` on the folder holding a model, for a stage's
   read-modify-write of the model file (two stages on one model both land their updates).
+- :func:`input_at`: the output-is-an-input guard, before any work: no output is ever one of
+  the files the command reads (a log, the model, a mapping, a manifest).
 - :func:`check_overwrite`: an existing output that is not what pmdcid writes there (a model,
   a diagnose summary) is only replaced with ``--force``.
 - :func:`check_target`: the one output guard, before any work and again at every write: pmdcid
@@ -136,6 +138,22 @@ def locked(path):
         yield
     finally:
         os.close(fd)
+
+
+def same_file(a, b, planned: bool = False) -> bool:
+    """Whether the paths ``a`` and ``b`` name one existing file; ``planned``: or, when either
+    does not exist yet, the same path (two outputs of one command, a log not yet checked)."""
+    a, b = os.fspath(a), os.fspath(b)
+    if os.path.exists(a) and os.path.exists(b):
+        return os.path.samefile(a, b)
+    return planned and os.path.abspath(a) == os.path.abspath(b)
+
+
+def input_at(output, inputs, planned: bool = False) -> str | None:
+    """The first of ``inputs`` that writing ``output`` would overwrite (:func:`same_file`), or
+    None: the one output-is-an-input guard, asked by every writer before any work (each caller
+    says it in its own words: which output, which option to change)."""
+    return next((inp for inp in inputs if inp and same_file(output, inp, planned)), None)
 
 
 def _json_object(path: str):
