@@ -17,13 +17,13 @@ from ident_util import as_log, blocked_logs, perturbed_truth, step_logs, triangl
 from test_diagnose import pipeline
 
 from pmdcid.diagnose import diagnose
-from pmdcid.diagnose.drive import carrier_line, command_lost, drop_warning, latency_warning
+from pmdcid.diagnose.drive_warnings import carrier_line, command_lost, drop_warning, latency_warning
 from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.mechanical import fit_mechanical
 from pmdcid.identify.nonlinear import fit_nonlinear
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_values
-from pmdcid.simulate.drive import MIN_PARTS
+from pmdcid.simulate.input_grid import MIN_PARTS
 from pmdcid.synth import PAPER, NoiseSpec, synth_log, triangle
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"

@@ -27,12 +27,12 @@ import numpy as np
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
-from pmdcid.diagnose.hold import read_slow_inputs
 from pmdcid.diagnose.named import generalises, prefer_named, with_named
 from pmdcid.diagnose.problem import FitOutcome, Problem
 from pmdcid.diagnose.residuals import context, error_table, typical_scales
 from pmdcid.diagnose.rules import Rules, judge, same_rows
 from pmdcid.diagnose.screen import Screen, Screener
+from pmdcid.diagnose.slow_inputs import read_slow_inputs
 from pmdcid.diagnose.starts import grid_start, profile_best, staged_fit
 from pmdcid.diagnose.summary import DiagnoseResult, summarise, write_model
 from pmdcid.errors import ModelError
@@ -263,7 +263,7 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
     i.e. all but ``lugre``, not already in the model).
     The input model is not modified. ``progress(msg)`` is called as each round starts and
     before each candidate's refit. ``ramp``: how slowly logged, continuously varying inputs
-    varied between samples (fit-nonlinear's reading; :mod:`pmdcid.diagnose.hold`), profiled
+    varied between samples (fit-nonlinear's reading; :mod:`pmdcid.diagnose.slow_inputs`), profiled
     here when such a log is given without it.
     """
     from pmdcid.io import bounds

@@ -155,7 +155,8 @@ class Problem:
         self.blocked = [log.blocked for log in self.logs]
         self.needs = {part: [self._needed(k, part) for k in range(len(self.logs))]
                       for part in ("fit", "held", "all")}
-        #: log -> how its input varied between samples (``ramp``; :mod:`pmdcid.diagnose.hold`)
+        #: log -> how its input varied between samples (``ramp``;
+        #: :mod:`pmdcid.diagnose.slow_inputs`)
         self.readings: dict[int, float] = {}
         # each log from the state its first samples measured (a log that starts turning is
         # never credited to an effect); a blocked rotor from rest

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from pmdcid.diagnose.candidates import Candidate, effect_free
-from pmdcid.diagnose.drive import drive_warnings
+from pmdcid.diagnose.drive_warnings import drive_warnings
 from pmdcid.diagnose.folds import floor_of
 from pmdcid.diagnose.problem import FitOutcome
 from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, pooled, whiteness

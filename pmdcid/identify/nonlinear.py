@@ -29,7 +29,6 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.identify.grid import batch_cost
-from pmdcid.identify.hold import hold_profile
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
 from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re-exported
     FREE_TAU,
@@ -43,6 +42,7 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     working_model,
 )
 from pmdcid.identify.priors import prior_terms, stage_priors
+from pmdcid.identify.ramp_profile import hold_profile
 from pmdcid.identify.results import Estimate, ResultProtocol, SimFitResult
 from pmdcid.identify.simfit import fit_simulation, format_estimates, noise_level
 from pmdcid.identify.solver import blas_single_thread

@@ -93,7 +93,7 @@ def fit_simulation(logs, model: Model, free: Sequence[str], signals=("omega", "t
     measured first samples (:mod:`.initial`), a log that starts turning has its starting speed
     fitted too; False starts every log from rest. ``overrides``: values held for every log's
     simulation beyond the model's (e.g. fit-nonlinear's ``ramp``, how the input varied between
-    samples, :mod:`pmdcid.simulate.drive`).
+    samples, :mod:`pmdcid.simulate.input_grid`).
     ``simulator``: ``f(log, vals, x0)`` -> a result with ``.get(signal)`` replacing the
     open-loop simulation of each log (the closed loop, :mod:`pmdcid.simulate.closedloop`).
     ``noise_model``: order p of an autoregressive noise model (0: white, as by default): after a

@@ -49,12 +49,6 @@ def error_stats(err: np.ndarray, meas_std: float) -> dict:
             "nrmse": _f(rms / meas_std) if meas_std > 0 else None}
 
 
-def nrmse(sim: np.ndarray, meas: np.ndarray) -> float:
-    """RMS error / std of the measurement (NaN when the measurement is constant)."""
-    sd = float(np.std(meas))
-    return float(np.sqrt(np.mean((sim - meas) ** 2))) / sd if sd > 0 else math.nan
-
-
 def speed_threshold(omega_meas: np.ndarray, fraction: float = LOW_SPEED_FRACTION) -> float:
     """Near-zero-speed threshold [rad/s]: ``fraction`` x max |omega_meas|."""
     return fraction * float(np.max(np.abs(omega_meas))) if len(omega_meas) else 0.0

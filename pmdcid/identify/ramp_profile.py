@@ -7,7 +7,7 @@ constant J/bv a fit turns that lag into a wrong inertia with a small standard er
 (docs/identification.md: J -63 % at 10 Hz). Nothing but the fit can tell a drive that holds each
 value (a slow digital loop) from a continuous command logged slowly, so when it matters
 (:func:`~pmdcid.identify.identifiability.hold_matters`) fit-nonlinear reads the input as a blend
-``ramp`` (0 held, 1 linear between samples; :func:`pmdcid.simulate.drive.ramp_input`) and
+``ramp`` (0 held, 1 linear between samples; :func:`pmdcid.simulate.input_grid.ramp_input`) and
 chooses it by a **profile**: the whole local fit at :data:`RAMPS`, a parabola through the
 chi-squares, its minimum and the width where the chi-square rises by the reduced chi-square.
 Why a profile and not one more free parameter: the cost in ``ramp`` is smooth only over tenths
