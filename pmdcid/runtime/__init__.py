@@ -8,6 +8,7 @@
 - :mod:`~pmdcid.runtime.signals`: SIGTERM, SIGHUP, SIGQUIT as an exception that unwinds (and
   the temporary files in flight removed).
 - :mod:`~pmdcid.runtime.progress`: one line per stage on a terminal's stderr.
+- :mod:`~pmdcid.runtime.malloc`: the command process's heap (large arrays kept, not remapped).
 
 It sits just above :mod:`pmdcid.errors` and :mod:`pmdcid.notes` and below :mod:`pmdcid.io`
 (tests/test_architecture.py). The compiled kernel's loading stays in :mod:`pmdcid.simulate`.
