@@ -60,8 +60,8 @@ def warm(client) -> None:
     def work():
         import numpy as np
 
+        from pmdcid.files import run_identify
         from pmdcid.fleet.synthetic import Protocol, unit_logs
-        from pmdcid.pipeline import run_identify
         from pmdcid.simulate import neutral_values
         from pmdcid.synth import PAPER
 

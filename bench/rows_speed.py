@@ -80,8 +80,8 @@ def diagnose_scaling_rows(quick: bool, tmp: Path) -> list[Row]:
     if quick:
         return [na(what, "skipped (--quick)", "<= 18x")]
     try:
-        from pmdcid.cli import tune_malloc
         from pmdcid.diagnose import diagnose
+        from pmdcid.runtime.malloc import tune_malloc
 
         # as `pmdcid diagnose` runs it: the command line's heap setting (arrays of tens of MB
         # from the heap, not mapped afresh each simulation); this row runs last in the bench

@@ -12,7 +12,8 @@ line stay fast. ``pmdcid.identify``, ``.diagnose``, ``.simulate``, ``.report``, 
 ``.export`` are the plain functions of :mod:`pmdcid.api`, although subpackages of the same
 names hold the stages (docs/architecture.md, "Front-door names").
 
-Import order (one way): io -> model -> simulate -> identify -> diagnose -> report -> cli.
+Import order (one way): runtime -> io -> model -> simulate -> identify -> diagnose -> report ->
+pipeline -> files -> api -> cli (docs/architecture.md).
 """
 
 import sys

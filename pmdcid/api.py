@@ -1,11 +1,18 @@
-"""The library's front door: ``import pmdcid`` then ``pmdcid.identify(...)`` and friends.
+"""The one front door: ``import pmdcid`` then ``pmdcid.identify(...)`` and friends, and every
+command of the command line (each ``pmdcid/cli/cmd_*.py`` parses its options and calls one
+function here).
 
 Every function takes logs as :class:`~pmdcid.io.Log` objects, paths, or a list of either, and a
 model as a :class:`~pmdcid.model.Model`, a path, or None (an empty model); the model given is
 never modified (each fit returns a result; ``result.apply(model)`` writes it in). Options are
-keyword-only. Each function runs exactly what the matching command runs (the CLI's runners
-share these steps: :mod:`pmdcid.identify.runners`, :mod:`pmdcid.diagnose.files`), including the
-lumped (per-volt) path for voltage+speed logs.
+keyword-only. Each function runs exactly what the matching command runs, including the lumped
+(per-volt) path for voltage+speed logs (:mod:`pmdcid.identify.runners`).
+
+Files out, as the commands write them, go through :mod:`pmdcid.files` (read -> call -> gate ->
+lock and atomic write): the fits and ``identify`` with ``update=True`` write their result into
+the model file given as ``model``; ``diagnose`` with ``output`` (and ``summary``);
+:func:`simulate_to` writes simulated logs; ``report``, ``plan`` and ``export`` write their
+files always. ``mapping`` (a :class:`~pmdcid.io.ColumnMap`) applies to the logs given as paths.
 
 Results follow one protocol (:class:`~pmdcid.fit.results.ResultProtocol`): ``str()`` is
 the table, ``_repr_html_()``, ``to_dict()``, ``to_pandas()``, ``apply(model)``.
@@ -19,41 +26,38 @@ from __future__ import annotations
 import os
 
 
-def _logs(logs, name: str = "logs") -> list:
-    from pmdcid.errors import LogError
-    from pmdcid.io.logs import Log, read_log
+def _logs(logs, name: str = "logs", mapping=None) -> list:
+    from pmdcid.files import logs_of
 
-    if isinstance(logs, (Log, str, os.PathLike)):
-        logs = [logs]
-    if not isinstance(logs, (list, tuple)):
-        hint = " (Log.from_dataframe(df) makes a log of a DataFrame)" if hasattr(
-            logs, "columns") or isinstance(logs, dict) else ""
-        raise TypeError(f"{name} must be a Log, a log file's path or a list of them, not "
-                        f"{type(logs).__name__}{hint}")
-    for k, lg in enumerate(logs):
-        if not isinstance(lg, (Log, str, os.PathLike)):
-            raise TypeError(f"{name}[{k}] must be a Log or a log file's path, not "
-                            f"{type(lg).__name__}")
-    out = [lg if isinstance(lg, Log) else read_log(lg) for lg in logs]
-    if not out:
-        raise LogError("no logs given")
-    return out
+    return logs_of(logs, name, mapping)
 
 
 def _model(model, name: str = "model"):
     """A working copy of ``model`` (a Model, a model file's path, or None for an empty one)."""
-    from pmdcid.model.params import Model, load_model
+    from pmdcid.files import model_of
 
-    if model is None:
-        return Model()
-    if isinstance(model, (str, os.PathLike)):
-        return load_model(model)
-    if not isinstance(model, Model):
-        hint = (" (pmdcid.model.params.model_from_json(d) makes a Model of a dict)"
-                if isinstance(model, dict) else "")
-        raise TypeError(f"{name} must be a Model, a model file's path or None, not "
-                        f"{type(model).__name__}{hint}")
-    return model.copy()
+    return model_of(model, name)
+
+
+def _file(model, name: str = "model") -> str:
+    """The model file a command writes (``update=True``): a path."""
+    from pmdcid.io.args import path_arg
+
+    return path_arg(model, f"{name} (update=True writes into it)")
+
+
+def _controller(controller):
+    """None, a :class:`~pmdcid.simulate.controller.ControllerSpec`, a dict of its keys or a spec
+    as ``--controller`` takes it."""
+    if controller is None:
+        return None
+    from pmdcid.simulate.controller import ControllerSpec, controller_from_dict, parse_controller
+
+    if isinstance(controller, dict):
+        return controller_from_dict(controller)
+    if isinstance(controller, ControllerSpec):
+        return controller
+    return parse_controller(str(controller))
 
 
 def _x0(x0):
@@ -84,55 +88,72 @@ def _x0(x0):
 
 
 def identify(logs, model=None, *, km: float | None = None, diagnose: bool = True,
-             priors: bool = True, progress=None):
+             priors: bool = True, progress=None, controller=None, mapping=None,
+             update: bool = False, out_dir=None, force: bool = False):
     """A whole rig, as ``pmdcid identify``: sort the logs, run each stage that applies, a joint
     fit, then (``diagnose``) the effect search. ``km`` [N m/A]: the datasheet torque constant;
     ``priors``: later stages combine with earlier estimates. ``progress``: None prints stage
     lines on a terminal's stderr, False is silent, a callable receives each stage's name.
+    ``controller``: closed-loop logs' controller (as :func:`fit_nonlinear`). ``update``: write
+    the identified model into the model file ``model`` (created if missing; the plausibility
+    gate refuses implausible logs unless ``force``), and with ``out_dir`` the report there.
     Returns a :class:`~pmdcid.pipeline.IdentifyResult` (``.model`` is the identified model)."""
     from pmdcid.io.args import number_arg
-    from pmdcid.pipeline import identify as run
-    from pmdcid.progress import resolve
+    from pmdcid.runtime.progress import resolve
 
     km = number_arg(km, "km", positive=True)
-    return run(_logs(logs), _model(model), km=km, run_diagnose=diagnose, priors=priors,
-               progress=resolve(progress))
+    opts = dict(km=km, run_diagnose=diagnose, priors=priors, progress=resolve(progress),
+                controller=_controller(controller))
+    if update:
+        from pmdcid.files import run_identify
+
+        return run_identify(logs, _file(model), out_dir, mapping, force=force, **opts)
+    if out_dir is not None:
+        raise TypeError("out_dir: identify writes its report with update=True (the model file "
+                        "first)")
+    from pmdcid.pipeline import identify as run
+
+    return run(_logs(logs, mapping=mapping), _model(model), **opts)
 
 
-def fit_electrical(logs, model=None):
+def _fit(stage: str, fit, logs, model, mapping, update: bool, force: bool, **opts):
+    """A stage in memory (the lumped path: :func:`pmdcid.identify.runners.fit_stage`), or with
+    ``update`` into the model file ``model`` (:func:`pmdcid.files.run_fit`)."""
+    if update:
+        from pmdcid.files import run_fit
+
+        return run_fit(stage, logs, _file(model), mapping, force, **opts)
+    from pmdcid.identify.runners import fit_stage
+
+    logs = _logs(logs, mapping=mapping)
+    return fit_stage(lambda lg, m: fit(lg, m, **opts), logs, _model(model))
+
+
+def fit_electrical(logs, model=None, *, mapping=None, update: bool = False,
+                   force: bool = False):
     """R [ohm], L [H] from blocked-rotor logs (``t``, ``v``, ``i``, one step each), as
-    ``pmdcid fit-electrical``. Returns an :class:`~pmdcid.identify.electrical.ElectricalResult`."""
-    from pmdcid.identify.electrical import fit_electrical as fit
-    from pmdcid.identify.runners import lumped_if_wanted, per_volt
-    from pmdcid.model.lumped import is_lumped
+    ``pmdcid fit-electrical`` (``update``: into the model file ``model``, as the command).
+    Returns an :class:`~pmdcid.identify.electrical.ElectricalResult`."""
+    from pmdcid.identify.runners import stage_electrical
 
-    logs = _logs(logs)
-    work = lumped_if_wanted(logs, _model(model))
-    res = fit(logs, work)
-    if is_lumped(work):
-        per_volt(res)
-    return res
+    return _fit("electrical", stage_electrical, logs, model, mapping, update, force)
 
 
-def fit_mechanical(logs, model, *, km: float | None = None):
+def fit_mechanical(logs, model, *, km: float | None = None, mapping=None, update: bool = False,
+                   force: bool = False):
     """b, bv, bc, J from free-speed step logs, as ``pmdcid fit-mechanical`` (per volt when the
     logs carry no current and the model no R). ``km`` [N m/A]: datasheet torque constant.
     Returns a :class:`~pmdcid.identify.mechanical.MechanicalResult`."""
-    from pmdcid.identify.runners import lumped_if_wanted, per_volt, stage_mechanical
+    from pmdcid.identify.runners import stage_mechanical
     from pmdcid.io.args import number_arg
-    from pmdcid.model.lumped import is_lumped
 
     km = number_arg(km, "km", positive=True)
-    logs = _logs(logs)
-    work = lumped_if_wanted(logs, _model(model))
-    res = stage_mechanical(logs, work, km)
-    if is_lumped(work):
-        per_volt(res)
-    return res
+    return _fit("mechanical", stage_mechanical, logs, model, mapping, update, force, km=km)
 
 
 def fit_nonlinear(logs, model, *, free=None, signals=None, priors: bool = True,
-                  controller=None):
+                  controller=None, dead_zone: bool = False, mapping=None, update: bool = False,
+                  force: bool = False):
     """J, bv, bc, dz (tau0 for torque logs) by simulation error, as ``pmdcid fit-nonlinear``.
 
     ``free``: the parameters to fit (names, e.g. ``["J", "bc"]``; the others are held at the
@@ -140,55 +161,70 @@ def fit_nonlinear(logs, model, *, free=None, signals=None, priors: bool = True,
     ``priors``: combine with the estimates earlier stages wrote into the model;
     ``controller``: closed-loop logs' controller (a spec as ``--controller`` takes it, a dict of
     its keys, or a :class:`~pmdcid.simulate.controller.ControllerSpec`): the loop is simulated
-    from the logged reference and fitted (docs/identification.md, "Closed-loop logs").
+    from the logged reference and fitted (docs/identification.md, "Closed-loop logs");
+    ``dead_zone``: torque-driven logs fit dz too.
     Returns a :class:`~pmdcid.identify.nonlinear.NonlinearResult`."""
-    from pmdcid.identify.runners import lumped_if_wanted, per_volt, stage_nonlinear
+    from pmdcid.identify.runners import stage_nonlinear
     from pmdcid.io.args import names_arg
-    from pmdcid.model.lumped import is_lumped
 
     free, signals = names_arg(free, "free"), names_arg(signals, "signals")
-    logs = _logs(logs)
-    work = lumped_if_wanted(logs, _model(model))
     opts = {"priors": priors}
     if free is not None:
         opts["free"] = free
     if signals is not None:
-        opts["signals"] = (signals,) if isinstance(signals, str) else tuple(signals)
-    if controller is not None:
-        from pmdcid.simulate.controller import (
-            ControllerSpec,
-            controller_from_dict,
-            parse_controller,
-        )
-
-        if isinstance(controller, dict):
-            controller = controller_from_dict(controller)
-        elif not isinstance(controller, ControllerSpec):
-            controller = parse_controller(str(controller))
-        opts["controller"] = controller
-    res = stage_nonlinear(logs, work, **opts)
-    if is_lumped(work):
-        per_volt(res)
-    return res
+        opts["signals"] = tuple(signals)
+    if dead_zone:
+        opts["dead_zone"] = True
+    return _fit("nonlinear", stage_nonlinear, logs, model, mapping, update, force,
+                controller=_controller(controller), **opts)
 
 
-def diagnose(logs, model, *, effects=None, progress=None):
+def fit_inverse_dynamics(logs, model, *, km: float | None = None, as_published: bool = False,
+                         mapping=None, update: bool = False, force: bool = False):
+    """J, bv, bc, tau0 by inverse dynamics (linear least squares), as ``pmdcid
+    fit-inverse-dynamics``. ``km`` [N m/A]: for voltage logs with a current column;
+    ``as_published``: the EMPS authors' IDIM-LS exactly. Returns an
+    :class:`~pmdcid.identify.inverse_dynamics.InverseDynamicsResult`."""
+    from pmdcid.identify.runners import stage_inverse_dynamics
+    from pmdcid.io.args import number_arg
+
+    km = number_arg(km, "km", positive=True)
+    return _fit("inverse-dynamics", stage_inverse_dynamics, logs, model, mapping, update, force,
+                km=km, as_published=as_published)
+
+
+def diagnose(logs, model, *, effects=None, progress=None, mapping=None, output=None,
+             summary=None, force: bool = False):
     """Search the effect catalogue for what ``model`` lacks on ``logs``, as ``pmdcid diagnose``.
-    ``effects``: names to search (default all). Returns a
+    ``effects``: names to search (default all). ``output``: write the new model there (and the
+    summary JSON to ``summary``), as the command does (``model`` then a model file's path,
+    rewritten only when ``output`` is the same file; ``force`` overwrites files that are not
+    pmdcid's and lets implausible logs through with a warning). Returns a
     :class:`~pmdcid.diagnose.loop.DiagnoseResult` (``.model`` has the effects added)."""
-    from pmdcid.diagnose.files import diagnose_logs
     from pmdcid.io.args import names_arg
-    from pmdcid.progress import resolve
+    from pmdcid.runtime.progress import resolve
 
     effects = names_arg(effects, "effects")
-    return diagnose_logs(_logs(logs), _model(model), effects=effects,
+    if output is not None:
+        from pmdcid.files import run_diagnose
+        from pmdcid.io.args import path_arg
+
+        return run_diagnose(logs, path_arg(model, "model (with output)"),
+                            path_arg(output, "output"), summary, mapping, effects, force,
+                            progress=resolve(progress))
+    if summary is not None:
+        raise TypeError("summary: written with output (the new model's file)")
+    from pmdcid.diagnose.entry import diagnose_logs
+
+    return diagnose_logs(_logs(logs, mapping=mapping), _model(model), effects=effects,
                          progress=resolve(progress))
 
 
 def simulate(log_or_input, model, *, x0=None):
     """Simulate ``model`` on a log's input (a :class:`~pmdcid.io.Log` or a CSV path) from
-    ``x0`` = (i [A], omega [rad/s], theta [rad]) at its first sample (default: rest).
-    Returns a :class:`~pmdcid.simulate.SimResult` (t, i, omega, theta; ``to_pandas()``)."""
+    ``x0`` = (i [A], omega [rad/s], theta [rad]) at its first sample (default: rest), or
+    ``"measured"``: the log's own first samples. Returns a :class:`~pmdcid.simulate.SimResult`
+    (t, i, omega, theta; ``to_pandas()``). :func:`simulate_to` writes the simulated log."""
     from pmdcid.simulate import simulate_log
 
     logs = _logs(log_or_input, "log_or_input")
@@ -197,32 +233,59 @@ def simulate(log_or_input, model, *, x0=None):
     return simulate_log(logs[0], _model(model), x0=_x0(x0))
 
 
-def report(logs, model, out_dir, *, summary=None, before=None, progress=None):
-    """The model against measured logs into ``out_dir`` (report.html, metrics.json, figures),
-    as ``pmdcid report``. ``summary``: a diagnose summary dict; ``before``: a model to show as
-    'before'. Returns a :class:`~pmdcid.report.ReportResult`."""
+def simulate_to(inputs, model, output, *, x0=None, noise_i: float = 0.0,
+                noise_omega: float = 0.0, encoder: int = 0, seed: int | None = None,
+                blocked: bool = False, controller=None, mapping=None,
+                force: bool = False) -> list[str]:
+    """``pmdcid simulate``: the simulated log of each input file (a path, or a list of them)
+    written to ``output`` (one input: that file; several: into the folder ``output``, each
+    named as its input), with sensor noise ``noise_i`` [A], ``noise_omega`` [rad/s],
+    ``encoder`` [counts/rev] from ``seed``; ``blocked``: the rotor held; ``controller``: the
+    closed loop from the input's reference (as :func:`fit_nonlinear`); ``x0`` as
+    :func:`simulate`; ``force``: overwrite a file pmdcid did not write. ``model``: a model
+    file's path. Returns the paths written."""
+    from pmdcid.files import simulate_file, simulate_files
     from pmdcid.io.args import path_arg
-    from pmdcid.progress import resolve
-    from pmdcid.report import make_report
+    from pmdcid.synth import NoiseSpec
+
+    paths = inputs if isinstance(inputs, (list, tuple)) else [inputs]
+    paths = [path_arg(p, "inputs") for p in paths]
+    opts = dict(mapping=mapping, noise=NoiseSpec(noise_i, noise_omega, encoder), seed=seed,
+                blocked=blocked, force=force, x0=_x0(x0), controller=_controller(controller))
+    model, output = path_arg(model, "model"), path_arg(output, "output")
+    if len(paths) == 1:
+        return [simulate_file(paths[0], model, output, **opts)]
+    return simulate_files(paths, model, output, **opts)
+
+
+def report(logs, model, out_dir, *, summary=None, before=None, progress=None, mapping=None,
+           force: bool = False):
+    """The model against measured logs into ``out_dir`` (report.html, metrics.json, figures),
+    as ``pmdcid report``. ``summary``: a diagnose summary (a dict, or its JSON file's path);
+    ``before``: a model (or its path) to show as 'before'; ``force``: replace files in
+    ``out_dir`` pmdcid did not write. Returns a :class:`~pmdcid.report.ReportResult`."""
+    from pmdcid.files import run_report
+    from pmdcid.io.args import path_arg
+    from pmdcid.runtime.progress import resolve
 
     out_dir = path_arg(out_dir, "out_dir")
-    if summary is not None and not isinstance(summary, dict):
-        raise TypeError(f"summary must be a diagnose summary (dict) or None, not "
-                        f"{type(summary).__name__}")
-    return make_report(_logs(logs), _model(model), out_dir, summary=summary,
-                       before_model=_model(before, "before") if before is not None else None,
-                       progress=resolve(progress))
+    if summary is not None and not isinstance(summary, (dict, str, os.PathLike)):
+        raise TypeError(f"summary must be a diagnose summary (a dict or its file's path) or "
+                        f"None, not {type(summary).__name__}")
+    return run_report(logs, model, out_dir, summary, before, mapping, resolve(progress), force)
 
 
 def plan(model=None, out_dir=None, *, vmax: float | None = None, taumax: float | None = None,
          speed_max: float | None = None, rate: float = 1000.0, budget: float = 120.0,
-         noise_omega: float | None = None, noise_i: float | None = None):
+         noise_omega: float | None = None, noise_i: float | None = None,
+         command: str = "pmdcid.plan(...)"):
     """Input profiles to record, as ``pmdcid plan``: for ``model`` (a Model or a model file's
     path), or, with ``model=None``, a first safe experiment (``--guess``: give ``vmax`` [V] or
     ``taumax`` [N m]). ``speed_max`` [rad/s]: the largest speed the motion may reach; ``rate``
     [Hz]: sampling and input hold rate; ``budget`` [s]: total recording time; ``noise_omega``
     [rad/s] and ``noise_i`` [A]: the sensors' noise std (None: defaults). With ``out_dir`` the
-    profiles (CSV), plan.json and plan.md are written there. Returns the
+    profiles (CSV), plan.json and plan.md are written there (``command``: how plan.md says the
+    plan was made). Returns the
     :class:`~pmdcid.plan.design.Plan` (``.profiles``, ``.stderr``: predicted standard errors)."""
     import math
 
@@ -244,26 +307,54 @@ def plan(model=None, out_dir=None, *, vmax: float | None = None, taumax: float |
         check_out_dir(out_dir)
     out = guess_plan(settings) if model is None else plan_for_model(_model(model), settings)
     if out_dir is not None:
-        write_plan(out, out_dir, "pmdcid.plan(...)")
+        write_plan(out, out_dir, command)
     return out
 
 
-def export(model, to: str, output, *, force: bool = False) -> list[str]:
+def export(model, to: str, output, *, force: bool = False, note=None) -> list[str]:
     """Code that steps ``model`` exactly as :func:`simulate` does, as ``pmdcid export``:
-    ``to`` is ``"python-control"``, ``"c"`` or ``"matlab"``; ``output`` the file to write (C:
-    its header beside it; MATLAB: a script beside it); ``force`` overwrites a file pmdcid did
-    not write. ``model``: a Model or a model file's path. Returns the paths written."""
+    ``to`` is ``"python-control"``, ``"c"``, ``"matlab"``, ``"mujoco"`` or ``"fmu"``; ``output``
+    the file to write (C: its header beside it; MATLAB: a script beside it); ``force``
+    overwrites a file pmdcid did not write; ``note``: told each approximation (MuJoCo).
+    ``model``: a Model or a model file's path. Returns the paths written."""
     import tempfile
 
     from pmdcid.export import export_model
 
     if isinstance(model, (str, os.PathLike)):
-        return export_model(str(model), to, str(output), force=force)
+        return export_model(str(model), to, str(output), force=force, note=note)
     with tempfile.TemporaryDirectory() as tmp:  # the exporters read a model file
         path = os.path.join(tmp, "model.json")
         model.save(path)
-        return export_model(path, to, str(output), force=force)
+        return export_model(path, to, str(output), force=force, note=note)
 
 
-__all__ = ["diagnose", "export", "fit_electrical", "fit_mechanical", "fit_nonlinear", "identify",
-           "plan", "report", "simulate"]
+def channels(path) -> list:
+    """The signals a log file holds (any format pmdcid reads), as ``pmdcid channels``: a list
+    of :class:`~pmdcid.io.formats.Channel` (name, samples, rate, unit)."""
+    from pmdcid.io.formats import channels as read_channels
+
+    return read_channels(path)
+
+
+def run_demo(out_dir="demo-output", echo=print) -> dict:
+    """``pmdcid demo``: the whole pipeline on the bundled example logs, the report into
+    ``out_dir``; ``echo`` prints each line. Returns paths, the final model, the diagnose summary
+    and timings."""
+    from pmdcid.demo import run_demo as run
+
+    return run(out_dir, echo=echo)
+
+
+def run_fleet(manifest, out_dir, **options):
+    """``pmdcid fleet``: every unit of the manifest identified on a Dask cluster
+    (docs/fleet.md; ``options`` as :func:`pmdcid.fleet.run.run_fleet`). Returns a
+    :class:`~pmdcid.fleet.run.FleetResult`."""
+    from pmdcid.fleet.run import run_fleet as run
+
+    return run(manifest, out_dir, **options)
+
+
+__all__ = ["channels", "diagnose", "export", "fit_electrical", "fit_inverse_dynamics",
+           "fit_mechanical", "fit_nonlinear", "identify", "plan", "report", "run_demo", "run_fleet",
+           "simulate", "simulate_to"]

@@ -170,7 +170,7 @@ def run_demo(out_dir="demo-output", echo=print) -> dict:
         final, summary, before = res.model, res.summary, model
         final.path = str(out / "model_diagnosed.json")
         save_model(final, final.path)
-        from pmdcid.io.logs import atomic_write_text
+        from pmdcid.runtime.outputs import atomic_write_text
 
         atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
         result.update(summary=summary, diagnosed_model_path=final.path,

@@ -4,9 +4,10 @@ The logs are sorted (``# kind:`` metadata where present, else by content), the p
 on the logs each applies to, every later stage combining its logs with what the earlier ones
 determined (:mod:`pmdcid.fit.priors`), then one joint simulation-error fit over every log
 that moves, then
-diagnose and the report. Each decision is printed with its reason.
+diagnose. Each decision is printed with its reason.
 
-It sits above identify/, diagnose/ and report/ (it calls all three) and below cli/.
+It sits above identify/ and diagnose/ (it calls both); :func:`pmdcid.files.run_identify` runs it
+on files (the model written, the report).
 
 Sorting (:func:`classify`): a ``# kind:`` line decides where present, read through the one
 vocabulary of log kinds (:mod:`pmdcid.io.kinds`: plan's ``small-steps``, ``levels``,
@@ -40,6 +41,13 @@ from pmdcid.errors import FitError, PmdcidError
 from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import closed_loop_logs
 from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau
+from pmdcid.identify.runners import (
+    apply_stage,
+    fit_stage,
+    lumped_mechanical,
+    stage_electrical,
+    stage_nonlinear,
+)
 from pmdcid.identify.steps import held_steps
 from pmdcid.io.kinds import canonical, describe, stage_class
 from pmdcid.model import Model
@@ -213,7 +221,7 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
               for k in ("blocked", "step", "rich")}
     if groups["blocked"]:
         say("fit-electrical")
-        _stage(res, "fit-electrical", groups["blocked"], _electrical)
+        _stage(res, "fit-electrical", groups["blocked"], stage_electrical)
     moving = groups["step"] + groups["rich"]
     if not moving:
         if not res.stages:
@@ -346,7 +354,7 @@ def _free_running_electrical(res: IdentifyResult, moving, say) -> None:
     from pmdcid.identify.freerun import KM_FROM_KE, KM_FROM_KE_NOTE
 
     say("fit-electrical (free-running)")
-    _stage(res, "fit-electrical (free-running logs)", with_current, _electrical)
+    _stage(res, "fit-electrical (free-running logs)", with_current, stage_electrical)
     m = res.model
     if m.has("km") and m.parameters["km"].stage == KM_FROM_KE:
         res.notes.append(KM_FROM_KE_NOTE.format(ke=m.value("km")))
@@ -359,17 +367,12 @@ def _has_mech(model: Model) -> bool:
 def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
     """Run one stage; a stage that cannot use its logs is noted, the others go on."""
     try:
-        out = fit(logs, res.model)
+        out = fit_stage(fit, logs, res.model)
     except PmdcidError as exc:
         res.notes.append(f"{name}: skipped: {exc}")
         return
     new = res.model.copy()
-    out.apply(new)
-    if is_lumped(res.model):
-        from pmdcid.identify.runners import per_volt
-
-        per_volt(out)
-        mark_lumped(new)
+    apply_stage(out, new)
     res.model = new
     res.stages.append((name, out))
     res.warnings += [w.in_stage(name) for w in notes_of(out)]
@@ -381,15 +384,8 @@ def _linear_start(logs, model):
     return linear_start(logs, model)
 
 
-def _electrical(logs, model):
-    from pmdcid.identify.electrical import fit_electrical
-
-    return fit_electrical(logs, model)
-
-
 def _mechanical(logs, model):
     from pmdcid.identify.mechanical import fit_mechanical
-    from pmdcid.identify.runners import lumped_mechanical
 
     if is_lumped(model):
         return lumped_mechanical(logs, model, fit_mechanical)
@@ -401,87 +397,26 @@ def _mechanical(logs, model):
 
 def _nonlinear(priors: bool, controller=None):
     def run(logs, model):
-        from pmdcid.identify.runners import stage_nonlinear
-
         return stage_nonlinear(logs, model, priors=priors, controller=controller)
 
     return run
 
 
 def _diagnose(res: IdentifyResult, logs, say=None) -> None:
-    from pmdcid.diagnose.loop import diagnose
-    from pmdcid.simulate import logs_for
+    from pmdcid.diagnose.entry import diagnose_logs
 
     # how the joint fit read slow inputs between samples: its ramp, or held (0) when it read
     # none (J not free there, or no slow log): diagnose refits under the same reading
     joint = [out for name, out in res.stages if name.startswith("joint")]
     ramp = getattr(joint[-1], "estimates", {}).get("ramp") if joint else None
     try:
-        out = diagnose(logs_for(logs, res.model), res.model, progress=say,
-                       ramp=ramp.value if ramp is not None else 0.0)
+        out = diagnose_logs(logs, res.model, progress=say,
+                            ramp=ramp.value if ramp is not None else 0.0)
     except PmdcidError as exc:
         res.notes.append(f"diagnose: skipped: {exc}")
         return
-    if is_lumped(res.model):
-        mark_lumped(out.model)
     res.model = out.model
     res.diagnose = out
 
 
-def run_identify(paths, model_path, out_dir=None, mapping=None, km=None, run_diagnose=True,
-                 priors=True, progress=None, force=False, controller=None) -> IdentifyResult:
-    """``pmdcid identify`` on files: read, identify, write MODEL atomically, then the report.
-
-    The plausibility gate (:mod:`pmdcid.identify.plausibility`) checks the logs before and the
-    model before it is written, as every stage command does; ``force`` makes it warn instead."""
-    import os
-
-    from pmdcid.errors import LogError
-    from pmdcid.identify.plausibility import gate, gate_result
-    from pmdcid.io import read_logs
-    from pmdcid.io.outputs import locked
-    from pmdcid.model import load_model, save_model
-    from pmdcid.simulate.substeps import bounded_for
-
-    for p in paths:
-        if os.path.exists(p) and os.path.exists(model_path) and os.path.samefile(p, model_path):
-            raise LogError(f"the model file would overwrite the input log {p}; choose another -m",
-                           model_path)
-    if out_dir is not None:
-        from pmdcid.report import check_out_dir
-
-        check_out_dir(out_dir)
-    model = load_model(model_path, must_exist=False)
-    logs = read_logs(paths, mapping, defer=True)
-
-    def value(name, given=None):
-        return given if given is not None else (
-            model.parameters[name].value if name in model.parameters else None)
-
-    gate(logs, force, value("km", km), value("R"))
-    with bounded_for(model_path):
-        res = identify(logs, model, km=km, run_diagnose=run_diagnose, priors=priors,
-                       progress=progress, controller=controller)
-    res.model.extra.setdefault("fits", {})["identify"] = {
-        "logs": {p.path: {"kind": p.kind, "why": p.why} for p in res.plan},
-        "stages": [name for name, _ in res.stages], "notes": res.notes}
-    res.record_notes(res.model)
-    gate_result(res.model, logs, force)
-    with locked(model_path):
-        save_model(res.model, model_path)
-    if out_dir is not None and not res.model.has("J"):
-        res.notes.append(f"report: not written into {out_dir}: the model has no J to simulate "
-                         "the logs with (only blocked-rotor logs were given: record free-running "
-                         "ones, steps or ramps, for the mechanics)")
-    elif out_dir is not None:
-        from pmdcid.report import make_report
-
-        summary = res.diagnose.summary if res.diagnose is not None else None
-        shown = [lg for lg, p in zip(logs, res.plan, strict=True) if p.kind != "unused"]
-        rep = make_report(shown, res.model, out_dir, summary=summary, progress=progress)
-        res.report_dir = rep.out_dir
-    return res
-
-
-__all__ = ["IdentifyResult", "LogPlan", "classify", "identify", "input_changes",
-           "run_identify"]
+__all__ = ["IdentifyResult", "LogPlan", "classify", "identify", "input_changes"]

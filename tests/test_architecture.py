@@ -11,13 +11,11 @@ from repo_paths import REPO
 PKG = REPO / "pmdcid"
 #: lower layers first: a module may import from its own layer and the layers before it only
 #: (function-level imports included: a lazy import is still a dependency)
-LAYERS = ["errors", "notes", "progress", "io", "model", "simulate", "synth", "fit", "identify",
-          "diagnose", "report", "plan", "export", "pipeline", "fleet", "demo", "api",
-          "cli", "__main__"]
-#: upward imports allowed, each with its reason: ``identify/cpus.py`` (``pmap``) moves to
-#: ``pmdcid/runtime/`` on another branch; the fit engine imports it from where it is until then
-ALLOWED: set[tuple[str, str]] = {(f"pmdcid.fit.{m}", "pmdcid.identify.cpus")
-                                 for m in ("fdjac", "covariance", "simfit")}
+LAYERS = ["errors", "notes", "runtime", "io", "model", "simulate", "synth", "fit",
+          "identify", "diagnose", "report", "plan", "export", "pipeline", "files", "fleet",
+          "demo", "api", "cli", "__main__"]
+#: upward imports allowed, each with its reason (none)
+ALLOWED: set[tuple[str, str]] = set()
 
 
 def _module(path: Path) -> str:

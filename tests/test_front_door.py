@@ -63,19 +63,19 @@ def test_signature_and_help_are_the_functions_own():
 
 def test_every_import_form_still_reaches_the_subpackages(monkeypatch):
     import pmdcid.export as ex
-    import pmdcid.identify.cpus as cpus
+    import pmdcid.identify.steps as steps
     import pmdcid.report.parallel as par
     from pmdcid import simulate
     from pmdcid.simulate import SimResult
 
-    assert cpus.__name__ == "pmdcid.identify.cpus" and par.__name__ == "pmdcid.report.parallel"
+    assert steps.__name__ == "pmdcid.identify.steps" and par.__name__ == "pmdcid.report.parallel"
     assert simulate is api.simulate and ex is api.export
     assert pmdcid.simulate is api.simulate  # importing submodules did not rebind it
     # the function's attributes are its subpackage's namespace
-    assert pmdcid.simulate.SimResult is SimResult and pmdcid.identify.cpus is cpus
+    assert pmdcid.simulate.SimResult is SimResult and pmdcid.identify.steps is steps
     assert ex.FORMATS == sys.modules["pmdcid.export"].FORMATS
-    monkeypatch.setattr("pmdcid.identify.cpus.workers", lambda: 7)
-    assert cpus.workers() == 7
+    monkeypatch.setattr("pmdcid.identify.steps.held_steps", lambda *a: 7)
+    assert steps.held_steps() == 7
     monkeypatch.setattr(ex, "MARKER", "patched")
     assert sys.modules["pmdcid.export"].MARKER == "patched"
 

@@ -42,7 +42,9 @@ class _Group(click.Group):
             elif os.environ.get("PMDCID_DEBUG"):
                 echo(f"warning: {category.__name__}: {message}", err=True)
 
-        from pmdcid.io.outputs import Terminated, install_sigterm, transaction
+        from pmdcid.runtime.malloc import tune_malloc
+        from pmdcid.runtime.outputs import transaction
+        from pmdcid.runtime.signals import Terminated, install_sigterm
 
         with warnings.catch_warnings():  # click 8.2 deprecates protected_args (9: in args)
             warnings.simplefilter("ignore", DeprecationWarning)
@@ -103,34 +105,13 @@ def echo(text="", err: bool = False) -> None:
 
 
 def progress_lines():
-    """The commands' progress callback: :func:`pmdcid.progress.stage_lines`, its messages
+    """The commands' progress callback: :func:`pmdcid.runtime.progress.stage_lines`, its messages
     passed through :func:`pmdcid.io.escape.terminal`."""
     from pmdcid.io.escape import terminal
-    from pmdcid.progress import stage_lines
+    from pmdcid.runtime.progress import stage_lines
 
     lines = stage_lines()
     return lambda msg: lines(terminal(msg))
-
-
-def tune_malloc() -> bool:
-    """In a ``pmdcid`` process on glibc: large arrays from the heap, and freed memory kept for
-    the next one, instead of glibc's default (arrays above 32 MB mapped fresh and unmapped on
-    free). A fit on a half-hour log makes the same few arrays of tens of megabytes hundreds of
-    times; mapping them anew page-faults every page each time, which made long fits
-    superlinear (docs/performance.md: 16x the log, CPU 15.3 s -> 9.8 s, peak memory +11 %).
-    Set here, for the command line's own process only, never by the library (a process that
-    imports pmdcid keeps its allocator as it is); ``PMDCID_MALLOC=default`` turns it off.
-    True when set."""
-    if os.environ.get("PMDCID_MALLOC") == "default" or not sys.platform.startswith("linux"):
-        return False
-    try:
-        import ctypes
-
-        mallopt = ctypes.CDLL(None).mallopt  # glibc only (musl has none)
-    except (OSError, AttributeError):
-        return False
-    m_trim_threshold, m_mmap_threshold = -1, -3  # glibc's malloc.h
-    return bool(mallopt(m_mmap_threshold, 1 << 30) and mallopt(m_trim_threshold, 1 << 30))
 
 
 #: every command: name -> (module of pmdcid.cli defining it, one-line help for ``pmdcid --help``).

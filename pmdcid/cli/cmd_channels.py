@@ -17,9 +17,10 @@ def channels_cmd(log_file, as_json):
     The names are the ones -c CANON=SOURCE takes: topic.field (MCAP), the entry name
     (wpilog), group/channel (TDMS, MDF: the channel name where unique), variable or
     struct.field (.mat), the column (CSV, Parquet)."""
-    from pmdcid.io.formats import channels, format_channels
+    from pmdcid import api
+    from pmdcid.io.formats import format_channels
 
-    chans = channels(log_file)
+    chans = api.channels(log_file)
     if as_json:
         import json
 

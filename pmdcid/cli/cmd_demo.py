@@ -12,6 +12,6 @@ from pmdcid.cli import echo, main
               type=click.Path(), metavar="DIR", help="Folder for the models and the report.")
 def demo_cmd(out_dir):
     """Run the whole pipeline on the bundled example logs and write a report."""
-    from pmdcid.demo import run_demo
+    from pmdcid import api
 
-    run_demo(out_dir, echo=echo)
+    api.run_demo(out_dir, echo=echo)

@@ -26,7 +26,7 @@ from pmdcid.cli.options import log_options, model_option
 @log_options
 def diagnose_cmd(logs, model_path, out_path, summary_path, effects, force, mapping):
     """Find the catalogue effects MODEL lacks on LOGs, add them, refit, report before/after."""
-    from pmdcid.diagnose.files import run_diagnose
+    from pmdcid import api
     from pmdcid.model import EFFECTS
 
     unknown = [e for e in effects if e not in EFFECTS]
@@ -34,8 +34,9 @@ def diagnose_cmd(logs, model_path, out_path, summary_path, effects, force, mappi
         raise click.BadParameter(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})",
                                  param_hint="'--effect'")
 
-    res = run_diagnose(list(logs), model_path, out_path, summary_path, mapping,
-                       effects=list(effects) or None, progress=progress_lines(), force=force)
+    res = api.diagnose(list(logs), model_path, effects=list(effects) or None,
+                       progress=progress_lines(), mapping=mapping, output=out_path,
+                       summary=summary_path, force=force)
     echo(res.table())
     echo(f"wrote {out_path}")
     if summary_path:

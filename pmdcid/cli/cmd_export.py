@@ -24,7 +24,7 @@ def export_cmd(model_path, fmt, output, force):
     """Write code that steps MODEL exactly as `pmdcid simulate` does (python-control, C, MATLAB,
     an FMI 2.0 FMU), or a MuJoCo model carrying its parameters (what MuJoCo cannot represent is
     approximated and said)."""
-    from pmdcid.export import export_model
+    from pmdcid import api
 
-    for path in export_model(model_path, fmt, output, force=force, note=echo):
+    for path in api.export(model_path, fmt, output, force=force, note=echo):
         echo(f"wrote {path}")

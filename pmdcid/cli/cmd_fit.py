@@ -48,9 +48,10 @@ def _show(result, model_path):
 @log_options
 def fit_electrical_cmd(logs, model_path, force, mapping):
     """Blocked-rotor current steps -> R, L (the model file is created if missing)."""
-    from pmdcid.identify.runners import run_fit_electrical
+    from pmdcid import api
 
-    _show(run_fit_electrical(list(logs), model_path, mapping, force=force), model_path)
+    _show(api.fit_electrical(list(logs), model_path, mapping=mapping, update=True, force=force),
+          model_path)
 
 
 @main.command("fit-mechanical")
@@ -62,9 +63,10 @@ def fit_electrical_cmd(logs, model_path, force, mapping):
 @log_options
 def fit_mechanical_cmd(logs, model_path, km, force, mapping):
     """Free-speed speed steps -> Kmot, tau_mot -> b, J (paper) and bv, bc (steady-speed line)."""
-    from pmdcid.identify.runners import run_fit_mechanical
+    from pmdcid import api
 
-    _show(run_fit_mechanical(list(logs), model_path, mapping, km=km, force=force), model_path)
+    _show(api.fit_mechanical(list(logs), model_path, km=km, mapping=mapping, update=True,
+                             force=force), model_path)
 
 
 @main.command("fit-nonlinear")
@@ -90,12 +92,11 @@ def fit_mechanical_cmd(logs, model_path, km, force, mapping):
 def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, no_prior, controller, force,
                       mapping):
     """Triangular-input (or any rich) logs -> bc, bv, dz, J refined, by simulation error."""
-    from pmdcid.identify.runners import run_fit_nonlinear
+    from pmdcid import api
 
-    _show(run_fit_nonlinear(list(logs), model_path, mapping, force=force, free=free,
-                            signals=signals, dead_zone=dead_zone, priors=not no_prior,
-                            controller=controller),
-          model_path)
+    _show(api.fit_nonlinear(list(logs), model_path, free=free, signals=signals,
+                            priors=not no_prior, controller=controller, dead_zone=dead_zone,
+                            mapping=mapping, update=True, force=force), model_path)
 
 
 @main.command("fit-inverse-dynamics")
@@ -111,7 +112,7 @@ def fit_nonlinear_cmd(logs, model_path, signals, free, dead_zone, no_prior, cont
 def fit_inverse_dynamics_cmd(logs, model_path, as_published, km, force, mapping):
     """Any logs with torque (or current) and angle or speed -> J, bv, bc, tau0 by inverse
     dynamics (linear least squares, instant; fit-nonlinear's start on torque-driven logs)."""
-    from pmdcid.identify.runners import run_fit_inverse_dynamics
+    from pmdcid import api
 
-    _show(run_fit_inverse_dynamics(list(logs), model_path, mapping, as_published=as_published,
-                                   km=km, force=force), model_path)
+    _show(api.fit_inverse_dynamics(list(logs), model_path, km=km, as_published=as_published,
+                                   mapping=mapping, update=True, force=force), model_path)

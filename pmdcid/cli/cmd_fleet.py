@@ -30,12 +30,12 @@ from pmdcid.cli.options import FiniteFloat, log_options
 def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnose, mapping):
     """Identify every unit of a fleet on a Dask cluster: DIR/units.parquet, DIR/outliers.csv,
     DIR/fleet.html."""
-    from pmdcid.fleet.run import run_fleet
+    from pmdcid import api
 
     if scheduler is not None and workers is not None:
         raise click.UsageError("--workers sizes the local cluster; with --scheduler the "
                                "cluster's own workers run the units")
-    res = run_fleet(manifest, out_dir, scheduler=scheduler, workers=workers, km=km,
+    res = api.run_fleet(manifest, out_dir, scheduler=scheduler, workers=workers, km=km,
                     limits=limits_path, diagnose=not no_diagnose, mapping=mapping or None)
     echo(res.table())
     for w in res.warnings:

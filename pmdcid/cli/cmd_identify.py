@@ -28,12 +28,12 @@ def identify_cmd(logs, model_path, out_dir, no_diagnose, km, no_prior, force, co
                  mapping):
     """A whole rig: sort the logs, run every stage that applies, a joint fit, diagnose, and
     the report into DIR."""
-    from pmdcid.pipeline import run_identify
-
-    res = run_identify(list(logs), model_path, out_dir, mapping, km=km,
-                       run_diagnose=not no_diagnose, priors=not no_prior,
-                       progress=progress_lines(), force=force, controller=controller)
+    from pmdcid import api
     from pmdcid.cli.notes import echo_notes
+
+    res = api.identify(list(logs), model_path, km=km, diagnose=not no_diagnose,
+                       priors=not no_prior, progress=progress_lines(), controller=controller,
+                       mapping=mapping, update=True, out_dir=out_dir, force=force)
 
     echo(res.table())
     echo_notes(res.all_notes(), in_table=("identify", "diagnose"))

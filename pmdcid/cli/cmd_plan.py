@@ -75,14 +75,11 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
     if check:
         _check(logs, model_path, settings, out_dir, mapping)
         return
-    from pmdcid.model import load_model
-    from pmdcid.plan.design import plan_for_model
-    from pmdcid.plan.guess import guess_plan
-    from pmdcid.plan.output import write_plan
+    from pmdcid import api
 
-    plan = guess_plan(settings) if guess else plan_for_model(load_model(model_path), settings)
-    command = "pmdcid plan " + " ".join(sys.argv[2:])
-    write_plan(plan, out_dir, command)
+    plan = api.plan(None if guess else model_path, out_dir, vmax=vmax, taumax=taumax,
+                    speed_max=speed_max, rate=rate, budget=budget, noise_omega=noise_omega,
+                    noise_i=noise_i, command="pmdcid plan " + " ".join(sys.argv[2:]))
     echo(f"wrote {len(plan.profiles)} profiles ({plan.seconds:.1f} s) and plan.json, "
                f"plan.md into {out_dir}")
     for note in plan.notes:
@@ -99,15 +96,15 @@ def _check(logs, model_path, settings, out_dir, mapping) -> None:
     from pathlib import Path
 
     from pmdcid.io import read_logs
-    from pmdcid.io.logs import atomic_write_text
     from pmdcid.model import load_model
     from pmdcid.plan.check import check_logs
+    from pmdcid.runtime.outputs import atomic_write_text
 
     res = check_logs(read_logs(logs, mapping), load_model(model_path), settings)
     for line in res.lines():
         echo(line)
     if out_dir:
-        from pmdcid.io.outputs import output_folder
+        from pmdcid.runtime.outputs import output_folder
 
         with output_folder(out_dir) as d:
             atomic_write_text(d / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")

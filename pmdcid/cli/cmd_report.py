@@ -24,15 +24,9 @@ from pmdcid.cli.options import log_options, model_option
 @log_options
 def report_cmd(logs, model_path, out_dir, summary_path, before_path, force, mapping):
     """Compare MODEL with measured LOGs: DIR/report.html, DIR/metrics.json, DIR/*.png."""
-    from pmdcid.io import read_logs
-    from pmdcid.model import load_model
-    from pmdcid.report import check_out_dir, load_summary, make_report
+    from pmdcid import api
 
-    check_out_dir(out_dir)
-    model = load_model(model_path)
-    before = load_model(before_path) if before_path else None
-    summary = load_summary(summary_path) if summary_path else None
-    res = make_report(read_logs(logs, mapping), model, out_dir, summary=summary,
-                      before_model=before, progress=progress_lines(), force=force)
+    res = api.report(list(logs), model_path, out_dir, summary=summary_path, before=before_path,
+                     progress=progress_lines(), mapping=mapping, force=force)
     echo(f"wrote {res.html_path}")
     echo(f"wrote {res.metrics_path} and {len(res.figures)} figures")

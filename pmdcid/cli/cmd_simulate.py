@@ -46,22 +46,21 @@ def simulate_cmd(input_logs, model_path, output, noise_i, noise_omega, encoder, 
     """Predict what the sensors read for INPUT's t and v (or tau), from rest unless --x0."""
     import os
 
-    from pmdcid.synth import NoiseSpec, simulate_file, simulate_files
+    from pmdcid import api
 
-    opts = dict(mapping=mapping, noise=NoiseSpec(noise_i, noise_omega, encoder), seed=seed,
-                blocked=blocked, force=force, x0=x0, controller=controller)
     if controller is not None:
         echo(f"closed loop: {controller.describe()}")
-    if len(input_logs) == 1:
-        if os.path.isdir(output):
-            raise click.BadParameter(f"{output!r} is a folder: with one INPUT, -o names the "
-                                     "output file", param_hint="'-o' / '--output'")
-        echo(f"wrote {simulate_file(input_logs[0], model_path, output, **opts)}")
-        return
+    if len(input_logs) == 1 and os.path.isdir(output):
+        raise click.BadParameter(f"{output!r} is a folder: with one INPUT, -o names the "
+                                 "output file", param_hint="'-o' / '--output'")
     names = [os.path.basename(p) for p in input_logs]
     dup = next((n for n in names if names.count(n) > 1), None)
     if dup:
         raise click.BadParameter(f"two INPUTs are named {dup!r}: their outputs in {output!r} "
                                  "would collide; simulate them in separate calls",
                                  param_hint="INPUT...")
-    simulate_files(list(input_logs), model_path, output, echo=echo, **opts)
+    for path in api.simulate_to(list(input_logs), model_path, output, x0=x0, noise_i=noise_i,
+                                noise_omega=noise_omega, encoder=encoder, seed=seed,
+                                blocked=blocked, controller=controller, mapping=mapping,
+                                force=force):
+        echo(f"wrote {path}")

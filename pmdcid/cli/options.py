@@ -81,12 +81,10 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
 
     Runs at the edge before the command does any work, so no command can overwrite a user's log;
     every output (and the model a stage writes) passes the one output guard first
-    (:func:`pmdcid.io.outputs.check_target`: no FIFO, device or symlink loop).
+    (:func:`pmdcid.runtime.outputs.check_target`: no FIFO, device or symlink loop).
     """
-    import os
-
     from pmdcid.errors import LogError
-    from pmdcid.io.outputs import check_target
+    from pmdcid.runtime.outputs import check_target, input_at
 
     ctx = ctx or click.get_current_context(silent=True)
     if ctx is None:
@@ -105,11 +103,9 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
         outputs.append((ctx.params["model_path"], "-m"))
     for out, opt in outputs:
         check_target(out, option=opt)
-        if not os.path.exists(out):
-            continue
-        for inp in inputs:
-            if os.path.exists(inp) and os.path.samefile(out, inp):
-                raise LogError(f"output would overwrite the input {inp}; choose another {opt}", out)
+        inp = input_at(out, inputs)
+        if inp is not None:
+            raise LogError(f"output would overwrite the input {inp}; choose another {opt}", out)
 
 
 def model_option(required: bool = True, updated: bool = True):

@@ -19,10 +19,10 @@ from pmdcid.diagnose.residuals import error_table, pooled
 from pmdcid.diagnose.rules import at_bound, failed_refit
 from pmdcid.diagnose.testable import HeldoutTest, heldout_test
 from pmdcid.fit.problem import FitOutcome
-from pmdcid.identify.cpus import pmap
 from pmdcid.model import EFFECTS
 from pmdcid.model.effects import bounds_of
 from pmdcid.model.signatures import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
+from pmdcid.runtime.cpus import pmap
 
 #: factors applied to the guess's effect parameters when the first starts fail
 RETRY_FACTORS = (0.3, 3.0)
@@ -120,7 +120,7 @@ def refit_starts(run, screen, cur: FitOutcome, free: list[str]) -> tuple[FitOutc
     if all(math.isfinite(v) for v in off.values()):
         held = {p: screen.start[p] for p in EFFECTS[name].held if p in screen.start}
         starts.append(lambda: run.fit({**cur.values, **off, **held}, free))
-    tries = pmap(_call, starts)  # independent refits: on the spare CPUs (identify/cpus.py)
+    tries = pmap(_call, starts)  # independent refits: on the spare CPUs (runtime/cpus.py)
     best = min(tries, key=lambda f: f.chi2["fit"])
     if failed_refit(best.chi2["fit"], cur.chi2["fit"]):
         own = set(effect_free(name))

@@ -27,20 +27,20 @@ import numpy as np
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
-from pmdcid.diagnose.hold import read_slow_inputs
 from pmdcid.diagnose.named import generalises, prefer_named, with_named
 from pmdcid.diagnose.residuals import context, error_table, typical_scales
 from pmdcid.diagnose.rules import Rules, judge, same_rows
 from pmdcid.diagnose.screen import Screen, Screener
 from pmdcid.diagnose.settings import Settings
+from pmdcid.diagnose.slow_inputs import read_slow_inputs
 from pmdcid.diagnose.starts import grid_start, profile_best, staged_fit
 from pmdcid.diagnose.summary import DiagnoseResult, summarise, write_model
 from pmdcid.errors import ModelError
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.solver import blas_single_thread
-from pmdcid.identify.cpus import pmap
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.lumped import is_lumped
+from pmdcid.runtime.cpus import pmap
 from pmdcid.simulate import param_values
 
 #: base parameters diagnose refits along with the effects (those the logs inform)
@@ -79,7 +79,6 @@ class Run:
         self.base_free = _free_base(problem, self.vals0, model)
         self.refresh()
         self.floors = repeatability(problem.logs)
-        self.held_ref: list[dict[str, float]] | None = None
 
     def refresh(self) -> None:
         """The start's residual context, typical scales and the effects' limits (again after
@@ -224,7 +223,7 @@ def search(run: Run, cur: FitOutcome, pool: list[str], notes: list[str]):
         cands = []
         for s in ranked:
             run.say(f"diagnose round {rnd}: refitting {s.effect}")
-        # the candidates' refits are independent: shared with the spare CPUs (identify/cpus.py;
+        # the candidates' refits are independent: shared with the spare CPUs (runtime/cpus.py;
         # the same results in the same order for any number of threads)
         done = pmap(lambda s, cur=cur, free=cur_free, rnd=rnd:
                     evaluate(run, s, cur, effect_free(s.effect) + free, rnd), ranked)
@@ -263,7 +262,7 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
     the rules a candidate must pass (:class:`~pmdcid.diagnose.settings.Settings`).
     The input model is not modified. ``progress(msg)`` is called as each round starts and
     before each candidate's refit. ``ramp``: how slowly logged, continuously varying inputs
-    varied between samples (fit-nonlinear's reading; :mod:`pmdcid.diagnose.hold`), profiled
+    varied between samples (fit-nonlinear's reading; :mod:`pmdcid.diagnose.slow_inputs`), profiled
     here when such a log is given without it.
     """
     from pmdcid.io import bounds

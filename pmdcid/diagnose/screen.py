@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.fit.problem import Problem
-from pmdcid.identify.cpus import pmap
 from pmdcid.model.effects import Effect
 from pmdcid.model.residual import ResidualContext
+from pmdcid.runtime.cpus import pmap
 
 #: relative step of a base parameter's sensitivity column
 BASE_STEP = 0.05

@@ -124,11 +124,6 @@ def _angle_shape(r: np.ndarray, w: np.ndarray, dt: float) -> dict | None:
                            "load"}
 
 
-def _best(items: list[dict]) -> dict | None:
-    items = [x for x in items if x]
-    return max(items, key=lambda x: x["share"]) if items else None
-
-
 def residual_shapes(problem, sims, floor: float | None = None,
                     model_error: float | None = None) -> list[dict]:
     """The shapes the speed residual of ``problem``'s moving logs shows (each at most once,

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from pmdcid.identify.cpus import pmap
+from pmdcid.runtime.cpus import pmap
 
 #: grid points per axis
 GRID_N = 5
@@ -55,7 +55,7 @@ def grid_start(problem, vals: dict[str, float], free, torque_scale: float,
 
 def _lowest(problem, trials, part, best, best_c):
     """The first trial of lowest ``part`` chi-square if below ``best_c``, else ``best``; the
-    trials simulated on the spare CPUs (:func:`pmdcid.identify.cpus.pmap`)."""
+    trials simulated on the spare CPUs (:func:`pmdcid.runtime.cpus.pmap`)."""
     costs = pmap(lambda v: problem.cost(v, part), trials)
     for trial, c in zip(trials, costs, strict=True):
         if c < best_c:

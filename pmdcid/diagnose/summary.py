@@ -1,5 +1,5 @@
 """What diagnose hands back: the result object, the model it writes, the summary
-(CONTRACT.md's keys and more) with the errors before and after, on the logs held out whole
+(docs/cli.md's keys and more) with the errors before and after, on the logs held out whole
 too, and the residual's shape when it is still not white."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from pmdcid.diagnose.candidates import Candidate, effect_free
-from pmdcid.diagnose.drive import drive_warnings
+from pmdcid.diagnose.drive_warnings import drive_warnings
 from pmdcid.diagnose.folds import floor_of
 from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, pooled, whiteness
 from pmdcid.diagnose.rules import UNTESTABLE
@@ -22,7 +22,7 @@ STAGE = "diagnose"
 
 @dataclass
 class DiagnoseResult(ResultProtocol):
-    """The new model, the summary (CONTRACT.md), per-log errors and the candidates."""
+    """The new model, the summary (docs/cli.md), per-log errors and the candidates."""
 
     model: Model
     summary: dict
@@ -81,7 +81,7 @@ def untestable(cands: list[Candidate]) -> list[dict]:
 def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
               added: list[str], seen: dict[str, Candidate], history: list[Candidate],
               notes: list[str]) -> DiagnoseResult:
-    """The summary (CONTRACT.md's keys and more), the residual's shape when unexplained."""
+    """The summary (docs/cli.md's keys and more), the residual's shape when unexplained."""
     problem = run.problem
     before = error_table(problem, problem.simulate_all(run.vals0))
     final_sims = problem.simulate_all(final_vals)

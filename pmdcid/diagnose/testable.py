@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pmdcid.identify.cpus import pmap
 from pmdcid.model import EFFECTS
+from pmdcid.runtime.cpus import pmap
 
 #: relative step of a parameter's held-out sensitivity column
 STEP = 0.05

@@ -140,7 +140,7 @@ def _is_ours(path: Path) -> bool:
 
 def check_outputs(paths: list[Path], model_path: str, force: bool) -> None:
     """Refuse to overwrite the model, or (without ``force``) a file pmdcid export did not write."""
-    from pmdcid.io.outputs import check_target
+    from pmdcid.runtime.outputs import check_target, same_file
 
     for out in paths:
         check_target(out)  # a FIFO would hang the check below; a device is never replaced
@@ -150,7 +150,7 @@ def check_outputs(paths: list[Path], model_path: str, force: bool) -> None:
             if not out.parent.is_dir():
                 raise ExportError("its folder does not exist", str(out))
             continue
-        if os.path.exists(model_path) and os.path.samefile(out, model_path):
+        if same_file(out, model_path):
             raise ExportError("output would overwrite the model file; choose another -o", str(out))
         if not force and not _is_ours(out):
             raise ExportError("exists and was not written by pmdcid export; use --force to "
@@ -202,7 +202,7 @@ def export_model(model_path: str, fmt: str, output: str, force: bool = False,
                  note: Callable[[str], None] | None = None) -> list[str]:
     """``pmdcid export``: write ``fmt`` code for the model in ``model_path``; returns the paths.
     ``note(line)`` receives what the format approximates (MuJoCo), one line each."""
-    from pmdcid.io.logs import atomic_write
+    from pmdcid.runtime.outputs import atomic_write
 
     if fmt not in FORMATS:
         raise ExportError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})")

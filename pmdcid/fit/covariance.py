@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.fit.tall import BLOCK_ROWS, TALL_ROWS
-from pmdcid.identify.cpus import pmap
+from pmdcid.runtime.cpus import pmap
 
 #: fewest blocks per log (a variance from fewer blocks is too noisy to use)
 MIN_BLOCKS = 10

@@ -12,7 +12,7 @@ allocated once per solve. The fits' results are bit for bit those of ``jac="2-po
 renamed them), :meth:`ForwardJacobian.jac` is ``"2-point"`` itself.
 
 The columns are independent simulations: with ``parallel``, they are shared with the spare
-CPUs (:func:`pmdcid.identify.cpus.pmap`; ``PMDCID_THREADS=1`` turns it off). Each column is
+CPUs (:func:`pmdcid.runtime.cpus.pmap`; ``PMDCID_THREADS=1`` turns it off). Each column is
 written into its own row by the same code as serially: the Jacobian is bit for bit the same
 for any number of threads.
 """
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pmdcid.identify.cpus import pmap
+from pmdcid.runtime.cpus import pmap
 
 try:  # scipy's own step rule: the steps must be exactly those of jac="2-point"
     from scipy.optimize._numdiff import _adjust_scheme_to_bounds, _compute_absolute_step

@@ -195,7 +195,8 @@ class Problem:
         self.blocked = [log.blocked for log in self.logs]
         self._needs: dict[str, list[int]] = {}
         self._blocks: dict[str, list[tuple[Channel, int, int]]] = {}
-        #: log -> how its input varied between samples (``ramp``; :mod:`pmdcid.diagnose.hold`)
+        #: log -> how its input varied between samples (``ramp``;
+        #: :mod:`pmdcid.diagnose.slow_inputs`)
         self.readings: dict[int, float] = {}
         # each log from the state its first samples measured (a log that starts turning is
         # never credited to an effect); a blocked rotor held from rest

@@ -222,7 +222,7 @@ def format_estimates(estimates, width: int = 10) -> list[str]:
 
 
 def nrmse(sim: np.ndarray, meas: np.ndarray) -> float:
-    """RMS error divided by the standard deviation of the measurement (CONTRACT.md)."""
+    """RMS error divided by the standard deviation of the measurement (docs/report.md)."""
     ok = np.isfinite(sim) & np.isfinite(meas)
     if ok.sum() < 2:
         return math.nan

@@ -32,9 +32,9 @@ from pmdcid.fit.problem import Problem, Simulation
 from pmdcid.fit.results import Estimate, FitStats, SimFitResult, nrmse
 from pmdcid.fit.solver import blas_single_thread, scale_of, solve
 from pmdcid.fit.tall import TALL_ROWS
-from pmdcid.identify.cpus import pmap
 from pmdcid.model import Model
 from pmdcid.model.effects import unit_of
+from pmdcid.runtime.cpus import pmap
 from pmdcid.simulate import param_values
 from pmdcid.simulate.initial import moving_start
 from pmdcid.simulate.layout import NSTATE

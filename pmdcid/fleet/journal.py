@@ -7,7 +7,7 @@ measurement is committed as ``DIR/results/<key>.json`` through a temporary file,
 a rename, so a result file is whole or absent whatever moment the run is killed at; the summary
 table is rebuilt from the files whose keys the manifest asks for, so a row is never lost or
 doubled. The journal is not part of the command's all-or-nothing transaction
-(:mod:`pmdcid.io.outputs`): it is what a failed or killed run leaves for the next one.
+(:mod:`pmdcid.runtime.outputs`): it is what a failed or killed run leaves for the next one.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def load(out_dir: str, keys) -> dict[str, dict]:
 
 def commit(out_dir: str, row: dict) -> None:
     """Write ``row`` as its measurement's result file, whole or not at all (module doc)."""
-    from pmdcid.io.outputs import IN_FLIGHT, sigterm_deferred
+    from pmdcid.runtime.signals import IN_FLIGHT, sigterm_deferred
 
     folder = results_dir(out_dir)
     os.makedirs(folder, exist_ok=True)

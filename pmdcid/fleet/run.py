@@ -168,13 +168,13 @@ def _make_dir(out_dir) -> None:
 
 def _check_inputs(out_dir, inputs: list[str]) -> None:
     """Refuse a DIR whose outputs would overwrite an input (the manifest, limits, a log)."""
-    outs = [os.path.join(str(out_dir), n) for n in OUTPUTS]
-    outs = [o for o in outs if os.path.exists(o)]
-    for o in outs:
-        for inp in inputs:
-            if os.path.exists(inp) and os.path.samefile(o, inp):
-                raise LogError(f"the fleet's output would overwrite the input {inp}; choose "
-                               "another -o", o)
+    from pmdcid.runtime.outputs import input_at
+
+    for o in [os.path.join(str(out_dir), n) for n in OUTPUTS]:
+        inp = input_at(o, inputs)
+        if inp is not None:
+            raise LogError(f"the fleet's output would overwrite the input {inp}; choose "
+                           "another -o", o)
 
 
 def analyse(res: FleetResult) -> None:
@@ -266,7 +266,7 @@ def write_outputs(res: FleetResult) -> None:
     """units.parquet, outliers.csv and fleet.html into DIR, each atomically."""
     from pmdcid.fleet import figures, page, table
     from pmdcid.fleet.population import param_names
-    from pmdcid.io.logs import atomic_write, atomic_write_text
+    from pmdcid.runtime.outputs import atomic_write, atomic_write_text
 
     names = param_names(res.rows)
     attrs = list(dict.fromkeys(a for r in res.rows for a in r.get("attrs", {})))

@@ -1,10 +1,10 @@
 """One measurement identified on a Dask worker: the task the fleet submits per unit.
 
-:func:`run_unit` calls :func:`pmdcid.pipeline.run_identify`, the function ``pmdcid identify``
+:func:`run_unit` calls :func:`pmdcid.files.run_identify`, the function ``pmdcid identify``
 runs, on the measurement's log files with the fleet's options, writing the model into a
 temporary folder of the worker; the parameters are the same bits as a lone ``pmdcid identify``
 of those logs gives (every fit is bit for bit the same for any number of threads,
-:mod:`pmdcid.identify.cpus`). It never raises for a unit's own problem: a
+:mod:`pmdcid.runtime.cpus`). It never raises for a unit's own problem: a
 :class:`~pmdcid.errors.PmdcidError` becomes a row with ``status="error"`` and the one-line
 message, so the other units go on.
 
@@ -53,8 +53,8 @@ def _check_logs(job: dict) -> None:
 
 def _identify(job: dict) -> dict:
     """The identified model of one measurement as ``{params, effects, lumped, warnings}``."""
+    from pmdcid.files import run_identify
     from pmdcid.model.lumped import is_lumped
-    from pmdcid.pipeline import run_identify
 
     with tempfile.TemporaryDirectory(prefix="pmdcid-fleet-") as tmp, \
             warnings.catch_warnings(record=True) as caught:

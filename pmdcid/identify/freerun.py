@@ -55,7 +55,7 @@ IV_ITERATIONS = 3
 OFFSET_SIGMAS = 3.0
 
 
-def noise_std(x: np.ndarray) -> float:
+def first_diff_noise_std(x: np.ndarray) -> float:
     """Robust white-noise std of a signal from its first differences (MAD), same unit as x."""
     d = np.diff(np.asarray(x, float))
     if len(d) < 3:
@@ -68,7 +68,7 @@ def rotor_turns(omega: np.ndarray) -> bool:
     percentile) exceeds :data:`TURN_SIGMAS` noise std (an offset alone is not motion)."""
     om = np.asarray(omega, float)
     spread = float(np.percentile(om, 95) - np.percentile(om, 5))
-    return spread > TURN_SIGMAS * noise_std(om) and spread > 0.0
+    return spread > TURN_SIGMAS * first_diff_noise_std(om) and spread > 0.0
 
 
 def loaded_current(i: np.ndarray, onset: int) -> tuple[bool, float, float]:
@@ -83,7 +83,7 @@ def loaded_current(i: np.ndarray, onset: int) -> tuple[bool, float, float]:
     final = float(np.median(after[-max(3, len(after) // 10):]))
     sg = math.copysign(1.0, final) if final else 1.0
     peak = float(np.max(sg * sm)) * sg
-    noise = noise_std(i) / math.sqrt(w)
+    noise = first_diff_noise_std(i) / math.sqrt(w)
     over = abs(peak) - abs(final)
     return over > max(OVERSHOOT * abs(final), 8 * noise), peak, final
 

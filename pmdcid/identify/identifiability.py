@@ -68,7 +68,7 @@ RAMP_FRACTION = 0.8
 def hold_matters(log, J: float, bv: float) -> bool:
     """True when ``log``'s input changes at nearly every sample (a ramp, a sine) and its sample
     period exceeds :data:`HOLD_TAU_FRACTION` of the mechanical time constant J/bv [s]: read as
-    held (CONTRACT.md: zero-order hold) or as varying between samples, the input then moves the
+    held (docs/io.md: zero-order) or as varying between samples, the input then moves the
     fitted inertia (docs/identification.md: J -63 % at 10 Hz when a continuous ramp is read as
     held)."""
     if not (J > 0 and bv > 0) or log.dt <= HOLD_TAU_FRACTION * J / bv:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pmdcid.identify.freerun import noise_std
+from pmdcid.identify.freerun import first_diff_noise_std
 from pmdcid.identify.steps import StepInfo, fit_first_order, lsq, strejc, two_lag
 
 #: a step whose steady speed is within this many noise std of zero did not move the rotor
@@ -87,7 +87,7 @@ def speed_noise(w: np.ndarray) -> float:
     """Speed noise std [rad/s]: sample-to-sample scatter, at least an encoder quantum's."""
     d = np.abs(np.diff(w))
     q = float(np.min(d[d > 0])) if np.any(d > 0) else 0.0
-    return max(noise_std(w), q / math.sqrt(12.0), 1e-6 * float(np.max(np.abs(w))), 1e-12)
+    return max(first_diff_noise_std(w), q / math.sqrt(12.0), 1e-6 * float(np.max(np.abs(w))), 1e-12)
 
 
 def window(log, step, pre=5):

@@ -35,7 +35,6 @@ from pmdcid.fit.results import Estimate, ResultProtocol, SimFitResult, format_es
 from pmdcid.fit.simfit import FitOptions, fit_simulation
 from pmdcid.fit.solver import blas_single_thread
 from pmdcid.identify.grid import batch_cost
-from pmdcid.identify.hold import hold_profile
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
 from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re-exported
     FREE_TAU,
@@ -48,6 +47,7 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     free_parameters,
     working_model,
 )
+from pmdcid.identify.ramp_profile import hold_profile
 from pmdcid.model import Model
 from pmdcid.simulate import param_values
 
@@ -424,7 +424,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
               for k in ("J", "bv") if k in free and start[k] > 0}
     if "tau_e" in free:  # a lumped model's lag stays a lag: tau_e = 0 is the model without it
         bounds["tau_e"] = (TAU_E_FLOOR * min(lg.dt for lg in logs), 1.0)
-    # how a slow log's input varied between samples, when it matters (.hold)
+    # how a slow log's input varied between samples, when it matters (.ramp_profile)
     prof = hold_profile(logs, start, free, partial(
         _chisqr_and_J, logs, work, ls_free, signals, best, sigma, max_nfev, bounds, prior))
     held = {"ramp": prof.value} if prof else {}

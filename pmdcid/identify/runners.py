@@ -1,44 +1,40 @@
-"""Running a fit stage on files: read the logs, load the model, fit, update the model atomically.
-
-One function per command (the click layer calls exactly one of these). The model file is created
-when missing (its parent folder must exist), only the stage's own parameters change, and it is
-written in one atomic rename after the fit succeeded: a failed fit leaves it untouched.
-
-Before anything is written the plausibility gate (:mod:`pmdcid.identify.plausibility`) checks
-the logs' units and the fitted time constants; ``force`` turns its refusals into warnings. The
-model's read-modify-write holds a lock (:func:`pmdcid.io.outputs.locked`) and re-reads the file
-under it: two stages run at once on one model both land their updates.
+"""The stages as every entry runs them: the command line (through :mod:`pmdcid.files`), the
+library's front door (:mod:`pmdcid.api`) and ``identify`` (:mod:`pmdcid.pipeline`).
 
 Voltage and speed logs without current, on a model without R, make a lumped (per-volt) model
-(:mod:`pmdcid.model.lumped`): :func:`lumped_if_wanted`, :func:`stage_mechanical`,
-:func:`stage_nonlinear` and :func:`updated` are shared by the commands, ``identify`` and the API.
+(:mod:`pmdcid.model.lumped`). That path is written once, in two halves:
+:func:`fit_stage` (mark the model lumped when the logs want it, fit, relabel the result per
+volt) and :func:`apply_stage` (write the result into a model, which a per-volt result marks
+lumped again). Each stage's own choices are :func:`stage_electrical`,
+:func:`stage_mechanical`, :func:`stage_nonlinear` and :func:`stage_inverse_dynamics`.
 """
 
 from __future__ import annotations
 
 import math
-import os
 
-from pmdcid.errors import LogError
-from pmdcid.fit.results import record_notes
-from pmdcid.identify.plausibility import gate, gate_result
-from pmdcid.io import read_logs
-from pmdcid.io.outputs import locked
-from pmdcid.model import load_model, save_model
 from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.notes import Note
 from pmdcid.simulate import logs_for
-from pmdcid.simulate.substeps import bounded_for
 
 
-def _load(paths, model_path, mapping):
-    for p in paths:
-        if os.path.exists(p) and os.path.exists(model_path) and os.path.samefile(p, model_path):
-            raise LogError(f"the model file would overwrite the input log {p}; choose another -m",
-                           model_path)
-    model = load_model(model_path, must_exist=False)
-    logs = read_logs(paths, mapping, defer=True)
-    return logs, lumped_if_wanted(logs, model)
+def fit_stage(fit, logs, model):
+    """``fit(logs, work)`` on a copy of ``model`` marked lumped when ``logs`` can only identify
+    a per-volt model (:func:`lumped_if_wanted`), the result relabelled per volt
+    (:func:`per_volt`) when it was fitted so. ``model`` is not modified."""
+    work = lumped_if_wanted(logs, model.copy())
+    result = fit(logs, work)
+    if is_lumped(work):
+        per_volt(result)
+    return result
+
+
+def apply_stage(result, model) -> None:
+    """Write ``result`` into ``model``; a result fitted per volt (:func:`fit_stage`) leaves
+    ``model`` lumped, so that its per-volt values are never read as SI."""
+    result.apply(model)
+    if getattr(result, "lumped", False):
+        mark_lumped(model)
 
 
 def lumped_if_wanted(logs, model):
@@ -47,22 +43,6 @@ def lumped_if_wanted(logs, model):
     if wants_lumped(logs, model) and not is_lumped(model):
         mark_lumped(model)
     return model
-
-
-def updated(result, model):
-    """A copy of ``model`` with ``result`` applied (per volt for a lumped model)."""
-    new = model.copy()
-    _apply(result, model, new)
-    return new
-
-
-def _apply(result, model, new) -> None:
-    if is_lumped(model):
-        per_volt(result)
-    result.apply(new)
-    record_notes(result, new)
-    if is_lumped(model):
-        mark_lumped(new)
 
 
 def per_volt(result) -> None:
@@ -89,38 +69,12 @@ def _per_volt_text(text: str) -> str:
     return new
 
 
-def _value(model, name, given=None):
-    if given is not None:
-        return given
-    p = model.parameters.get(name)
-    return p.value if p is not None else None
-
-
-def _save(result, model, model_path, logs, force, pre=None):
-    """Apply ``result`` to the model file as it is now (under the lock), gate it, write it."""
-    with locked(model_path):
-        new = load_model(model_path, must_exist=False)
-        if pre is not None:
-            pre(new)
-        _apply(result, model, new)
-        gate_result(new, logs, force)
-        save_model(new, model_path)
-    return result
-
-
-def _run(fit, paths, model_path, mapping, force, km=None):
-    logs, model = _load(paths, model_path, mapping)
-    gate(logs, force, _value(model, "km", km), _value(model, "R"))
-    with bounded_for(model_path):
-        return logs, model, fit(logs, model)
-
-
-def run_fit_electrical(paths, model_path, mapping=None, force=False):
-    """``pmdcid fit-electrical``: R, L from blocked-rotor logs into ``model_path``."""
+def stage_electrical(logs, model):
+    """fit-electrical: R, L (blocked-rotor logs), or R, L, ke (free-running logs with
+    current)."""
     from pmdcid.identify.electrical import fit_electrical
 
-    logs, model, res = _run(fit_electrical, paths, model_path, mapping, force)
-    return _save(res, model, model_path, logs, force)
+    return fit_electrical(logs, model)
 
 
 def stage_mechanical(logs, model, km=None):
@@ -215,36 +169,14 @@ def _step_latency(result, logs, model) -> None:
         result.estimates["delay"] = Estimate("delay", *found["delay"], "s")
 
 
-def run_fit_mechanical(paths, model_path, mapping=None, km=None, force=False):
-    """``pmdcid fit-mechanical``: b, bv, bc, J from free-speed step logs into ``model_path``."""
-    logs, model, res = _run(lambda lg, m: stage_mechanical(lg, m, km), paths, model_path,
-                            mapping, force, km)
-    return _save(res, model, model_path, logs, force)
-
-
-def run_fit_nonlinear(paths, model_path, mapping=None, force=False, **opts):
-    """``pmdcid fit-nonlinear``: J, bv, bc, dz (tau0) by simulation error into ``model_path``."""
-    logs, model, res = _run(lambda lg, m: stage_nonlinear(lg, m, **opts), paths, model_path,
-                            mapping, force)
-    return _save(res, model, model_path, logs, force)
-
-
-def run_fit_inverse_dynamics(paths, model_path, mapping=None, as_published=False, km=None,
-                             force=False):
-    """``pmdcid fit-inverse-dynamics``: J, bv, bc, tau0 by inverse-dynamics least squares (the
-    torque regressed on filtered acceleration, speed, sign of speed and 1) into ``model_path``.
-    ``as_published``: the EMPS authors' IDIM-LS (every row, torque not centred on the ZOH)."""
+def stage_inverse_dynamics(logs, model, km=None, as_published=False):
+    """fit-inverse-dynamics: J, bv, bc, tau0 by inverse-dynamics least squares (the torque
+    regressed on filtered acceleration, speed, sign of speed and 1), with ``km`` [N m/A] (a
+    datasheet value, set into ``model``) for voltage logs with current. ``as_published``: the
+    EMPS authors' IDIM-LS (every row, torque not centred on the ZOH)."""
     from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics
 
-    def fit(logs, model):
-        if km is not None:
-            model.set("km", km, stage="datasheet")
-        opts = {"rest_fraction": 0.0, "centre_zoh": False} if as_published else {}
-        return fit_inverse_dynamics(logs, model, **opts)
-
-    def pre(new):
-        if km is not None:
-            new.set("km", km, stage="datasheet")
-
-    logs, model, res = _run(fit, paths, model_path, mapping, force, km)
-    return _save(res, model, model_path, logs, force, pre)
+    if km is not None:
+        model.set("km", km, stage="datasheet")
+    opts = {"rest_fraction": 0.0, "centre_zoh": False} if as_published else {}
+    return fit_inverse_dynamics(logs, model, **opts)

@@ -8,12 +8,9 @@ A log is comma-separated text with one header row. ``#`` lines before the header
 from __future__ import annotations
 
 import io as _io
-import math
 import os
-import tempfile
 from collections import Counter
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -28,6 +25,7 @@ from pmdcid.io.build import (
 from pmdcid.io.clock import JITTER_TOL  # noqa: F401 - the one definition, re-exported here
 from pmdcid.io.kinds import is_blocked
 from pmdcid.io.mapping import ColumnMap
+from pmdcid.runtime.outputs import atomic_write
 
 UNITS = {"t": "s", "v": "V", "tau": "N m", "i": "A", "omega": "rad/s", "theta": "rad"}
 
@@ -339,71 +337,6 @@ def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, st
     return buf.getvalue()
 
 
-def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
-    """Write ``path`` atomically: ``fill(fh)`` writes a temporary file in the same folder (opened
-    in binary mode when ``binary``), which then replaces ``path`` (os.replace). On any failure
-    (SIGTERM included, see :mod:`pmdcid.io.outputs`) the temporary file is removed and an
-    existing ``path`` is left byte-for-byte as it was. A symlink is written through: its target
-    is replaced, the link stays. Inside a command's transaction the old version is kept until
-    the command succeeds.
-    """
-    from pmdcid.io import outputs
-
-    outputs.check_target(path)  # regular files only, no symlink loop
-    p = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.exists():
-        up = next((a for a in folder.parents if a.exists()), None)
-        if up is not None and not up.is_dir():
-            raise LogError("is a file, not a folder: cannot write outputs under it", str(up))
-        raise LogError("output folder does not exist: create it first", str(folder))
-    if not folder.is_dir():
-        raise LogError("is a file, not a folder: cannot write outputs under it", str(folder))
-    with outputs.sigterm_deferred():  # registered before a SIGTERM can leave it behind
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
-        except OSError as exc:
-            raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
-        outputs.IN_FLIGHT.add(tmp)
-    try:
-        with os.fdopen(fd, "wb" if binary else "w") as fh:
-            fill(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        if p.exists():
-            os.chmod(tmp, p.stat().st_mode & 0o777)
-        else:
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-        tr = outputs.current()
-        if tr is not None:
-            tr.before_replace(os.path.realpath(p))
-        os.replace(tmp, p)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        if isinstance(exc, OSError):
-            raise LogError(f"cannot write ({exc.strerror})", str(path)) from None
-        raise
-    finally:
-        outputs.IN_FLIGHT.discard(tmp)
-
-
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (see :func:`atomic_write`)."""
-    atomic_write(path, lambda fh: fh.write(text))
-
-
 def write_log(path, t, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None) -> None:
     """Write a canonical log atomically, streaming it in chunks."""
     atomic_write(path, lambda fh: write_csv(fh, np.asarray(t), columns, meta))
-
-
-def is_finite_number(x) -> bool:
-    try:
-        return math.isfinite(float(x))
-    except (TypeError, ValueError):
-        return False

@@ -41,7 +41,7 @@ from pathlib import Path
 from pmdcid.errors import LogError
 from pmdcid.io.expr import evaluate, parse_expr, refs
 
-#: the canonical column names of a log (CONTRACT.md): time [s], voltage [V], torque [N m],
+#: the canonical column names of a log (docs/units.md): time [s], voltage [V], torque [N m],
 #: current [A], speed [rad/s], angle [rad]
 CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
 

@@ -1,6 +1,6 @@
 """Model parameters and the model file (JSON, written atomically).
 
-Base parameters (CONTRACT.md): ``R`` [ohm], ``L`` [H], ``km`` [N m/A], ``J`` [kg m^2],
+Base parameters (docs/model.md): ``R`` [ohm], ``L`` [H], ``km`` [N m/A], ``J`` [kg m^2],
 ``b`` [N m s/rad] (linear viscous from fit-mechanical), ``bv`` [N m s/rad], ``bc`` [N m],
 ``dz`` [N m] (torque break point of the hard dead zone). Effect parameters are declared by the
 effects in :mod:`pmdcid.model.effects`.
@@ -282,7 +282,7 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
 
     p = path_arg(path, "path")
     if os.path.islink(p) and not os.path.exists(p):
-        from pmdcid.io.outputs import check_target
+        from pmdcid.runtime.outputs import check_target
 
         check_target(p, option="-m")  # a symlink loop: one line (a dangling link: created)
     if not os.path.exists(p):
@@ -363,10 +363,10 @@ def save_model(model: Model, path: str | os.PathLike) -> None:
     Every value is checked against the bounds (and the plausibility rule) the loader applies
     first: the tool never writes a model it would then refuse to read. A model read from
     ``path`` is written back only if the file still holds what was read (:func:`check_unchanged`,
-    optimistic locking; the stage runners call this under :func:`pmdcid.io.outputs.locked`).
+    optimistic locking; the stage runners call this under :func:`pmdcid.runtime.outputs.locked`).
     """
     from pmdcid.io.args import path_arg
-    from pmdcid.io.logs import atomic_write_text
+    from pmdcid.runtime.outputs import atomic_write_text
 
     path_arg(path, "path")
     if not isinstance(model, Model):

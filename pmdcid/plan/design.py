@@ -19,7 +19,7 @@ from pmdcid.errors import ModelError
 from pmdcid.model import Model
 from pmdcid.plan import fisher as fi
 from pmdcid.plan import profiles as pr
-from pmdcid.plan.effects import effect_table
+from pmdcid.plan.effect_errors import effect_table
 
 #: default budget [s], rate [Hz]
 BUDGET = 120.0

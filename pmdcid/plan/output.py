@@ -9,9 +9,10 @@ from pathlib import Path
 
 from pmdcid.errors import LogError
 from pmdcid.io.kinds import canonical
-from pmdcid.io.logs import atomic_write_text, write_log
+from pmdcid.io.logs import write_log
 from pmdcid.model.effects import unit_of
 from pmdcid.plan.design import Plan
+from pmdcid.runtime.outputs import atomic_write_text
 
 GENERATOR = "pmdcid plan"
 
@@ -105,7 +106,7 @@ def check_out_dir(folder: str | os.PathLike) -> None:
 
 def write_plan(plan: Plan, folder: str | os.PathLike, command: str = "") -> list[str]:
     """Write the profiles, plan.json and plan.md into ``folder`` (created). Returns the paths."""
-    from pmdcid.io.outputs import output_folder
+    from pmdcid.runtime.outputs import output_folder
 
     d = Path(folder)
     check_out_dir(d)

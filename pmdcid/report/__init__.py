@@ -48,7 +48,7 @@ def check_out_dir(out_dir) -> Path:
 
 
 def make_out_dir(out_dir) -> Path:
-    from pmdcid.io.outputs import current
+    from pmdcid.runtime.outputs import current
 
     p = check_out_dir(out_dir)
     first_new = next((a for a in reversed([p, *p.parents]) if not a.exists()), None)
@@ -63,7 +63,7 @@ def make_out_dir(out_dir) -> Path:
 
 def write_bytes_atomic(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    from pmdcid.io.logs import atomic_write
+    from pmdcid.runtime.outputs import atomic_write
 
     atomic_write(path, lambda fh: fh.write(data), binary=True)
 
@@ -115,7 +115,7 @@ def _is_num(x) -> bool:
 
 
 def _summary_shape_error(obj: dict) -> str | None:
-    """What in a diagnose summary has the wrong type (None: its fields are as CONTRACT.md)."""
+    """What in a diagnose summary has the wrong type (None: fields as in docs/cli.md)."""
     added = obj.get("added", [])
     if not isinstance(added, list) or not all(isinstance(a, str) for a in added):
         return "field 'added' must be a list of effect names"
@@ -169,20 +169,20 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
                 force: bool = False) -> ReportResult:
     """Compare ``model`` with every log and write the report into ``out_dir`` (see module doc).
 
-    ``summary`` is a diagnose summary (CONTRACT.md) shown on the page; without it a
+    ``summary`` is a diagnose summary (docs/cli.md) shown on the page; without it a
     ``diagnose`` record in ``model.extra`` is used. When the model carries effects (or
     ``before_model`` is given) the page shows the error before and after them.
     ``progress(msg)`` is called before each log's simulation and before the figures.
     An existing report.html, metrics.json or figure pmdcid did not write is replaced only with
-    ``force`` (:func:`pmdcid.io.outputs.check_folder_outputs`).
+    ``force`` (:func:`pmdcid.runtime.outputs.check_folder_outputs`).
     """
     from pmdcid import __version__
-    from pmdcid.io.outputs import check_folder_outputs, output_folder
     from pmdcid.report import html
     from pmdcid.report.compare import compare_log, mean_errors, unique_names
     from pmdcid.report.metrics import LOW_SPEED_FRACTION, MAX_LAG
     from pmdcid.report.notes import report_notes
     from pmdcid.report.parallel import FigureDrawer
+    from pmdcid.runtime.outputs import check_folder_outputs, output_folder
 
     if not logs:
         raise LogError("no log files given")
@@ -265,14 +265,13 @@ def _file_names(names: list[str]) -> list[str]:
 
 def _refuse_overwriting_inputs(out_dir, names, inputs) -> None:
     """An input log or the model file must never be one of the report's outputs."""
+    from pmdcid.runtime.outputs import input_at
+
     for name in names:
-        target = Path(out_dir) / name
-        if not target.exists():
-            continue
-        for src in inputs:
-            if src and os.path.exists(src) and os.path.samefile(src, target):
-                raise LogError(f"the report would overwrite this input ({name}); choose another -o",
-                               src)
+        src = input_at(Path(out_dir) / name, inputs)
+        if src is not None:
+            raise LogError(f"the report would overwrite this input ({name}); choose another -o",
+                           src)
 
 
 def model_errors_from(cmps) -> list[dict]:

@@ -77,12 +77,6 @@ def _first_where(mask: np.ndarray, bins: np.ndarray) -> np.ndarray:
     return idx[np.r_[True, b[1:] != b[:-1]]] if len(idx) else idx
 
 
-def decimate(t: np.ndarray, y: np.ndarray, columns: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(t[k], y[k])`` with ``k = envelope_indices(t, y, columns)``: the line to draw."""
-    k = envelope_indices(t, y, columns)
-    return np.asarray(t)[k], np.asarray(y)[k]
-
-
 #: most points a scatter draws from its uniform sample (a cloud's density needs no more)
 SCATTER_POINTS = 4000
 

@@ -2,7 +2,7 @@
 
 Definitions (every one is reported in ``metrics.json``):
 
-- ``nrmse`` = RMS(sim - meas) / std(meas) (CONTRACT.md; the same as MATLAB ``compare``'s
+- ``nrmse`` = RMS(sim - meas) / std(meas) (docs/report.md; the same as MATLAB ``compare``'s
   NRMSE cost) and ``fit_percent`` = 100 (1 - nrmse), MATLAB ``compare``'s fit.
 - ``rms``, ``max_abs`` [unit of the signal]: RMS and largest absolute error.
 - Regimes: ``low_speed`` holds the samples where |omega_meas| < ``omega_threshold``
@@ -47,12 +47,6 @@ def error_stats(err: np.ndarray, meas_std: float) -> dict:
     rms = float(np.sqrt(np.mean(err**2)))
     return {"n": int(len(err)), "rms": _f(rms), "max_abs": _f(np.max(np.abs(err))),
             "nrmse": _f(rms / meas_std) if meas_std > 0 else None}
-
-
-def nrmse(sim: np.ndarray, meas: np.ndarray) -> float:
-    """RMS error / std of the measurement (NaN when the measurement is constant)."""
-    sd = float(np.std(meas))
-    return float(np.sqrt(np.mean((sim - meas) ** 2))) / sd if sd > 0 else math.nan
 
 
 def speed_threshold(omega_meas: np.ndarray, fraction: float = LOW_SPEED_FRACTION) -> float:

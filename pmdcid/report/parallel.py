@@ -56,7 +56,7 @@ def draw(job: FigureJob, pool) -> bytes:
 
 def spare_workers(n_jobs: int) -> int:
     """Worker processes worth starting for ``n_jobs`` figures (0: serial)."""
-    from pmdcid.identify.cpus import workers
+    from pmdcid.runtime.cpus import workers
 
     if n_jobs < MIN_JOBS:
         return 0

@@ -52,7 +52,7 @@ def check_layout() -> None:
 
 check_layout()
 
-from pmdcid.simulate.drive import late_input, parts_for, ramp_input  # noqa: E402
+from pmdcid.simulate.input_grid import late_input, parts_for, ramp_input  # noqa: E402
 from pmdcid.simulate.kernel import run_kernel  # noqa: E402
 from pmdcid.simulate.layout import (  # noqa: E402
     I_STATE,

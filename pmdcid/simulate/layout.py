@@ -22,8 +22,6 @@ NAMES = (
 #: friction_curve: knot speeds [rad/s] FCW1..FCW4 and the values [N m] FC1..FC3 at the first
 #: three (consecutive); the curve is 0 at omega = 0 and at the last knot speed
 CURVE_KNOTS = 4
-#: read by the caller, not by the compiled kernel: the input is delayed before it (simulate/drive)
-INPUT_NAMES = ("latency",)
 INDEX = {n: k for k, n in enumerate(NAMES)}
 #: sensor parameters, applied to the kernel's output (not inside the kernel)
 SENSOR_NAMES = ("delay", "omega0")
@@ -33,8 +31,6 @@ LINEAR = (R, L, KE, KM, J, BV, DZ_SLOPE, SIGMA0, SIGMA1)
 #: the kernel's state vector: armature current [A], speed [rad/s], angle [rad], then effect states
 STATES = ("i", "omega", "theta", "z")
 I_STATE, OMEGA_STATE, THETA_STATE, Z_STATE = range(len(STATES))
-#: the base states every simulation has (the exact linear step integrates them)
-BASE_STATES = STATES[:3]
 #: state name -> the catalogue effect that owns it (integrated only while the effect is on)
 STATE_OWNERS = {"z": "lugre"}
 NSTATE = len(STATES)

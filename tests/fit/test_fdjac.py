@@ -9,7 +9,7 @@ from ident_util import triangle_fit_problem
 from scipy.optimize._numdiff import approx_derivative
 
 import pmdcid.fit.fdjac as fdjac
-import pmdcid.identify.cpus as cpus
+import pmdcid.runtime.cpus as cpus
 from pmdcid.fit.fdjac import ForwardJacobian
 from pmdcid.fit.simfit import FitOptions, fit_simulation
 

@@ -128,7 +128,7 @@ def one_worker():
 
 def test_one_worker_on_a_separate_scheduler_gives_the_same_bits_as_two_and_a_lone_identify(
         fleet, two_workers, one_worker, tmp_path):
-    from pmdcid.pipeline import run_identify
+    from pmdcid.files import run_identify
 
     out1 = str(tmp_path / "one")
     code, text = run([fleet[0], "-o", out1, "--km", str(KM), "--scheduler", one_worker])

@@ -1,4 +1,4 @@
-"""pmdcid.identify.cpus: pieces shared with the spare CPUs, never more threads than CPUs,
+"""pmdcid.runtime.cpus: pieces shared with the spare CPUs, never more threads than CPUs,
 results in order whatever thread ran them."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-import pmdcid.identify.cpus as cpus
+import pmdcid.runtime.cpus as cpus
 
 
 def test_workers_follow_affinity_and_env(monkeypatch):

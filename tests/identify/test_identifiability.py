@@ -107,7 +107,7 @@ def test_slowly_logged_held_input_keeps_an_honest_inertia(step):
     """A drive that really holds each 10 Hz (33 Hz) sample, simulated from the slow samples:
     J's standard error carries what the data leave open of the reading, and the truth lies
     within 3 of them (a free ramp parameter stopped 6 standard errors off at 33 Hz; the profile
-    in identify/hold.py does not)."""
+    in identify/ramp_profile.py does not)."""
     log, m, vals = slow_triangle(step, held=True, seed=13)
     res = fit_nonlinear([log], m)
     J = res.estimates["J"]

@@ -18,8 +18,9 @@ from repo_paths import FIXTURES
 from pmdcid.cli import main
 from pmdcid.errors import LogError, ModelError
 from pmdcid.io import logs as logs_mod
-from pmdcid.io.logs import atomic_write, atomic_write_text, write_log
+from pmdcid.io.logs import write_log
 from pmdcid.model import load_model, save_model
+from pmdcid.runtime.outputs import atomic_write, atomic_write_text
 from pmdcid.synth import PAPER, truth_model
 
 FIX = FIXTURES

@@ -1,6 +1,6 @@
-"""Round three, family 2 (issue 29): the one output guard (pmdcid/io/outputs.py): regular files
-only, never through a link out of the output folder, never replacing what the tool did not
-write, a symlink loop refused, no empty folder left by a failed write."""
+"""Round three, family 2 (issue 29): the one output guard (pmdcid/runtime/outputs.py):
+regular files only, never through a link out of the output folder, never replacing what the
+tool did not write, a symlink loop refused, no empty folder left by a failed write."""
 
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def test_a_fifo_output_is_refused_up_front(paper_step, args):
 
 def test_devices_are_never_outputs():
     from pmdcid.errors import LogError
-    from pmdcid.io.outputs import check_target
+    from pmdcid.runtime.outputs import check_target
 
     with pytest.raises(LogError, match="character device"):
         check_target("/dev/null")  # -o /dev/null --force must never replace it

@@ -48,7 +48,7 @@ def _child(tmp_path, module, name, args, sig, after: bool):
 
 
 @pytest.mark.parametrize("stage, log, where, after", [
-    ("fit-electrical", "blocked_1.5V.csv", ("pmdcid.identify.runners", "save_model"), True),
+    ("fit-electrical", "blocked_1.5V.csv", ("pmdcid.files", "save_model"), True),
     ("fit-nonlinear", "triangle.csv", ("pmdcid.fit.solver", "solve"), False),
 ], ids=["after-the-model-write", "during-the-fit"])
 def test_sighup_is_handled_like_sigterm(tmp_path, stage, log, where, after):
@@ -65,7 +65,7 @@ def test_sighup_is_handled_like_sigterm(tmp_path, stage, log, where, after):
 def test_an_interrupt_cancels_the_remaining_pieces(monkeypatch):
     """Ctrl-C in one piece of a map: no thread takes another piece (diagnose's refits took
     16-34 s to stop, the pool finishing its pieces first)."""
-    from pmdcid.identify import cpus
+    from pmdcid.runtime import cpus
 
     monkeypatch.setenv("PMDCID_THREADS", "2")
     if cpus.workers() < 2:
@@ -97,7 +97,7 @@ def test_an_interrupt_cancels_the_remaining_pieces(monkeypatch):
 def test_nohup_keeps_sighup_ignored(tmp_path):
     """Under nohup (SIGHUP ignored) a closed terminal must not end the command."""
     code = ("import signal, sys; signal.signal(signal.SIGHUP, signal.SIG_IGN)\n"
-            "from pmdcid.io.outputs import install_sigterm\n"
+            "from pmdcid.runtime.signals import install_sigterm\n"
             "install_sigterm()\n"
             "sys.exit(0 if signal.getsignal(signal.SIGHUP) == signal.SIG_IGN else 3)\n")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

@@ -90,7 +90,7 @@ def test_simulate_refuses_an_absurd_cogging_amplitude(tmp_path, monkeypatch):
 def test_diagnose_does_not_overwrite_a_concurrent_stage(tmp_path, monkeypatch):
     """diagnose reads MODEL, fit-electrical writes it meanwhile, diagnose writes MODEL back:
     the stage's results must not be lost (optimistic locking, one line, rerun)."""
-    import pmdcid.diagnose.files as files
+    import pmdcid.diagnose.entry as files
 
     monkeypatch.chdir(tmp_path)
     shutil.copy(FIX / "paper" / "truth.json", tmp_path / "model.json")

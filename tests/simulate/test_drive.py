@@ -1,4 +1,4 @@
-"""The input read between its samples (simulate/drive.ramp_input): exact averages of a blend of
+"""The input read between its samples (simulate/input_grid.ramp_input): exact averages of a blend of
 the held and the linear reading, on the fine grid the late input uses."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pmdcid.simulate.drive import late_input, ramp_input
+from pmdcid.simulate.input_grid import late_input, ramp_input
 
 
 def _u(seed: int, n: int = 40) -> np.ndarray:
@@ -58,7 +58,7 @@ def test_profile_minimum_and_width():
     """A parabolic profile: its minimum and the half-width where it rises by the scale; a
     profile falling steeply from one end: the lowest end, not a least-squares compromise; a
     flat one: the uniform spread of the range."""
-    from pmdcid.identify.hold import RAMPS, parabola_minimum
+    from pmdcid.identify.ramp_profile import RAMPS, parabola_minimum
 
     x = np.array(RAMPS)
     m, w = parabola_minimum(x, 1000 + 400 * (x - 0.6) ** 2, 1.0)

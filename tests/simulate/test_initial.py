@@ -7,10 +7,11 @@ from __future__ import annotations
 import numpy as np
 
 from pmdcid.diagnose.residuals import error_table
+from pmdcid.files import simulate_file
 from pmdcid.fit.problem import Problem
 from pmdcid.io import read_log, write_log
 from pmdcid.simulate import param_values
-from pmdcid.synth import NoiseSpec, simulate_file, synth_log, truth_model
+from pmdcid.synth import NoiseSpec, synth_log, truth_model
 
 VALS = {"R": 1.0, "L": 2e-3, "km": 0.05, "ke": 0.05, "J": 5e-4, "bv": 1e-5, "bc": 2e-3,
         "dz": 3e-3, "delay": 0.02, "omega0": 3.0}

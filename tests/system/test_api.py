@@ -140,7 +140,7 @@ def test_fit_nonlinear_round_trip_and_protocol(rng):
 
 
 def test_lumped_fit_matches_cli_runner(tmp_path):
-    from pmdcid.identify.runners import run_fit_mechanical
+    from pmdcid.files import run_fit
 
     paths = []
     for a in ("1.0", "2.0"):
@@ -148,7 +148,7 @@ def test_lumped_fit_matches_cli_runner(tmp_path):
         p = tmp_path / f"s{a}.csv"
         write_log(p, lg.t, {"v": lg["v"], "omega": lg["omega"]})  # no current: lumped
         paths.append(str(p))
-    cli = run_fit_mechanical(paths, str(tmp_path / "m.json"))
+    cli = run_fit("mechanical", paths, str(tmp_path / "m.json"))
     api = pmdcid.fit_mechanical(paths, None)
     assert api.to_dict()["parameters"] == cli.to_dict()["parameters"]
     assert api.estimates["J"].unit == "V s^2/rad"
@@ -180,7 +180,7 @@ class _Tty(io.StringIO):
 
 
 def test_progress_lines_only_on_a_terminal():
-    from pmdcid.progress import resolve, stage_lines
+    from pmdcid.runtime.progress import resolve, stage_lines
 
     quiet, tty = io.StringIO(), _Tty()
     stage_lines(quiet)("joint fit")

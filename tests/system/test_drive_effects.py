@@ -16,13 +16,13 @@ from ident_util import as_log, blocked_logs, paper_stages, perturbed_truth, step
 from repo_paths import REAL
 
 from pmdcid.diagnose import diagnose
-from pmdcid.diagnose.drive import carrier_line, command_lost, drop_warning, latency_warning
+from pmdcid.diagnose.drive_warnings import carrier_line, command_lost, drop_warning, latency_warning
 from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.mechanical import fit_mechanical
 from pmdcid.identify.nonlinear import fit_nonlinear
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_values
-from pmdcid.simulate.drive import MIN_PARTS
+from pmdcid.simulate.input_grid import MIN_PARTS
 from pmdcid.synth import PAPER, NoiseSpec, synth_log, triangle
 
 REAL = REAL

@@ -16,9 +16,9 @@ from pmdcid.io import read_log, read_logs
 from pmdcid.model import load_model, save_model
 from pmdcid.plan import fisher as fi
 from pmdcid.plan.check import POOR, check_logs
-from pmdcid.plan.compare import paper_profiles, protocol_seconds, protocol_stderr
 from pmdcid.plan.design import Settings, plan_for_model
 from pmdcid.plan.montecarlo import monte_carlo
+from pmdcid.plan.paper_protocol import paper_profiles, protocol_seconds, protocol_stderr
 from pmdcid.synth import PAPER, truth_model
 
 FIX = FIXTURES

@@ -52,7 +52,7 @@ def _pngs(out_dir: Path) -> dict[str, bytes]:
 @pytest.fixture
 def two_cpus(monkeypatch):
     """A spare CPU whatever the machine (and PMDCID_THREADS) says."""
-    from pmdcid.identify import cpus
+    from pmdcid.runtime import cpus
 
     monkeypatch.setattr(cpus, "workers", lambda: 2)
 
@@ -173,7 +173,7 @@ def test_a_figure_that_fails_everywhere_fails_the_report_as_serially(serial, two
 
 
 def test_serial_when_one_cpu_or_few_figures(monkeypatch):
-    from pmdcid.identify import cpus
+    from pmdcid.runtime import cpus
 
     monkeypatch.setattr(cpus, "workers", lambda: 1)
     assert parallel.spare_workers(100) == 0

@@ -41,7 +41,7 @@ class Cancelled(Exception):
 
 def _interrupt(exc: BaseException) -> bool:
     """Whether ``exc`` ends the command (Ctrl-C, SIGTERM/SIGHUP's exception, exit)."""
-    from pmdcid.io.outputs import Terminated
+    from pmdcid.runtime.signals import Terminated
 
     return isinstance(exc, (KeyboardInterrupt, SystemExit, Terminated, Cancelled))
 

@@ -1,13 +1,13 @@
 """How a slowly logged input varied between its samples: held, or straight to the next sample.
 
-CONTRACT.md reads ``v`` and ``tau`` as held between samples (zero-order hold). A command that
+docs/io.md reads ``v`` and ``tau`` as held between samples (zero-order hold). A command that
 varies continuously (a ramp, a sine generated faster than it is logged) is not: read as held, it
 acts half a sample late, and when the sample period is not small against the mechanical time
 constant J/bv a fit turns that lag into a wrong inertia with a small standard error
 (docs/identification.md: J -63 % at 10 Hz). Nothing but the fit can tell a drive that holds each
 value (a slow digital loop) from a continuous command logged slowly, so when it matters
 (:func:`~pmdcid.identify.identifiability.hold_matters`) fit-nonlinear reads the input as a blend
-``ramp`` (0 held, 1 linear between samples; :func:`pmdcid.simulate.drive.ramp_input`) and
+``ramp`` (0 held, 1 linear between samples; :func:`pmdcid.simulate.input_grid.ramp_input`) and
 chooses it by a **profile**: the whole local fit at :data:`RAMPS`, a parabola through the
 chi-squares, its minimum and the width where the chi-square rises by the reduced chi-square.
 Why a profile and not one more free parameter: the cost in ``ramp`` is smooth only over tenths

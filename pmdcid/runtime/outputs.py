@@ -1,18 +1,16 @@
 """What a command writes: all or nothing, never over a stranger's file, one writer at a time.
 
+- :func:`atomic_write`: every file pmdcid writes is written to a temporary file beside it and
+  renamed over it (a failure leaves the old file byte for byte).
 - :func:`transaction`: the command-line edge runs every command inside one. Each file the
   command replaces is kept (a hard link to the old version) and each file or folder it creates
   is noted; when the command fails -- any error, a full disk, stdout closed under the final
   message (EPIPE), SIGTERM -- the old versions come back and the new files go. Exit 0 means
   every promised file was written; a non-zero exit leaves nothing new behind.
-- :func:`install_sigterm`: every signal that can end a command (:data:`ENDING_SIGNALS`:
-  SIGTERM, SIGHUP -- a closed terminal or ssh session --, SIGQUIT; one the process was started
-  ignoring, as under ``nohup``, stays ignored) becomes an exception
-  (:class:`Terminated`, a BaseException like KeyboardInterrupt: no ``except Exception`` in a
-  fit can swallow it), so in-flight temporary files are removed and the transaction rolled back
-  like any other failure; the command exits 128 + the signal's number.
 - :func:`locked`: an exclusive ``flock`` on the folder holding a model, for a stage's
   read-modify-write of the model file (two stages on one model both land their updates).
+- :func:`input_at`: the output-is-an-input guard, before any work: no output is ever one of
+  the files the command reads (a log, the model, a mapping, a manifest).
 - :func:`check_overwrite`: an existing output that is not what pmdcid writes there (a model,
   a diagnose summary) is only replaced with ``--force``.
 - :func:`check_target`: the one output guard, before any work and again at every write: pmdcid
@@ -32,18 +30,16 @@ import errno
 import json
 import os
 import shutil
-import signal
 import stat
 import tempfile
-import threading
 from contextlib import contextmanager
+from pathlib import Path
 
 from pmdcid.errors import LogError
+from pmdcid.runtime.signals import IN_FLIGHT, sigterm_deferred
 
 #: the running command's transaction (None outside the command-line edge: writes are final)
 _CURRENT: list[Transaction] = []
-#: temporary files being written right now (removed on SIGTERM)
-IN_FLIGHT: set[str] = set()
 #: files larger than this are never taken for a model or a summary
 MAX_OURS_BYTES = 50 << 20
 
@@ -126,68 +122,6 @@ def current() -> Transaction | None:
     return _CURRENT[-1] if _CURRENT else None
 
 
-#: the signals that end a command, each handled as SIGTERM is (names: absent on some platforms)
-ENDING_SIGNALS = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP", "SIGQUIT")
-                       if hasattr(signal, n))
-
-
-@contextmanager
-def sigterm_deferred():
-    """The ending signals held back for the block (main thread, POSIX): a temporary file
-    created and registered in :data:`IN_FLIGHT` inside it is never left behind by a signal
-    arriving between the two (the signal is delivered, and the file removed, once the block
-    ends)."""
-    mask = getattr(signal, "pthread_sigmask", None)
-    if mask is None or threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = mask(signal.SIG_BLOCK, set(ENDING_SIGNALS))
-    try:
-        yield
-    finally:
-        mask(signal.SIG_SETMASK, old)
-
-
-class Terminated(BaseException):
-    """An ending signal arrived (SIGTERM, SIGHUP, SIGQUIT): unwind, clean up, exit 128 + its
-    number. A BaseException, as KeyboardInterrupt: ``except Exception`` never swallows it."""
-
-    def __init__(self, signum: int = getattr(signal, "SIGTERM", 15)):
-        super().__init__(signum)
-        self.signum = signum
-
-    @property
-    def name(self) -> str:
-        try:
-            return signal.Signals(self.signum).name
-        except ValueError:
-            return f"signal {self.signum}"
-
-
-def install_sigterm() -> None:
-    """Turn every signal of :data:`ENDING_SIGNALS` into :class:`Terminated` (main thread only;
-    a no-op elsewhere)."""
-    if threading.current_thread() is not threading.main_thread():
-        return
-
-    def handler(signum, frame):
-        for tmp in list(IN_FLIGHT):
-            if not tmp.endswith(".undo.tmp"):  # backups are restored by the rollback
-                try:
-                    os.unlink(tmp)
-                except OSError:
-                    pass
-        raise Terminated(signum)
-
-    for sig in ENDING_SIGNALS:
-        try:
-            if signal.getsignal(sig) == signal.SIG_IGN:  # nohup: the user asked to go on
-                continue
-            signal.signal(sig, handler)
-        except (ValueError, OSError):
-            pass
-
-
 @contextmanager
 def locked(path):
     """Exclusive lock on the folder of ``path`` for the block (no lock file is left behind)."""
@@ -206,13 +140,28 @@ def locked(path):
         os.close(fd)
 
 
-def _json_object(path: str):
-    from pmdcid.io.text import read_text
+def same_file(a, b, planned: bool = False) -> bool:
+    """Whether the paths ``a`` and ``b`` name one existing file; ``planned``: or, when either
+    does not exist yet, the same path (two outputs of one command, a log not yet checked)."""
+    a, b = os.fspath(a), os.fspath(b)
+    if os.path.exists(a) and os.path.exists(b):
+        return os.path.samefile(a, b)
+    return planned and os.path.abspath(a) == os.path.abspath(b)
 
+
+def input_at(output, inputs, planned: bool = False) -> str | None:
+    """The first of ``inputs`` that writing ``output`` would overwrite (:func:`same_file`), or
+    None: the one output-is-an-input guard, asked by every writer before any work (each caller
+    says it in its own words: which output, which option to change)."""
+    return next((inp for inp in inputs if inp and same_file(output, inp, planned)), None)
+
+
+def _json_object(path: str):
     try:
         if os.path.getsize(path) > MAX_OURS_BYTES:
             return None
-        obj = json.loads(read_text(path))
+        with open(path, "rb") as fh:
+            obj = json.loads(fh.read())  # bytes: UTF-8 (BOM or not) or UTF-16 with its BOM
     except (OSError, ValueError, RecursionError):
         return None
     return obj if isinstance(obj, dict) else None
@@ -317,8 +266,6 @@ def output_folder(path):
     """Create the folder ``path`` (parents too) for the block's writes; yield it as a Path. The
     folders this created are removed when the block fails: by the command's rollback inside a
     transaction, at once outside one (the library's functions)."""
-    from pathlib import Path
-
     p = Path(path)
     first_new = next((a for a in reversed([p, *p.parents]) if not os.path.lexists(a)), None)
     try:
@@ -334,3 +281,59 @@ def output_folder(path):
         if first_new is not None and tr is None:
             shutil.rmtree(first_new, ignore_errors=True)
         raise
+
+
+def atomic_write(path: str | os.PathLike, fill, binary: bool = False) -> None:
+    """Write ``path`` atomically: ``fill(fh)`` writes a temporary file in the same folder (opened
+    in binary mode when ``binary``), which then replaces ``path`` (os.replace). On any failure
+    (SIGTERM included, see :mod:`pmdcid.runtime.signals`) the temporary file is removed and an
+    existing ``path`` is left byte-for-byte as it was. A symlink is written through: its target
+    is replaced, the link stays. Inside a command's transaction the old version is kept until
+    the command succeeds.
+    """
+    check_target(path)  # regular files only, no symlink loop
+    p = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.exists():
+        up = next((a for a in folder.parents if a.exists()), None)
+        if up is not None and not up.is_dir():
+            raise LogError("is a file, not a folder: cannot write outputs under it", str(up))
+        raise LogError("output folder does not exist: create it first", str(folder))
+    if not folder.is_dir():
+        raise LogError("is a file, not a folder: cannot write outputs under it", str(folder))
+    with sigterm_deferred():  # registered before a SIGTERM can leave it behind
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
+        except OSError as exc:
+            raise LogError(f"cannot write here ({exc.strerror})", str(folder)) from None
+        IN_FLIGHT.add(tmp)
+    try:
+        with os.fdopen(fd, "wb" if binary else "w") as fh:
+            fill(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if p.exists():
+            os.chmod(tmp, p.stat().st_mode & 0o777)
+        else:
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+        tr = current()
+        if tr is not None:
+            tr.before_replace(os.path.realpath(p))
+        os.replace(tmp, p)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        if isinstance(exc, OSError):
+            raise LogError(f"cannot write ({exc.strerror})", str(path)) from None
+        raise
+    finally:
+        IN_FLIGHT.discard(tmp)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (see :func:`atomic_write`)."""
+    atomic_write(path, lambda fh: fh.write(text))

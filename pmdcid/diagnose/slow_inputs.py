@@ -1,15 +1,15 @@
 """A slowly logged, continuously varying input in diagnose: read between its samples as
-fit-nonlinear reads it (:mod:`pmdcid.identify.hold`).
+fit-nonlinear reads it (:mod:`pmdcid.identify.ramp_profile`).
 
-Read as held (CONTRACT.md's zero-order hold), a continuous command logged slowly acts half a
+Read as held (docs/io.md's zero-order hold), a continuous command logged slowly acts half a
 sample late; where the sample period is not small against J/bv, a refit turns that lag into a
 wrong inertia, and the search turns it into an effect nobody has (on the paper's motor with its
 triangle logged at 10 Hz, diagnose added ``input_delay`` and rewrote J). The logs where the
 reading matters (:func:`pmdcid.identify.identifiability.hold_matters`) are simulated with the
 input read at ``ramp`` (0 held, 1 straight to the next sample; the other logs stay held): the
 value identify's joint fit found when it is given (0, held, when it read none: its J came
-from the steps), else a profile of the base refit over :data:`pmdcid.identify.hold.RAMPS`, as
-fit-nonlinear does.
+from the steps), else a profile of the base refit over
+:data:`pmdcid.identify.ramp_profile.RAMPS`, as fit-nonlinear does.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
-from pmdcid.identify.hold import RAMPS, parabola_minimum
 from pmdcid.identify.identifiability import hold_matters
+from pmdcid.identify.ramp_profile import RAMPS, parabola_minimum
 
 
 def slow_logs(problem, vals: dict[str, float]) -> list[int]:

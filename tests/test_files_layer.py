@@ -1,0 +1,81 @@
+"""The one front door over the one files layer (issue #25): a command and the api function it
+calls write the same files; the lumped path is written once (mark, fit, relabel, mark again);
+the output-is-an-input guard answers by file, not by name."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+import pmdcid
+from pmdcid import api
+from pmdcid.cli import main
+from pmdcid.identify.runners import apply_stage, fit_stage, stage_mechanical
+from pmdcid.io.logs import write_log
+from pmdcid.model.lumped import is_lumped
+from pmdcid.runtime.outputs import input_at, same_file
+
+PAPER_DIR = Path(__file__).resolve().parents[1] / "fixtures" / "paper"
+
+
+def _params(path) -> dict:
+    return {k: v["value"] for k, v in json.loads(Path(path).read_text())["parameters"].items()}
+
+
+def test_a_fit_command_writes_what_its_api_function_writes(tmp_path):
+    shutil.copy(PAPER_DIR / "blocked_1.5V.csv", tmp_path / "b.csv")
+    for name in ("cli.json", "api.json"):
+        shutil.copy(PAPER_DIR / "truth.json", tmp_path / name)
+    out = CliRunner().invoke(main, ["fit-electrical", str(tmp_path / "b.csv"), "-m",
+                                    str(tmp_path / "cli.json")])
+    assert out.exit_code == 0, out.output
+    res = api.fit_electrical(str(tmp_path / "b.csv"), str(tmp_path / "api.json"), update=True)
+    assert _params(tmp_path / "api.json") == _params(tmp_path / "cli.json")
+    assert _params(tmp_path / "api.json")["R"] == res.estimates["R"].value
+    # without update the model file is only read
+    before = (tmp_path / "api.json").read_bytes()
+    api.fit_electrical(str(tmp_path / "b.csv"), str(tmp_path / "api.json"))
+    assert (tmp_path / "api.json").read_bytes() == before
+
+
+def test_the_lumped_path_marks_fits_relabels_and_marks_again(tmp_path):
+    lg = pmdcid.Log.from_csv(PAPER_DIR / "step_1.0V.csv")
+    write_log(tmp_path / "s.csv", lg.t, {"v": lg["v"], "omega": lg["omega"]})  # no current
+    logs = [pmdcid.Log.from_csv(tmp_path / "s.csv")]
+    given = pmdcid.Model()
+    res = fit_stage(stage_mechanical, logs, given)
+    assert not is_lumped(given) and not given.parameters  # the model given is not touched
+    assert res.lumped and res.estimates["J"].unit == "V s^2/rad"
+    fresh = pmdcid.Model()  # e.g. the model file re-read under the lock
+    apply_stage(res, fresh)
+    assert is_lumped(fresh) and fresh.parameters["bc"].unit == "V"
+
+
+def test_input_at_compares_files_not_names(tmp_path):
+    log = tmp_path / "log.csv"
+    log.write_text("t,v\n0,0\n")
+    os.link(log, tmp_path / "hard.csv")
+    (tmp_path / "soft.csv").symlink_to(log)
+    other = tmp_path / "other.csv"
+    other.write_text("t,v\n0,0\n")
+    assert input_at(tmp_path / "hard.csv", [str(other), str(log)]) == str(log)
+    assert input_at(tmp_path / "soft.csv", [str(log)]) == str(log)
+    assert input_at(other, [str(log)]) is None
+    new = tmp_path / "new.json"  # not written yet: the same path only when planned
+    assert not same_file(new, new) and same_file(new, tmp_path / "." / "new.json", planned=True)
+
+
+def test_file_options_go_with_the_file(tmp_path):
+    with pytest.raises(TypeError, match="out_dir"):
+        api.identify(str(PAPER_DIR / "step_1.0V.csv"), None, out_dir=tmp_path / "rep")
+    with pytest.raises(TypeError, match="summary"):
+        api.diagnose(str(PAPER_DIR / "step_1.0V.csv"), str(PAPER_DIR / "truth.json"),
+                     summary=tmp_path / "s.json")
+    with pytest.raises(TypeError, match="model"):
+        api.fit_electrical(str(PAPER_DIR / "blocked_1.5V.csv"), pmdcid.Model(), update=True)
+    assert not list(tmp_path.iterdir())
