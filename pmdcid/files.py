@@ -119,7 +119,7 @@ def run_fit(stage: str, logs, model_path, mapping=None, force=False, **opts):
     when missing, its parent folder must exist; only the stage's own parameters change), written
     in one atomic rename after the fit succeeded. ``opts``: the stage's options
     (:mod:`pmdcid.identify.runners`)."""
-    from pmdcid.identify.results import record_notes
+    from pmdcid.fit.results import record_notes
     from pmdcid.identify.runners import apply_stage, fit_stage
     from pmdcid.simulate.substeps import bounded_for
 

@@ -109,7 +109,7 @@ def build(out_dir: Path = HERE) -> Path:
 def _release_gil_in_wrappers() -> None:
     """Make ``numba.pycc`` compile its Python wrappers as ``nogil=True`` does for the JIT: the
     kernel then runs without Python's lock, so that threads (the finite-difference Jacobian's
-    columns, :mod:`pmdcid.identify.fdjac`) simulate on both cores. ``pycc`` has no option for
+    columns, :mod:`pmdcid.fit.fdjac`) simulate on both cores. ``pycc`` has no option for
     it; its compile flags are numba's ``Flags``, whose ``release_gil`` the wrapper honours. A
     numba where this fails builds a module that holds the lock: correct, one core."""
     try:
