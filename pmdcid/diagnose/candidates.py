@@ -21,7 +21,7 @@ from pmdcid.diagnose.rules import at_bound, failed_refit
 from pmdcid.diagnose.testable import HeldoutTest, heldout_test
 from pmdcid.identify.cpus import pmap
 from pmdcid.model import EFFECTS
-from pmdcid.model.signatures import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
+from pmdcid.model.effects.friction import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
 
 #: factors applied to the guess's effect parameters when the first starts fail
 RETRY_FACTORS = (0.3, 3.0)

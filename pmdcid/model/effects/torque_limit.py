@@ -1,4 +1,4 @@
-"""Effect parameters checked against the motor they belong to, not only against their bounds.
+"""Effect torques checked against the motor they belong to, not only against their bounds.
 
 A parameter's bounds (:mod:`pmdcid.model.spec`) are wide: they must hold for a watch motor and a
 crane. Within them a value can still be absurd *for this model*: a cogging amplitude of 1e6 N m
@@ -6,6 +6,8 @@ on a motor whose stall torque is 0.02 N m per volt makes a simulation run away (
 write that as data. The rule: every effect parameter that is a torque (unit ``N m``; per volt in
 a lumped model) lies within :data:`TORQUE_MARGIN` times the model's torque scale
 (:func:`torque_scale`); otherwise the model is refused with one line naming the parameter.
+The model reader's rule, for any model; a refit's size against the logs it was fitted to is
+each effect's own ``implausible`` (:class:`~pmdcid.model.effects.registry.Effect`).
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ from __future__ import annotations
 import math
 
 from pmdcid.errors import ModelError
+from pmdcid.model.effects.registry import EFFECTS
+from pmdcid.model.spec import BASE_PARAMS
 
 #: an effect's torque may be at most this many times the motor's torque scale
 TORQUE_MARGIN = 10.0
@@ -38,9 +42,6 @@ def torque_scale(values: dict[str, float], lumped: bool = False) -> float | None
 
 def check_plausible(values: dict[str, float], path=None, lumped: bool = False) -> None:
     """Refuse an effect torque beyond :data:`TORQUE_MARGIN` x :func:`torque_scale` (one line)."""
-    from pmdcid.model.effects import EFFECTS
-    from pmdcid.model.spec import BASE_PARAMS
-
     scale = torque_scale(values, lumped)
     if scale is None:
         return
