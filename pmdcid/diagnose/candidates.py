@@ -21,7 +21,7 @@ from pmdcid.diagnose.testable import HeldoutTest, heldout_test
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.model import EFFECTS
 from pmdcid.model.effects import bounds_of
-from pmdcid.model.signatures import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
+from pmdcid.model.effects.friction import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
 from pmdcid.runtime.cpus import pmap
 
 #: factors applied to the guess's effect parameters when the first starts fail

@@ -91,7 +91,7 @@ def whiteness(problem: Problem, sims: list[SimResult]) -> list[Whiteness]:
 def context(problem: Problem, vals: dict[str, float], sims: list[SimResult]) -> ResidualContext:
     """The effects' view of the residual (fit part only; held-out samples NaN), as the deficit
     measured - simulated: what a missing effect must add (the probes and guesses of
-    :mod:`pmdcid.model.signatures` read it so); the fits' residual is its negative."""
+    each :mod:`pmdcid.model.effects` module read it so); the fits' residual is its negative."""
     logs = []
     for k, log in enumerate(problem.logs):
         fit = problem.fit_mask(k)

@@ -1,7 +1,7 @@
 """Cheap screening: regress the residual on each effect's simulated signature.
 
-For an effect, each probe column (its parameters switched on slightly, see
-:mod:`pmdcid.model.signatures`) is simulated on every log; the weighted change of the simulated
+For an effect, each probe column (its parameters switched on slightly, see its module in
+:mod:`pmdcid.model.effects`) is simulated on every log; the weighted change of the simulated
 signals is one regressor. The residual (fit part) is regressed on the effect's columns together
 with the sensitivities to the refitted base parameters (which may have absorbed part of it:
 ``Effect.interacts`` names the usual suspects, all are included); the drop in the residual sum of

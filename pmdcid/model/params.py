@@ -235,7 +235,7 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
             warn(f"model lists effect '{e}' but lacks its parameter(s) {', '.join(lacking)}: "
                  "they are taken as neutral (effect off); run diagnose to identify them", path)
     model.extra = {k: v for k, v in obj.items() if k not in ("parameters", "effects")}
-    from pmdcid.model.plausible import check_plausible
+    from pmdcid.model.effects.torque_limit import check_plausible
 
     check_plausible({k: p.value for k, p in model.parameters.items()}, path, lumped)
     return model
@@ -373,7 +373,7 @@ def save_model(model: Model, path: str | os.PathLike) -> None:
         raise TypeError(f"model must be a Model, not {type(model).__name__}")
     for name, par in model.parameters.items():
         check_bounds(name, par.value, str(path))
-    from pmdcid.model.plausible import check_plausible
+    from pmdcid.model.effects.torque_limit import check_plausible
 
     check_plausible({k: p.value for k, p in model.parameters.items()}, str(path),
                     model.extra.get("lumped") is True)

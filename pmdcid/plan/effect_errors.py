@@ -14,8 +14,8 @@ import math
 import numpy as np
 
 from pmdcid.model import EFFECTS, Model
+from pmdcid.model.effects.probes import PROBE
 from pmdcid.model.residual import LogResidual, Probe, ResidualContext
-from pmdcid.model.signatures import PROBE
 from pmdcid.plan import fisher as fi
 
 #: cogging order assumed when no residual gives one [periods per revolution]

@@ -1,6 +1,6 @@
 """diagnose adds an effect only where held-out data can test it (pmdcid/diagnose/testable.py,
-model/sizes.py): one step log at one operating point adds nothing; the same effect is added
-once a log at other operating points is given."""
+each effect's ``implausible``): one step log at one operating point adds nothing; the same
+effect is added once a log at other operating points is given."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 from pmdcid.api import diagnose, identify
 from pmdcid.io import Log
-from pmdcid.model import sizes
+from pmdcid.model.effects import brush_drop, sensor_delay, speed_offset
 from pmdcid.simulate import param_values
 from pmdcid.synth import NoiseSpec, synth_log, truth_model
 
@@ -76,12 +76,12 @@ def _ctx(dt=0.01, speed=100.0):
 
 def test_physical_bounds_of_effect_sizes():
     vals = {"J": 1e-2, "bv": 0.05}  # a 0.2 s mechanical time constant (per volt)
-    assert sizes.mechanical_time_constant(vals) == pytest.approx(0.2)
-    assert sizes.delay_too_long({**vals, "delay": 0.03}, _ctx(), {}) is None  # 3 samples
-    assert sizes.delay_too_long({**vals, "delay": 0.045}, _ctx(dt=1e-3), {}) is None
-    why = sizes.delay_too_long({**vals, "delay": 0.105}, _ctx(), {})
+    assert sensor_delay.mechanical_time_constant(vals) == pytest.approx(0.2)
+    assert sensor_delay.delay_too_long({**vals, "delay": 0.03}, _ctx(), {}) is None  # 3 samples
+    assert sensor_delay.delay_too_long({**vals, "delay": 0.045}, _ctx(dt=1e-3), {}) is None
+    why = sensor_delay.delay_too_long({**vals, "delay": 0.105}, _ctx(), {})
     assert why and "10 samples" in why
-    assert sizes.speed_bias_too_large({"omega0": 30.0}, _ctx(), {}) is None
-    assert "74 %" in sizes.speed_bias_too_large({"omega0": -74.5}, _ctx(), {})
-    assert sizes.moves_resistance({"R": 2.0}, _ctx(), {"R": 2.16}) is None
-    assert "factor 3.5" in sizes.moves_resistance({"R": 0.62}, _ctx(), {"R": 2.16})
+    assert speed_offset.speed_bias_too_large({"omega0": 30.0}, _ctx(), {}) is None
+    assert "74 %" in speed_offset.speed_bias_too_large({"omega0": -74.5}, _ctx(), {})
+    assert brush_drop.moves_resistance({"R": 2.0}, _ctx(), {"R": 2.16}) is None
+    assert "factor 3.5" in brush_drop.moves_resistance({"R": 0.62}, _ctx(), {"R": 2.16})

@@ -24,7 +24,7 @@ from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.mechanical import fit_mechanical
 from pmdcid.identify.nonlinear import fit_nonlinear
 from pmdcid.model import Model
-from pmdcid.model.signatures import lowest_friction
+from pmdcid.model.effects.friction import lowest_friction
 from pmdcid.simulate import neutral_values, param_values, param_vector, simulate_values
 from pmdcid.simulate.terms import friction_curve, sliding_friction
 from pmdcid.synth import PAPER, PAPER_NOISE, staircase, step, triangle

@@ -1,0 +1,107 @@
+"""The effect record and the catalogue's queries.
+
+An :class:`Effect` declares its parameters (name, unit, neutral value, bounds), where it acts
+(``electrical``, ``mechanical``, ``sensor`` or ``input``), the base parameters it interacts with,
+its physics and residual signature in words, and what diagnose needs to search for it: its probes,
+the starting guess, tighter refit bounds, a physical size bound and what to record to test it.
+The simulation kernel evaluates every effect's term from the flat parameter vector; an effect
+that is not listed in a model's ``effects`` has its parameters held at their neutral values, so
+it is exactly off.
+
+:data:`EFFECTS` is filled by :mod:`pmdcid.model.effects` (one module per effect, registered in
+diagnose's search order); ``param_spec``, ``unit_of`` and ``bounds_of`` answer for any
+parameter, base or effect.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from pmdcid.model.spec import BASE_PARAMS, ParamSpec
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One catalogue effect."""
+
+    name: str
+    #: its physics and its signature in the residual, in words
+    doc: str
+    params: tuple[ParamSpec, ...]
+    acts_on: str  # "electrical" | "mechanical" | "sensor" | "input"
+    #: the base parameters it interacts with: refitted with it, and those that can stand in
+    #: for it where the data hold only part of what it acts on (one speed level cannot tell a
+    #: drag law from bv): :mod:`pmdcid.diagnose.testable` projects them out of its held-out
+    #: signature
+    interacts: tuple[str, ...] = ()
+    #: ``signature(ctx) -> list[Probe]``: small parameter settings switching the effect on, whose
+    #: simulated change is the effect's signature in the residual
+    #: (:class:`pmdcid.model.residual.ResidualContext`, :class:`~pmdcid.model.residual.Probe`)
+    signature: Callable | None = field(default=None, compare=False, hash=False)
+    #: ``guess(probe, coefs, ctx) -> dict | None``: starting values from the residual's regression
+    #: coefficients on the probe's columns (None: the residual does not point at this effect)
+    guess: Callable | None = field(default=None, compare=False, hash=False)
+    #: parameters set by the guess and held when refitting (integers such as a cogging order)
+    held: tuple[str, ...] = ()
+    #: optional ``limits(ctx) -> {param: (lower, upper)}``: tighter refit bounds from the data's
+    #: scales, where a parameter outside them makes the effect indistinguishable from another
+    limits: Callable | None = field(default=None, compare=False, hash=False)
+    #: signals some log must measure by its own sensor (not derived from another) for the
+    #: effect to mean anything (a speed-sensor bias needs a speed sensor)
+    requires: tuple[str, ...] = ()
+    #: parameters whose largest distance from neutral, in standard errors, is the effect's size
+    #: (default: its first parameter)
+    size_params: tuple[str, ...] = ()
+    #: kernel states the effect owns (:data:`pmdcid.simulate.layout.STATE_OWNERS`), integrated
+    #: only while it is on
+    states: tuple[str, ...] = ()
+    #: screened by ``pmdcid diagnose`` unless ``--effect`` names the effects to search
+    screened: bool = True
+    #: what to record so that held-out data can test the effect (said when the logs given
+    #: cannot: :mod:`pmdcid.diagnose.testable`)
+    record: str = ""
+    #: optional ``implausible(values, ctx, start) -> str | None``: why a refitted size is not
+    #: physical for these logs (a delay of many samples, a sensor bias the size of the speed);
+    #: ``values`` the refit's parameters, ``ctx`` the residual context (scales, the shortest
+    #: sample period), ``start`` the parameter values before diagnose
+    implausible: Callable | None = field(default=None, compare=False, hash=False)
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+
+EFFECTS: dict[str, Effect] = {}
+
+
+def register(effect: Effect) -> Effect:
+    """Add an effect to the catalogue (names are unique)."""
+    if effect.name in EFFECTS:
+        raise ValueError(f"effect {effect.name!r} registered twice")
+    EFFECTS[effect.name] = effect
+    return effect
+
+
+def effect_param_specs() -> dict[str, ParamSpec]:
+    """Every effect parameter by name."""
+    return {p.name: p for e in EFFECTS.values() for p in e.params}
+
+
+def param_spec(name: str) -> ParamSpec | None:
+    """The declaration of any parameter, base or effect (None for an unknown name): the one
+    look-up of units, bounds and neutral values."""
+    return BASE_PARAMS.get(name) or effect_param_specs().get(name)
+
+
+def unit_of(name: str) -> str:
+    """The unit of any parameter ('' for an unknown name)."""
+    spec = param_spec(name)
+    return spec.unit if spec else ""
+
+
+def bounds_of(name: str) -> tuple[float, float]:
+    """(lower, upper) bounds of any parameter (unbounded for an unknown name)."""
+    spec = param_spec(name)
+    return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
