@@ -174,6 +174,28 @@ def identify_rig(rig: Rig, diagnose: bool = True):
     return identify(logs, Model(), run_diagnose=diagnose).model
 
 
+def identify_before_after(logs):
+    """identify's model on ``logs`` before diagnose and after it, from one run: (before, after;
+    ``after`` is ``before`` when diagnose did not run), as ``pmdcid identify`` does it."""
+    from pmdcid.model import Model
+    from pmdcid.pipeline import _diagnose, identify
+
+    res = identify(logs, Model(), run_diagnose=False)
+    before = res.model.copy()
+    if any(name.startswith("joint") for name, _ in res.stages):
+        moving = [lg for kind in ("step", "rich")  # in identify's order
+                  for lg, p in zip(logs, res.plan, strict=True) if p.kind == kind]
+        _diagnose(res, moving)
+    return before, res.model
+
+
+def diagnose_rises(result: dict, before: str = "base", after: str = "identify",
+                   limit: float = 0.05) -> list[str]:
+    """The held-out runs whose speed NRMSE diagnose raised by more than ``limit`` (relative)."""
+    return [f"{row['log']}: {row[before]:.3f} -> {row[after]:.3f}"
+            for row in result["rows"] if row[after] > (1.0 + limit) * row[before]]
+
+
 def evaluate(rig: Rig, models: dict) -> dict:
     """Held-out NRMSE per run for each model, the linear baseline and the repeat floor."""
     fit_logs = read(rig, rig.steps + rig.rich)

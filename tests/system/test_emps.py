@@ -142,15 +142,20 @@ def test_issue_targets_offset_and_validation_error(logs, nonlinear_fit):
     assert velocity_error(logs[1], diagnose([logs[0]], model).model) < before
 
 
+@pytest.fixture(scope="module")
+def diagnosed(logs, nonlinear_fit):
+    """diagnose on the estimation file, from fit-nonlinear's model (docs/examples/emps.md)."""
+    from pmdcid.diagnose import diagnose
+
+    return diagnose([logs[0]], nonlinear_fit[1])
+
+
 @pytest.mark.slow
-def test_diagnose_finds_the_direction_dependent_viscous_friction(logs, nonlinear_fit):
+def test_diagnose_finds_the_direction_dependent_viscous_friction(logs, diagnosed):
     """The authors measure Fv+ = 166.7 and Fv- = 240.4 N s/m (their section 4.2). diagnose on
     the estimation file adds viscous_asymmetry first; bv +- dbv within 5 % of theirs, and the
     validation error falls below 5.3 % (from 6.55 %)."""
-    from pmdcid.diagnose import diagnose
-
-    _, model = nonlinear_fit
-    out = diagnose([logs[0]], model)
+    out = diagnosed
     assert out.summary["added"][:1] == ["viscous_asymmetry"]
     bv, dbv = out.model.value("bv"), out.model.value("dbv")
     assert (bv + dbv) / 166.7 - 1 == pytest.approx(0, abs=0.05)
@@ -235,3 +240,34 @@ def test_cli_fit_inverse_dynamics_as_published(tmp_path):
                                                             "triangle.csv"), "-m",
                                   str(tmp_path / "v.json")])
     assert r.exit_code == 1 and "give --km" in r.output and "Traceback" not in r.output
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 24's EMPS target (validation error <= 4.5 % after "
+                   "the loop) is not met: 4.98 %. The validation run asks for about 5 % more "
+                   "Coulomb friction than the estimation run holds (diagnose's model with bc "
+                   "refitted on the validation file alone: 1.77 %, and 4.22 % on the estimation "
+                   "file); no estimator that sees only the estimation file can know it "
+                   "(docs/examples/emps.md, bench/rig_limits.py)")
+def test_issue24_validation_error_after_the_loop(logs, diagnosed):
+    assert velocity_error(logs[1], diagnosed.model) <= 4.5
+
+
+@pytest.mark.slow
+def test_the_two_files_ask_for_different_friction(logs, nonlinear_fit):
+    """Why the validation target is out of reach from the estimation file (issue 24): the
+    symmetric model fitted on each file by fit-nonlinear. Fitted on the validation file it has
+    more friction (bv +3.1 %, bc +2.6 %; measured) and predicts the validation file at 4.48 %
+    but the estimation file at 6.19 %; fitted on the estimation file, 4.55 % and 6.55 %. Each
+    file's own fit is at least 1 point worse on the other file, and the validation file's
+    friction is the higher, by at least 1.5 % in bv and bc."""
+    from pmdcid.identify.nonlinear import fit_nonlinear
+
+    est, val = logs
+    own = Model()
+    fit_nonlinear([val], Model()).apply(own)
+    base = nonlinear_fit[1]
+    assert velocity_error(est, own) > velocity_error(est, base) + 1.0
+    assert velocity_error(val, base) > velocity_error(val, own) + 1.0
+    for name in ("bv", "bc"):
+        assert own.value(name) > 1.015 * base.value(name), name
