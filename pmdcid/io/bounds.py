@@ -4,7 +4,7 @@
   never is; a 50 MB single line is an export gone wrong, which would take a minute and gigabytes
   to parse before failing). A quick pass reads a few kB of every 2 MB (0.4 ms for 40 MB); only
   when a block holds no line end, an exact pass in chunks finds the line (it stops there).
-- :data:`MAX_DIAGNOSE_ROWS` (used by :mod:`pmdcid.diagnose.entry`): the most rows diagnose's
+- :data:`MAX_DIAGNOSE_ROWS` (used by :mod:`pmdcid.diagnose.loop`): the most rows diagnose's
   refits take from one log; longer logs are refused with the way to proceed.
 """
 

@@ -328,17 +328,12 @@ def file_digest(path) -> str:
         return ABSENT
 
 
-def _same_file(a, b) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return os.path.realpath(a) == os.path.realpath(b)
-
-
 def check_unchanged(model: Model, path) -> None:
     """Optimistic locking: a model read from ``path`` is written back only if ``path`` still
     holds what was read (another command, e.g. a stage run meanwhile, would lose its results)."""
-    if model.digest is None or not _same_file(model.digest[0], path):
+    from pmdcid.runtime.outputs import same_file
+
+    if model.digest is None or not same_file(model.digest[0], path, planned=True):
         return
     if file_digest(path) != model.digest[1]:
         raise ModelError("the model file changed since this command read it (another pmdcid "

@@ -142,11 +142,15 @@ def locked(path):
 
 def same_file(a, b, planned: bool = False) -> bool:
     """Whether the paths ``a`` and ``b`` name one existing file; ``planned``: or, when either
-    does not exist yet, the same path (two outputs of one command, a log not yet checked)."""
+    does not exist (yet), the same path once links are resolved (two outputs of one command, a
+    log not yet checked, a model file removed since it was read)."""
     a, b = os.fspath(a), os.fspath(b)
     if os.path.exists(a) and os.path.exists(b):
-        return os.path.samefile(a, b)
-    return planned and os.path.abspath(a) == os.path.abspath(b)
+        try:
+            return os.path.samefile(a, b)
+        except OSError:  # gone between the two calls
+            pass
+    return planned and os.path.realpath(a) == os.path.realpath(b)
 
 
 def input_at(output, inputs, planned: bool = False) -> str | None:
