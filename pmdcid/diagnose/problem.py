@@ -26,13 +26,10 @@ from pmdcid.identify.solver import scale_of, solve, white_covariance
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.model.spec import BASE_PARAMS
-from pmdcid.simulate import SimResult, param_vector, simulate_values
+from pmdcid.simulate import SimResult, blocked_rotor, param_vector, simulate_values
 from pmdcid.simulate.initial import initial_state, true_start
 from pmdcid.simulate.layout import SIGMA0
 from pmdcid.simulate.substeps import choose_substeps
-
-#: static friction that holds a blocked rotor [N m]
-BLOCKED = 1e300
 
 
 @dataclass
@@ -203,7 +200,7 @@ class Problem:
         """Log ``k`` simulated with ``vals`` (its first ``upto`` samples when given)."""
         log = self.logs[k]
         if self.blocked[k]:
-            vals = {**vals, "bc": BLOCKED, "sigma0": 0.0}  # held by stiction, not bristles
+            vals = blocked_rotor(vals)
         if k in self.readings:
             vals = {**vals, "ramp": self.readings[k]}
         return simulate_capped(log.t, log.u, vals, log.drive == "tau",
@@ -359,4 +356,4 @@ class Problem:
         return dict(zip(free, (float(e) for e in se), strict=True)), info
 
 
-__all__ = ["BLOCKED", "Channel", "FitOutcome", "Problem"]
+__all__ = ["Channel", "FitOutcome", "Problem"]

@@ -35,7 +35,8 @@ STAMP = HERE / f"{NAME}.sha1"
 EXPORTS = {
     "run": ("pmdcid.simulate.kernel", "_run",
             "f8[:,::1](f8[::1], f8[::1], f8[:,:,::1], f8[:,:,::1], i8, b1, f8[::1])"),
-    "expm_small": ("pmdcid.simulate.kernel", "expm_small", "f8[:,::1](f8[:,::1])"),
+    "discretize_into": ("pmdcid.simulate.kernel", "discretize_into",
+                        "void(f8[::1], f8, b1, f8[:,:,::1], f8[:,:,::1])"),
     "batch_cost": ("pmdcid.identify.grid", "_batch_cost",
                    "f8[::1](f8[::1], f8[:,::1], f8[:,:,:,::1], f8[:,:,:,::1], i8, b1, f8[::1], "
                    "f8[::1], f8, f8, f8, f8[::1], f8[:,:,::1])"),
