@@ -158,6 +158,7 @@ def _type(fn: Fn, known: dict[str, Fn]) -> None:
             for t in targets:
                 if isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name):
                     _mark_written(fn, t.value.id)
+    fn.written.sort(key=fn.params.index)
 
 
 def _statements(body):
