@@ -3,9 +3,9 @@ discretisation, substeps and events as the kernel) and a script ``run_FILE.m`` t
 
 Works in MATLAB and GNU Octave. The physics is generated from the kernel's source
 (:func:`pmdcid.export.codegen.matlab_kernel`, local functions at the end of the file); the
-template ``model.m.tmpl`` is the shell (the sample loop, the late input, the sensors). The function applies the sensor effects (speed offset, delay by
-linear interpolation) and the late input (input_delay, from the input array) like ``pmdcid
-simulate``; with LuGre the bristle deflection is an optional fourth output.
+template ``model.m.tmpl`` is the shell: the sample loop, the late input (input_delay, from the
+input array) and the sensor effects (speed offset, delay by linear interpolation), applied like
+``pmdcid simulate``; with LuGre the bristle deflection is an optional fourth output.
 """
 
 from __future__ import annotations
