@@ -232,7 +232,11 @@ def _expr_type(fn: Fn, node, known):  # noqa: C901 - one case per node kind
         a, b = _expr_type(fn, node.body, known), _expr_type(fn, node.orelse, known)
         return a if a == b else "float"
     if isinstance(node, ast.Subscript):
-        return "int" if _is_shape(node) else "float"
+        if _is_shape(node):
+            return "int"
+        if isinstance(node.value, ast.Name) and isinstance(fn.types.get(node.value.id), tuple):
+            return "float"
+        return fn.fail(node, f"subscript of {ast.unparse(node.value)}, not a kernel array")
     if isinstance(node, ast.Attribute) and _dotted(node) == "math.inf":
         return "float"
     if isinstance(node, ast.Call):
