@@ -29,19 +29,29 @@ import math
 import re
 import textwrap
 from dataclasses import dataclass, field
+from pathlib import Path
 
+from pmdcid.identify import grid
 from pmdcid.simulate import kernel, layout, substeps, terms
+from pmdcid.simulate.cache import sources_hash
 
 #: what the exported shells call; every kernel function these call is translated with them
 ENTRIES = (kernel.sample_input, kernel.stick_substep, kernel.lugre_substep,
            kernel.discretize_into, terms.lugre_on, terms.friction_guarded,
            terms.steady_friction_level, substeps.max_step, substeps.substeps_for)
-#: array arguments by name: their shapes (``p``: the parameter vector, layout.NAMES)
+#: the functions of the compiled runtime kernel (:data:`RUNTIME_SOURCE`, loaded by
+#: :mod:`pmdcid.simulate.compiled`): the sample loops, the discretisation, a batch set's cost
+RUNTIME = (kernel._run_states, kernel.discretize_into, grid._set_cost)
+#: the generated C of :data:`RUNTIME`, compiled by the package's build (setup.py)
+RUNTIME_SOURCE = Path(kernel.__file__).with_name("_kernel.c")
+#: array arguments by name: their shapes (``p``: the parameter vector, layout.NAMES; None: a
+#: length known at run time, passed in C as ``n_NAME`` after the array)
 ARRAYS = {"p": (len(layout.NAMES),), "Phi": (2, 3, 3), "Gam": (2, 3, 3), "M": (6, 6),
-          "E": (6, 6), "X": (6, 6), "Y": (6, 6), "Z": (6, 6)}
+          "E": (6, 6), "X": (6, 6), "Y": (6, 6), "Z": (6, 6), "u": (None,), "x0": (None,),
+          "out": (None, layout.NSTATE), "w_meas": (None,), "th_meas": (None,)}
 #: scalar arguments that are not floats, by name
 BOOLS = frozenset({"torque_driven", "guarded", "engaged", "eng"})
-INTS = frozenset({"m"})
+INTS = frozenset({"m", "k", "nsub"})
 #: math.* functions and what they are called in C and in MATLAB
 MATH = {"exp": "exp", "expm1": "expm1", "sin": "sin", "cos": "cos", "sqrt": "sqrt",
         "ceil": "ceil", "floor": "floor", "log2": "log2", "log": "log", "isfinite": "isfinite"}
@@ -70,6 +80,7 @@ class Fn:
     types: dict = field(default_factory=dict)  # name -> "float" | "int" | "bool" | shape tuple
     returns: list = field(default_factory=list)  # [] none, [t] one value, [t, ...] a tuple
     written: list[str] = field(default_factory=list)  # array parameters written in place
+    lengths: set[str] = field(default_factory=set)  # array parameters whose length it needs
     calls: list[str] = field(default_factory=list)
 
     def fail(self, node, why: str):
@@ -117,7 +128,7 @@ def collect(entries=ENTRIES) -> list[Fn]:
 
 
 #: the modules whose functions are the kernel's source
-SOURCES = (terms.__name__, kernel.__name__, substeps.__name__)
+SOURCES = (terms.__name__, kernel.__name__, substeps.__name__, grid.__name__)
 
 
 def _is_kernel(obj) -> bool:
@@ -159,6 +170,19 @@ def _type(fn: Fn, known: dict[str, Fn]) -> None:
                 if isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name):
                     _mark_written(fn, t.value.id)
     fn.written.sort(key=fn.params.index)
+    _find_lengths(fn, known)
+
+
+def _find_lengths(fn: Fn, known) -> None:
+    """The array parameters of a run-time length whose length ``fn`` reads or passes on."""
+    for node in ast.walk(fn.node):
+        if isinstance(node, ast.Subscript) and _is_shape(node):
+            fn.lengths.add(node.value.value.id)
+        callee = _callee(fn, node, known) if isinstance(node, ast.Call) else None
+        for param, arg in zip(callee.params if callee else (), node.args if callee else (),
+                              strict=False):
+            if param in callee.lengths and isinstance(arg, ast.Name):
+                fn.lengths.add(arg.id)
 
 
 def _statements(body):
@@ -307,9 +331,11 @@ def _indices(node: ast.Subscript) -> list:
     return list(sl.elts) if isinstance(sl, ast.Tuple) else [sl]
 
 
-def _shape_value(fn: Fn, node: ast.Subscript) -> int:
+def _shape_value(fn: Fn, node: ast.Subscript) -> str:
+    """A length: the shape's constant, or ``n_NAME`` for a length known at run time."""
     arr = node.value.value.id
-    return fn.types[arr][_int_value(fn, node.slice)]
+    n = fn.types[arr][_int_value(fn, node.slice)]
+    return f"n_{out_name(arr)}" if n is None else str(n)
 
 
 # ---------------------------------------------------------------- shared by C and MATLAB
@@ -462,11 +488,17 @@ class Writer:
             return self.if_expr(node)
         if isinstance(node, ast.Subscript):
             if _is_shape(node):
-                return str(_shape_value(self.fn, node))
+                return self.length(node)
             return self.subscript(node)
         if isinstance(node, ast.Call):
             return self.call(node)
         return self.fn.fail(node, f"expression {ast.unparse(node)}")
+
+    def args(self, call) -> list[str]:
+        return [self.expr(a) for a in call.args]
+
+    def length(self, node) -> str:
+        return _shape_value(self.fn, node)
 
     def call(self, node: ast.Call) -> str:
         name = _dotted(node.func)
@@ -479,7 +511,7 @@ class Writer:
         if callee.written or len(callee.returns) != 1:
             self.fn.fail(node, f"{name} is called as a statement (it returns {len(callee.returns)} "
                          "values or writes an array)")
-        return f"{out_name(callee.name)}({', '.join(self.expr(a) for a in args)})"
+        return f"{out_name(callee.name)}({', '.join(self.args(node))})"
 
 
 # ---------------------------------------------------------------- C99
@@ -528,8 +560,18 @@ class CWriter(Writer):
     def simple_assign(self, target, value) -> None:
         self.emit(f"{self.expr(target)} = {self.expr(value)};")
 
+    def args(self, call) -> list[str]:
+        """The arguments, an array whose length the callee needs followed by its length."""
+        callee = self.callee(call)
+        out = []
+        for param, a in zip(callee.params, call.args, strict=True):
+            out.append(self.expr(a))
+            if param in callee.lengths:
+                out.append(f"n_{out_name(a.id)}")
+        return out
+
     def call_stmt(self, targets, call) -> None:
-        args = [self.expr(a) for a in call.args] + [f"&{out_name(t.id)}" for t in targets]
+        args = self.args(call) + [f"&{out_name(t.id)}" for t in targets]
         self.emit(f"{out_name(self.callee(call).name)}({', '.join(args)});")
 
     def if_(self, s) -> None:
@@ -580,12 +622,17 @@ def _c_param(fn: Fn, name: str) -> str:
     ty = fn.types[name]
     if name == "p":
         return "const double *p"
+    if isinstance(ty, tuple) and ty[0] is None:
+        const = "" if name in fn.written else "const "
+        rows = "".join(f"[{n}]" for n in ty[1:])
+        decl = f"double (*{out_name(name)}){rows}" if rows else f"{const}double *{out_name(name)}"
+        return f"{decl}, int n_{out_name(name)}" if name in fn.lengths else decl
     if isinstance(ty, tuple):
         return "double " + out_name(name) + "".join(f"[{n}]" for n in ty)
     return f"{C_TYPE[ty]} {out_name(name)}"
 
 
-def _c_function(fn: Fn, fns: dict[str, Fn]) -> tuple[str, set[str]]:
+def _c_function(fn: Fn, fns: dict[str, Fn], public: bool = False) -> tuple[str, set[str]]:
     w = CWriter(fn, fns)
     w.body(fn.node.body)
     params = [_c_param(fn, a) for a in fn.params]
@@ -603,7 +650,8 @@ def _c_function(fn: Fn, fns: dict[str, Fn]) -> tuple[str, set[str]]:
             decls.append(f"    {C_TYPE[ty]} {out_name(name)};")
     doc = _comment(fn, " * ")
     head = f"/*{doc[2:]}\n */\n" if doc else ""
-    text = (f"{head}static inline {ret} {out_name(fn.name)}({', '.join(params)})\n{{\n"
+    storage = "" if public else "static inline "
+    text = (f"{head}{storage}{ret} {out_name(fn.name)}({', '.join(params)})\n{{\n"
             + "\n".join(decls + w.lines) + "\n}\n")
     return text, w.helpers
 
@@ -614,16 +662,18 @@ def _comment(fn: Fn, lead: str) -> str:
     return "\n".join((lead + line).rstrip() for line in doc.splitlines())
 
 
-def c_kernel() -> str:
+def c_kernel(entries=ENTRIES, public: bool = False) -> str:
     """The kernel as C99: ``enum`` of the parameter slots ``P_NAME`` (layout.NAMES), then every
-    translated function, ``static inline`` (a shell calling none of some draws no warning).
-    Arrays are C arrays of their fixed shapes; ``p`` is ``const double *``; tuple returns are
-    out-parameters ``r_0, r_1, ...`` after the arguments."""
-    fns = collect()
+    translated function, ``static inline`` (a shell calling none of some draws no warning), the
+    entries themselves external when ``public``. Arrays are C arrays of their fixed shapes
+    (``n_NAME`` after one whose length is known at run time); ``p`` is ``const double *``;
+    tuple returns are out-parameters ``r_0, r_1, ...`` after the arguments."""
+    fns = collect(entries)
     by_name = {f.name: f for f in fns}
+    outside = {python_function(e).__name__ for e in entries} if public else set()
     texts, helpers = [], set()
     for fn in fns:
-        text, used = _c_function(fn, by_name)
+        text, used = _c_function(fn, by_name, fn.name in outside)
         texts.append(text)
         helpers |= used
     slots = ",\n".join(f"    P_{n.upper()} = {k}" for k, n in enumerate(layout.NAMES))
@@ -669,6 +719,10 @@ class MWriter(Writer):
 
     def subscript(self, node) -> str:
         return f"{out_name(node.value.id)}({', '.join(self.index(i) for i in _indices(node))})"
+
+    def length(self, node) -> str:
+        arr = node.value.value.id
+        return f"size({out_name(arr)}, {_int_value(self.fn, node.slice) + 1})"
 
     def if_expr(self, node) -> str:
         return self.fn.fail(node, "x if c else y in MATLAB only as a whole value assigned or "
@@ -801,5 +855,28 @@ def python_kernel() -> str:
     return "\n".join(head) + "\n\n\n" + "\n\n\n".join(bodies) + "\n"
 
 
-__all__ = ["ARRAYS", "ENTRIES", "CodegenError", "c_kernel", "collect", "matlab_kernel",
-           "python_kernel"]
+def runtime_source() -> str:
+    """The text of :data:`RUNTIME_SOURCE`: the :data:`RUNTIME` functions in C (external, for
+    ctypes) and ``kernel_digest()``, the hash of the Python sources they were generated from
+    (:func:`pmdcid.simulate.cache.sources_hash`: the loader uses a build only while it matches)."""
+    return (f"/* {RUNTIME_SOURCE.name}: generated by pmdcid/export/codegen.py from the kernel's one\n"
+            " * source (pmdcid/simulate: terms.py, kernel.py, layout.py; identify/grid.py); do not\n"
+            " * edit: `python -m pmdcid.export.codegen` writes it (tests/test_codegen.py checks it).\n"
+            " * Compiled by the package's build (setup.py), loaded by pmdcid/simulate/compiled.py.\n"
+            " */\n#include <math.h>\n\n"
+            f'const char *kernel_digest(void) {{ return "{sources_hash()}"; }}\n\n'
+            + c_kernel(RUNTIME, public=True))
+
+
+def main() -> int:
+    """Write :data:`RUNTIME_SOURCE` (after an edit of the kernel's source)."""
+    RUNTIME_SOURCE.write_text(runtime_source())
+    print(f"pmdcid: wrote {RUNTIME_SOURCE}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+__all__ = ["ARRAYS", "ENTRIES", "RUNTIME", "CodegenError", "c_kernel", "collect",
+           "matlab_kernel", "python_kernel", "runtime_source"]

@@ -26,7 +26,7 @@ import threading
 
 import numpy as np
 
-from pmdcid.simulate import aot
+from pmdcid.simulate import compiled
 from pmdcid.simulate.layout import (
     BC,
     BV,
@@ -317,6 +317,15 @@ def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compile
 @njit(cache=True)
 def _run_into(u, p, Phi, Gam, nsub, torque_driven, x0, out):  # pragma: no cover - compiled
     """:func:`_run` writing the states into ``out`` (n, NSTATE), which it returns."""
+    _run_states(u, p, Phi, Gam, nsub, torque_driven, x0, out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _run_states(u, p, Phi, Gam, nsub, torque_driven, x0, out):  # pragma: no cover - compiled
+    """The states (n, NSTATE) at the sample instants into ``out``, from ``x0`` (the base
+    triple or a full state): the LuGre loop when LuGre is on, else the stick-slip loop,
+    compiled with and without the friction curve's guard."""
     z0 = x0[3] if x0.shape[0] > 3 else 0.0
     if lugre_on(p):
         _run_lugre(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out)
@@ -324,7 +333,6 @@ def _run_into(u, p, Phi, Gam, nsub, torque_driven, x0, out):  # pragma: no cover
         _run_stick(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out, True)
     else:
         _run_stick(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out, False)
-    return out
 
 
 @njit(cache=True, inline="always")
@@ -380,11 +388,12 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
 
 
 def _compiled(name: str):
-    """Compiled function ``name`` of :data:`pmdcid.simulate.aot.EXPORTS` from this module: the
-    ahead-of-time build when it matches these sources, numba's JIT otherwise."""
-    ahead = aot.load()
-    if ahead is not None:
-        return getattr(ahead, name)
+    """Compiled function ``name`` (``run``, ``run_into``, ``discretize_into``) of this module:
+    the C build of its generated source when it matches these sources
+    (:mod:`pmdcid.simulate.compiled`), numba's JIT otherwise."""
+    fast = compiled.load()
+    if fast is not None:
+        return getattr(fast, name)
     return {"run": _run, "discretize_into": discretize_into, "run_into": _run_into}[name]
 
 
