@@ -227,3 +227,11 @@ def test_code_outside_the_subset_is_refused():
 
     with pytest.raises(CodegenError, match="uses_a_list"):
         collect((uses_a_list,))
+
+
+def test_the_runtime_source_is_current():
+    """pmdcid/simulate/_kernel.c is what the kernel's source generates today (after an edit:
+    python -m pmdcid.export.codegen); the build compiles it."""
+    from pmdcid.export.codegen import RUNTIME_SOURCE, runtime_source
+
+    assert RUNTIME_SOURCE.read_text() == runtime_source(), "run: python -m pmdcid.export.codegen"
