@@ -116,7 +116,7 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
 
 
 def _threads(ahead) -> int:
-    """Sets simulated at once: numba's threads under the JIT, one ahead of time."""
+    """Sets simulated at once: numba's threads under the JIT, one by the compiled C kernel."""
     if ahead is not None:
         return 1
     import numba
