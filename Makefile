@@ -3,11 +3,11 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 PMDCID := $(VENV)/bin/pmdcid
 STAMP := $(VENV)/.installed
-# the kernel compiled ahead of time (pmdcid/simulate/aot.py), rebuilt when its sources change;
-# without it (no C compiler) numba's JIT serves, ~0.8 s slower per command
-AOT := pmdcid/simulate/_compiled.sha1
-AOT_SOURCES := pmdcid/simulate/terms.py pmdcid/simulate/layout.py pmdcid/simulate/kernel.py \
-	pmdcid/identify/grid.py pmdcid/simulate/aot.py
+# the kernel compiled from its generated C (pmdcid/simulate/_kernel.c, written by
+# `python -m pmdcid.export.codegen` from the kernel's Python source; built by setup.py, as a plain
+# `pip install .` does); without it (no C compiler) numba's JIT serves, ~1 s slower per command
+AOT := pmdcid/simulate/.kernel-built
+AOT_SOURCES := pmdcid/simulate/_kernel.c setup.py
 
 .PHONY: install test test-fast lint bench realbench fleetbench demo fixtures clean aot
 
@@ -18,7 +18,8 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 $(AOT): $(STAMP) $(AOT_SOURCES)
-	$(PY) -c "import sys; from pmdcid.simulate.aot import main; sys.exit(main())"
+	$(PY) setup.py -q build_ext --inplace
+	touch $(AOT)
 
 aot: $(AOT)
 
@@ -56,4 +57,4 @@ fixtures: $(STAMP)
 	$(PY) -m pmdcid.synth fixtures
 
 clean:
-	rm -rf $(VENV) demo-output .pytest_cache pmdcid/simulate/_compiled*
+	rm -rf $(VENV) demo-output .pytest_cache pmdcid/simulate/_kernel.*.so $(AOT)

@@ -64,8 +64,7 @@ def _errors(model, logs) -> list[float]:
 
 
 def micromouse() -> None:
-    from pmdcid.identify.simfit import ar_whitener, noise_level
-
+    from pmdcid.fit.simfit import ar_whitener, noise_level
     from pmdcid.identify.runners import per_volt, stage_nonlinear
     from pmdcid.model import Model
     from pmdcid.model.lumped import mark_lumped

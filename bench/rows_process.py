@@ -79,9 +79,9 @@ def process_rows(quick: bool, tmp: Path) -> list[Row]:
 
 
 def _kernel_source() -> str:
-    from pmdcid.simulate import aot
+    from pmdcid.simulate import compiled
 
-    return "compiled ahead of time" if aot.load() is not None else "numba's JIT (cache)"
+    return "compiled C (generated)" if compiled.load() is not None else "numba's JIT (cache)"
 
 
 def scaling_rows(quick: bool, tmp: Path) -> list[Row]:

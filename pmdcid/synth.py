@@ -19,7 +19,13 @@ from pmdcid.errors import LogError
 from pmdcid.io import write_log
 from pmdcid.io.kinds import canonical, is_blocked
 from pmdcid.model import Model
-from pmdcid.simulate import SimResult, input_is_torque, param_values, simulate_values
+from pmdcid.simulate import (
+    SimResult,
+    blocked_rotor,
+    input_is_torque,
+    param_values,
+    simulate_values,
+)
 from pmdcid.simulate.initial import initial_state, true_start
 
 #: the paper's Table II parameters, km from its Table I (SI units)
@@ -77,10 +83,8 @@ def synth_log(t, u, vals: dict[str, float], noise: NoiseSpec, rng: np.random.Gen
     """Simulate and add noise; returns (columns dict, SimResult). ``blocked`` holds the rotor;
     ``x0`` = (i, omega, theta) at ``t[0]`` (default rest); ``input_name`` names the input
     column (default ``tau`` or ``v``; a lumped model takes ``v`` through the torque path)."""
-    vals = dict(vals)
+    vals = blocked_rotor(vals) if blocked else dict(vals)
     if blocked:
-        vals["bc"] = 1e300  # infinite static friction: the rotor never moves
-        vals["sigma0"] = 0.0  # held by stiction, not by LuGre bristles
         if x0 is not None:
             x0 = np.array([x0[0], 0.0, x0[2]], float)
     sim = simulate_values(t, u, vals, torque_driven, nsub, x0)

@@ -3,8 +3,10 @@
 Formats (one module each): ``python-control`` (a Python module whose ``make_system(dt)`` returns a
 discrete-time ``control.NonlinearIOSystem``), ``c`` (dependency-free C99 source and header, with
 a friction and dead-zone compensator), ``matlab`` (a function file for MATLAB/GNU Octave and a
-script that runs it) and ``fmu`` (an FMI 2.0 co-simulation FMU around the C source). Each is a port
-of the kernel (:mod:`pmdcid.simulate.kernel`) and is tested against it to 1e-9 relative.
+script that runs it) and ``fmu`` (an FMI 2.0 co-simulation FMU around the C source). Their physics
+is the kernel's own source (:mod:`pmdcid.simulate`), translated by :mod:`pmdcid.export.codegen`
+(C, MATLAB) or embedded (python-control), inside each format's shell (``templates/``); each is
+tested against the kernel.
 ``mujoco`` (an MJCF model, :mod:`pmdcid.export.mjcf`) carries the parameters on MuJoCo's own
 elements instead, and lists what it approximates.
 """
@@ -63,47 +65,38 @@ class ExportSpec:
         return self.drive != "v"
 
 
-#: effects the exported code does not step (refused with one line); their parameters, neutral
-#: in every model exported, are left out of the generated code
-NOT_PORTED: tuple[str, ...] = ()
-#: the kernel parameters the templates step: layout.NAMES up to the last one ported. A parameter
-#: appended to the kernel later is left out of the generated code, and a model whose effects
-#: use it is refused (not silently simulated without it)
-PORTED = NAMES[:NAMES.index("sigma1") + 1]
-#: the sensor parameters and the effect states the templates apply / integrate
+#: the sensor parameters and the effect states the templates' shells apply / carry (every
+#: kernel parameter is stepped: the physics is generated from the kernel's source)
 PORTED_SENSORS = ("delay", "omega0")
 PORTED_STATES = ("z",)
 
 
 def unported_effects(model: Model) -> list[str]:
-    """The model's effects the exported code does not step: listed in :data:`NOT_PORTED`, or
-    with a parameter or a state the templates do not know (added to the kernel after them)."""
+    """The model's effects the exported code does not step: those with a sensor parameter or a
+    state the templates' shells do not know (added to pmdcid after them)."""
     from pmdcid.model import EFFECTS
 
     def known(e):
         eff = EFFECTS[e]
-        return (all(p in PORTED or p in PORTED_SENSORS for p in eff.param_names)
+        return (all(p in NAMES or p in PORTED_SENSORS for p in eff.param_names)
                 and all(s in PORTED_STATES for s in eff.states))
 
-    return [e for e in model.effects if e in NOT_PORTED or not known(e)]
+    return [e for e in model.effects if not known(e)]
 
 
 def spec_of(model: Model) -> ExportSpec:
     """The parameters of ``model`` as the kernel sees them (ModelError if some are lacking)."""
-    from pmdcid.model import EFFECTS
-
     used = unported_effects(model)
     if used:
         raise ExportError(f"the model uses {', '.join(used)}, which the exported code does not "
                           "step yet: simulate it with pmdcid (or remove the effect and refit)",
                           model.path)
-    skip = {p for e in NOT_PORTED for p in EFFECTS[e].param_names}
     drive = drive_of(model)
     vals = param_values(model, torque_driven=drive != "v")
     if drive == "lumped":  # with an electrical lag: the voltage structure per volt (R = km = 1)
         vals, torque = kernel_values(vals, True)
         drive = "lumped" if torque else "v"
-    return ExportSpec({n: float(vals[n]) for n in PORTED if n not in skip}, drive,
+    return ExportSpec({n: float(vals[n]) for n in NAMES}, drive,
                       float(vals.get("delay", 0.0)),
                       float(vals.get("omega0", 0.0)),
                       os.path.basename(model.path) if model.path else "a model")

@@ -1,12 +1,13 @@
 """``export --to python-control``: a Python module whose ``make_system(dt)`` returns a
 discrete-time ``control.NonlinearIOSystem`` stepping the kernel's exact model.
 
-The module is self-contained (numpy, and python-control for ``make_system``): the discretisation
-is computed at ``make_system`` time for the dt given, by a pure-Python port of the kernel's
-``expm_small``; the step is a line-by-line port of the kernel's inner loops (stick-slip and
-LuGre, whose bristle deflection z is a state). A sensor delay is kept as a delay line in the
-state (the outputs must be a function of the state), and so are the past inputs a late input
-(input_delay) needs.
+The module is self-contained (numpy, and python-control for ``make_system``): its physics is the
+kernel's own Python source (:func:`pmdcid.export.codegen.python_kernel`: the terms, one internal
+step of the stick-slip and LuGre loops, the discretisation, the substep rule; numba's decorators
+dropped), run as plain Python; the template is the shell. The discretisation is computed at
+``make_system`` time for the dt given; LuGre's bristle deflection z is a state. A sensor delay
+is kept as a delay line in the state (the outputs must be a function of the state), and so are
+the past inputs a late input (input_delay) needs.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import textwrap
 
 from pmdcid.export import MARKER, ExportSpec, fill, number, template
+from pmdcid.export.codegen import python_kernel
 from pmdcid.io.escape import py_text
 
 
@@ -26,5 +28,5 @@ def render(spec: ExportSpec) -> str:
         "NAMES": textwrap.fill(" ".join(f"{n!r}," for n in spec.values), 96,
                                initial_indent="    ", subsequent_indent="    "),
         "PARAMS": params, "DELAY": number(spec.delay, "math.inf"),
-        "OMEGA0": number(spec.omega0, "math.inf"),
+        "OMEGA0": number(spec.omega0, "math.inf"), "KERNEL": python_kernel(),
     })

@@ -37,13 +37,11 @@ from pmdcid.fit.solver import solve
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
 from pmdcid.model.effects import unit_of
 from pmdcid.model.spec import BASE_PARAMS
-from pmdcid.simulate import SimResult, param_vector, simulate_values
+from pmdcid.simulate import SimResult, blocked_rotor, param_vector, simulate_values
 from pmdcid.simulate.initial import initial_state, true_start
 from pmdcid.simulate.layout import SIGMA0
 from pmdcid.simulate.substeps import choose_substeps
 
-#: static friction that holds a blocked rotor [N m]
-BLOCKED = 1e300
 #: fewest samples of the longest log: fewer cannot tell an effect from the noise
 MIN_SAMPLES = 50
 #: cap on internal steps per sample (a refit wandering to a tiny J/bv must not stall)
@@ -268,7 +266,7 @@ class Problem:
         log = self.logs[k]
         sim = self.simulation
         if sim.hold_blocked and self.blocked[k]:
-            vals = {**vals, "bc": BLOCKED, "sigma0": 0.0}  # held by stiction, not bristles
+            vals = blocked_rotor(vals)
         if k in self.readings:
             vals = {**vals, "ramp": self.readings[k]}
         x0 = true_start(self.x0[k], vals) if x0 is None else x0
@@ -477,5 +475,5 @@ def _judged_channels(k: int, log, idx, fit) -> list[Channel]:
     return out
 
 
-__all__ = ["BLOCKED", "JUDGED", "Channel", "FitOutcome", "Problem", "Simulation",
+__all__ = ["JUDGED", "Channel", "FitOutcome", "Problem", "Simulation",
            "available_signals", "noise_level"]

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from pmdcid.model.lumped import kernel_values, lag_substeps
-from pmdcid.simulate import aot, param_vector
+from pmdcid.simulate import compiled, param_vector
 from pmdcid.simulate.kernel import _run_into, discretize
 from pmdcid.simulate.layout import (
     KM,
@@ -36,28 +36,35 @@ from pmdcid.simulate.substeps import choose_substeps
 
 
 @njit(parallel=True, cache=True)
-def _batch_cost(u, P, Phi, Gam, nsub, torque_driven, w_meas, th_meas, sw, sth,
+def _batch_cost(u, P, Phis, Gams, nsub, torque_driven, w_meas, th_meas, sw, sth,
                 omega0, x0, bufs):  # pragma: no cover - compiled
     m = P.shape[0]
-    n = u.shape[0]
     nb = bufs.shape[0]
     cost = np.empty(m)
     for j0 in range(0, m, nb):  # nb sets at a time, each into its own buffer (reused)
         for jj in prange(min(nb, m - j0)):
             j = j0 + jj
-            out = _run_into(u, P[j], Phi[j], Gam[j], nsub, torque_driven, x0, bufs[jj])
-            c = 0.0
-            for k in range(n):
-                if sw > 0.0:
-                    r = (out[k, OMEGA_STATE] + omega0 - w_meas[k]) / sw
-                    if math.isfinite(r):
-                        c += r * r
-                if sth > 0.0:
-                    r = (out[k, THETA_STATE] - th_meas[k]) / sth
-                    if math.isfinite(r):
-                        c += r * r
-            cost[j] = c
+            out = _run_into(u, P[j], Phis[j], Gams[j], nsub, torque_driven, x0, bufs[jj])
+            cost[j] = _set_cost(out, w_meas, th_meas, sw, sth, omega0)
     return cost
+
+
+@njit(cache=True, inline="always")
+def _set_cost(out, w_meas, th_meas, sw, sth, omega0):  # pragma: no cover - compiled
+    """One set's weighted squared error (dimensionless): its simulated states ``out`` against
+    the measured speed [rad/s] and angle [rad] with noise stds sw, sth (0: not used); the
+    speed sensor's offset omega0 [rad/s] added; non-finite residuals skipped."""
+    c = 0.0
+    for k in range(out.shape[0]):
+        if sw > 0.0:
+            r = (out[k, OMEGA_STATE] + omega0 - w_meas[k]) / sw
+            if math.isfinite(r):
+                c += r * r
+        if sth > 0.0:
+            r = (out[k, THETA_STATE] - th_meas[k]) / sth
+            if math.isfinite(r):
+                c += r * r
+    return c
 
 
 def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
@@ -100,7 +107,7 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     w = np.ascontiguousarray(log["omega"], float) if "omega" in sigma else nan
     th = np.ascontiguousarray(log["theta"], float) if "theta" in sigma else nan
     omega0 = float(vals_list[0].get("omega0", 0.0))
-    ahead = aot.load()  # the ahead-of-time build (one thread) when current, else numba's JIT
+    ahead = compiled.load()  # the C build (one thread) when current, else numba's JIT
     fn = ahead.batch_cost if ahead is not None else _batch_cost
     bufs = np.empty((min(_threads(ahead), len(P)), log.n, NSTATE))  # one simulation per thread
     return fn(np.ascontiguousarray(log.u, float), P, Phi, Gam, int(nsub), bool(torque), w, th,
@@ -109,7 +116,7 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
 
 
 def _threads(ahead) -> int:
-    """Sets simulated at once: numba's threads under the JIT, one ahead of time."""
+    """Sets simulated at once: numba's threads under the JIT, one by the compiled C kernel."""
     if ahead is not None:
         return 1
     import numba

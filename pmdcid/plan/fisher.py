@@ -20,12 +20,10 @@ import numpy as np
 
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.spec import BASE_PARAMS
-from pmdcid.simulate import param_values, simulate_values
+from pmdcid.simulate import blocked_rotor, param_values, simulate_values
 
 #: relative central-difference step of the sensitivities (see the module's docstring)
 REL_STEP = 1e-3
-#: infinite static friction: a blocked rotor never moves
-BLOCKED_BC = 1e300
 #: longest internal kernel step [s]: stick-slip and dead-zone events are placed to within one
 #: internal step, and with the kernel's default (1 ms at 1 kHz) the simulated response moves by
 #: whole steps, which biases the sensitivities of bc and dz (2x on bc for the paper's motor);
@@ -99,7 +97,7 @@ def signals_of(blocked: bool, drive: Drive) -> tuple[str, ...]:
 def simulate_profile(t, u, vals: dict[str, float], drive: Drive, blocked: bool):
     """Simulated i [A] and omega [rad/s] of one profile (blocked: the rotor held)."""
     if blocked:
-        vals = {**vals, "bc": BLOCKED_BC, "sigma0": 0.0}  # held by stiction, not bristles
+        vals = blocked_rotor(vals)
     return simulate_values(t, u, vals, drive.torque_path, internal_steps(t))
 
 
@@ -220,6 +218,6 @@ def relative(se: np.ndarray, values: np.ndarray) -> np.ndarray:
         return np.where(values != 0, se / np.abs(values), math.inf)
 
 
-__all__ = ["BLOCKED_BC", "Drive", "ELECTRICAL", "REL_STEP", "drive_of", "identified",
+__all__ = ["Drive", "ELECTRICAL", "REL_STEP", "drive_of", "identified",
            "information", "model_values", "relative", "sensitivities", "signals_of",
            "simulate_profile", "stage_information", "staged_from", "staged_stderr", "stderr"]

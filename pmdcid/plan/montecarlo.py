@@ -30,7 +30,7 @@ from pmdcid.io import Log
 from pmdcid.model import Model
 from pmdcid.plan import fisher as fi
 from pmdcid.plan.design import Plan
-from pmdcid.simulate import simulate_values
+from pmdcid.simulate import blocked_rotor, simulate_values
 
 #: parameters fitted, and the factor the fit starts off by
 FITTED = ("J", "bv", "bc", "dz")  # after R, L
@@ -45,7 +45,7 @@ def recorded_logs(plan: Plan, vals: dict[str, float], rng: np.random.Generator,
     logs = []
     nsub = nsub or RECORD_FINER * fi.internal_steps(plan.profiles[-1].t)
     for p in plan.profiles:
-        v = {**vals, "bc": fi.BLOCKED_BC} if p.blocked else vals
+        v = blocked_rotor(vals) if p.blocked else vals
         sim = simulate_values(p.t, p.u, v, plan.drive.torque_path, nsub)
         data = {plan.drive.column: p.u.copy()}
         if not p.blocked:

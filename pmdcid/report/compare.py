@@ -11,12 +11,16 @@ import numpy as np
 from pmdcid.errors import LogError
 from pmdcid.model import Model
 from pmdcid.report.metrics import lag_step_for, signal_metrics, speed_threshold
-from pmdcid.simulate import SimResult, input_is_torque, param_values, simulate_values
+from pmdcid.simulate import (
+    SimResult,
+    blocked_rotor,
+    input_is_torque,
+    param_values,
+    simulate_values,
+)
 
 #: signals compared, in display order, with their units
 SIGNALS = {"omega": "rad/s", "theta": "rad", "i": "A"}
-#: static friction that holds the rotor still when simulating a blocked-rotor log [N m]
-BLOCKED_BC = 1e300
 
 
 @dataclass
@@ -57,8 +61,9 @@ def simulate_for(log, model: Model) -> SimResult:
 
     torque = input_is_torque(log, model)
     blocked = log.blocked
-    over = {"bc": BLOCKED_BC, "sigma0": 0.0} if blocked else None  # stiction holds it
-    vals = param_values(model, torque, over)
+    vals = param_values(model, torque)
+    if blocked:
+        vals = blocked_rotor(vals)
     x0 = true_start(initial_state(log), vals)
     if blocked:
         x0[1] = 0.0

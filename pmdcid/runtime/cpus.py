@@ -2,7 +2,7 @@
 
 The fits' costly work comes in independent pieces: the finite-difference Jacobian's columns
 (:mod:`.fdjac`), a diagnose candidate's starts, the candidates of a diagnose round. The compiled
-kernel releases Python's lock (:mod:`pmdcid.simulate.aot`), so threads simulate on several
+kernel releases Python's lock (:mod:`pmdcid.simulate.compiled`), so threads simulate on several
 cores at once.
 
 :func:`pmap` maps a function over such pieces: the calling thread works through them itself,

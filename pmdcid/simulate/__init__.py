@@ -113,6 +113,16 @@ class SimResult:
                              "theta": self.theta})
 
 
+#: static friction [N m] that holds a blocked rotor: "infinite", beyond any torque a log reaches
+BLOCKED_BC = 1e300
+
+
+def blocked_rotor(vals: dict[str, float]) -> dict[str, float]:
+    """``vals`` with the rotor held still, as on a blocked-rotor log: infinite static friction
+    (bc = :data:`BLOCKED_BC`) and LuGre off (the rotor is held by stiction, not by bristles)."""
+    return {**vals, "bc": BLOCKED_BC, "sigma0": 0.0}
+
+
 def neutral_values() -> dict[str, float]:
     """Every kernel and sensor parameter at the value that switches its effect off."""
     vals = {n: BASE_PARAMS[n].neutral for n in BASE_PARAMS}
@@ -247,7 +257,7 @@ def input_is_torque(log, model: Model) -> bool:
 
 
 __all__ = [
-    "INDEX", "NAMES", "SimResult", "choose_substeps", "input_is_torque", "logs_for",
-    "neutral_values", "param_values", "param_vector", "run_kernel", "simulate", "simulate_log",
-    "simulate_values",
+    "BLOCKED_BC", "INDEX", "NAMES", "SimResult", "blocked_rotor", "choose_substeps",
+    "input_is_torque", "logs_for", "neutral_values", "param_values", "param_vector", "run_kernel",
+    "simulate", "simulate_log", "simulate_values",
 ]

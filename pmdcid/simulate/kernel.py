@@ -26,7 +26,7 @@ import threading
 
 import numpy as np
 
-from pmdcid.simulate import aot
+from pmdcid.simulate import compiled
 from pmdcid.simulate.layout import (
     BC,
     BV,
@@ -37,8 +37,6 @@ from pmdcid.simulate.layout import (
     KM,
     LINEAR,
     NSTATE,
-    SIGMA0,
-    SIGMA1,
     J,
     L,
     R,
@@ -55,6 +53,7 @@ from pmdcid.simulate.terms import (
     drive_voltage,
     friction_guarded,
     load_torque,
+    lugre_damping,
     lugre_held_friction,
     lugre_on,
     sgn,
@@ -63,80 +62,103 @@ from pmdcid.simulate.terms import (
 )
 
 
-def system_matrix(p: np.ndarray, engaged: bool, torque_driven: bool) -> np.ndarray:
-    """Continuous-time A (3x3) of x = (i, omega, theta) in one dead-zone mode.
+@njit(cache=True, inline="always")
+def augmented_matrix(p, engaged, torque_driven, h, M):  # pragma: no cover - compiled
+    """Fill M (6x6) with [[A h, I h], [0, 0]]: A the continuous-time system matrix of
+    x = (i, omega, theta) in one dead-zone mode, h [s] the internal step.
 
     Voltage-driven: L di/dt = v - R i - ke omega; J domega/dt = k*km*i - bv omega + ...
     Torque-driven: the current row is zero (the current is not simulated). LuGre's micro-damping
-    sigma1 [N m s/rad] adds to bv here while LuGre is on (sigma0 > 0); off, the same matrix.
+    sigma1 [N m s/rad] adds to bv while LuGre is on (:func:`pmdcid.simulate.terms.lugre_damping`).
     """
-    A = np.zeros((3, 3))
+    for r in range(6):
+        for c in range(6):
+            M[r, c] = 0.0
     if not torque_driven:
-        A[0, 0] = -p[R] / p[L]
-        A[0, 1] = -p[KE] / p[L]
+        M[0, 0] = -p[R] / p[L] * h
+        M[0, 1] = -p[KE] / p[L] * h
         if engaged:
-            A[1, 0] = p[DZ_SLOPE] * p[KM] / p[J]
-    A[1, 1] = -(p[BV] + (p[SIGMA1] if p[SIGMA0] > 0 else 0.0)) / p[J]
-    A[2, 1] = 1.0
-    return A
+            M[1, 0] = p[DZ_SLOPE] * p[KM] / p[J] * h
+    M[1, 1] = -(p[BV] + lugre_damping(p)) / p[J] * h
+    M[2, 1] = h
+    for r in range(3):
+        M[r, 3 + r] = h
 
 
 @njit(cache=True)
-def expm_small(M):  # pragma: no cover - compiled
-    """Matrix exponential of a small dense matrix: scaling and squaring of a Taylor series.
+def expm_small(M, E):  # pragma: no cover - compiled
+    """E = exp(M) for the 6x6 matrix M: scaling and squaring of a Taylor series.
 
     Scaled to norm <= 1/2 and summed to 20 terms (truncation < 1e-25 relative), then squared
     back. Used instead of ``scipy.linalg.expm`` because for 6x6 matrices the BLAS thread pool
     makes scipy's call cost milliseconds; this costs about a microsecond.
     """
-    n = M.shape[0]
     norm = 0.0
-    for r in range(n):
+    for r in range(6):
         row = 0.0
-        for c in range(n):
+        for c in range(6):
             row += abs(M[r, c])
         norm = max(norm, row)
     s = 0
     if norm > 0.5:
         s = int(math.ceil(math.log2(norm / 0.5)))
-    A = M / (2.0**s)
-    E = np.eye(n)
-    term = np.eye(n)
+    scale = 2.0**s
+    A = np.empty_like(M)
+    term = np.empty_like(M)
+    tmp = np.empty_like(M)
+    for r in range(6):
+        for c in range(6):
+            A[r, c] = M[r, c] / scale
+            term[r, c] = 1.0 if r == c else 0.0
+            E[r, c] = term[r, c]
     for k in range(1, 21):
-        term = _matmul(term, A) / k
-        E = E + term
+        _matmul(term, A, tmp)
+        for r in range(6):
+            for c in range(6):
+                term[r, c] = tmp[r, c] / k
+                E[r, c] = E[r, c] + term[r, c]
     for _ in range(s):
-        E = _matmul(E, E)
-    return E
+        _matmul(E, E, tmp)
+        for r in range(6):
+            for c in range(6):
+                E[r, c] = tmp[r, c]
+
+
+@njit(cache=True, inline="always")
+def _matmul(X, Y, Z):  # pragma: no cover - compiled; plain loops, no BLAS call for tiny matrices
+    """Z = X Y for 6x6 matrices (Z distinct from X and Y)."""
+    for r in range(6):
+        for c in range(6):
+            Z[r, c] = 0.0
+    for r in range(6):
+        for k in range(6):
+            x = X[r, k]
+            for c in range(6):
+                Z[r, c] += x * Y[k, c]
 
 
 @njit(cache=True)
-def _matmul(X, Y):  # pragma: no cover - compiled; plain loops, no BLAS call for tiny matrices
-    n, m, q = X.shape[0], X.shape[1], Y.shape[1]
-    Z = np.zeros((n, q))
-    for r in range(n):
-        for k in range(m):
-            x = X[r, k]
-            for c in range(q):
-                Z[r, c] += x * Y[k, c]
-    return Z
+def discretize_into(p, h, torque_driven, Phi, Gam):  # pragma: no cover - compiled
+    """Exact zero-order-hold discretisation over h [s] for both dead-zone modes, into Phi and
+    Gam (2, 3, 3): ``Phi = expm(A h)``, ``Gam = int_0^h expm(A s) ds`` (from the augmented
+    6x6 exponential). Mode 0 is the dead zone engaged (torque passes), mode 1 disengaged."""
+    M = np.zeros((6, 6))
+    E = np.zeros((6, 6))
+    for m in range(2):
+        augmented_matrix(p, m == 0, torque_driven, h, M)
+        expm_small(M, E)
+        for r in range(3):
+            for c in range(3):
+                Phi[m, r, c] = E[r, c]
+                Gam[m, r, c] = E[r, 3 + c]
 
 
 def discretize(p: np.ndarray, h: float, torque_driven: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation for both modes: Phi (2,3,3) and Gamma (2,3,3).
-
-    ``Phi = expm(A h)``, ``Gamma = int_0^h expm(A s) ds`` (from the augmented 6x6 exponential).
-    Mode 0 is the dead zone engaged (torque passes), mode 1 disengaged.
-    """
+    """:func:`discretize_into` new arrays: (Phi, Gamma), each (2, 3, 3)."""
     Phi = np.empty((2, 3, 3))
     Gam = np.empty((2, 3, 3))
-    for m, engaged in enumerate((True, False)):
-        M = np.zeros((6, 6))
-        M[:3, :3] = system_matrix(p, engaged, torque_driven)
-        M[:3, 3:] = np.eye(3)
-        E = _compiled("expm_small")(M * h)
-        Phi[m] = E[:3, :3]
-        Gam[m] = E[:3, 3:]
+    _compiled("discretize_into")(np.ascontiguousarray(p, dtype=float), float(h),
+                                 bool(torque_driven), Phi, Gam)
     return Phi, Gam
 
 
@@ -156,7 +178,7 @@ def discretize_cached(p: np.ndarray, h: float, torque_driven: bool):
     hit = _DISCRETE.get(key)
     if hit is None:
         hit = discretize(p, h, torque_driven)
-        with _DISCRETE_LOCK:  # fits simulate from several threads (identify/fdjac.py)
+        with _DISCRETE_LOCK:  # fits simulate from several threads (fit/fdjac.py)
             while len(_DISCRETE) >= _DISCRETE_SIZE:
                 _DISCRETE.pop(next(iter(_DISCRETE)))
             _DISCRETE[key] = hit
@@ -173,27 +195,27 @@ def _record(out, k, i, w, th, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _sample_input(p, uk, torque_driven):  # pragma: no cover - compiled
-    """(torque input [N m], voltage the drive applies [V]) held over one sample."""
+def sample_input(p, uk, torque_driven):  # pragma: no cover - compiled
+    """(torque input [N m], voltage the drive applies [V]) held over one sample of input uk."""
     if torque_driven:
         return uk, 0.0
     return 0.0, drive_voltage(p, uk)
 
 
 @njit(cache=True, inline="always")
-def _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, Lh, Jm):  # pragma: no cover
+def _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric):  # pragma: no cover - compiled
     """The held forcing of one step: (dead-zone mode, electrical row [A/s], mechanical row
     [rad/s^2]) from the driving torque td, load tl and held friction fric [N m]."""
     if torque_driven:
-        return 0, 0.0, (td - tl - fric) / Jm
-    fe = armature_voltage(p, vin, w) / Lh
+        return 0, 0.0, (td - tl - fric) / p[J]
+    fe = armature_voltage(p, vin, w) / p[L]
     if eng:
         m = 0
         fm = p[DZ_OFFSET] * sgn(i)
     else:
         m = 1
         fm = 0.0
-    return m, fe, (fm - tl - fric) / Jm
+    return m, fe, (fm - tl - fric) / p[J]
 
 
 @njit(cache=True, inline="always")
@@ -207,6 +229,83 @@ def _linear_step(Phi, Gam, m, i, w, th, fe, fm):  # pragma: no cover - compiled
     return i1, w1, th1
 
 
+@njit(cache=True, inline="always")
+def stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w,
+                  th):  # pragma: no cover - compiled
+    """One internal step of the stick-slip loop: (i [A], omega [rad/s], theta [rad]) after it,
+    under the held torque input tin [N m] or drive voltage vin [V].
+
+    True stiction: a rotor at rest stays at rest while the torque on it is within the static
+    friction level. At rest the current moves with omega = 0; if the torque it builds breaks
+    the rotor free within this step, a moving step is tried, accepted only if the rotor then
+    moves in the driving direction (second-order breakaway timing). A speed that would cross
+    zero is stopped there (re-tested for sticking next step). ``guarded``:
+    :func:`pmdcid.simulate.terms.friction_guarded` of ``p``.
+    """
+    if torque_driven:
+        tm = tin
+    else:
+        tm = p[KM] * i
+    eng = dead_zone_engaged(p, tm)
+    td = dead_zone(p, tm)
+    tl = load_torque(p, th)
+    fstat = static_friction(p)
+    tentative = False
+    i_stuck = i
+    if w == 0.0:
+        net = td - tl
+        if abs(net) <= fstat:
+            if not torque_driven:  # disengaged mode's current row: no coupling to omega
+                ve = armature_voltage(p, vin, 0.0)
+                i_stuck = Phi[1, 0, 0] * i + Gam[1, 0, 0] * ve / p[L]
+                net = dead_zone(p, p[KM] * i_stuck) - tl
+            if abs(net) <= fstat:
+                return i_stuck, w, th
+            tentative = True
+        direction = sgn(net)
+    else:
+        direction = sgn(w)
+    fric = sliding_friction(p, w, direction, guarded)
+    m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric)
+    i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
+    if tentative and w1 * direction <= 0.0:
+        return i_stuck, w, th  # did not break free after all: stays at rest
+    if fstat > 0.0 and w1 * direction < 0.0:
+        w1 = 0.0  # the speed would cross zero: stop here, re-test sticking next step
+    if torque_driven:
+        i1 = 0.0
+    return i1, w1, th1
+
+
+@njit(cache=True, inline="always")
+def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
+                  z):  # pragma: no cover - compiled
+    """One internal step of the LuGre loop: (i [A], omega [rad/s], theta [rad], z [rad]) after
+    it, under the held torque input tin [N m] or drive voltage vin [V].
+
+    No sticking test: the bristles (deflection z) hold a rotor at rest. Friction sigma0 z +
+    sigma1 dz/dt + bv omega (+ drag, viscous asymmetry): (bv + sigma1) omega is in the exact
+    linear step (:func:`augmented_matrix`), the rest is held over the step
+    (:func:`pmdcid.simulate.terms.lugre_held_friction`); then z is stepped exactly with the
+    step's mean speed (:func:`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
+    driving torque as in the stick-slip loop.
+    """
+    if torque_driven:
+        tm = tin
+    else:
+        tm = p[KM] * i
+    a = bristle_rate(p, w)
+    fric = lugre_held_friction(p, w, z, a)
+    m, fe, fm = _forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, i, w,
+                         dead_zone(p, tm), load_torque(p, th), fric)
+    i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
+    h = Gam[0, 2, 2]  # the angle's own input column integrates 1 over the step: exactly h
+    z1 = bristle_step(z, a, h, th1 - th)
+    if torque_driven:
+        i1 = 0.0
+    return i1, w1, th1, z1
+
+
 @njit(cache=True, nogil=True)
 def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compiled
     """States (n, NSTATE) at the sample instants from ``x0`` (the base triple or a full state):
@@ -218,6 +317,15 @@ def _run(u, p, Phi, Gam, nsub, torque_driven, x0):  # pragma: no cover - compile
 @njit(cache=True)
 def _run_into(u, p, Phi, Gam, nsub, torque_driven, x0, out):  # pragma: no cover - compiled
     """:func:`_run` writing the states into ``out`` (n, NSTATE), which it returns."""
+    _run_states(u, p, Phi, Gam, nsub, torque_driven, x0, out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _run_states(u, p, Phi, Gam, nsub, torque_driven, x0, out):  # pragma: no cover - compiled
+    """The states (n, NSTATE) at the sample instants into ``out``, from ``x0`` (the base
+    triple or a full state): the LuGre loop when LuGre is on, else the stick-slip loop,
+    compiled with and without the friction curve's guard."""
     z0 = x0[3] if x0.shape[0] > 3 else 0.0
     if lugre_on(p):
         _run_lugre(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out)
@@ -225,98 +333,30 @@ def _run_into(u, p, Phi, Gam, nsub, torque_driven, x0, out):  # pragma: no cover
         _run_stick(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out, True)
     else:
         _run_stick(u, p, Phi, Gam, nsub, torque_driven, x0[0], x0[1], x0[2], z0, out, False)
-    return out
 
 
 @njit(cache=True, inline="always")
 def _run_stick(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out,
                guarded):  # pragma: no cover
-    """The stick-slip loop: true stiction, a rotor at rest stays at rest (module docstring).
-    LuGre is off: its bristle deflection z is not integrated (stays at its start).
-    ``guarded``: :func:`pmdcid.simulate.terms.friction_guarded`, passed as a constant so that
-    the loop is compiled twice, once without the friction curve and its positivity hold (on
-    the critical path of every step: ~8 ns of 20)."""
-    n = u.shape[0]
-    Lh = p[L]
-    Jm = p[J]
-    a_stuck = Phi[1, 0, 0]  # current decay over h with omega = 0 (disengaged row has no coupling)
-    g_stuck = Gam[1, 0, 0]
-    fstat = static_friction(p)
-    clamp = fstat > 0.0
-    for k in range(n):
+    """The stick-slip loop (:func:`stick_substep`). LuGre is off: its bristle deflection z is
+    not integrated (stays at its start). ``guarded``: passed as a constant so that the loop is
+    compiled twice, once without the friction curve and its positivity hold (on the critical
+    path of every step: ~8 ns of 20)."""
+    for k in range(u.shape[0]):
         _record(out, k, i, w, th, z)
-        tin, vin = _sample_input(p, u[k], torque_driven)
+        tin, vin = sample_input(p, u[k], torque_driven)
         for _ in range(nsub):
-            if torque_driven:
-                tm = tin
-            else:
-                tm = p[KM] * i
-            eng = dead_zone_engaged(p, tm)
-            td = dead_zone(p, tm)
-            tl = load_torque(p, th)
-            tentative = False
-            i_stuck = i
-            if w == 0.0:
-                net = td - tl
-                if abs(net) <= fstat:
-                    # at rest: the current moves with omega = 0; if the torque it builds breaks
-                    # the rotor free within this step, try a moving step (accepted only if the
-                    # rotor then moves in the driving direction: second-order breakaway timing)
-                    if not torque_driven:
-                        ve = armature_voltage(p, vin, 0.0)
-                        i_stuck = a_stuck * i + g_stuck * ve / Lh
-                        net = dead_zone(p, p[KM] * i_stuck) - tl
-                    if abs(net) <= fstat:
-                        i = i_stuck
-                        continue
-                    tentative = True
-                direction = sgn(net)
-            else:
-                direction = sgn(w)
-            fric = sliding_friction(p, w, direction, guarded)
-            m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, Lh, Jm)
-            i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
-            if tentative and w1 * direction <= 0.0:
-                i = i_stuck  # did not break free after all: stays at rest
-                continue
-            if clamp and w1 * direction < 0.0:
-                w1 = 0.0  # the speed would cross zero: stop here, re-test sticking next step
-            if torque_driven:
-                i1 = 0.0
-            i = i1
-            w = w1
-            th = th1
+            i, w, th = stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w, th)
 
 
 @njit(cache=True)
 def _run_lugre(u, p, Phi, Gam, nsub, torque_driven, i, w, th, z, out):  # pragma: no cover
-    """The LuGre loop: no sticking test, the bristles (state z [rad]) hold a rotor at rest.
-
-    Friction sigma0 z + sigma1 dz/dt + bv omega (+ drag, viscous asymmetry): (bv + sigma1)
-    omega is in the exact linear step (:func:`system_matrix`), the rest is held over the step
-    (:func:`pmdcid.simulate.terms.lugre_held_friction`); then z is stepped exactly with the
-    step's mean speed (:func:`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
-    driving torque as in the stick-slip loop.
-    """
-    n = u.shape[0]
-    Lh = p[L]
-    Jm = p[J]
-    h = Gam[0, 2, 2]  # the angle's own input column integrates 1 over the step: exactly h
-    for k in range(n):
+    """The LuGre loop (:func:`lugre_substep`)."""
+    for k in range(u.shape[0]):
         _record(out, k, i, w, th, z)
-        tm, vin = _sample_input(p, u[k], torque_driven)
+        tin, vin = sample_input(p, u[k], torque_driven)
         for _ in range(nsub):
-            if not torque_driven:
-                tm = p[KM] * i
-            a = bristle_rate(p, w)
-            fric = lugre_held_friction(p, w, z, a)
-            m, fe, fm = _forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, i, w,
-                                 dead_zone(p, tm), load_torque(p, th), fric, Lh, Jm)
-            i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
-            z = bristle_step(z, a, h, th1 - th)
-            i = 0.0 if torque_driven else i1
-            w = w1
-            th = th1
+            i, w, th, z = lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th, z)
 
 
 def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = False,
@@ -348,12 +388,14 @@ def run_kernel(u: np.ndarray, dt: float, p: np.ndarray, torque_driven: bool = Fa
 
 
 def _compiled(name: str):
-    """Compiled function ``name`` of :data:`pmdcid.simulate.aot.EXPORTS` from this module: the
-    ahead-of-time build when it matches these sources, numba's JIT otherwise."""
-    ahead = aot.load()
-    if ahead is not None:
-        return getattr(ahead, name)
-    return {"run": _run, "expm_small": expm_small, "run_into": _run_into}[name]
+    """Compiled function ``name`` (``run``, ``run_into``, ``discretize_into``) of this module:
+    the C build of its generated source when it matches these sources
+    (:mod:`pmdcid.simulate.compiled`), numba's JIT otherwise."""
+    fast = compiled.load()
+    if fast is not None:
+        return getattr(fast, name)
+    return {"run": _run, "discretize_into": discretize_into, "run_into": _run_into}[name]
 
 
-__all__ = ["discretize", "discretize_cached", "run_kernel", "system_matrix", "FS", "BC"]
+__all__ = ["discretize", "discretize_cached", "discretize_into", "expm_small", "lugre_substep",
+           "run_kernel", "sample_input", "stick_substep", "FS", "BC"]

@@ -3,7 +3,7 @@
 The kernel's sources (:mod:`pmdcid.simulate.terms`, :mod:`~pmdcid.simulate.kernel`,
 :mod:`pmdcid.identify.grid`) stay numba source, decorated with this module's :func:`njit`.
 Importing them costs nothing: each decorated function is a :class:`Lazy` placeholder. When the
-ahead-of-time kernel (:mod:`pmdcid.simulate.aot`) serves, numba is never imported (its import
+compiled C kernel (:mod:`pmdcid.simulate.compiled`) serves, numba is never imported (its import
 and typing context cost a command ~0.6-0.9 s). The first time a JIT function is needed,
 :func:`materialize` imports numba, decorates every placeholder with ``numba.njit`` and the same
 options (``cache=True``: numba's on-disk cache as before) and puts the dispatchers, and

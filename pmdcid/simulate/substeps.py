@@ -39,17 +39,34 @@ def bounded_for(model_path):
 
 
 def choose_substeps(dt: float, p: np.ndarray, h_max: float | None = None) -> int:
-    """Internal steps per sample: h <= min(1 ms, tau_mech / 50) unless ``h_max`` [s] is given;
-    tau_mech = J / (bv + km ke / R) [s], the back-EMF's damping included. With LuGre on, also
-    h <= :func:`lugre_step` (its spring and micro-damping are held over a step)."""
-    if h_max is None:
-        h_max = 1e-3
-        damping = p[BV] + (p[KM] * p[KE] / p[R] if p[R] > 0 else 0.0)
-        if damping > 0 and p[J] > 0:
-            h_max = min(h_max, p[J] / damping / STEPS_PER_TAU)
-        if p[SIGMA0] > 0:
-            h_max = min(h_max, lugre_step(p))
+    """Internal steps per sample: h <= :func:`max_step` unless ``h_max`` [s] is given."""
+    return substeps_for(dt, max_step(p) if h_max is None else h_max)
+
+
+def substeps_for(dt: float, h_max: float) -> int:
+    """Fewest internal steps of at most h_max [s] in a sample period dt [s] (at least 1)."""
     return max(1, int(math.ceil(dt / h_max - 1e-9)))
+
+
+def mechanical_damping(p) -> float:
+    """Damping of the rotor's speed [N m s/rad]: bv plus the back-EMF's km ke / R."""
+    damping = p[BV]
+    if p[R] > 0:
+        damping += p[KM] * p[KE] / p[R]
+    return damping
+
+
+def max_step(p) -> float:
+    """Largest internal step [s]: min(1 ms, tau_mech / 50), tau_mech = J / (bv + km ke / R)
+    [s], the back-EMF's damping included. With LuGre on, also :func:`lugre_step` (its spring
+    and micro-damping are held over a step)."""
+    h_max = 1e-3
+    damping = mechanical_damping(p)
+    if damping > 0 and p[J] > 0:
+        h_max = min(h_max, p[J] / damping / STEPS_PER_TAU)
+    if p[SIGMA0] > 0:
+        h_max = min(h_max, lugre_step(p))
+    return h_max
 
 
 #: internal steps per radian of the bristles' presliding oscillation sqrt(sigma0/J), and per
@@ -78,7 +95,7 @@ def check_work(n: int, dt: float, nsub: int, p: np.ndarray) -> None:
             f"the simulation would take {steps:.2g} internal steps (limit {MAX_STEPS:.0e}): "
             f"LuGre's bristles (sigma0 = {p[SIGMA0]:.3g} N m/rad, sigma1 = {p[SIGMA1]:.3g} "
             f"N m s/rad) need steps of {lugre_step(p):.2g} s: check sigma0, sigma1 and J")
-    damping = p[BV] + (p[KM] * p[KE] / p[R] if p[R] > 0 else 0.0)
+    damping = mechanical_damping(p)
     tau = p[J] / damping if damping > 0 else math.inf
     raise WorkBoundError(
         f"the simulation would take {steps:.2g} internal steps ({n} samples x {float(nsub):.2g} "
@@ -88,4 +105,5 @@ def check_work(n: int, dt: float, nsub: int, p: np.ndarray) -> None:
 
 
 __all__ = ["LUGRE_STEPS", "MAX_STEPS", "STEPS_PER_TAU", "WorkBoundError", "bounded_for",
-           "check_work", "choose_substeps", "lugre_step"]
+           "check_work", "choose_substeps", "lugre_step", "max_step", "mechanical_damping",
+           "substeps_for"]

@@ -180,6 +180,15 @@ def lugre_on(p) -> bool:
 
 
 @njit(cache=True, inline="always")
+def lugre_damping(p) -> float:
+    """LuGre's micro-damping sigma1 [N m s/rad] while LuGre is on, 0 off: the part of
+    sigma1 dz/dt proportional to omega, integrated with bv by the exact linear step."""
+    if lugre_on(p):
+        return p[SIGMA1]
+    return 0.0
+
+
+@njit(cache=True, inline="always")
 def steady_friction_level(p, omega: float) -> float:
     """LuGre's g(omega) [N m]: the Coulomb + Stribeck level bc + fs*exp(-(omega/ws)^2) the
     bristles settle at when sliding steadily at omega [rad/s]."""
@@ -230,7 +239,7 @@ def load_torque(p, theta: float) -> float:
 
 __all__ = [
     "armature_voltage", "bristle_rate", "bristle_step", "dead_zone", "dead_zone_engaged",
-    "drive_voltage", "friction_curve", "friction_guarded", "load_torque", "lugre_held_friction",
-    "lugre_on", "sgn", "sliding_friction", "static_friction", "steady_friction_level",
-    "stribeck_excess", "BV",
+    "drive_voltage", "friction_curve", "friction_guarded", "load_torque", "lugre_damping",
+    "lugre_held_friction", "lugre_on", "sgn", "sliding_friction", "static_friction",
+    "steady_friction_level", "stribeck_excess", "BV",
 ]

@@ -112,17 +112,22 @@ def one_line_error(res):
     return lines[0]
 
 
-def test_effect_with_an_unported_kernel_parameter_is_refused(tmp_path, monkeypatch):
-    """A kernel parameter appended after the last port (played here by LuGre's two) leaves
-    the effect using it refused in one line, not simulated without it."""
+def test_effect_the_shells_do_not_carry_is_refused(tmp_path, monkeypatch):
+    """Every kernel parameter is stepped (the physics is generated from the kernel's source);
+    a sensor parameter or an effect state the templates' shells do not carry (played here by
+    sensor_delay's delay and LuGre's z) leaves its effect refused in one line, not exported
+    without it."""
     import pmdcid.export as ex
 
-    monkeypatch.setattr(ex, "PORTED", ex.PORTED[:ex.PORTED.index("sigma0")])
     write_model(tmp_path / "m.json", "v", later=("lugre",))
+    monkeypatch.setattr(ex, "PORTED_STATES", ())
     msg = one_line_error(run(["-m", str(tmp_path / "m.json"), "--to", "c",
                               "-o", str(tmp_path / "x.c")]))
-    assert "lugre" in msg and not (tmp_path / "x.c").exists()
-    write_model(tmp_path / "m.json", "v", later=("friction_curve",))
+    assert "lugre" in msg and "sensor_delay" not in msg and not (tmp_path / "x.c").exists()
+    monkeypatch.setattr(ex, "PORTED_SENSORS", ("omega0",))
+    assert "sensor_delay" in one_line_error(run(["-m", str(tmp_path / "m.json"), "--to",
+                                                 "matlab", "-o", str(tmp_path / "x.m")]))
+    monkeypatch.undo()
     assert run(["-m", str(tmp_path / "m.json"), "--to", "python-control",
                 "-o", str(tmp_path / "x.py")]).exit_code == 0
 
