@@ -43,7 +43,13 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     working_model,
 )
 from pmdcid.identify.priors import prior_terms, stage_priors
-from pmdcid.identify.results import Estimate, ResultProtocol, SimFitResult
+from pmdcid.identify.results import (
+    Estimate,
+    ResultProtocol,
+    SimFitResult,
+    bounded,
+    write_estimate,
+)
 from pmdcid.identify.simfit import fit_simulation, format_estimates, noise_level
 from pmdcid.identify.solver import blas_single_thread
 from pmdcid.model import Model
@@ -115,7 +121,7 @@ class NonlinearResult(ResultProtocol):
                 continue
             if name == "tau0":
                 model.add_effect("torque_offset")
-            model.set(name, e.value, e.stderr, e.unit, stage=STAGE)
+            write_estimate(model, e, STAGE)
         fits = model.extra.setdefault("fits", {})
         r = self.bc_dz_correlation
         fits[STAGE] = {
@@ -299,6 +305,12 @@ def _polish(logs, work, free, signals, fit, sigma, max_nfev, bounds, priors, hel
     return best
 
 
+#: the words beside a dead zone these logs only bound
+DZ_CAVEAT = ("not identifiable from these logs, masked by the Coulomb friction: record fast "
+             "reversals or steps down through zero")
+#: the words beside the lumped model's tau_e standard error
+TAU_E_CAVEAT = "a lower bound: its 2-sigma interval held the true L/R in 15 of 20 synthetic seeds"
+
 #: the secant check moves each parameter by this many of its standard errors (at 2 the rise
 #: is dominated by the cost's small bumps, which make it steeper, not flatter)
 SECANT_SE = 4.0
@@ -346,6 +358,8 @@ def secant_errors(logs, base_vals, fit, signals, sigma, warns) -> dict[str, Esti
             e = fit.estimates[k]
             out[k] = Estimate(k, e.value, e.stderr * factor, e.unit)
             wide.append(f"{k} x{factor:.2g}")
+    e = out.get("tau_e", fit.estimates["tau_e"])
+    out["tau_e"] = Estimate("tau_e", e.value, e.stderr, e.unit, e.vary, caveat=TAU_E_CAVEAT)
     warns.append("tau_e's standard error is a lower bound: on synthetic voltage + speed logs "
                  "(bench/lumped_coverage.py) its 2-sigma interval held the true L/R in 15 of 20 "
                  "seeds, the estimates spreading 1.8x more than their standard errors")
@@ -454,12 +468,13 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
             cf = _cost(logs, base_vals, [{**point, "dz": d} for d in fine], signals, sigma)
             upper = masked_upper(np.concatenate([[0.0], fine]),
                                  np.concatenate([[c[0]], cf]), thr)
-        est["dz"] = Estimate("dz", 0.5 * upper, upper / math.sqrt(12.0), "N m")
+        est["dz"] = bounded("dz", 0.0, upper, "N m", DZ_CAVEAT)
         warns.append(f"dz is not identifiable from these logs: any dead zone from 0 to "
                      f"{upper:.3g} N m fits equally (it is masked by the Coulomb friction bc = "
                      f"{est['bc'].value if 'bc' in est else point.get('bc', 0):.3g} N m: the rotor "
-                     "only moves while the torque exceeds bc); written as the interval's "
-                     "midpoint ± its uniform std. Fast reversals or steps down reveal it")
+                     "only moves while the torque exceeds bc); written as that interval, not as "
+                     "a value with a standard error (a dz other data determined inside it is "
+                     "kept). Fast reversals or steps down reveal it")
     if prof:
         est.update(prof.estimates(est.get("J")))
     warns.extend(fit_warnings(fit, est, tscale, masked))

@@ -456,14 +456,21 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel, parallel: bool = True) -> np.ndar
 
 
 def format_estimates(estimates, width: int = 10) -> list[str]:
-    """Table lines ``name  value ± stderr  unit`` (``fixed`` when the parameter did not vary)."""
+    """Table lines ``name  value ± stderr  unit`` (``fixed`` when the parameter did not vary;
+    a bounded one in words, ``name  between LOW and HIGH UNIT (why)``)."""
+    from pmdcid.model.tables import in_words
+
     lines = [f"{'parameter':<{width}} {'value':>13}   {'± stderr':<11} unit"]
     for e in estimates:
+        if e.interval is not None:
+            lines.append(f"{e.name:<{width}} {in_words(e.interval, e.unit, e.caveat)}")
+            continue
         if not e.vary:
             se = "(fixed)"
         elif math.isfinite(e.stderr):
             se = f"± {e.stderr:.2g}"
         else:
             se = "± ?"
-        lines.append(f"{e.name:<{width}} {e.value:13.6g}   {se:<11} {e.unit}".rstrip())
+        why = f"  ({e.caveat})" if e.caveat else ""
+        lines.append(f"{e.name:<{width}} {e.value:13.6g}   {se:<11} {e.unit}".rstrip() + why)
     return lines
