@@ -18,7 +18,7 @@ import numpy as np
 from pmdcid.diagnose.problem import FitOutcome, bounds_of
 from pmdcid.diagnose.residuals import error_table, pooled
 from pmdcid.diagnose.rules import at_bound, failed_refit
-from pmdcid.diagnose.testable import HeldoutTest, heldout_test
+from pmdcid.diagnose.testable import HeldoutTest, heldout_floor, heldout_test
 from pmdcid.identify.cpus import pmap
 from pmdcid.model import EFFECTS
 from pmdcid.model.signatures import MIN_MOVING, TOP_QUANTILE, lowest_friction, moving_speeds
@@ -199,7 +199,7 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
         elif eff.implausible and (why := eff.implausible(fo.values, run.ctx0, run.vals0)):
             c.status, c.reason = "implausible", why + "; not counted"
         else:
-            floor = max(run.rules.min_z ** 2, run.rules.min_gain * ref["held"]) if n_held else 1.0
+            floor = heldout_floor(run.rules, n_held, ref["held"])
             others = [p for p in free if p in eff.interacts]
             c.test = heldout_test(run.problem, fo.values, name, others,
                                   run.ctx0.torque_scale, floor)

@@ -49,7 +49,7 @@ ELECTRICAL_BASE = ("R", "L")
 NUDGE = 0.2
 
 
-def _free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[str]:
+def free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[str]:
     """Parameters refitted with every candidate: those of J, bv, bc (and dz when the model has a
     dead zone) that moving logs inform, R and L when a current is logged, and the parameters of
     the effects the model already declares."""
@@ -76,7 +76,7 @@ class Run:
         self.say = lambda msg: None  # progress: told each round and refit
         torque_only = all(log.drive == "tau" for log in problem.logs)
         self.vals0 = param_values(model, torque_driven=torque_only)
-        self.base_free = _free_base(problem, self.vals0, model)
+        self.base_free = free_base(problem, self.vals0, model)
         self.refresh()
         self.floors = repeatability(problem.logs)
         self.held_ref: list[dict[str, float]] | None = None
@@ -276,7 +276,7 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
                          max_nfev, max_rounds, progress or (lambda msg: None), ramp)
 
 
-def _pool(problem: Problem, model: Model, effects) -> list[str]:
+def search_pool(problem: Problem, model: Model, effects) -> list[str]:
     if effects is not None:
         unknown = [e for e in effects if e not in EFFECTS]
         if unknown:
@@ -295,7 +295,7 @@ def _pool(problem: Problem, model: Model, effects) -> list[str]:
 def _diagnose(logs, model, effects, split, max_samples, refit_top, rules, max_nfev,
               max_rounds, say, ramp=None) -> DiagnoseResult:
     problem = Problem(logs, split, max_samples, holdout_plan(logs))
-    pool = _pool(problem, model, effects)
+    pool = search_pool(problem, model, effects)
     run = Run(problem, model, rules, max_nfev)
     run.say = say
     notes: list[str] = []
@@ -315,4 +315,4 @@ def _diagnose(logs, model, effects, split, max_samples, refit_top, rules, max_nf
     return summarise(run, new, base, final_vals, added, seen, history, notes)
 
 
-__all__ = ["Candidate", "DiagnoseResult", "diagnose"]
+__all__ = ["Candidate", "DiagnoseResult", "diagnose", "free_base", "search_pool"]
