@@ -220,6 +220,28 @@ def test_a_poorly_determined_unit_borrows_from_the_fleet_by_precision():
     assert abs(v - 0.006) < 1e-8 and weight < 1e-4
 
 
+def test_a_bound_is_no_estimate_in_the_fleet_tables_limits_and_population():
+    """A unit whose logs only bound dz (value, null stderr, unit, low, high): units.parquet
+    gets dz_low/dz_high; its midpoint enters no median; a limit passes only on the interval."""
+    from pmdcid.fleet.limits import check
+    from pmdcid.fleet.population import values
+    from pmdcid.fleet.table import columns
+
+    rows = [{"unit": "sure", "status": "ok", "params": {"dz": [0.006, 1e-4, "N m"]}},
+            {"unit": "bounded", "status": "ok",
+             "params": {"dz": [0.004, None, "N m", 0.0, 0.008]}}]
+    for r in rows:
+        r.update(key=r["unit"], attrs={}, effects=[], warnings=[], logs=[])
+    cols = columns(rows, ["dz"], [], [], False)
+    assert cols["dz_stderr"] == [1e-4, None]
+    assert cols["dz_low"] == [None, 0.0] and cols["dz_high"] == [None, 0.008]
+    x, _ = values(rows, "dz")
+    assert x[0] == 0.006 and math.isnan(x[1])
+    assert check(rows[1], {"dz": (None, 0.01)}) == (True, [])
+    assert check(rows[1], {"dz": (None, 0.005)}) == (False, ["dz (only bounded: 0 to 0.008)"])
+    assert check(rows[0], {"dz": (None, 0.007)}) == (True, [])
+
+
 def test_drift_is_found_from_the_stderrs_and_a_steady_unit_is_not():
     from pmdcid.fleet.drift import drifts
 

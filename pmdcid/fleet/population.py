@@ -86,8 +86,10 @@ def latest(rows: list[dict]) -> list[dict]:
 
 
 def values(rows: list[dict], name: str) -> tuple[np.ndarray, np.ndarray]:
-    """(values, stderrs) of ``name`` over ``rows`` (nan where a row lacks it)."""
+    """(values, stderrs) of ``name`` over ``rows`` (nan where a row lacks it, or where its logs
+    only bound it: the point inside an interval is no estimate to pool)."""
     got = [r["params"].get(name, [math.nan, math.nan]) for r in rows]
+    got = [[math.nan, math.nan] if len(g) > 3 else g for g in got]
     return (np.array([_num(g[0]) for g in got]), np.array([_num(g[1]) for g in got]))
 
 
