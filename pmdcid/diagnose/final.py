@@ -152,7 +152,7 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
         est = final.estimates[name]
         if math.isfinite(se) and se > est.stderr and name in free:
             final.estimates[name] = Estimate(name, est.value, se, est.unit)
-    if info is not None and info.inflation > 1.5:
+    if info is not None and (info.inflation > 1.5 or info.lower_bound):
         notes.append(info.describe())
 
 

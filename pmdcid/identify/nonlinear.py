@@ -151,8 +151,9 @@ class NonlinearResult(ResultProtocol):
                 by.setdefault(src, []).append(n)
             lines.append("combined with earlier estimates (Gaussian priors): " + "; ".join(
                 f"{', '.join(ns)} from {src}" for src, ns in by.items()))
-        if self.fit.covariance and self.fit.covariance.inflation > 1.5:
-            lines.append(self.fit.covariance.describe())
+        cov = self.fit.covariance  # said whenever the errors are only lower bounds, too
+        if cov and (cov.inflation > 1.5 or cov.lower_bound):
+            lines.append(cov.describe())
         r = self.bc_dz_correlation
         if math.isfinite(r):
             lines.append(f"correlation bc-dz {r:+.3f}")
