@@ -31,12 +31,6 @@ def in_words(interval, unit: str, caveat: str = "") -> str:
     return f"between {interval[0]:.3g} and {interval[1]:.3g} {unit}".rstrip() + why
 
 
-def stderr_words(se: float, caveat: str = "") -> str:
-    """``± SE`` (``± ?`` when unknown), with the caveat that qualifies it (a lower bound)."""
-    s = f"± {se:.2g}" if math.isfinite(se) else "± ?"
-    return f"{s} ({caveat})" if caveat and math.isfinite(se) else s
-
-
 def text_table(rows) -> str:
     """``parameter  value  ± stderr  unit`` lines (``± ?`` when the error is unknown); a bounded
     parameter as ``parameter  between LOW and HIGH UNIT (why)``."""
