@@ -46,7 +46,7 @@ class _FrontDoor(types.ModuleType):
     ``pmdcid.identify`` stays the plain function :func:`pmdcid.api.identify`; instead the
     function's attribute namespace becomes the subpackage's (a function's ``__dict__`` may be
     any dict, PEP 232), so ``pmdcid.identify.runners``, ``import pmdcid.export as ex;
-    ex.PORTED`` and ``monkeypatch.setattr("pmdcid.simulate.cache.x", ...)`` reach the
+    ex.PORTED_STATES`` and ``monkeypatch.setattr("pmdcid.simulate.cache.x", ...)`` reach the
     subpackage as before, while the function's own name, signature and docstring stay its own.
     """
 

@@ -81,6 +81,8 @@ class _Stage:
 
 
 def _param_table(model, truth: dict[str, float]) -> str:
+    from pmdcid.model.tables import in_words
+
     lines = [f"{'parameter':<10} {'value':>12} {'± stderr':>11} {'unit':<10} {'true':>11} "
              f"{'error':>8} {'/stderr':>7}  stage"]
     for name, p in model.parameters.items():
@@ -92,8 +94,9 @@ def _param_table(model, truth: dict[str, float]) -> str:
         zs = (f"{abs(p.value - tv) / p.stderr:.1f}"
               if tv and math.isfinite(p.stderr) and p.stderr > 0 else "")
         true = f"{tv:.6g}" if tv is not None else ""
+        said = f": {in_words(p.interval, p.unit, p.caveat)}" if p.interval is not None else ""
         lines.append(f"{name:<10} {p.value:>12.6g} {se:>11} {p.unit:<10} {true:>11} {err:>8} "
-                     f"{zs:>7}  {p.stage}")
+                     f"{zs:>7}  {p.stage}{said}")
     return "\n".join(lines)
 
 

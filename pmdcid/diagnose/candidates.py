@@ -17,7 +17,7 @@ import numpy as np
 
 from pmdcid.diagnose.residuals import error_table, pooled
 from pmdcid.diagnose.rules import at_bound, failed_refit
-from pmdcid.diagnose.testable import HeldoutTest, heldout_test
+from pmdcid.diagnose.testable import HeldoutTest, heldout_floor, heldout_test
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.model import EFFECTS
 from pmdcid.model.effects import bounds_of
@@ -200,8 +200,7 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
         elif eff.implausible and (why := eff.implausible(fo.values, run.ctx0, run.vals0)):
             c.status, c.reason = "implausible", why + "; not counted"
         else:
-            rules = run.settings.rules
-            floor = max(rules.min_z ** 2, rules.min_gain * ref["held"]) if n_held else 1.0
+            floor = heldout_floor(run.settings.rules, n_held, ref["held"])
             others = [p for p in free if p in eff.interacts]
             c.test = heldout_test(run.problem, fo.values, name, others,
                                   run.ctx0.torque_scale, floor)

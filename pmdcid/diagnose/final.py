@@ -18,10 +18,11 @@ import numpy as np
 from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
-from pmdcid.fit.results import Estimate
-from pmdcid.identify.nonlinear import masked_upper
+from pmdcid.fit.results import Estimate, bounded
+from pmdcid.identify.nonlinear import DZ_CAVEAT, masked_upper
 from pmdcid.model import EFFECTS
 from pmdcid.model.lumped import is_lumped, lumped_unit
+from pmdcid.model.params import kept_within
 
 #: added effects that can lower the total friction (removed, the last added first, when the
 #: final model's friction is negative somewhere within the logged speeds)
@@ -112,15 +113,19 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
         return final, free
     upper = dead_zone_range(problem, final)
     if upper is not None:
-        # its refit value and standard error would mean nothing: written as the interval's
-        # midpoint +- its uniform std, as fit-nonlinear does, the others refitted with it
+        # its refit value and standard error would mean nothing: written as the interval, as
+        # fit-nonlinear does, the others refitted at the point inside that the model keeps (a
+        # dz other data determined, else the midpoint)
         free = [p for p in free if p != "dz"]
-        final = run.fit({**final.values, "dz": 0.5 * upper}, free, "all")
+        kept = kept_within(run.model.parameters.get("dz"), 0.0, upper)
+        point = run.vals0["dz"] if kept else 0.5 * upper
+        final = run.fit({**final.values, "dz": point}, free, "all")
         unit = lumped_unit("N m") if is_lumped(run.model) else "N m"
-        final.estimates["dz"] = Estimate("dz", 0.5 * upper, upper / math.sqrt(12.0), unit)
+        final.estimates["dz"] = bounded("dz", 0.0, upper, unit, DZ_CAVEAT, point)
         notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
-                     f"to {upper:.3g} {unit} fits equally (below the breakaway torque); written "
-                     "as the interval's midpoint +- its uniform std")
+                     f"to {upper:.3g} {unit} fits equally (below the breakaway torque); "
+                     + ("the model's dz lies inside and is kept" if kept else
+                        "written as that interval, not as a value with a standard error"))
     elif _fits_as_well(problem, final, {"dz": run.vals0["dz"]}):
         # the dead zone shows only at a few switching instants: when the model's own dz (from
         # fit-nonlinear's slow reversals) fits these logs as well, these logs do not move it
@@ -147,7 +152,7 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
         est = final.estimates[name]
         if math.isfinite(se) and se > est.stderr and name in free:
             final.estimates[name] = Estimate(name, est.value, se, est.unit)
-    if info is not None and info.inflation > 1.5:
+    if info is not None and (info.inflation > 1.5 or info.lower_bound):
         notes.append(info.describe())
 
 

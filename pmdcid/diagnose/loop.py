@@ -50,7 +50,7 @@ ELECTRICAL_BASE = ("R", "L")
 NUDGE = 0.2
 
 
-def _free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[str]:
+def free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[str]:
     """Parameters refitted with every candidate: those of J, bv, bc (and dz when the model has a
     dead zone) that moving logs inform, R and L when a current is logged, and the parameters of
     the effects the model already declares."""
@@ -76,7 +76,7 @@ class Run:
         self.say = lambda msg: None  # progress: told each round and refit
         torque_only = all(log.drive == "tau" for log in problem.logs)
         self.vals0 = param_values(model, torque_driven=torque_only)
-        self.base_free = _free_base(problem, self.vals0, model)
+        self.base_free = free_base(problem, self.vals0, model)
         self.refresh()
         self.floors = repeatability(problem.logs)
 
@@ -273,7 +273,7 @@ def diagnose(logs: Sequence, model: Model, effects: Sequence[str] | None = None,
                          progress or (lambda msg: None), ramp)
 
 
-def _pool(problem: Problem, model: Model, effects) -> list[str]:
+def search_pool(problem: Problem, model: Model, effects) -> list[str]:
     if effects is not None:
         unknown = [e for e in effects if e not in EFFECTS]
         if unknown:
@@ -291,7 +291,7 @@ def _pool(problem: Problem, model: Model, effects) -> list[str]:
 
 def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> DiagnoseResult:
     problem = Problem(logs, settings.split, settings.max_samples, holdout_plan(logs))
-    pool = _pool(problem, model, effects)
+    pool = search_pool(problem, model, effects)
     run = Run(problem, model, settings)
     run.say = say
     notes: list[str] = []
@@ -311,4 +311,4 @@ def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> Diagn
     return summarise(run, new, base, final_vals, added, seen, history, notes)
 
 
-__all__ = ["Candidate", "DiagnoseResult", "Settings", "diagnose"]
+__all__ = ["Candidate", "DiagnoseResult", "Settings", "diagnose", "free_base", "search_pool"]

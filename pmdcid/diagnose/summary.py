@@ -13,7 +13,7 @@ from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, p
 from pmdcid.diagnose.rules import UNTESTABLE
 from pmdcid.diagnose.shape import residual_shapes
 from pmdcid.fit.problem import FitOutcome
-from pmdcid.fit.results import ResultProtocol
+from pmdcid.fit.results import ResultProtocol, write_estimate
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.params import copy_model_into
 
@@ -52,8 +52,8 @@ def write_model(new: Model, final: FitOutcome, free: list[str], added: list[str]
         new.add_effect(e)
         for p in EFFECTS[e].held:
             new.set(p, final.values[p], stage=STAGE)
-    for name, est in final.estimates.items():
-        new.set(name, est.value, est.stderr, est.unit, stage=STAGE)
+    for est in final.estimates.values():
+        write_estimate(new, est, STAGE)
 
 
 def heldout_errors(run, base: FitOutcome, final_vals: dict[str, float],

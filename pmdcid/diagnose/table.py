@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 import os
 
+from pmdcid.model.tables import in_words
+
 
 def _f(x, fmt: str = ".4g") -> str:
     return "-" if x is None or not math.isfinite(x) else format(x, fmt)
@@ -13,6 +15,25 @@ def _f(x, fmt: str = ".4g") -> str:
 def _short(path: str, width: int = 28) -> str:
     name = os.path.basename(path) or path
     return name if len(name) <= width else "..." + name[-(width - 3):]
+
+
+def _added_lines(res) -> list[str]:
+    """Each added effect with its parameters; then what the logs only bound, in words."""
+    from pmdcid.model import EFFECTS
+
+    lines = []
+    for e in res.summary["added"]:
+        pars = []
+        for p in EFFECTS[e].param_names:
+            par = res.model.parameters.get(p)
+            if par is not None and par.interval is None:
+                se = f" ± {par.stderr:.2g}" if math.isfinite(par.stderr) else ""
+                pars.append(f"{p} = {par.value:.5g}{se} {par.unit}".rstrip())
+        lines.append(f"  {e}: " + "; ".join(pars))
+    for name, par in res.model.parameters.items():
+        if par.interval is not None:
+            lines.append(f"{name}: {in_words(par.interval, par.unit, par.caveat)}")
+    return lines
 
 
 def format_table(res) -> str:
@@ -29,16 +50,7 @@ def format_table(res) -> str:
     s = res.summary
     lines.append("")
     lines.append("added: " + (", ".join(s["added"]) if s["added"] else "nothing"))
-    for e in s["added"]:
-        from pmdcid.model import EFFECTS
-
-        pars = []
-        for p in EFFECTS[e].param_names:
-            par = res.model.parameters.get(p)
-            if par is not None:
-                se = f" ± {par.stderr:.2g}" if math.isfinite(par.stderr) else ""
-                pars.append(f"{p} = {par.value:.5g}{se} {par.unit}".rstrip())
-        lines.append(f"  {e}: " + "; ".join(pars))
+    lines += _added_lines(res)
     for u in s.get("untestable", []):
         lines.append(f"possible, not testable with these logs: {u['effect']} (record "
                      f"{u['record']})")

@@ -21,6 +21,16 @@ The test, linearised at the candidate's refit (values ``fo``, effect switched on
   gives about *distinct*; a spurious one about zero or less. The rule asks for half.
 
 Cost: one held-out simulation per free parameter and one with the effect off.
+
+*Before any refit* (``pmdcid plan --check``: can these logs test the effect at all?),
+:func:`logs_can_test` applies the same test at the model's values with the effect switched on
+at its probe size: ``seen`` is the effect's change on the fit part that no free base parameter
+absorbs (what a refit there could see), ``distinct`` the held-out part's that the parameters it
+interacts with cannot. Both grow as the effect's size squared, and no effect can explain more
+of the fit part than its whole chi-square (``room``): the largest effect these logs could
+hold is told apart on the held-out data by ``distinct x room / seen``. Below the floor, no
+effect diagnose could add on these logs could be tested. A necessary condition, linearised
+at the model: whether the data bear a refitted effect out is diagnose's own test.
 """
 
 from __future__ import annotations
@@ -54,6 +64,33 @@ class HeldoutTest:
     @property
     def confirms(self) -> bool:
         return self.confirmed >= max(CONFIRM_SHARE * self.distinct, self.floor)
+
+
+@dataclass(frozen=True)
+class LogsTest:
+    """Whether logs could test an effect, before any refit (module doc; chi-square units at
+    the probed size for ``seen`` and ``distinct``)."""
+
+    seen: float  # fit part: the effect's change no free base parameter absorbs
+    distinct: float  # held-out part: the change its interacting parameters cannot absorb
+    room: float  # the fit part's chi-square: the most any effect could explain there
+    floor: float  # the held-out distinct chi-square that counts as a test
+
+    @property
+    def largest(self) -> float:
+        """The held-out distinct chi-square of the largest effect the fit part could hold (0
+        when the fit part cannot see it at all)."""
+        return self.distinct * self.room / self.seen if self.seen > 0 else 0.0
+
+    @property
+    def testable(self) -> bool:
+        return self.largest >= self.floor
+
+
+def heldout_floor(rules, n_held: int, chi2_held: float) -> float:
+    """The least held-out distinct chi-square that counts as a test: ``min_z`` standard errors
+    squared, or ``min_gain`` of the held-out chi-square (1 when nothing is held out)."""
+    return max(rules.min_z ** 2, rules.min_gain * chi2_held) if n_held else 1.0
 
 
 def _step(name: str, value: float, torque_scale: float) -> float:
@@ -99,4 +136,50 @@ def heldout_test(problem, values: dict[str, float], effect: str, others: list[st
     return HeldoutTest(distinct, confirmed, floor)
 
 
-__all__ = ["CONFIRM_SHARE", "HeldoutTest", "heldout_test"]
+#: a projected change below this share of the change is the projection's rounding: an effect
+#: the columns absorb exactly (a load torque beside bc in one direction)
+ROUNDING = 1e-8
+
+
+def _distinct(d: np.ndarray, cols: list[np.ndarray]) -> float:
+    """|P d|^2, ``P`` projecting out ``cols`` (0 where only rounding is left)."""
+    cols = [c for c in cols if np.all(np.isfinite(c)) and np.any(c)]
+    if not np.all(np.isfinite(d)):
+        return 0.0
+    pd = _project_out(np.column_stack(cols) if cols else None, d)
+    left = float(pd @ pd)
+    return left if left > ROUNDING * float(d @ d) else 0.0
+
+
+def logs_can_test(problem, values: dict[str, float], probes: dict[str, dict[str, float]],
+                  base_free: list[str], torque_scale: float, rules) -> dict[str, LogsTest]:
+    """For each effect of ``probes`` (effect -> its parameters at a probe size), whether the
+    held-out data of ``problem`` could test it before any refit (module doc), at the model's
+    ``values`` with ``base_free`` the parameters every refit moves and ``rules`` diagnose's."""
+    n_held = problem.count("held")
+    sims = problem.simulate_all(values)
+    r0 = {p: problem.weighted(sims, p) for p in ("fit", "held")}
+    floor = heldout_floor(rules, n_held, float(r0["held"] @ r0["held"]))
+    chi2_fit = float(r0["fit"] @ r0["fit"])
+
+    def change(v: dict[str, float]) -> dict[str, np.ndarray]:
+        s = problem.simulate_all(v)
+        return {p: problem.weighted(s, p) - r0[p] for p in ("fit", "held")}
+
+    steps = [(p, _step(p, values.get(p, 0.0), torque_scale)) for p in base_free]
+    steps = [(p, h) for p, h in steps if h > 0]
+    cols = dict(zip([p for p, _ in steps], pmap(
+        lambda ph: change({**values, ph[0]: values[ph[0]] + ph[1]}), steps), strict=True))
+    out = {}
+    for effect, col in probes.items():
+        eff = EFFECTS[effect]
+        d = change({**values, **col})
+        seen = _distinct(d["fit"], [c["fit"] for c in cols.values()])
+        distinct = _distinct(d["held"], [c["held"] for p, c in cols.items()
+                                         if p in eff.interacts]) if n_held else 0.0
+        out[effect] = LogsTest(seen, distinct, chi2_fit, floor)
+    return out
+
+
+__all__ = ["CONFIRM_SHARE", "HeldoutTest", "LogsTest", "heldout_floor", "heldout_test",
+           "logs_can_test"]

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.fit.covariance import CovarianceInfo
+from pmdcid.model.tables import in_words
 
 
 class ResultProtocol:
@@ -21,9 +22,10 @@ class ResultProtocol:
     ``apply(model)``, and either ``estimates`` (name -> :class:`Estimate`) or its own
     :meth:`rows`; the rest follows."""
 
-    def rows(self) -> list[tuple[str, float, float, str]]:
-        """(name, value, stderr, unit) of each estimated parameter."""
-        return [(e.name, e.value, e.stderr, e.unit)
+    def rows(self) -> list[tuple]:
+        """(name, value, stderr, unit, interval, caveat) of each estimated parameter
+        (:class:`pmdcid.model.tables.Row`)."""
+        return [(e.name, e.value, e.stderr, e.unit, e.interval, e.caveat)
                 for e in getattr(self, "estimates", {}).values()]
 
     def __str__(self) -> str:
@@ -138,21 +140,49 @@ def _log_paths(result) -> list[str]:
 
 @dataclass
 class Estimate:
-    """One estimated parameter [unit], its standard error (NaN if unknown), whether it varied."""
+    """One estimated parameter [unit], its standard error (NaN if unknown), whether it varied.
+
+    ``interval``: (low, high) when the logs only bound it (``stderr`` NaN, ``value`` a point
+    inside); ``caveat``: the words that go with it (why, what to record; a standard error that
+    is a lower bound), as :class:`pmdcid.model.params.Parameter`'s."""
 
     name: str
     value: float
     stderr: float = math.nan
     unit: str = ""
     vary: bool = True
+    interval: tuple[float, float] | None = None
+    caveat: str = ""
 
     @property
     def rel_stderr(self) -> float:
         return abs(self.stderr / self.value) if self.value else math.nan
 
     def __str__(self) -> str:
+        if self.interval is not None:
+            return f"{self.name}: {in_words(self.interval, self.unit, self.caveat)}"
         se = f" ± {self.stderr:.3g}" if math.isfinite(self.stderr) else ""
-        return f"{self.name} = {self.value:.6g}{se} {self.unit}".rstrip()
+        why = f" ({self.caveat})" if self.caveat and se else ""
+        return f"{self.name} = {self.value:.6g}{se} {self.unit}".rstrip() + why
+
+
+def bounded(name: str, low: float, high: float, unit: str, caveat: str,
+            value: float | None = None) -> Estimate:
+    """An :class:`Estimate` the logs only bound to [low, high] (value: the point inside that
+    simulations use, default the midpoint)."""
+    v = 0.5 * (low + high) if value is None else value
+    return Estimate(name, v, math.nan, unit, interval=(low, high), caveat=caveat)
+
+
+def write_estimate(model, e: Estimate, stage: str) -> None:
+    """Write ``e`` into ``model``: an estimate with its standard error, or a bounded one as an
+    interval that keeps a value other data determined inside it
+    (:meth:`pmdcid.model.params.Model.set_bounded`)."""
+    if e.interval is not None:
+        model.set_bounded(e.name, *e.interval, e.value, unit=e.unit, stage=stage,
+                          caveat=e.caveat)
+    else:
+        model.set(e.name, e.value, e.stderr, e.unit, stage=stage, caveat=e.caveat)
 
 
 @dataclass
@@ -208,16 +238,21 @@ class SimFitResult:
 
 
 def format_estimates(estimates, width: int = 10) -> list[str]:
-    """Table lines ``name  value ± stderr  unit`` (``fixed`` when the parameter did not vary)."""
+    """Table lines ``name  value ± stderr  unit`` (``fixed`` when the parameter did not vary;
+    a bounded one in words, ``name  between LOW and HIGH UNIT (why)``)."""
     lines = [f"{'parameter':<{width}} {'value':>13}   {'± stderr':<11} unit"]
     for e in estimates:
+        if e.interval is not None:
+            lines.append(f"{e.name:<{width}} {in_words(e.interval, e.unit, e.caveat)}")
+            continue
         if not e.vary:
             se = "(fixed)"
         elif math.isfinite(e.stderr):
             se = f"± {e.stderr:.2g}"
         else:
             se = "± ?"
-        lines.append(f"{e.name:<{width}} {e.value:13.6g}   {se:<11} {e.unit}".rstrip())
+        why = f"  ({e.caveat})" if e.caveat else ""
+        lines.append(f"{e.name:<{width}} {e.value:13.6g}   {se:<11} {e.unit}".rstrip() + why)
     return lines
 
 

@@ -2,7 +2,9 @@
 
 A unit passes when every limited parameter was identified and lies within its limits
 (inclusive), on the unit's own estimate; ``failed`` names the others (a parameter the unit
-lacks fails as ``name (missing)``, a unit that could not be identified fails as a whole).
+lacks fails as ``name (missing)``, one its logs only bound passes when its whole interval lies
+within the limits, else fails as ``name (only bounded: LOW to HIGH)``; a unit that could not be
+identified fails as a whole).
 """
 
 from __future__ import annotations
@@ -59,10 +61,13 @@ def check(row: dict, limits: dict) -> tuple[bool, list[str]]:
     for name, (lo, hi) in limits.items():
         got = row["params"].get(name)
         v = float(got[0]) if got is not None and got[0] is not None else math.nan
+        # a parameter the logs only bound passes when its whole interval does
+        low, high = (float(got[3]), float(got[4])) if got is not None and len(got) > 3 else (v, v)
         if not math.isfinite(v):
             failed.append(f"{name} (missing)")
-        elif (lo is not None and v < lo) or (hi is not None and v > hi):
-            failed.append(name)
+        elif (lo is not None and low < lo) or (hi is not None and high > hi):
+            failed.append(name if low == high else f"{name} (only bounded: {low:.3g} to "
+                                                    f"{high:.3g})")
     return not failed, failed
 
 

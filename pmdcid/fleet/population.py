@@ -15,7 +15,9 @@ counts once, as it is now). Per parameter [its own unit]:
   measurements' own errors explain; at least sigma^2/10), and a unit's estimate x +- s combines
   with it by precision: pooled = w x + (1 - w) median, w = (1/s^2) / (1/s^2 + 1/tau^2),
   stderr (1/s^2 + 1/tau^2)^-1/2. A unit *borrows* a parameter where the prior's weight
-  1 - w is at least :data:`BORROW`. Needs :data:`MIN_UNITS` units.
+  1 - w is at least :data:`BORROW`. A parameter a unit's logs only bound (an interval, no
+  standard error) enters no statistic; its pooled value is the prior restricted to the
+  interval (:func:`pool_bounded`). Needs :data:`MIN_UNITS` units.
 """
 
 from __future__ import annotations
@@ -86,8 +88,10 @@ def latest(rows: list[dict]) -> list[dict]:
 
 
 def values(rows: list[dict], name: str) -> tuple[np.ndarray, np.ndarray]:
-    """(values, stderrs) of ``name`` over ``rows`` (nan where a row lacks it)."""
+    """(values, stderrs) of ``name`` over ``rows`` (nan where a row lacks it, or where its logs
+    only bound it: the point inside an interval is no estimate to pool)."""
     got = [r["params"].get(name, [math.nan, math.nan]) for r in rows]
+    got = [[math.nan, math.nan] if len(g) > 3 else g for g in got]
     return (np.array([_num(g[0]) for g in got]), np.array([_num(g[1]) for g in got]))
 
 
@@ -184,5 +188,22 @@ def pool(x: float, s: float, st: ParamStats) -> tuple[float, float, float]:
     return w * x + (1.0 - w) * st.median, 1.0 / math.sqrt(a + b), 1.0 - w
 
 
+def pool_bounded(low: float, high: float, st: ParamStats) -> tuple[float, float, float]:
+    """(pooled value, its stderr, prior weight) of a parameter a unit's logs only bound to
+    [low, high]: the population prior N(median, tau^2) restricted to the interval (its mean and
+    standard deviation; all of it from the prior, weight 1); the interval's midpoint (no
+    stderr, weight 0) when there is no prior."""
+    if not (math.isfinite(st.tau) and st.tau > 0 and math.isfinite(st.median)):
+        return 0.5 * (low + high), math.nan, 0.0
+    from scipy.stats import truncnorm
+
+    got = truncnorm((low - st.median) / st.tau, (high - st.median) / st.tau, loc=st.median,
+                    scale=st.tau)
+    mean, sd = float(got.mean()), float(got.std())
+    if not (math.isfinite(mean) and math.isfinite(sd)):  # the interval far in a tail
+        return 0.5 * (low + high), math.nan, 0.0
+    return mean, sd, 1.0
+
+
 __all__ = ["BORROW", "MIN_UNITS", "Outlier", "ParamStats", "Z_OWN", "Z_POP", "correlations",
-           "latest", "outliers", "param_names", "pool", "stats", "values"]
+           "latest", "outliers", "param_names", "pool", "pool_bounded", "stats", "values"]

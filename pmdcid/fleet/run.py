@@ -246,16 +246,19 @@ def _comparable(res: FleetResult) -> list[dict]:
 
 
 def _pool_row(r: dict, res: FleetResult) -> None:
-    from pmdcid.fleet.population import BORROW, pool
+    from pmdcid.fleet.population import BORROW, pool, pool_bounded
 
     if r["status"] != "ok":
         return
     for name, st in res.stats.items():
         if name not in r["params"]:
             continue
-        x, s = r["params"][name][0], r["params"][name][1]
-        v, se, weight = pool(float(x) if x is not None else float("nan"),
-                             float(s) if s is not None else float("nan"), st)
+        got = r["params"][name]
+        if len(got) > 3:  # only bounded: the prior within the interval
+            v, se, weight = pool_bounded(float(got[3]), float(got[4]), st)
+        else:
+            v, se, weight = pool(float(got[0]) if got[0] is not None else float("nan"),
+                                 float(got[1]) if got[1] is not None else float("nan"), st)
         r["pooled"][name] = [v, se, weight]
         if weight >= BORROW:
             r["borrowed"].append(name)

@@ -4,10 +4,12 @@
 columns: ``unit``, ``time`` (UTC timestamp, null when the manifest gives none), ``status``
 (``ok``/``error``), ``error`` (one line), the manifest's attributes (text), ``effects`` (the
 effects added, comma-separated), ``lumped`` (per-volt parameters), every parameter ``p`` with
-``p_stderr`` [the parameter's unit], the population priors ``p_pooled`` and
-``p_pooled_stderr`` with ``borrowed`` (the parameters where the prior's weight is 10 % or more,
-comma-separated), ``outlier`` (the parameters on which the unit is an outlier), ``drifting``
-(the parameters drifting significantly), ``pass`` and ``failed`` (with ``--limits``),
+``p_stderr`` [the parameter's unit] (null where the unit's logs only bound it: then ``p_low``
+and ``p_high``, the interval, columns present when some unit has one), the population priors
+``p_pooled`` and ``p_pooled_stderr`` with ``borrowed`` (the parameters where the prior's
+weight is 10 % or more, comma-separated), ``outlier`` (the parameters on which the unit is an
+outlier), ``drifting`` (the parameters drifting significantly), ``pass`` and ``failed`` (with
+``--limits``),
 ``warnings``, ``logs`` (the log files, ``;``-separated), ``seconds`` and ``cpu_seconds`` (the
 task's wall and CPU time) and ``key`` (the journal key).
 """
@@ -60,7 +62,8 @@ def columns(rows: list[dict], names: list[str], pooled: list[str], attrs: list[s
         "status": [r["status"] for r in rows],
         "error": [r.get("error", "") for r in rows],
     }
-    taken = set(FIXED) | set(names) | {f"{n}_stderr" for n in names} | {
+    taken = set(FIXED) | set(names) | {f"{n}{x}" for n in names
+                                       for x in ("_stderr", "_low", "_high")} | {
         f"{n}_pooled{x}" for n in pooled for x in ("", "_stderr")}
     for a in attrs:  # an attribute named like a column of ours keeps its value as attr_NAME
         cols[a if a not in taken else f"attr_{a}"] = [r.get("attrs", {}).get(a) for r in rows]
@@ -70,6 +73,9 @@ def columns(rows: list[dict], names: list[str], pooled: list[str], attrs: list[s
         got = [r.get("params", {}).get(n) for r in rows]
         cols[n] = [_num(g[0]) if g else None for g in got]
         cols[f"{n}_stderr"] = [_num(g[1]) if g else None for g in got]
+        if any(g and len(g) > 3 for g in got):  # some unit's logs only bound it
+            cols[f"{n}_low"] = [_num(g[3]) if g and len(g) > 3 else None for g in got]
+            cols[f"{n}_high"] = [_num(g[4]) if g and len(g) > 3 else None for g in got]
     for n in pooled:
         got = [r.get("pooled", {}).get(n) for r in rows]
         cols[f"{n}_pooled"] = [_num(g[0]) if g else None for g in got]

@@ -62,7 +62,7 @@ def _identify(job: dict) -> dict:
         res = run_identify(list(job["logs"]), os.path.join(tmp, "model.json"), None,
                            job.get("mapping"), km=job.get("km"),
                            run_diagnose=job.get("diagnose", True), progress=None)
-    params = {name: [p.value, p.stderr, p.unit]
+    params = {name: [p.value, p.stderr, p.unit, *(p.interval or ())]
               for name, p in res.model.parameters.items()}
     said = [one_line(str(w.message)) for w in caught if issubclass(w.category, PmdcidWarning)]
     return {"params": params, "effects": list(res.model.effects),
@@ -73,7 +73,8 @@ def run_unit(job: dict) -> dict:
     """Identify one measurement (module doc). ``job``: ``key``, ``unit``, ``time`` (ISO text
     or None), ``logs`` (paths), ``hashes`` (their SHA-256), and the options ``km`` [N m/A],
     ``diagnose``, ``mapping``. Returns the row: the job's fields, ``status`` (``ok`` or
-    ``error``), ``error`` (one line), ``params`` (name -> [value, stderr, unit]), ``effects``,
+    ``error``), ``error`` (one line), ``params`` (name -> [value, stderr, unit], and low, high
+    where the logs only bound it), ``effects``,
     ``lumped``, ``warnings``, ``seconds`` (wall time of the task [s]), ``cpu_seconds`` (CPU
     time of its thread [s]: one-thread workers) and ``journal``
     (False for a failure that may not happen again: an internal error)."""

@@ -101,7 +101,7 @@ def fit_closed_loop(logs, model: Model, spec: ControllerSpec, free=None, signals
 
 def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
            max_nfev) -> NonlinearResult:
-    masked = any("dz is not identifiable" in w for w in first.warnings)
+    masked = "dz" in first.estimates and first.estimates["dz"].interval is not None
     free = [n for n in first.estimates if n != "ramp" and not (n == "dz" and masked)]
     start = {n: first.estimates[n].value for n in free}
     work = model.copy()

@@ -19,7 +19,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.fit.results import Estimate, FitStats, ResultProtocol, format_estimates
+from pmdcid.fit.results import (
+    Estimate,
+    FitStats,
+    ResultProtocol,
+    bounded,
+    format_estimates,
+    write_estimate,
+)
 from pmdcid.identify.freerun import fit_free_running, loaded_current, rotor_turns
 from pmdcid.identify.steps import (
     StepInfo,
@@ -35,6 +42,9 @@ from pmdcid.model import Model
 STAGE = "fit-electrical"
 #: tau_e below this many sample periods: L not identifiable from that log
 MIN_TAU_SAMPLES = 3.0
+#: the words beside an L (and L/R) these logs only bound
+L_CAVEAT = (f"not identifiable from these logs, L/R under {MIN_TAU_SAMPLES:g} sample periods: "
+            "record blocked-rotor steps sampled faster")
 #: an intercept is reported as significant beyond this many standard errors
 INTERCEPT_SIGMAS = 3.0
 #: tau_e plus dead time must be under this fraction of the log after the step
@@ -78,8 +88,7 @@ class ElectricalResult(ResultProtocol):
     def apply(self, model: Model) -> None:
         """Write R and L into ``model`` (stage 'fit-electrical'); other parameters are kept."""
         for name in ("R", "L"):
-            e = self.estimates[name]
-            model.set(name, e.value, e.stderr, e.unit, stage=STAGE)
+            write_estimate(model, self.estimates[name], STAGE)
         fits = model.extra.setdefault("fits", {})
         fits[STAGE] = {
             "logs": [s.path for s in self.steps],
@@ -236,21 +245,18 @@ def _joint(logs, steps, reps, warns) -> ElectricalResult:
     r_se = cf.se("G") / g**2
     L = tau * r
     L_se = L * math.hypot(cf.se("tau") / tau, r_se / r)
-    tau_se = cf.se("tau")
-    if tau < MIN_TAU_SAMPLES * dtmin:
+    est = {"R": Estimate("R", r, r_se, "ohm"), "L": Estimate("L", L, L_se, "H"),
+           "tau_e": Estimate("tau_e", tau, cf.se("tau"), "s"),
+           "i0": Estimate("i0", c, cf.se("i0") if distinct else math.nan, "A", vary=distinct)}
+    top = MIN_TAU_SAMPLES * dtmin
+    if tau < top:
         # the rise ends within a few samples, and a step between two samples looks faster: the
-        # data only bound tau_e to [0, 3 dt]; its uniform spread, not the fit's error (small,
-        # or huge where a rise within one sample leaves the fit degenerate)
-        tau_se = MIN_TAU_SAMPLES * dtmin / math.sqrt(12.0)
-        L_se = r * tau_se
+        # data only bound tau_e to [0, 3 dt], not the fit's error (small, or huge where a rise
+        # within one sample leaves the fit degenerate)
+        est["tau_e"] = bounded("tau_e", 0.0, top, "s", L_CAVEAT, tau)
+        est["L"] = bounded("L", 0.0, top * r, "H", L_CAVEAT, L)
     chisqr = float(cf.sigma**2 * max(cf.ndata - len(x0), 1))
     stats = FitStats(cf.ndata, len(x0) - (0 if distinct else 1), chisqr, 0, cf.success)
-    est = {
-        "R": Estimate("R", r, r_se, "ohm"),
-        "L": Estimate("L", L, L_se, "H"),
-        "tau_e": Estimate("tau_e", tau, tau_se, "s"),
-        "i0": Estimate("i0", c, cf.se("i0") if distinct else math.nan, "A", vary=distinct),
-    }
     if distinct and abs(c) > INTERCEPT_SIGMAS * cf.se("i0"):
         warns.append(
             f"steady current against voltage has a non-zero intercept i0 = {c * 1e3:.3g} "
@@ -261,6 +267,7 @@ def _joint(logs, steps, reps, warns) -> ElectricalResult:
                      "drop, sensor offset) cannot be checked; R = V/i_ss assumes it is zero")
     if tau < MIN_TAU_SAMPLES * dtmin:
         warns.append(f"joint tau_e = {tau * 1e3:.3g} ms is under {MIN_TAU_SAMPLES:g} sample "
-                     "periods: L is not identifiable from these logs (its standard error is the "
-                     f"spread of 0 to {MIN_TAU_SAMPLES:g} sample periods)")
+                     "periods: L is not identifiable from these logs (written as the interval "
+                     f"that spreads from 0 to {MIN_TAU_SAMPLES:g} sample periods of L/R, not "
+                     "as a value with a standard error)")
     return ElectricalResult(est, reps, stats, warns)

@@ -29,7 +29,7 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.fit.covariance import block_covariance
-from pmdcid.fit.results import Estimate, FitStats, format_estimates
+from pmdcid.fit.results import Estimate, FitStats, bounded, format_estimates, write_estimate
 from pmdcid.model import Model
 
 STAGE = "fit-electrical"
@@ -114,10 +114,9 @@ class FreeRunResult:
             model.add_effect("back_emf")
             if not model.has("km"):  # SI: one number (V s/rad = N m/A); the datasheet's wins
                 model.set("km", e.value, e.stderr, "N m/A", stage=KM_FROM_KE)
-        e = self.estimates["L"]
         keep_l = not self.l_resolved and model.has("L")
         if not keep_l:
-            model.set("L", e.value, e.stderr, e.unit, stage=STAGE)
+            write_estimate(model, self.estimates["L"], STAGE)
         fits = model.extra.setdefault("fits", {})
         fits[STAGE] = {
             "logs": list(self.paths), "method": "free-running (exact discrete-time regression)",
@@ -134,7 +133,8 @@ class FreeRunResult:
         if not self.l_resolved:
             lines.append(f"L not resolved: L/R is under {MIN_TAU_SAMPLES:g} sample periods "
                          f"({self.dt * 1e3:.3g} ms) or loosely determined; "
-                         + ("upper bound shown" if self.l_bound else "value shown as fitted"))
+                         + ("the interval up to its bound shown" if self.l_bound
+                            else "value shown as fitted"))
         lines.append("")
         lines.append("voltage offset per log (brush drop or current-sensor offset, V):")
         for p, e in self.offsets.items():
@@ -330,7 +330,7 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
                      f"{MAX_L_REL_SE:.0%}: below that the value rests on the sub-sample timing "
                      "of the drive and the current sensor); "
                      + ("the model's L is kept" if had else
-                        ("an upper bound is written (± 100 %)" if bound else
+                        ("the interval from 0 to that bound is written" if bound else
                          "the fitted value is written with its standard error"))
                      + ": sample faster, or use a blocked-rotor log, to identify L")
     if ke_ok and ke > 0 and not (model is not None and model.has("km")):
@@ -340,6 +340,11 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
            "L": Estimate("L", float(L), float(L_se), "H"),
            "ke": Estimate("ke", float(ke), float(se[2]), "V s/rad"),
            "tau_e": Estimate("tau_e", float(tau), float(tau_se), "s")}
+    if bound:  # only an upper bound: the interval up to it, its value as before
+        why = ("not resolved by these logs, L/R under the sample period: sample faster, or "
+               "record a blocked-rotor log")
+        est["L"] = bounded("L", 0.0, float(L), "H", why, float(L))
+        est["tau_e"] = bounded("tau_e", 0.0, float(tau), "s", why, float(tau))
     stats = FitStats(len(r), len(th), float(r @ r), 0, True)
     return FreeRunResult(est, offsets, [lg.path for lg in logs], stats, dt, resolved, bound,
                          bool(ke_ok), warns, info.describe())

@@ -90,13 +90,19 @@ def hold_warning(logs, J: float, bv: float, ramp=None) -> str | None:
                 f"= {J / bv * 1e3:.3g} ms")
         if ramp is not None:
             return (f"{head}: whether the input was held between samples or varied "
-                    "continuously moves J, so the fit also read how it varied: ramp = "
-                    f"{ramp.value:.2g} ± {ramp.stderr:.2g} (0: held, 1: straight to the next "
+                    "continuously moves J, so the fit also read how it varied: "
+                    f"{_ramp_words(ramp)} (0: held, 1: straight to the next "
                     "sample); J's standard error includes that. Log faster to pin J down")
         return (f"{head}: the model holds each input value for a whole period; if the drive "
                 "did not (a continuous ramp or sine logged slowly), J is biased. Log faster, "
                 "or log the drive's own updates")
     return None
+
+
+def _ramp_words(ramp) -> str:
+    if ramp.interval is not None:
+        return f"anywhere from {ramp.interval[0]:.2g} to {ramp.interval[1]:.2g}"
+    return f"ramp = {ramp.value:.2g} ± {ramp.stderr:.2g}"
 
 
 #: a signal whose span is below this many noise levels shows no motion

@@ -26,6 +26,9 @@ import numpy as np
 
 #: the readings fitted: held, three blends, linear
 RAMPS = (0.0, 0.25, 0.5, 0.75, 1.0)
+#: the words beside a ramp the profile leaves open (its uniform spread still widens J's error)
+RAMP_CAVEAT = ("not determined by these logs: how the input varied between samples; log "
+               "faster, or log the drive's own updates")
 
 
 @dataclass(frozen=True)
@@ -44,9 +47,12 @@ class RampProfile:
 
     def estimates(self, J=None) -> dict:
         """``ramp`` and, given the fit's J (an Estimate), J with the ramp's share of its error."""
-        from pmdcid.fit.results import Estimate
+        from pmdcid.fit.results import Estimate, bounded
 
-        out = {"ramp": Estimate("ramp", self.value, self.stderr, "")}
+        if self.stderr >= (RAMPS[-1] - RAMPS[0]) / math.sqrt(12.0):  # the profile is flat
+            out = {"ramp": bounded("ramp", RAMPS[0], RAMPS[-1], "", RAMP_CAVEAT, self.value)}
+        else:
+            out = {"ramp": Estimate("ramp", self.value, self.stderr, "")}
         if J is not None:
             out["J"] = Estimate("J", J.value, self.inertia_stderr(J.stderr), J.unit, J.vary)
         return out

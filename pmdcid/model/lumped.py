@@ -141,6 +141,8 @@ def to_si(model: Model, km: float, R: float) -> Model:
         if "N m" in unit or "kg m^2" in unit:
             par.value *= g
             par.stderr *= g
+            if par.interval is not None:
+                par.interval = (par.interval[0] * g, par.interval[1] * g)
         par.unit = unit
     bv_name = "bv" if out.has("bv") else "b"
     if out.has(bv_name):
@@ -153,7 +155,10 @@ def to_si(model: Model, km: float, R: float) -> Model:
     tau_e = out.parameters.pop("tau_e", None)  # the lag L/R: L = tau_e R
     out.parameters.pop("ke_share", None)  # the back-EMF's share: ke = km of an ideal motor here
     if tau_e is not None and tau_e.value > 0 and not out.has("L"):
-        out.set("L", tau_e.value * R, tau_e.stderr * R, "H", stage="lumped->SI (L = tau_e R)")
+        out.set("L", tau_e.value * R, tau_e.stderr * R, "H", stage="lumped->SI (L = tau_e R)",
+                caveat=tau_e.caveat)
+        if tau_e.interval is not None:
+            out.parameters["L"].interval = (tau_e.interval[0] * R, tau_e.interval[1] * R)
     out.set("ke", km, stage="lumped->SI (ke = km)")
     out.add_effect("back_emf")
     out.set("km", km, stage="datasheet")

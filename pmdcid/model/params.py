@@ -23,17 +23,37 @@ FORMAT_VERSION = 1
 
 @dataclass
 class Parameter:
-    """One identified parameter: value, standard error (NaN if unknown), unit, producing stage."""
+    """One identified parameter: value, standard error (NaN if unknown), unit, producing stage.
+
+    ``interval``: (low, high) [unit] when the logs only bound the parameter (the dead zone
+    under the Coulomb friction, an L/R under the sample period): ``stderr`` is then NaN and
+    ``value`` is the point inside that simulations use. ``caveat``: the words that go with the
+    number where it is not a plain estimate ± standard error (why it is only bounded and what
+    to record; a standard error that is only a lower bound). Both in the model file as
+    ``interval`` and ``caveat`` (only when set)."""
 
     value: float
     stderr: float = math.nan
     unit: str = ""
     stage: str = ""
+    interval: tuple[float, float] | None = None
+    caveat: str = ""
 
     def to_json(self) -> dict[str, Any]:
         d: dict[str, Any] = {"value": self.value, "unit": self.unit, "stage": self.stage}
         d["stderr"] = self.stderr if math.isfinite(self.stderr) else None
-        return {k: d[k] for k in ("value", "stderr", "unit", "stage")}
+        out = {k: d[k] for k in ("value", "stderr", "unit", "stage")}
+        if self.interval is not None:
+            out["interval"] = [float(self.interval[0]), float(self.interval[1])]
+        if self.caveat:
+            out["caveat"] = self.caveat
+        return out
+
+    @property
+    def determined(self) -> bool:
+        """Whether other data put this value (a stage's estimate or a given value), not a start
+        value or a bound."""
+        return self.interval is None and self.stage not in ("", "start")
 
 
 @dataclass
@@ -60,10 +80,24 @@ class Model:
         return name in self.parameters
 
     def set(self, name: str, value: float, stderr: float = math.nan, unit: str | None = None,
-            stage: str = "") -> None:
+            stage: str = "", caveat: str = "") -> None:
         if unit is None:
             unit = unit_of(name)
-        self.parameters[name] = Parameter(float(value), float(stderr), unit, stage)
+        self.parameters[name] = Parameter(float(value), float(stderr), unit, stage,
+                                          caveat=caveat)
+
+    def set_bounded(self, name: str, low: float, high: float, value: float | None = None, *,
+                    unit: str | None = None, stage: str = "", caveat: str = "") -> bool:
+        """Write ``name`` as known only to lie in [``low``, ``high``] (``value``: the point
+        inside that simulations use, default the midpoint; no standard error). A value other
+        data determined (:attr:`Parameter.determined`) that lies inside is kept: these logs
+        agree with it and cannot refine it. Returns whether the model changed."""
+        if kept_within(self.parameters.get(name), low, high):
+            return False
+        v = 0.5 * (low + high) if value is None else float(value)
+        self.parameters[name] = Parameter(v, math.nan, unit_of(name) if unit is None else unit,
+                                          stage, (float(low), float(high)), caveat)
+        return True
 
     def require(self, *names: str, stage: str = "") -> None:
         missing = [n for n in names if n not in self.parameters]
@@ -104,9 +138,11 @@ class Model:
                              self.path)
         return to_si(self, km, R)
 
-    def rows(self) -> list[tuple[str, float, float, str]]:
-        """(name, value, stderr, unit) of every parameter."""
-        return [(n, p.value, p.stderr, p.unit) for n, p in self.parameters.items()]
+    def rows(self) -> list[tuple]:
+        """(name, value, stderr, unit, interval, caveat) of every parameter
+        (:class:`pmdcid.model.tables.Row`)."""
+        return [(n, p.value, p.stderr, p.unit, p.interval, p.caveat)
+                for n, p in self.parameters.items()]
 
     def __str__(self) -> str:
         from pmdcid.model.tables import text_table
@@ -138,6 +174,12 @@ class Model:
         out.update(self.extra)
         out.setdefault("format", FORMAT_VERSION)
         return out
+
+
+def kept_within(par: Parameter | None, low: float, high: float) -> bool:
+    """Whether ``par``, a value other data determined, lies in [``low``, ``high``]: logs that
+    only bound the parameter there leave it as it is."""
+    return par is not None and par.determined and low <= par.value <= high
 
 
 def copy_model_into(src: Model, dst: Model) -> None:
@@ -216,8 +258,10 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
         se = float(se) if isinstance(se, (int, float)) and not isinstance(se, bool) else math.nan
         if math.isfinite(se) and entry["value"] and v != float(entry["value"]):
             se *= v / float(entry["value"])  # the same prefix scaling as the value
+        interval = _interval_of(name, entry, v, path, unit, lumped)
         unit = _canonical_unit(name, lumped) if param_spec(name) is not None else str(unit or "")
-        model.parameters[name] = Parameter(v, se, unit, str(entry.get("stage") or ""))
+        model.parameters[name] = Parameter(v, se, unit, str(entry.get("stage") or ""), interval,
+                                           _caveat_of(name, entry, path))
     effects = obj.get("effects", [])
     if not isinstance(effects, list) or not all(isinstance(e, str) for e in effects):
         raise ModelError("'effects' must be a list of effect names", path)
@@ -239,6 +283,55 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
 
     check_plausible({k: p.value for k, p in model.parameters.items()}, path, lumped)
     return model
+
+
+def _interval_of(name: str, entry: dict, v: float, path, unit, lumped: bool):
+    """A parameter's ``interval`` [low, high] (in its entry's unit, like the value), checked:
+    two finite numbers, low <= value <= high, within the parameter's bounds (a positive one may
+    reach down to 0), and no standard error beside it; None when the entry has none."""
+    got = entry.get("interval")
+    if got is None:
+        return None
+    if not (isinstance(got, list) and len(got) == 2 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in got)):
+        raise ModelError(f"parameter '{name}' has interval {repr(got)[:40]}: give two numbers "
+                         "[low, high] in the value's unit", path)
+    if entry.get("stderr") is not None:
+        raise ModelError(f"parameter '{name}' gives both a stderr and an interval: a parameter "
+                         "the logs only bound has no standard error; keep one", path)
+    spec = param_spec(name)
+    if spec is not None and unit not in (None, ""):
+        from pmdcid.model.units import to_canonical
+
+        got = [to_canonical(name, float(x), unit, _canonical_unit(name, lumped), path)
+               for x in got]
+    low, high = (float(x) for x in got)
+    check_interval(name, low, high, v, path)
+    return (low, high)
+
+
+def check_interval(name: str, low: float, high: float, v: float, path) -> None:
+    """The loader's (and the writer's) one-line error for an impossible interval."""
+    spec = param_spec(name)
+    floor = min(spec.lower, 0.0) if spec is not None else -math.inf
+    ceiling = spec.upper if spec is not None else math.inf
+    tol = 1e-9 * max(abs(low), abs(high))
+    if not (math.isfinite(low) and math.isfinite(high) and floor <= low <= high <= ceiling):
+        raise ModelError(f"parameter '{name}' has interval [{low:g}, {high:g}]: give finite "
+                         f"[low, high] with low <= high within [{floor:g}, {ceiling:g}]", path)
+    if not low - tol <= v <= high + tol:
+        raise ModelError(f"parameter '{name}' = {v:g} lies outside its interval [{low:g}, "
+                         f"{high:g}]: the value must be a point inside it", path)
+
+
+def _caveat_of(name: str, entry: dict, path) -> str:
+    got = entry.get("caveat", "")
+    if got is None:
+        return ""
+    if not isinstance(got, str):
+        raise ModelError(f"parameter '{name}' has caveat {repr(got)[:30]}: a caveat is a text",
+                         path)
+    return got
 
 
 def _unit_of_entry(name: str, entry: dict, path):
@@ -368,6 +461,8 @@ def save_model(model: Model, path: str | os.PathLike) -> None:
         raise TypeError(f"model must be a Model, not {type(model).__name__}")
     for name, par in model.parameters.items():
         check_bounds(name, par.value, str(path))
+        if par.interval is not None:
+            check_interval(name, *par.interval, par.value, str(path))
     from pmdcid.model.effects.torque_limit import check_plausible
 
     check_plausible({k: p.value for k, p in model.parameters.items()}, str(path),

@@ -1,32 +1,66 @@
 """Parameter tables shared by :class:`~pmdcid.model.Model` and the fit results: the same rows
-(name, value, standard error, unit) as text, HTML (notebooks), a dict and a pandas DataFrame."""
+(name, value, standard error, unit; an interval and a caveat where the logs only bound a
+parameter) as text, HTML (notebooks), a dict and a pandas DataFrame. A bound is never shown as a
+standard error: it is said in words, "between 0 and 0.25 N m (not identifiable ...)"."""
 
 from __future__ import annotations
 
 import html
 import math
-
-#: one row: parameter name, value, standard error (NaN if unknown), unit
-Row = tuple[str, float, float, str]
-COLUMNS = ("parameter", "value", "stderr", "unit")
+from typing import NamedTuple
 
 
-def text_table(rows: list[Row]) -> str:
-    """``parameter  value  ± stderr  unit`` lines (``± ?`` when the error is unknown)."""
-    w = max([len(r[0]) for r in rows] + [9])
+class Row(NamedTuple):
+    """One row: parameter name, value, standard error (NaN if unknown), unit, and where the
+    logs only bound it, the interval (low, high) and the words that go with it."""
+
+    name: str
+    value: float
+    stderr: float
+    unit: str
+    interval: tuple[float, float] | None = None
+    caveat: str = ""
+
+
+COLUMNS = ("parameter", "value", "stderr", "unit", "low", "high", "caveat")
+
+
+def in_words(interval, unit: str, caveat: str = "") -> str:
+    """``between LOW and HIGH UNIT (CAVEAT)``: a bounded parameter said as what it is."""
+    why = f" ({caveat})" if caveat else ""
+    return f"between {interval[0]:.3g} and {interval[1]:.3g} {unit}".rstrip() + why
+
+
+def text_table(rows) -> str:
+    """``parameter  value  ± stderr  unit`` lines (``± ?`` when the error is unknown); a bounded
+    parameter as ``parameter  between LOW and HIGH UNIT (why)``."""
+    rows = [Row(*r) for r in rows]
+    w = max([len(r.name) for r in rows] + [9])
     lines = [f"{'parameter':<{w}} {'value':>13}   {'± stderr':<11} unit"]
-    for name, value, se, unit in rows:
-        s = f"± {se:.2g}" if math.isfinite(se) else "± ?"
-        lines.append(f"{name:<{w}} {value:13.6g}   {s:<11} {unit}".rstrip())
+    for r in rows:
+        if r.interval is not None:
+            lines.append(f"{r.name:<{w}} {in_words(r.interval, r.unit, r.caveat)}")
+            continue
+        s = f"± {r.stderr:.2g}" if math.isfinite(r.stderr) else "± ?"
+        tail = f"  ({r.caveat})" if r.caveat else ""
+        lines.append(f"{r.name:<{w}} {r.value:13.6g}   {s:<11} {r.unit}".rstrip() + tail)
     return "\n".join(lines)
 
 
-def html_table(rows: list[Row], caption: str = "", pre: str = "") -> str:
+def _html_row(r: Row) -> str:
+    if r.interval is not None:
+        return (f"<tr><td>{html.escape(r.name)}</td><td colspan='3'>"
+                f"{html.escape(in_words(r.interval, r.unit, r.caveat))}</td></tr>")
+    se = f"{r.stderr:.2g}" + (f" ({r.caveat})" if r.caveat else "") if math.isfinite(
+        r.stderr) else ""
+    se = html.escape(se)
+    return (f"<tr><td>{html.escape(r.name)}</td><td>{r.value:.6g}</td><td>{se}</td>"
+            f"<td>{html.escape(r.unit)}</td></tr>")
+
+
+def html_table(rows, caption: str = "", pre: str = "") -> str:
     """An HTML table of ``rows`` (and ``pre``, the text form of a result, folded below it)."""
-    cells = "".join(
-        f"<tr><td>{html.escape(n)}</td><td>{v:.6g}</td>"
-        f"<td>{f'{se:.2g}' if math.isfinite(se) else ''}</td><td>{html.escape(u)}</td></tr>"
-        for n, v, se, u in rows)
+    cells = "".join(_html_row(Row(*r)) for r in rows)
     cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
     out = (f"<table>{cap}<tr><th>parameter</th><th>value</th><th>± stderr</th><th>unit</th>"
            f"</tr>{cells}</table>")
@@ -35,14 +69,28 @@ def html_table(rows: list[Row], caption: str = "", pre: str = "") -> str:
     return out
 
 
-def rows_dict(rows: list[Row]) -> dict:
-    """name -> {value, stderr, unit}; an unknown standard error is None (JSON-safe)."""
-    return {n: {"value": float(v), "stderr": float(se) if math.isfinite(se) else None,
-                "unit": u} for n, v, se, u in rows}
+def rows_dict(rows) -> dict:
+    """name -> {value, stderr, unit} (and ``interval``, ``caveat`` where set); an unknown
+    standard error is None (JSON-safe)."""
+    out = {}
+    for r in (Row(*r) for r in rows):
+        d = {"value": float(r.value),
+             "stderr": float(r.stderr) if math.isfinite(r.stderr) else None, "unit": r.unit}
+        if r.interval is not None:
+            d["interval"] = [float(r.interval[0]), float(r.interval[1])]
+        if r.caveat:
+            d["caveat"] = r.caveat
+        out[r.name] = d
+    return out
 
 
-def rows_frame(rows: list[Row]):
-    """A pandas DataFrame with columns parameter, value, stderr (NaN if unknown), unit."""
+def rows_frame(rows):
+    """A pandas DataFrame with columns parameter, value, stderr (NaN if unknown), unit, low and
+    high (a bounded parameter's interval, else NaN) and caveat (its words, else empty)."""
     import pandas as pd
 
-    return pd.DataFrame([list(r) for r in rows], columns=list(COLUMNS))
+    data = []
+    for r in (Row(*r) for r in rows):
+        low, high = r.interval if r.interval is not None else (math.nan, math.nan)
+        data.append([r.name, r.value, r.stderr, r.unit, low, high, r.caveat])
+    return pd.DataFrame(data, columns=list(COLUMNS))

@@ -23,6 +23,9 @@ from pmdcid.plan.design import Settings, candidates, parameter_scales
 
 #: relative standard error above which a parameter is poorly determined
 POOR = 0.25
+#: the head of the effects' lines
+EFFECTS_HEAD = ("effects diagnose screens, and whether the data it holds out could test them "
+                "(a necessary condition, judged before any refit):")
 
 
 @dataclass
@@ -34,6 +37,11 @@ class CheckResult:
     stderr: dict[str, float]
     fixes: dict[str, dict] = field(default_factory=dict)
     paths: list[str] = field(default_factory=list)
+    #: per effect diagnose screens: whether these logs can test it, what to record
+    #: (:mod:`pmdcid.plan.testable`)
+    effects: list[dict] = field(default_factory=list)
+    #: why the effects were not judged ('' when they were)
+    effects_skipped: str = ""
 
     def relative(self) -> dict[str, float]:
         return {n: (self.stderr[n] / abs(self.values[n]) if self.values[n] else math.inf)
@@ -48,7 +56,8 @@ class CheckResult:
         return {"logs": self.paths, "threshold": POOR,
                 "parameters": {n: {"value": self.values[n], "stderr": fin(self.stderr[n]),
                                    "relative": fin(rel[n]), "poor": n in self.poor(),
-                                   "fix": self.fixes.get(n)} for n in self.names}}
+                                   "fix": self.fixes.get(n)} for n in self.names},
+                "effects": self.effects, "effects_skipped": self.effects_skipped or None}
 
     def lines(self) -> list[str]:
         rel = self.relative()
@@ -68,6 +77,16 @@ class CheckResult:
                 out.append(f"{n}: no candidate profile helps: {fx.get('why', '')}")
         if not self.poor():
             out.append(f"every parameter is determined within {100 * POOR:.0f} %")
+        return out + self.effect_lines()
+
+    def effect_lines(self) -> list[str]:
+        """The effects diagnose screens: testable with these logs, or what to record."""
+        if self.effects_skipped:
+            return [f"effects: not judged ({self.effects_skipped})"]
+        out = [EFFECTS_HEAD]
+        for r in self.effects:
+            out.append(f"  {r['effect']:<20} " + ("testable" if r["testable"] else
+                       f"possible, not testable with these logs: record {r['record']}"))
         return out
 
 
@@ -121,7 +140,20 @@ def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
     poor = res.poor()
     if poor:
         res.fixes = fixes(poor, F, logs, vals, names, drive, scales, noises, settings)
+    _judge_effects(res, logs, model)
     return res
+
+
+def _judge_effects(res: CheckResult, logs, model: Model) -> None:
+    """Which effects these logs could test (:mod:`pmdcid.plan.testable`); where diagnose could
+    not judge any on them (too short, nothing compared), why."""
+    from pmdcid.errors import PmdcidError
+    from pmdcid.plan.testable import effects_testable
+
+    try:
+        res.effects = effects_testable(logs, model)
+    except PmdcidError as exc:
+        res.effects_skipped = str(exc)
 
 
 def fixes(poor, F, logs, vals, names, drive, scales, noises, settings: Settings) -> dict:

@@ -140,6 +140,10 @@ def parameter_table(model: Model) -> dict:
         rel = abs(par.stderr / par.value) * 100 if par.value and math.isfinite(par.stderr) else None
         out[name] = {"value": par.value, "stderr": par.stderr, "rel_stderr_percent": rel,
                      "unit": par.unit, "stage": par.stage}
+        if par.interval is not None:  # the logs only bound it: said in words on the page
+            out[name]["interval"] = list(par.interval)
+        if par.caveat:
+            out[name]["caveat"] = par.caveat
     return out
 
 

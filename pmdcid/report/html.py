@@ -99,11 +99,28 @@ def _params(p: Page) -> None:
           "<th>rel. error [%]</th><th>unit</th><th>stage</th><th>why / caveat</th></tr>")
     for name, par in m["parameters"].items():
         base = f"parameters.{name}"
-        p.add(f"<tr id='param-{_esc(name)}'><td>{_esc(name)}</td>{p.num(base + '.value', 6)}"
-              f"{p.num(base + '.stderr', 3)}{p.num(base + '.rel_stderr_percent', 3)}"
+        p.add(f"<tr id='param-{_esc(name)}'><td>{_esc(name)}</td>{_value_cells(p, base, par)}"
               f"<td>{_esc(par['unit'])}</td><td>{_esc(par['stage'])}</td>"
-              f"<td class='why'>{_why(m, lambda n, name=name: name in n['rows'])}</td></tr>")
+              f"<td class='why'>{_caveat(par)}"
+              f"{_why(m, lambda n, name=name: name in n['rows'])}</td></tr>")
     p.add("</table></div></section>")
+
+
+def _value_cells(p: Page, base: str, par: dict) -> str:
+    """Value, standard error, relative error; a parameter the logs only bound in words over
+    the three cells ("between 0 and 0.25 N m"), never as a standard error."""
+    if par.get("interval") is not None:
+        return (f"<td colspan='3'>between {p.span(base + '.interval.0', 3)} and "
+                f"{p.span(base + '.interval.1', 3)} {_esc(par['unit'])} (not identified)</td>")
+    return (f"{p.num(base + '.value', 6)}{p.num(base + '.stderr', 3)}"
+            f"{p.num(base + '.rel_stderr_percent', 3)}")
+
+
+def _caveat(par: dict) -> str:
+    """A parameter's own words (why it is only bounded, what to record; a standard error that
+    is a lower bound), above the notes that qualify it."""
+    c = par.get("caveat")
+    return f"<span class='sev-note'>note:</span> {_esc(c)}<br>" if c else ""
 
 
 def _note_item(n: dict) -> str:

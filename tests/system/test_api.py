@@ -100,7 +100,7 @@ def test_model_file_table_and_frame(tmp_path):
     back = pmdcid.Model.load(tmp_path / "m.json")
     assert back.value("J") == m.value("J")
     df = back.to_pandas()
-    assert list(df.columns) == ["parameter", "value", "stderr", "unit"]
+    assert list(df.columns) == ["parameter", "value", "stderr", "unit", "low", "high", "caveat"]
     assert df.set_index("parameter").loc["R", "unit"] == "ohm"
     assert "J" in str(back) and "kg m^2" in str(back) and "<table>" in back._repr_html_()
     with pytest.raises(ModelError, match="not lumped"):
