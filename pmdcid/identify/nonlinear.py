@@ -341,9 +341,10 @@ def _scan_inertia(logs, work, free, signals, fit, sigma, max_nfev, bounds, prior
     if not c[1:].min() < c[0] - SCAN_DROP:
         return fit
     try:
-        f = fit_simulation(logs, work, free, signals=signals, start=sets[1 + int(np.argmin(
-            c[1:]))], sigma=sigma, max_nfev=max_nfev, diff_step=DIFF_STEP, bounds=bounds,
-            priors=priors, overrides=held)
+        params = _parameters(free, sets[1 + int(np.argmin(c[1:]))], bounds, DIFF_STEP, priors,
+                             held)
+        f = fit_simulation(logs, work, params, signals, sigma=sigma,
+                           options=FitOptions(max_nfev))
     except FitError:
         return fit
     return f if f.stats.chisqr < fit.stats.chisqr else fit

@@ -13,13 +13,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from ident_util import step_logs
+from repo_paths import FIXTURES
 
 from pmdcid.cli import main
 from pmdcid.io.logs import write_log
 from pmdcid.model import Model, load_model
 from pmdcid.synth import PAPER
 
-FIX = Path(__file__).resolve().parents[1] / "fixtures"
+FIX = FIXTURES
 
 
 def _single_step(tmp_path, vals, seed: int) -> Path:
