@@ -143,3 +143,14 @@ def test_the_checks_catch_a_planted_cycle_and_an_upward_import(tmp_path):
     a.write_text("def f():\n    from pmdcid.cli import main\n")
     assert "pmdcid.cli" in _imports(a, top_only=False)
     assert "pmdcid.cli" not in _imports(a, top_only=True)
+
+
+def test_tests_mirror_the_package_tree():
+    """Each folder of tests/ holds the tests of the package of that name (tests/io/ tests
+    pmdcid/io/), but tests/system/: whole-pipeline tests, slow by folder (tests/conftest.py)."""
+    tests = REPO / "tests"
+    folders = {p.name for p in tests.iterdir() if p.is_dir() and any(p.glob("test_*.py"))}
+    packages = {p.parent.name for p in PKG.glob("*/__init__.py")}
+    assert folders - {"system"} <= packages, sorted(folders - {"system"} - packages)
+    assert "system" in folders
+
