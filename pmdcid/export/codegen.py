@@ -379,6 +379,26 @@ class Writer:
     def callee(self, node) -> Fn | None:
         return _callee(self.fn, node, self.fns)
 
+    def if_(self, s) -> None:
+        """An if/elif/else chain in the target's own words (:attr:`IF_LINES`)."""
+        first, elif_, else_, end = self.IF_LINES
+        self.emit(first.format(self.expr(s.test)))
+        self.block(s.body)
+        orelse = s.orelse
+        while len(orelse) == 1 and isinstance(orelse[0], ast.If):
+            self.emit(elif_.format(self.expr(orelse[0].test)))
+            self.block(orelse[0].body)
+            orelse = orelse[0].orelse
+        if orelse:
+            self.emit(else_.format())
+            self.block(orelse)
+        self.emit(end.format())
+
+    def block(self, stmts) -> None:
+        self.depth += 1
+        self.body(stmts)
+        self.depth -= 1
+
     def body(self, stmts) -> None:
         for s in stmts:
             self.stmt(s)
@@ -574,23 +594,8 @@ class CWriter(Writer):
         args = self.args(call) + [f"&{out_name(t.id)}" for t in targets]
         self.emit(f"{out_name(self.callee(call).name)}({', '.join(args)});")
 
-    def if_(self, s) -> None:
-        self.emit(f"if ({self.expr(s.test)}) {{")
-        self.block(s.body)
-        orelse = s.orelse
-        while len(orelse) == 1 and isinstance(orelse[0], ast.If):
-            self.emit(f"}} else if ({self.expr(orelse[0].test)}) {{")
-            self.block(orelse[0].body)
-            orelse = orelse[0].orelse
-        if orelse:
-            self.emit("} else {")
-            self.block(orelse)
-        self.emit("}")
-
-    def block(self, stmts) -> None:
-        self.depth += 1
-        self.body(stmts)
-        self.depth -= 1
+    #: an if chain's lines: (if, else if, else, end), formatted with the condition
+    IF_LINES = ("if ({}) {{", "}} else if ({}) {{", "}} else {{", "}}")
 
     def for_(self, s) -> None:
         var, start, stop, step = self.range_of(s)
@@ -757,23 +762,7 @@ class MWriter(Writer):
                                    f"[{', '.join(outs)}] = ")
         self.emit(f"{lhs}{out_name(callee.name)}({args});")
 
-    def if_(self, s) -> None:
-        self.emit(f"if {self.expr(s.test)}")
-        self.block(s.body)
-        orelse = s.orelse
-        while len(orelse) == 1 and isinstance(orelse[0], ast.If):
-            self.emit(f"elseif {self.expr(orelse[0].test)}")
-            self.block(orelse[0].body)
-            orelse = orelse[0].orelse
-        if orelse:
-            self.emit("else")
-            self.block(orelse)
-        self.emit("end")
-
-    def block(self, stmts) -> None:
-        self.depth += 1
-        self.body(stmts)
-        self.depth -= 1
+    IF_LINES = ("if {}", "elseif {}", "else", "end")
 
     def for_(self, s) -> None:
         var, start, stop, step = self.range_of(s)
