@@ -287,28 +287,61 @@ def plan(model=None, out_dir=None, *, vmax: float | None = None, taumax: float |
     profiles (CSV), plan.json and plan.md are written there (``command``: how plan.md says the
     plan was made). Returns the
     :class:`~pmdcid.plan.design.Plan` (``.profiles``, ``.stderr``: predicted standard errors)."""
-    import math
-
     from pmdcid.errors import PmdcidError
-    from pmdcid.plan.design import Settings, plan_for_model
+    from pmdcid.plan.design import plan_for_model
     from pmdcid.plan.guess import guess_plan
     from pmdcid.plan.output import check_out_dir, write_plan
 
-    if vmax is not None and taumax is not None:
-        raise PmdcidError("give vmax or taumax, not both")
     if model is None and vmax is None and taumax is None:
         raise PmdcidError("a plan without a model needs vmax (or taumax): the largest input "
                           "the rig may take")
-    settings = Settings(umax=vmax if vmax is not None else taumax,
-                        speed_max=speed_max if speed_max is not None else math.inf, rate=rate,
-                        budget=budget, noise_omega=noise_omega, noise_i=noise_i,
-                        taumax=taumax is not None)
+    settings = _plan_settings(vmax, taumax, speed_max, rate, budget, noise_omega, noise_i)
     if out_dir is not None:
         check_out_dir(out_dir)
     out = guess_plan(settings) if model is None else plan_for_model(_model(model), settings)
     if out_dir is not None:
         write_plan(out, out_dir, command)
     return out
+
+
+def _plan_settings(vmax, taumax, speed_max, rate, budget, noise_omega, noise_i):
+    """:class:`~pmdcid.plan.design.Settings` from the plan functions' keyword options."""
+    import math
+
+    from pmdcid.errors import PmdcidError
+    from pmdcid.plan.design import Settings
+
+    if vmax is not None and taumax is not None:
+        raise PmdcidError("give vmax or taumax, not both")
+    return Settings(umax=vmax if vmax is not None else taumax,
+                    speed_max=speed_max if speed_max is not None else math.inf, rate=rate,
+                    budget=budget, noise_omega=noise_omega, noise_i=noise_i,
+                    taumax=taumax is not None)
+
+
+def check_plan(logs, model, out_dir=None, *, vmax: float | None = None,
+               taumax: float | None = None, speed_max: float | None = None,
+               rate: float = 1000.0, budget: float = 120.0, noise_omega: float | None = None,
+               noise_i: float | None = None, mapping=None):
+    """What recorded ``logs`` can identify of ``model``, as ``pmdcid plan --check``: the
+    predicted standard errors, the parameters they leave undetermined, which of diagnose's
+    effects they could test and what to record for the others (docs/plan.md). With
+    ``out_dir``, check.json is written there. Options as :func:`plan`. Returns the check's
+    result (``.lines()``: the text, ``.as_dict()``: check.json)."""
+    import json
+
+    from pmdcid.plan.check import check_logs
+    from pmdcid.plan.output import check_out_dir
+    from pmdcid.runtime.outputs import atomic_write_text, output_folder
+
+    settings = _plan_settings(vmax, taumax, speed_max, rate, budget, noise_omega, noise_i)
+    if out_dir is not None:
+        check_out_dir(out_dir)
+    res = check_logs(_logs(logs, mapping=mapping), _model(model), settings)
+    if out_dir is not None:
+        with output_folder(out_dir) as d:
+            atomic_write_text(d / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")
+    return res
 
 
 def export(model, to: str, output, *, force: bool = False, note=None) -> list[str]:
@@ -355,6 +388,6 @@ def run_fleet(manifest, out_dir, **options):
     return run(manifest, out_dir, **options)
 
 
-__all__ = ["channels", "diagnose", "export", "fit_electrical", "fit_inverse_dynamics",
+__all__ = ["channels", "check_plan", "diagnose", "export", "fit_electrical", "fit_inverse_dynamics",
            "fit_mechanical", "fit_nonlinear", "identify", "plan", "report", "run_demo", "run_fleet",
            "simulate", "simulate_to"]

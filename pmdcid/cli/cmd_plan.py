@@ -43,7 +43,9 @@ MAX_PLAN_SAMPLES = 2e7
 def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budget, noise_omega,
              noise_i, out_dir, mapping):
     """Input profiles to record, and the standard error each parameter will have."""
-    from pmdcid.plan.design import Settings
+    from pathlib import Path
+
+    from pmdcid import api
 
     if vmax is not None and taumax is not None:
         raise click.UsageError("give --vmax or --taumax, not both")
@@ -64,22 +66,17 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
         raise click.UsageError(f"--budget {budget:g} s at --rate {rate:g} Hz is "
                                f"{budget * rate:.3g} samples per profile set: at most "
                                f"{MAX_PLAN_SAMPLES:.0e} (a shorter --budget or a lower --rate)")
-    settings = Settings(umax=vmax if vmax is not None else taumax,
-                        speed_max=speed_max if speed_max is not None else math.inf,
-                        rate=rate, budget=budget, noise_omega=noise_omega, noise_i=noise_i,
-                        taumax=taumax is not None)
-    from pmdcid.plan.output import check_out_dir
-
-    if out_dir:
-        check_out_dir(out_dir)
+    options = dict(vmax=vmax, taumax=taumax, speed_max=speed_max, rate=rate, budget=budget,
+                   noise_omega=noise_omega, noise_i=noise_i)
     if check:
-        _check(logs, model_path, settings, out_dir, mapping)
+        res = api.check_plan(logs, model_path, out_dir, mapping=mapping, **options)
+        for line in res.lines():
+            echo(line)
+        if out_dir:
+            echo(f"wrote {Path(out_dir) / 'check.json'}")
         return
-    from pmdcid import api
-
-    plan = api.plan(None if guess else model_path, out_dir, vmax=vmax, taumax=taumax,
-                    speed_max=speed_max, rate=rate, budget=budget, noise_omega=noise_omega,
-                    noise_i=noise_i, command="pmdcid plan " + " ".join(sys.argv[2:]))
+    plan = api.plan(None if guess else model_path, out_dir, **options,
+                    command="pmdcid plan " + " ".join(sys.argv[2:]))
     echo(f"wrote {len(plan.profiles)} profiles ({plan.seconds:.1f} s) and plan.json, "
                f"plan.md into {out_dir}")
     for note in plan.notes:
@@ -90,22 +87,3 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
         echo(f"  {n:<8} {plan.values[n]:12.5g} ± {se:.3g}"
                    f"{f'  ({100 * rel:.2g} %)' if math.isfinite(rel) else ''}")
 
-
-def _check(logs, model_path, settings, out_dir, mapping) -> None:
-    import json
-    from pathlib import Path
-
-    from pmdcid.io import read_logs
-    from pmdcid.model import load_model
-    from pmdcid.plan.check import check_logs
-    from pmdcid.runtime.outputs import atomic_write_text
-
-    res = check_logs(read_logs(logs, mapping), load_model(model_path), settings)
-    for line in res.lines():
-        echo(line)
-    if out_dir:
-        from pmdcid.runtime.outputs import output_folder
-
-        with output_folder(out_dir) as d:
-            atomic_write_text(d / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")
-        echo(f"wrote {Path(out_dir) / 'check.json'}")
