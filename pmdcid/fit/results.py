@@ -229,6 +229,9 @@ class SimFitResult:
     initial: list = field(default_factory=list)
     #: name -> (mean, std) of the Gaussian prior terms that entered the fit
     priors: dict = field(default_factory=dict)
+    #: with an AR noise model: per residual block, the whitening filter's coefficients
+    #: (1, a1, ...), or None where the block was left white
+    noise_filters: list = field(default_factory=list)
 
     def values(self) -> dict[str, float]:
         return {k: e.value for k, e in self.estimates.items()}

@@ -34,6 +34,7 @@ from pmdcid.fit.solver import blas_single_thread, scale_of, solve
 from pmdcid.fit.tall import TALL_ROWS
 from pmdcid.model import Model
 from pmdcid.model.effects import unit_of
+from pmdcid.model.effects.sensor_delay import sensor_lag_limit
 from pmdcid.runtime.cpus import pmap
 from pmdcid.simulate import param_values
 from pmdcid.simulate.initial import moving_start
@@ -168,7 +169,7 @@ class _Fit:
     def run(self, held: dict[str, tuple[float, float]]) -> SimFitResult:
         sol = self.solve(self.x0 / self.scale)
         sol = _with_noise_model(self.solve, sol, self.problem.segments("all"), self.whiten,
-                                self.options.noise_model)
+                                self.options.noise_model, self.slowest_colour)
         if self.prior_rows:
             # the data rows are weighted by the noise; when the model leaves a residual many
             # times the noise, correlated in time, the logs carry far less information than
@@ -180,6 +181,17 @@ class _Fit:
                 self.weight = w
                 sol = self.solve(sol.z)
         return self.result(sol, held)
+
+    def slowest_colour(self, sol) -> list[float]:
+        """Per residual block: the largest pole modulus a sensor's noise can have at ``sol``
+        (its filter no slower than :func:`sensor_lag_limit`, on the block's sample period)."""
+        x = sol.z * self.scale
+        out = []
+        for k, _, _ in self.problem.segments("all"):
+            vals = {**self.base[k], **dict(zip(self.free, x[:len(self.free)], strict=True))}
+            dt = self.problem.logs[k].dt
+            out.append(math.exp(-dt / sensor_lag_limit(vals, dt)))
+        return out
 
     def data_discount(self, sol) -> float:
         """sqrt(reduced chi-square) x the correlated-residual inflation of the data rows at
@@ -221,6 +233,9 @@ class _Fit:
         res = SimFitResult(est, stats, correl, errs, sig_out, info)
         res.initial = self.state(x)
         res.priors = {free[j]: (m, sd) for j, m, sd in self.prior_rows}
+        if self.options.noise_model:
+            res.noise_filters = [None if w is None else tuple(map(float, w))
+                                 for w in self.whiten]
         return res
 
     def held_columns(self, z, held: dict[str, tuple[float, float]]):
@@ -257,21 +272,27 @@ def _errors(Jm, fun, fit: _Fit, redchi: float, hjac, hse):
     return se, corr, info
 
 
-def _with_noise_model(run, sol, segments, whiten: list, order: int):
+def _with_noise_model(run, sol, segments, whiten: list, order: int, slowest):
     """With an AR noise model (``order`` > 0): each block's whitening filter estimated from the
-    residual at ``sol`` (into ``whiten``), the fit run again from there, twice; else ``sol``."""
+    residual at ``sol`` (into ``whiten``; ``slowest(sol)``: each block's largest pole modulus of
+    a sensor's noise), the fit run again from there, twice; else ``sol``."""
     for _ in range(2 if order > 0 else 0):
-        whiten[:] = [ar_whitener(sol.fun[a:b], order, w) for (_, a, b), w
-                     in zip(segments, whiten, strict=True)]
+        whiten[:] = [ar_whitener(sol.fun[a:b], order, w, z) for (_, a, b), w, z
+                     in zip(segments, whiten, slowest(sol), strict=True)]
         sol = run(sol.z)
     return sol
 
 
-def ar_whitener(r: np.ndarray, order: int, before=None) -> np.ndarray | None:
+def ar_whitener(r: np.ndarray, order: int, before=None, slowest: float = 1.0
+                ) -> np.ndarray | None:
     """The filter ``A(q) = 1 + a1 q^-1 + ... + ap q^-p`` that whitens the residual block ``r``
     (least squares on its own past; ``before``: the filter ``r`` was already whitened by,
-    undone first, so that the filter is estimated on the raw residual). None when the block is
-    too short, the filter not invertible, or the block already white (every |a_j| < 1e-3)."""
+    undone first, so that the filter is estimated on the raw residual). Poles of modulus above
+    ``slowest`` are left out of it: colour slower than a sensor's filter is the model's own
+    error drifting with the motor, not noise, and whitening it would fit the residual's
+    increments instead of its level (docs/identification.md, "Closed-loop logs"). None when the
+    block is too short, the filter not invertible, or the block white once the slow poles are
+    left (every |a_j| < 1e-3)."""
     if before is not None:  # r is whitened by ``before``: undo it to estimate on the raw block
         from scipy.signal import lfilter  # only with a noise model: the import costs ~1 s
 
@@ -282,9 +303,14 @@ def ar_whitener(r: np.ndarray, order: int, before=None) -> np.ndarray | None:
     X = np.column_stack([r[order - j - 1:n - j - 1] for j in range(order)])
     coef, *_ = np.linalg.lstsq(X, r[order:], rcond=None)
     a = np.concatenate([[1.0], -coef])
-    if not np.all(np.isfinite(a)) or np.max(np.abs(np.roots(a))) >= 0.999:
+    if not np.all(np.isfinite(a)):
+        return None
+    poles = np.roots(a)
+    if np.max(np.abs(poles)) >= 0.999:
         return None  # not invertible: keep the block white
-    return a if np.max(np.abs(coef)) > 1e-3 else None
+    kept = poles[np.abs(poles) <= slowest]
+    a = np.real(np.poly(kept)) if len(kept) else np.ones(1)
+    return a if len(a) > 1 and np.max(np.abs(a[1:])) > 1e-3 else None
 
 
 def held_uncertain(model: Model, free, kernel_values: dict[str, float]

@@ -63,13 +63,19 @@ def noise_model_for(logs, spec: ControllerSpec | None = None) -> int:
     return AR_ORDER if closed_loop_logs(logs, spec) else 0
 
 
-def logged_output_route(logs, spec=None) -> Route:
-    if closed_loop_logs(logs, spec):
-        return Route("logged output", "closed-loop logs (a set-point column) without "
-                     "--controller: fitted on the controller's logged output, with an AR("
-                     f"{AR_ORDER}) noise model so that the sensor noise the loop feeds back "
-                     "into it is not fitted")
-    return Route("logged output", "open-loop logs: the logged input drives the model")
+def logged_output_route(logs, spec=None, filters=()) -> Route:
+    """The logged-output route's line; ``filters``: the fit's noise filters per residual block
+    (:attr:`~pmdcid.fit.results.SimFitResult.noise_filters`)."""
+    if not closed_loop_logs(logs, spec):
+        return Route("logged output", "open-loop logs: the logged input drives the model")
+    why = ("closed-loop logs (a set-point column) without --controller: fitted on the "
+           f"controller's logged output, with an AR({AR_ORDER}) noise model so that the sensor "
+           "noise the loop feeds back into it is not fitted")
+    white = sum(f is None for f in filters)
+    if white:
+        why += (f"; {white} of {len(filters)} residual blocks left white: no colour there as "
+                "fast as a sensor's filter (slower colour is the model's own error, not noise)")
+    return Route("logged output", why)
 
 
 def loop_simulator(spec: ControllerSpec):

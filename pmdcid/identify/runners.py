@@ -111,7 +111,7 @@ def stage_nonlinear(logs, model, controller=None, **opts):
     opts.setdefault("noise_model", noise_model_for(seen))
     res = fit_nonlinear(seen, model, **opts)
     if closed_loop_logs(seen):
-        res.route = logged_output_route(seen)
+        res.route = logged_output_route(seen, filters=res.fit.noise_filters)
     return res
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from ident_util import step_logs
 
-from pmdcid.fit.simfit import fit_simulation, held_uncertain
+from pmdcid.fit.simfit import ar_whitener, fit_simulation, held_uncertain
 from pmdcid.model import Model
 from pmdcid.simulate import param_values
 from pmdcid.synth import PAPER
@@ -43,3 +43,29 @@ def test_resistance_uncertainty_reaches_the_mechanical_parameters(rel):
         a, b = alone.estimates[name].stderr, held.estimates[name].stderr
         added = math.sqrt(b * b - a * a)
         assert added == pytest.approx(rel * held.estimates[name].value, rel=0.1), name
+
+
+def _ar1(rng, n, a):
+    e = rng.normal(0.0, 1.0, n)
+    out = np.zeros(n)
+    for k in range(1, n):
+        out[k] = a * out[k - 1] + e[k]
+    return out
+
+
+def test_whitener_keeps_only_a_sensors_colour():
+    """Fast coloured noise (AR(1) 0.5 per sample: a sensor's filter) and a slow drift (AR(1)
+    0.995: the model's own error). With the slowest pole a sensor can have at 0.9: the noise
+    alone keeps its pole (within 0.03 of 0.5); the drift alone is left white (up to the
+    estimate's noise); the two together (the drift ten times larger) give a filter with no pole
+    above 0.9, where every pole allowed gives one above 0.95 (a near-first difference)."""
+    rng = np.random.default_rng(5)
+    noise, drift = _ar1(rng, 20000, 0.5), 10 * _ar1(rng, 20000, 0.995) * math.sqrt(1 - 0.995**2)
+    fast = ar_whitener(noise, 2, slowest=0.9)
+    assert abs(max(np.roots(fast), key=abs) - 0.5) < 0.03, fast
+    left = ar_whitener(drift, 2, slowest=0.9)
+    assert left is None or np.max(np.abs(left[1:])) < 0.02, left  # white, up to estimation
+    both = noise + drift
+    assert np.max(np.abs(np.roots(ar_whitener(both, 2)))) > 0.95
+    kept = ar_whitener(both, 2, slowest=0.9)
+    assert kept is None or np.max(np.abs(np.roots(kept))) <= 0.9, kept

@@ -5,6 +5,8 @@ docs/examples/emps.md; figures by ``python -m bench.closedloop``)."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -35,30 +37,44 @@ def test_micromouse_spec_reproduces_its_logged_commands():
         assert np.mean(same) >= 0.97, (name, np.mean(same))
 
 
-@need_mouse
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 24's micromouse target is not met: identify 0.250 "
-                   "against the linear baseline's 0.223; out of reach for this model class: "
-                   "Stribeck friction and a sensor delay fitted on all four runs, the held-out "
-                   "ones included, give 0.17 against the target's 0.112 (docs/real-data.md, "
-                   "bench/rig_limits.py)")
-def test_micromouse_held_out_against_the_linear_baseline():
-    """Fitted on the 1 and 10 ms controller periods, the 2 and 5 ms runs predicted from their
-    logged commands: identify's model should beat the linear first-order-with-offset baseline
-    clearly. It did (0.160 against 0.218) while diagnose added quadratic drag and Stribeck
-    friction; the two fit logs hold out only their steady tails at the 200 rpm target, which
-    cannot test a speed law, so diagnose now leaves them as "possible, not testable" and the
-    model gives 0.250: no better than linear (0.223). Strict: it fails loudly once this passes."""
+@functools.cache
+def _mouse_held_out() -> tuple[float, float]:
+    """(identify's, the linear baseline's) mean held-out speed NRMSE: fitted on the 1 and 10 ms
+    controller periods, the 2 and 5 ms runs predicted from their logged commands."""
     from pmdcid.model import Model
     from pmdcid.pipeline import identify
 
     fit = [closedloop.uniform_log(MOUSE / n) for n in closedloop.FIT]
-    held = [closedloop.uniform_log(MOUSE / n)
-            for n in closedloop.HELD]
+    held = [closedloop.uniform_log(MOUSE / n) for n in closedloop.HELD]
     lin = realdata.fit_linear(fit)
     linear = np.mean([realdata.nrmse(realdata.linear_sim(lin, lg), lg["omega"]) for lg in held])
     model = identify(fit, Model()).model
-    ours = np.mean([realdata.predict(model, lg) for lg in held])
+    return float(np.mean([realdata.predict(model, lg) for lg in held])), float(linear)
+
+
+@need_mouse
+@pytest.mark.slow
+def test_micromouse_identify_beats_the_linear_baseline():
+    """Issue 24: a closed-loop log must not end worse than a linear fit. It did (0.250 against
+    0.223) while the AR noise model whitened the residual's slow drift, the model's own error;
+    with only a sensor's colour whitened it gives 0.207 (docs/identification.md)."""
+    ours, linear = _mouse_held_out()
+    assert ours < 0.97 * linear, (ours, linear)
+
+
+@need_mouse
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 24's micromouse target is not met: identify 0.207 "
+                   "against the linear baseline's 0.223 and the target's 0.112; out of reach "
+                   "for this model class: Stribeck friction and a sensor delay fitted on all "
+                   "four runs, the held-out ones included, give 0.17 (docs/real-data.md, "
+                   "bench/rig_limits.py)")
+def test_micromouse_held_out_against_the_linear_baseline():
+    """The issue's target: half the linear baseline; this asks for 0.85 of it. It was met once
+    (0.160) while diagnose added quadratic drag and Stribeck friction; the two fit logs hold out
+    only their steady tails at the 200 rpm target, which cannot test a speed law, so diagnose
+    leaves them as "possible, not testable". Strict: it fails loudly once this passes."""
+    ours, linear = _mouse_held_out()
     assert ours < 0.85 * linear, (ours, linear)
 
 

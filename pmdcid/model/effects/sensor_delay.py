@@ -31,14 +31,22 @@ def mechanical_time_constant(values: dict[str, float]) -> float:
     return j / damping if j > 0 and damping > 0 else math.nan
 
 
+def sensor_lag_limit(values: dict[str, float], dt: float) -> float:
+    """The longest lag [s] a speed or angle sensor adds to what it logs, sampled every ``dt``
+    [s]: :data:`MAX_DELAY_SAMPLES` sample periods or :data:`MAX_DELAY_SHARE` of the mechanical
+    time constant, whichever is longer. It bounds a sensor delay and the time constant of a
+    sensor's own filter (the colour of its noise: :func:`pmdcid.fit.simfit.ar_whitener`); a
+    slower lag is the motor's response, not the sensor's."""
+    tau = mechanical_time_constant(values)
+    return max(MAX_DELAY_SAMPLES * dt, MAX_DELAY_SHARE * tau if math.isfinite(tau) else 0.0)
+
+
 def delay_too_long(values: dict[str, float], ctx: ResidualContext,
                    start: dict[str, float]) -> str | None:
-    """A sensor delay beyond both :data:`MAX_DELAY_SAMPLES` sample periods and
-    :data:`MAX_DELAY_SHARE` of the mechanical time constant."""
+    """A sensor delay beyond :func:`sensor_lag_limit`."""
     delay, dt = values.get("delay", 0.0), ctx.dt
     tau = mechanical_time_constant(values)
-    limit = max(MAX_DELAY_SAMPLES * dt, MAX_DELAY_SHARE * tau if math.isfinite(tau) else 0.0)
-    if dt > 0 and delay > limit:
+    if dt > 0 and delay > sensor_lag_limit(values, dt):
         return (f"implausible: a sensor delay of {delay:.3g} s ({delay / dt:.0f} samples, "
                 f"{delay / tau:.2g} of the mechanical time constant {tau:.3g} s) stands in for "
                 f"a slower response the model lacks; a sensor reads at most a few samples or "
