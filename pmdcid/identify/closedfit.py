@@ -31,8 +31,7 @@ from pmdcid.identify.nonlinear import (
     NonlinearResult,
     fit_nonlinear,
 )
-from pmdcid.identify.nonlinear_setup import REFERENCE_COLUMNS
-from pmdcid.identify.nonlinear_setup import closed_loop_logs as setup_closed
+from pmdcid.identify.nonlinear_setup import reference_column
 from pmdcid.model import Model
 from pmdcid.simulate.closedloop import feedforward_of, reference_of, simulate_closed_loop
 from pmdcid.simulate.controller import ControllerSpec
@@ -54,8 +53,8 @@ class Route:
 
 
 def closed_loop_logs(logs, spec: ControllerSpec | None = None) -> bool:
-    """True when the logs carry a set-point column (the spec's, or a usual one)."""
-    return setup_closed(logs, (spec.reference,) if spec is not None else REFERENCE_COLUMNS)
+    """True when the logs carry a set-point column (the spec's, or one named as a set-point)."""
+    return reference_column(logs, (spec.reference,) if spec is not None else None) is not None
 
 
 def noise_model_for(logs, spec: ControllerSpec | None = None) -> int:
@@ -68,7 +67,9 @@ def logged_output_route(logs, spec=None, filters=()) -> Route:
     (:attr:`~pmdcid.fit.results.SimFitResult.noise_filters`)."""
     if not closed_loop_logs(logs, spec):
         return Route("logged output", "open-loop logs: the logged input drives the model")
-    why = ("closed-loop logs (a set-point column) without --controller: fitted on the "
+    ref = spec.reference if spec is not None else reference_column(logs)
+    why = (f"closed-loop logs (a set-point column, '{ref}') without "
+           "--controller: fitted on the "
            f"controller's logged output, with an AR({AR_ORDER}) noise model so that the sensor "
            "noise the loop feeds back into it is not fitted")
     white = sum(f is None for f in filters)

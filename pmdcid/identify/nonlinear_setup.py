@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from pmdcid.errors import FitError, ModelError
+from pmdcid.io.mapping import is_setpoint
 from pmdcid.model import Model
 
 SIGNALS = ("omega", "theta")
@@ -96,13 +97,20 @@ def start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set
     return start, guessed
 
 
-#: the set-point columns that mark a log as closed loop (:mod:`.closedfit`)
-REFERENCE_COLUMNS = ("omega_ref", "theta_ref")
+def reference_column(logs, names=None) -> str | None:
+    """The first set-point column any log carries: one of ``names``, or (``names`` None) one
+    whose name says it is a set-point (:func:`pmdcid.io.mapping.is_setpoint`: ``omega_ref``,
+    ``targetSpeed``, ``speed_sp`` ...); None when there is none."""
+    for lg in logs:
+        for n in (*lg.extra, *lg.data):
+            if (n in names) if names is not None else is_setpoint(n):
+                return n
+    return None
 
 
-def closed_loop_logs(logs, names=REFERENCE_COLUMNS) -> bool:
-    """True when any log carries one of the set-point columns ``names``."""
-    return any(n in lg.extra or n in lg.data for lg in logs for n in names)
+def closed_loop_logs(logs, names=None) -> bool:
+    """True when any log carries a set-point column (:func:`reference_column`)."""
+    return reference_column(logs, names) is not None
 
 
 def closed_loop_start(logs, model: Model, idm: dict[str, float]) -> dict[str, float]:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from pmdcid.errors import LogError, short_list, warn
-from pmdcid.io.mapping import CANONICAL, ColumnMap, parse_mapping
+from pmdcid.io.mapping import CANONICAL, SETPOINTS, ColumnMap, parse_mapping
 
 
 def as_mapping(columns=None, map_file=None, cutoff_hz: float | None = None) -> ColumnMap:
@@ -150,6 +150,7 @@ def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
     for canon in list(data):
         data[canon] = fill_nans(canon, data[canon], path)
     extra = {c: x for c, x in (extra or {}).items() if np.isfinite(x).all()}
+    extra.update({c: data.pop(c) for c in SETPOINTS if c in data})  # mapped set-points
     if not clock.uniform:
         data, extra, resampled = resample_columns(t, data, clock, extra)
     t_file = clock.grid if resampled is not None else t

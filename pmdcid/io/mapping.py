@@ -44,6 +44,22 @@ from pmdcid.io.expr import evaluate, parse_expr, refs
 #: the canonical column names of a log (docs/units.md): time [s], voltage [V], torque [N m],
 #: current [A], speed [rad/s], angle [rad]
 CANONICAL: tuple[str, ...] = ("t", "v", "tau", "i", "omega", "theta")
+#: a controller's set-points [rad/s, rad]: mapped like a canonical column (``-c
+#: omega_ref=target_rpm*rpm``), kept in ``Log.extra``; they mark a log as closed loop
+SETPOINTS: tuple[str, ...] = ("omega_ref", "theta_ref")
+#: the words that name a set-point column in a log's own header (``targetSpeed``, ``speed_sp``,
+#: ``setpoint``, ``w_ref``, ``desired_rpm``)
+SETPOINT_WORDS = frozenset({"ref", "reference", "setpoint", "sp", "target", "desired", "demand",
+                            "goal"})
+
+
+def is_setpoint(name: str) -> bool:
+    """True when a column's name says it holds a controller's set-point: one of
+    :data:`SETPOINTS`, or a word of :data:`SETPOINT_WORDS` in it (words split at
+    non-letters and at camelCase: ``targetSpeed`` -> target, speed)."""
+    spaced = re.sub(r"([a-z0-9])([A-Z])", r"\1 \2", str(name))
+    words = {w.lower() for w in re.split(r"[^A-Za-z]+", spaced) if w}
+    return name in SETPOINTS or bool(words & SETPOINT_WORDS) or "setpoint" in name.lower()
 
 UNITS: dict[str, float] = {
     "pi": math.pi,
@@ -143,7 +159,7 @@ def parse_spec(text: str) -> ColumnSpec:
         return _parse_spec(text)
     except LogError as exc:
         m = _MAP_RE.match(text)
-        if (m is None or "/" not in m.group(2) or m.group(1) not in CANONICAL
+        if (m is None or "/" not in m.group(2) or m.group(1) not in CANONICAL + SETPOINTS
                 or any(c in m.group(2) for c in "\"'()")):  # the expression grammar's own error
             raise
         rhs = m.group(2).strip()
@@ -174,10 +190,10 @@ def _parse_spec(text: str) -> ColumnSpec:
     if not m:
         raise LogError(f"column mapping '{text}' is not of the form CANON=SOURCE[*SCALE][+OFFSET]")
     canon, expr = m.group(1), m.group(2)
-    if canon not in CANONICAL:
+    if canon not in CANONICAL + SETPOINTS:
         raise LogError(
             f"column mapping '{text}': '{canon}' is not a canonical column "
-            f"({', '.join(CANONICAL)})"
+            f"({', '.join(CANONICAL)}) or a set-point ({', '.join(SETPOINTS)})"
         )
     if any(c in expr for c in "\"'()"):  # quoted names, parentheses, functions: the grammar
         tree = parse_expr(expr, text, UNITS)

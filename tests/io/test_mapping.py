@@ -8,7 +8,7 @@ import pytest
 
 from pmdcid.errors import LogError, ModelError
 from pmdcid.io import parse_mapping, read_log, write_log
-from pmdcid.io.mapping import parse_spec
+from pmdcid.io.mapping import is_setpoint, parse_spec
 from pmdcid.model import Model, load_model, save_model
 
 
@@ -102,3 +102,25 @@ def test_model_rejects_impossible_values(tmp_path):
     p.write_text(json.dumps({"parameters": {}, "effects": ["warp_drive"]}))
     with pytest.raises(ModelError, match="unknown effect"):
         load_model(p)
+
+
+def test_a_set_point_is_mapped_in_its_unit_and_kept_beside_the_signals(tmp_path):
+    """``-c omega_ref=target_rpm*rpm``: the controller's set-point in rad/s, in ``Log.extra``
+    (not a signal the model simulates); any other name is still refused, naming both lists."""
+    t = np.arange(200) * 1e-3
+    f = tmp_path / "loop.csv"
+    write_log(f, t, {"v": np.ones(200), "omega": np.zeros(200), "target_rpm": np.full(200, 60.0)})
+    log = read_log(f, parse_mapping(["omega_ref=target_rpm*rpm"]))
+    assert "omega_ref" not in log.data
+    assert np.allclose(log.extra["omega_ref"], 2 * math.pi)
+    with pytest.raises(LogError, match="or a set-point"):
+        parse_mapping(["speed_ref=target_rpm"])
+
+
+@pytest.mark.parametrize("name, said", [
+    ("omega_ref", True), ("targetSpeed", True), ("speed_sp", True), ("Setpoint", True),
+    ("w_ref_rads", True), ("desired_rpm", True), ("motor_speed", False), ("voltage", False),
+    ("spin", False), ("preference", False), ("temperature", False), ("duty", False),
+])
+def test_set_point_columns_are_known_by_their_names(name, said):
+    assert is_setpoint(name) is said

@@ -174,6 +174,18 @@ def test_logged_output_route_bias_before_and_after_the_noise_model():
     assert abs(np.mean(whitened)) < 0.015, whitened
 
 
+def test_a_set_point_column_of_any_usual_name_marks_the_log_closed_loop():
+    """A robot's log names its set-point as it likes (``targetSpeed``): the logged-output route
+    with its noise model is taken and says which column made it so; a log without one is open
+    loop."""
+    log, _ = closed_loop_log(np.random.default_rng(104), n=3000, coloured=False)
+    renamed = Log("robot.csv", log.t, dict(log.data),
+                  extra={"targetSpeed": log.extra["omega_ref"]})
+    res = _fit(renamed)
+    assert res.route is not None and "'targetSpeed'" in res.route.line()
+    assert _fit(Log("plain.csv", log.t, dict(log.data))).route is None
+
+
 def test_closed_loop_start_is_not_taken_from_biased_inverse_dynamics():
     """Inverse dynamics on a closed-loop log regresses the torque on a noisy speed and
     acceleration whose noise the loop fed into that torque: on this short log (two set-points)
