@@ -10,6 +10,10 @@
 - **EMPS**: the authors' parameters and the controller route's estimate, each simulated in
   closed loop from the reference (the PD controller of EMPS_Description.txt eq. 6-7): relative
   position and velocity errors [%] beside the authors' 0.008 % and 0.479 % (validation file).
+- **EMPS, the benchmark's score** (``python -m bench.closedloop emps-rmse``): the test
+  position RMSE in mm with 20 samples to initialise (:func:`benchmark_rmse_mm`), open loop on
+  the logged force and, for comparison, in closed loop, for the authors' parameters,
+  fit-nonlinear, diagnose and identify on the estimation file (docs/examples/emps.md).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import least_squares
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -141,6 +146,95 @@ def emps(folder: Path = EMPS) -> dict:
     return out
 
 
+# -- the EMPS benchmark's own score (nonlinearbenchmark.org; the nonlinear_benchmarks package:
+# its EMPS loader gives the test file state_initialization_window_length = 20, its submission
+# example scores 1000 * RMSE(test.y[n:], y_model[n:]) with y the measured position) -----------
+#: samples at the start of the test file that initialise the model's state, not scored
+N_INIT = 20
+
+
+def benchmark_rmse_mm(measured, simulated, n_init: int = N_INIT) -> float:
+    """The EMPS benchmark's score [mm]: the root mean square of simulated minus measured
+    position [m] over samples ``n_init``, ``n_init`` + 1, ... to the end, times 1000. The first
+    ``n_init`` samples (20 on the benchmark's test file) may initialise the model and are not
+    scored."""
+    e = np.asarray(simulated, float)[n_init:] - np.asarray(measured, float)[n_init:]
+    return float(1000.0 * np.sqrt(np.mean(e ** 2)))
+
+
+def initial_state(log, vals: dict, n_init: int = N_INIT) -> tuple[float, float, float]:
+    """The state (i = 0, speed [m/s], position [m]) at the log's first sample, read from its
+    first ``n_init`` measured positions only, as the benchmark allows: the start (q0, v0) whose
+    open-loop simulation of ``vals`` on the logged force fits those positions best (least
+    squares), started from a quadratic through them."""
+    from pmdcid.simulate import simulate_values
+
+    t, q, u = log.t[:n_init], np.asarray(log["theta"][:n_init], float), log.u[:n_init]
+    c = np.polyfit(t - t[0], q, 2)
+
+    def resid(x):
+        sim = simulate_values(t, u, vals, True, x0=(0.0, x[1], x[0]), dt=log.dt)
+        return sim.theta - q
+
+    sol = least_squares(resid, [c[2], c[1]], x_scale=[1e-3, 1e-2])
+    return 0.0, float(sol.x[1]), float(sol.x[0])
+
+
+def emps_rmse_mm(log, model, spec=None) -> float:
+    """:func:`benchmark_rmse_mm` of ``model`` on ``log``, from :func:`initial_state`: open
+    loop on the logged force (``spec`` None: the benchmark's task, input vir, output the
+    position), or in closed loop under ``spec`` from the logged reference (the benchmark does
+    not give the model the reference)."""
+    from pmdcid.simulate import param_values, simulate_values
+    from pmdcid.simulate.closedloop import feedforward_of, reference_of, simulate_closed_loop
+
+    vals = param_values(model, True)
+    x0 = initial_state(log, vals)
+    if spec is None:
+        sim = simulate_values(log.t, log.u, vals, True, x0=x0)
+    else:
+        sim = simulate_closed_loop(log.t, vals, spec, reference_of(log, spec), True, x0,
+                                   logged_u=log.u, feedforward=feedforward_of(log, spec))
+    return benchmark_rmse_mm(log["theta"], sim.theta)
+
+
+def emps_models(train) -> dict:
+    """The models scored: the authors' parameters, and fit-nonlinear, diagnose (after
+    fit-nonlinear: docs/examples/emps.md's commands) and identify, each on ``train`` only."""
+    from pmdcid.diagnose import diagnose
+    from pmdcid.identify.nonlinear import fit_nonlinear
+    from pmdcid.model import Model
+    from pmdcid.pipeline import identify
+
+    authors = Model()
+    for k, v in AUTHORS.items():
+        authors.set(k, v)
+    authors.add_effect("torque_offset")
+    fitted = Model()
+    fit_nonlinear([train], fitted).apply(fitted)
+    return {"authors' parameters": authors, "fit-nonlinear": fitted,
+            "fit-nonlinear + diagnose": diagnose([train], fitted).model,
+            "identify": identify([train], Model()).model}
+
+
+def emps_scores(folder: Path = EMPS) -> dict:
+    """Per model: the benchmark's score [mm] on the test (validation) file open loop, the same
+    on the estimation file, the test file's score in closed loop, and the benchmark's open-loop
+    velocity error [%] on the test file (:func:`pmdcid.identify.openloop.velocity_error`)."""
+    from pmdcid.identify.openloop import velocity_error
+    from pmdcid.io import parse_mapping, read_log
+    from pmdcid.simulate.controller import controller_from_dict
+
+    m = parse_mapping(["t=t_s", "tau=force_N", "theta=qm_meas_m"])
+    train = read_log(folder / "emps_train_DATA_EMPS.csv", m)
+    test = read_log(folder / "emps_test_DATA_EMPS_PULSES.csv", m)
+    pulses = controller_from_dict({**EMPS_SPEC, "feedforward": "pulse_in_vir_units"})
+    return {label: {"test": emps_rmse_mm(test, model), "estimation": emps_rmse_mm(train, model),
+                    "test, closed loop": emps_rmse_mm(test, model, pulses),
+                    "velocity error": velocity_error(test, model)}
+            for label, model in emps_models(train).items()}
+
+
 def main(argv=None) -> int:
     only = (argv if argv is not None else sys.argv[1:])[:1]
     if MICROMOUSE.is_dir() and only in ([], ["micromouse"]):
@@ -154,6 +248,10 @@ def main(argv=None) -> int:
             for f in ("estimation", "validation"):
                 print(f"  {f}: position {r[f][0]:.4f} %, velocity {r[f][1]:.3f} %, "
                       f"force {r[f][2]:.2f} %")
+    if EMPS.is_dir() and only == ["emps-rmse"]:
+        for label, r in emps_scores().items():
+            print(f"EMPS {label:26s} " + ", ".join(
+                f"{k} {v:.3f} {'%' if k == 'velocity error' else 'mm'}" for k, v in r.items()))
     return 0
 
 

@@ -11,8 +11,10 @@ far a model of the tool's class can go on the rig's logs, and why:
   friction and a sensor delay fitted to all four runs at once (held-out runs included), the
   best this model class does on these logs.
 - **emps**: the symmetric model fitted on each file (fit-nonlinear, the benchmark's error on
-  both); diagnose's model with only its Coulomb friction refitted on the validation file (an
-  oracle: what the validation file asks of the friction).
+  both); the force diagnose's model lacks on each file, by the validation file's pulse phase
+  and direction (where the extra friction of the validation run sits); diagnose's model with
+  only its Coulomb friction refitted on the validation file (an oracle: what the validation
+  file asks of the friction).
 - **pboon**: identify's model with its dead zone (a breakaway that also stops the running
   motor below dz) replaced by Stribeck friction of the same breakaway (held only at rest), the
   base parameters refitted on the fit logs.
@@ -128,9 +130,36 @@ def emps() -> None:
         if name == "estimation":
             diag = diagnose([lg], model).model
     print(f"EMPS diagnose's model (estimation file): bc {diag.value('bc'):.4g}; {errs(diag)}")
+    pulse_on = np.asarray(val.extra["pulse_in_vir_units"]) != 0
+    for name, lg in files.items():
+        gap = _force_gap(diag, lg, pulse_on)
+        print(f"EMPS {name} file, force diagnose's model lacks (opposing the motion) [N]: "
+              + ", ".join(f"{k} {v:+.2f}" for k, v in gap.items()))
     oracle = _refit(diag, ["bc"], [val])
     print(f"EMPS oracle, diagnose's model with bc refitted on the validation file: "
           f"bc {oracle.value('bc'):.4g}; {errs(oracle)}")
+
+
+def _force_gap(model, log, pulse_on) -> dict[str, float]:
+    """The mean force [N] ``model`` lacks to move ``log`` as measured, in the direction of
+    motion: F - (J a + bv v + dbv |v| + bc sign(v) + tau0) times sign(v), on the speed and
+    acceleration derived as the benchmark derives them (100 Hz), over the samples moving faster
+    than 10 mm/s, split by the validation file's pulse phase (``pulse_on``: the same instants
+    on both files, whose reference trajectories are identical) and direction."""
+    from pmdcid.io.derive import kinematics_from_position
+
+    k = kinematics_from_position(log["theta"], log.dt, 100.0)
+    v, a = k.omega, k.alpha
+    val = {n: model.value(n) if model.has(n) else 0.0
+           for n in ("J", "bv", "dbv", "bc", "tau0")}
+    need = (val["J"] * a + val["bv"] * v + val["dbv"] * np.abs(v) + val["bc"] * np.sign(v)
+            + val["tau0"])
+    gap = (np.asarray(log.u) - need) * np.sign(v)
+    out = {}
+    for phase, on in (("pulse on", pulse_on), ("pulse off", ~pulse_on)):
+        for way, sel in (("forward", v > 0.01), ("backward", v < -0.01)):
+            out[f"{phase} {way}"] = float(np.mean(gap[on & sel]))
+    return out
 
 
 def pboon() -> None:
