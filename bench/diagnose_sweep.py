@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def cases() -> list[tuple[str | None, int, float]]:
-    sys.path.insert(0, str(ROOT / "tests"))
+    sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "system")]
     import test_diagnose as td
 
     return ([(e, s, f) for e in sorted(td.VISIBLE) for s in (700, 701) for f in (1.0, 0.5)]
@@ -37,9 +37,9 @@ def run(out_path: Path) -> None:
     os.environ["PMDCID_THREADS"] = "1"
     import numpy as np
 
-    sys.path.insert(0, str(ROOT / "tests"))
+    sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "system")]
     import test_diagnose as td
-    from ident_util import perturbed_truth
+    from ident_util import paper_stages, perturbed_truth
 
     from pmdcid.diagnose import diagnose
 
@@ -49,7 +49,7 @@ def run(out_path: Path) -> None:
         extra = ({k: v * f if k not in ("cn", "cphi") else v for k, v in td.VISIBLE[eff].items()}
                  if eff else {})
         truth = perturbed_truth(rng, 0.2, **extra)
-        logs, model = td.pipeline(truth, rng)
+        logs, model = paper_stages(truth, rng)
         t = time.process_time()
         res = diagnose(logs, model)
         rows.append({"effect": eff, "seed": seed, "size": f, "added": res.summary["added"],

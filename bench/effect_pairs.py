@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1] / "tests" / d) for d in ("", "system")]
 
-from ident_util import perturbed_truth  # noqa: E402
-from test_diagnose import VISIBLE, held_out_nrmse, pipeline  # noqa: E402
+from ident_util import paper_stages, perturbed_truth  # noqa: E402
+from test_diagnose import VISIBLE, held_out_nrmse  # noqa: E402
 from test_friction_curve import CURVE  # noqa: E402
 
 from pmdcid.diagnose import diagnose  # noqa: E402
@@ -35,7 +35,7 @@ def run(case: str, seed: int = 77) -> str:
     rng = np.random.default_rng(seed)
     truth = perturbed_truth(rng, 0.2, **CASES[case])
     t0 = time.perf_counter()
-    logs, model = pipeline(truth, rng)
+    logs, model = paper_stages(truth, rng)
     res = diagnose(logs, model)
     held = held_out_nrmse(truth, res.model, seed)
     return (f"{case}: added {res.summary['added']}, held-out NRMSE {held:.4f}, "
