@@ -35,3 +35,37 @@ def test_table_goes_between_the_markers(tmp_path):
     assert text.startswith("# Performance\n\nprose") and text.endswith("more prose\n")
     s = Stats([3.0, 1.0, 2.0, 10.0])
     assert (s.median, s.min, s.max, s.n) == (2.5, 1.0, 10.0, 4)
+
+
+def test_benches_import_test_helpers_that_exist():
+    """bench/ borrows truths and pipelines from the tests (ident_util, tests/system's
+    test_diagnose ...): every such module it imports exists under tests/ or tests/system/ and
+    defines each name it takes, so a move of the test tree cannot leave a bench broken."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    places = [root / "tests", root / "tests" / "system"]
+    seen = 0
+    for path in sorted((root / "bench").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                mod, names = node.module, [a.name for a in node.names]
+            elif isinstance(node, ast.Import):
+                mod, names = node.names[0].name, []
+            else:
+                continue
+            if not (mod.startswith("test_") or mod.endswith("_util")):
+                continue
+            found = [p / f"{mod}.py" for p in places if (p / f"{mod}.py").is_file()]
+            assert found, f"{path.name} imports {mod}, which tests/ no longer holds"
+            tree = ast.parse(found[0].read_text())
+            defined = {t.id for n in tree.body if isinstance(n, ast.Assign) for t in n.targets
+                       if isinstance(t, ast.Name)} | {
+                n.name for n in tree.body if isinstance(n, ast.FunctionDef | ast.ClassDef)} | {
+                a.asname or a.name for n in tree.body
+                if isinstance(n, ast.Import | ast.ImportFrom) for a in n.names}
+            missing = [n for n in names if n not in defined]
+            assert not missing, f"{path.name}: {mod} has no {', '.join(missing)}"
+            seen += 1
+    assert seen >= 3
