@@ -47,13 +47,18 @@ class DiagnoseResult(ResultProtocol):
 
 
 def write_model(new: Model, final: FitOutcome, free: list[str], added: list[str]) -> None:
-    """The added effects and every refitted estimate into ``new``."""
+    """The added effects and every refitted estimate into ``new``; a km written as ke follows
+    a refitted ke (:func:`~pmdcid.identify.freerun.follow_ke`)."""
+    from pmdcid.identify.freerun import follow_ke
+
+    km_before = new.value("km") if new.has("km") else 0.0
     for e in added:
         new.add_effect(e)
         for p in EFFECTS[e].held:
             new.set(p, final.values[p], stage=STAGE)
     for est in final.estimates.values():
         write_estimate(new, est, STAGE)
+    follow_ke(new, km_before)
 
 
 def heldout_errors(run, base: FitOutcome, final_vals: dict[str, float],
