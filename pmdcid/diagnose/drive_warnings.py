@@ -151,43 +151,12 @@ def drop_warning(problem, vals: dict[str, float], added: list[str]) -> str | Non
 
 
 def latency_warning(problem, vals: dict[str, float], added: list[str]) -> str | None:
-    """A sensor delay found without a current: it may be the input applied late, or, on a
-    lumped model without an electrical lag, the armature's L/R (:func:`lag_fit`)."""
+    """A sensor delay found without a current: it may be the input applied late."""
     if "sensor_delay" not in added or problem.measures("i"):
         return None
-    delay = vals["delay"]
-    lag = lag_fit(problem, vals, added)
-    now = problem.chi2(vals)["all"] if lag is not None else math.nan
-    if lag is not None and lag.chi2["all"] <= now:
-        return (f"sensor_delay = {1e3 * delay:.3g} ms with no current logged stands where the "
-                f"armature's electrical lag would: a lag tau_e = "
-                f"{1e3 * lag.values['tau_e']:.3g} ms (L/R) without any delay fits these logs as "
-                f"well or better (chi-square {lag.chi2['all']:.6g} against {now:.6g}); the "
-                "model has no lag because fit-mechanical's steps did not resolve it, so the "
-                "delay stands in for it. Log the current, or steps from rest sampled faster, to "
-                "tell L/R from a latency")
-    return (f"sensor_delay = {1e3 * delay:.3g} ms with no current logged: a command "
+    return (f"sensor_delay = {1e3 * vals['delay']:.3g} ms with no current logged: a command "
             "applied late (a host-paced loop's latency over USB or serial) looks the same on "
             "voltage and speed; log the current to tell them apart (input_delay)")
-
-
-#: the parameters refitted with the lag in :func:`lag_fit` (those the values hold)
-LAG_FREE = ("J", "bv", "bc", "omega0", "tau_e", "ke_share")
-
-
-def lag_fit(problem, vals: dict[str, float], added: list[str]):
-    """On the voltage logs of a lumped model without an electrical lag (``vals`` with tau_e 0)
-    and with a sensor delay: the model with the delay off and a lag tau_e of the same time
-    instead (the back-EMF's share 1, both refitted with J, bv, bc and a speed offset the model
-    has), fitted to every sample; None for any other model."""
-    lumped = all(log.meta.get("lumped") == "true" for log in problem.logs)
-    if not (lumped and math.isfinite(vals.get("J", math.nan)) and vals.get("delay", 0.0) > 0
-            and not vals.get("tau_e", 0.0) > 0):
-        return None
-    start = {**vals, "delay": 0.0, "tau_e": vals["delay"], "ke_share": 1.0}
-    free = [p for p in LAG_FREE if math.isfinite(start.get(p, math.nan))
-            and (p != "omega0" or "speed_offset" in added)]
-    return problem.fit(start, free, "all")
 
 
 def drive_warnings(problem, sims, vals: dict[str, float], added: list[str]) -> list[str]:
