@@ -27,6 +27,7 @@ import numpy as np
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
+from pmdcid.diagnose.lag import LAG_PARAMS, lag_for_delay
 from pmdcid.diagnose.named import generalises, prefer_named, with_named
 from pmdcid.diagnose.residuals import context, error_table, typical_scales
 from pmdcid.diagnose.rules import Rules, judge, same_rows
@@ -300,15 +301,18 @@ def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> Diagn
     cur, added, seen, history = search(run, base, pool, notes)
     new = model.copy()
     final = None
+    lagged = False
     if added:
         say("diagnose: final refit")
         final, free = finalise(run, cur, added, notes, history)
-    if added:
+        final, free, lagged = lag_for_delay(run, final, free, added, notes)
+    if added or lagged:
         write_model(new, final, free, added)
         final_vals = final.values
     else:
         final_vals = cur.values
-    return summarise(run, new, base, final_vals, added, seen, history, notes)
+    return summarise(run, new, base, final_vals, added, seen, history, notes,
+                     LAG_PARAMS if lagged else ())
 
 
 __all__ = ["Candidate", "DiagnoseResult", "Settings", "diagnose", "free_base", "search_pool"]

@@ -47,26 +47,33 @@ class DiagnoseResult(ResultProtocol):
 
 
 def write_model(new: Model, final: FitOutcome, free: list[str], added: list[str]) -> None:
-    """The added effects and every refitted estimate into ``new``."""
+    """The added effects and every refitted estimate into ``new``; a km written as ke follows
+    a refitted ke (:func:`~pmdcid.identify.freerun.follow_ke`)."""
+    from pmdcid.identify.freerun import follow_ke
+
+    km_before = new.value("km") if new.has("km") else 0.0
     for e in added:
         new.add_effect(e)
         for p in EFFECTS[e].held:
             new.set(p, final.values[p], stage=STAGE)
     for est in final.estimates.values():
         write_estimate(new, est, STAGE)
+    follow_ke(new, km_before)
 
 
 def heldout_errors(run, base: FitOutcome, final_vals: dict[str, float],
-                   added: list[str]) -> list[dict]:
+                   added: list[str], lag: tuple[str, ...] = ()) -> list[dict]:
     """Speed (and current) NRMSE of every log held out whole: the base refitted on the fit part
-    against the final effects refitted on the fit part (neither saw these logs)."""
+    against the final effects refitted on the fit part (neither saw these logs); ``lag``: the
+    lag's parameters when diagnose wrote one (:mod:`pmdcid.diagnose.lag`), refitted too."""
     held = run.problem.held_logs
     if not held:
         return []
     after_vals = base.values
-    if added:
+    if added or lag:
         after_vals = run.fit(final_vals, run.base_free + [p for e in added
-                                                          for p in effect_free(e)]).values
+                                                          for p in effect_free(e)]
+                             + list(lag)).values
     b = error_table(run.problem, run.problem.simulate_all(base.values))
     a = error_table(run.problem, run.problem.simulate_all(after_vals))
     return [{"log": run.problem.logs[k].path, "before": b[k], "after": a[k]} for k in held]
@@ -80,12 +87,13 @@ def untestable(cands: list[Candidate]) -> list[dict]:
 
 def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
               added: list[str], seen: dict[str, Candidate], history: list[Candidate],
-              notes: list[str]) -> DiagnoseResult:
-    """The summary (docs/cli.md's keys and more), the residual's shape when unexplained."""
+              notes: list[str], lag: tuple[str, ...] = ()) -> DiagnoseResult:
+    """The summary (docs/cli.md's keys and more), the residual's shape when unexplained;
+    ``lag``: the lag's parameters when diagnose wrote one in a delay's place."""
     problem = run.problem
     before = error_table(problem, problem.simulate_all(run.vals0))
     final_sims = problem.simulate_all(final_vals)
-    after = error_table(problem, final_sims) if added else before
+    after = error_table(problem, final_sims) if added or lag else before
     white = whiteness(problem, final_sims)
     unexplained = any(w.structured for w in white)
     shapes: list[dict] = []
@@ -110,7 +118,7 @@ def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
         "warnings": drive_warnings(problem, final_sims, final_vals, added),
         "holdout": [{"log": log.path, "part": p} for log, p in zip(problem.logs, problem.plan,
                                                                     strict=True)],
-        "heldout": heldout_errors(run, base, final_vals, added),
+        "heldout": heldout_errors(run, base, final_vals, added, lag),
         "repeatability": [f.to_json() for f in run.floors],
         "logs": [{"path": log.path, "before": b, "after": a}
                  for log, b, a in zip(problem.logs, before, after, strict=True)],

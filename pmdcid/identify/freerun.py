@@ -55,6 +55,35 @@ IV_ITERATIONS = 3
 OFFSET_SIGMAS = 3.0
 
 
+#: units of the parameters a motor's torque equation is written in (N m, N m s/rad, kg m^2,
+#: ...; N and kg for a linear axis): with the current logged they are known only through
+#: km (the torque is km i), so they scale with it
+TORQUE_UNITS = ("N m", "N", "kg")
+
+
+def follow_ke(model: Model, km_before: float) -> None:
+    """A km written as ke (no datasheet, :data:`KM_FROM_KE`) follows a refitted ke: km = ke
+    again, and every parameter of the torque equation (its unit in :data:`TORQUE_UNITS`;
+    values, standard errors and intervals) scaled by the same ratio ke / ``km_before``, so that
+    the model simulates exactly as it was fitted (only ratios to km are seen in the current and
+    speed). Why: a refit that moves ke (diagnose adding a brush drop: ke 0.0539 -> 0.0500) left
+    km at the old ke, and J, bv, bc 8 % off at a thousand standard errors."""
+    km = model.parameters.get("km")
+    if km is None or km.stage != KM_FROM_KE or not model.has("ke") or km_before <= 0:
+        return
+    ke = model.parameters["ke"]
+    scale = ke.value / km_before
+    if scale == 1.0:
+        return
+    for name, par in model.parameters.items():
+        if name != "km" and par.unit.split(" ")[0] in TORQUE_UNITS:
+            par.value *= scale
+            par.stderr *= scale
+            if par.interval is not None:
+                par.interval = (par.interval[0] * scale, par.interval[1] * scale)
+    model.set("km", ke.value, ke.stderr, km.unit, stage=KM_FROM_KE)
+
+
 def first_diff_noise_std(x: np.ndarray) -> float:
     """Robust white-noise std of a signal from its first differences (MAD), same unit as x."""
     d = np.diff(np.asarray(x, float))

@@ -1,0 +1,69 @@
+"""diagnose on a lumped model without an electrical lag: a delay that is the armature's L/R
+is written as the lag (diagnose/lag.py).
+
+Found by issue 24's new-user checks: voltage + speed logs of a motor with L/R 2 ms and no
+latency, fit-mechanical's steps not resolving the lag; diagnose added a sensor_delay of 1.91 ms
+and blamed a host-paced loop's latency. Round trip on per-volt logs (1 kHz, steps up, down and
+through zero in the fitted and the held-out part of each, speed noise from default_rng(seed))
+from the true model without its lag: diagnose writes tau_e within 5 % and no sensor_delay, and
+its own figure is the written model's; logs with a latency and no lag keep the delay.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from ident_util import LUMPED, as_log
+
+from pmdcid.diagnose.entry import diagnose_logs
+from pmdcid.fit.problem import Problem
+from pmdcid.model import Model
+from pmdcid.model.lumped import mark_lumped
+from pmdcid.simulate import lumped_view, neutral_values, param_values, simulate_values
+
+LAG = 3e-3
+#: the per-volt motor: LUMPED with no dead zone (the lag's dead zone acts on the torque)
+MOTOR = {**LUMPED, "dz": 0.0}
+
+
+def _logs(tau_e: float, delay: float, seed: int):
+    rng = np.random.default_rng(seed)
+    vals = {**neutral_values(), **MOTOR, "R": 1.0, "L": 1.0, "km": 1.0, "tau_e": tau_e,
+            "ke_share": 0.9, "delay": delay}
+    t = np.arange(3000) * 1e-3
+    out = []
+    for k, levels in enumerate(((0.0, 2.0, 1.0, -1.0, 2.5), (0.0, -1.5, 2.5, 1.0, -2.0))):
+        u = np.select([t < 0.3, t < 1.0, t < 1.9, t < 2.5], levels[:4], levels[4])
+        om = simulate_values(t, u, vals, torque_driven=True, nsub=64).omega
+        out.append(as_log(f"s{k}.csv", t, {"v": u, "omega": om + rng.normal(0.0, 0.02, t.size)}))
+    return out
+
+
+def _model() -> Model:
+    m = Model()
+    for k, v in MOTOR.items():
+        m.set(k, v, stage="truth")
+    mark_lumped(m)
+    return m
+
+
+def test_a_delay_that_is_the_lag_is_written_as_the_lag():
+    logs = _logs(LAG, 0.0, seed=5)
+    res = diagnose_logs(logs, _model(), effects=["sensor_delay"])
+    new = res.model
+    assert "sensor_delay" not in new.effects and "sensor_delay" not in res.summary["added"]
+    assert new.value("tau_e") == pytest.approx(LAG, rel=0.05)
+    assert any("replaced by the armature's electrical lag" in n for n in res.summary["notes"])
+    # the model written is the model judged: its errors are diagnose's "after"
+    problem = Problem([lumped_view(lg) for lg in logs])
+    sims = problem.simulate_all(param_values(new))
+    rms = [np.sqrt(np.mean((s.omega - lg["omega"]) ** 2)) / np.std(lg["omega"])
+           for s, lg in zip(sims, logs, strict=True)]
+    after = [row["after"]["omega"] for row in res.summary["logs"]]
+    assert rms == pytest.approx(after, rel=1e-6)
+
+
+def test_a_latency_keeps_the_delay():
+    res = diagnose_logs(_logs(0.0, LAG, seed=6), _model(), effects=["sensor_delay"])
+    assert "sensor_delay" in res.model.effects and not res.model.has("tau_e")
+    assert any("kept: the armature's electrical lag" in n for n in res.summary["notes"])
