@@ -202,7 +202,7 @@ def emps_models(train) -> dict:
     """The models scored: the authors' parameters, and fit-nonlinear, diagnose (after
     fit-nonlinear: docs/examples/emps.md's commands) and identify, each on ``train`` only."""
     from pmdcid.diagnose import diagnose
-    from pmdcid.identify.nonlinear import fit_nonlinear
+    from pmdcid.identify.runners import stage_nonlinear
     from pmdcid.model import Model
     from pmdcid.pipeline import identify
 
@@ -211,7 +211,7 @@ def emps_models(train) -> dict:
         authors.set(k, v)
     authors.add_effect("torque_offset")
     fitted = Model()
-    fit_nonlinear([train], fitted).apply(fitted)
+    stage_nonlinear([train], fitted).apply(fitted)  # as the command runs it
     return {"authors' parameters": authors, "fit-nonlinear": fitted,
             "fit-nonlinear + diagnose": diagnose([train], fitted).model,
             "identify": identify([train], Model()).model}

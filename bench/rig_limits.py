@@ -108,8 +108,8 @@ def micromouse() -> None:
 
 def emps() -> None:
     from pmdcid.diagnose import diagnose
-    from pmdcid.identify.nonlinear import fit_nonlinear
     from pmdcid.identify.openloop import velocity_error
+    from pmdcid.identify.runners import stage_nonlinear
     from pmdcid.io import parse_mapping, read_log
     from pmdcid.model import Model
 
@@ -124,7 +124,7 @@ def emps() -> None:
 
     for name, lg in files.items():
         model = Model()
-        fit_nonlinear([lg], model).apply(model)
+        stage_nonlinear([lg], model).apply(model)  # fit-nonlinear as the command runs it
         vals = {k: f"{model.value(k):.4g}" for k in ("J", "bv", "bc", "tau0")}
         print(f"EMPS symmetric model fitted on the {name} file: {vals}; {errs(model)}")
         if name == "estimation":

@@ -20,8 +20,9 @@ from scipy.optimize import least_squares, minimize
 
 from pmdcid.fit.parameters import Parameters
 from pmdcid.fit.simfit import fit_simulation
-from pmdcid.identify.nonlinear import DIFF_STEP, fit_nonlinear
+from pmdcid.identify.nonlinear import DIFF_STEP
 from pmdcid.identify.openloop import measured_speed, velocity_error
+from pmdcid.identify.runners import stage_nonlinear
 from pmdcid.io import parse_mapping, read_log
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_log, simulate_values
@@ -148,7 +149,7 @@ def emps():
     cmap = parse_mapping(["tau=force_N", "theta=qm_meas_m", "t=t_s"])
     train = read_log("../shared/data/emps/emps_train_DATA_EMPS.csv", cmap)
     test = read_log("../shared/data/emps/emps_test_DATA_EMPS_PULSES.csv", cmap)
-    base = fit_nonlinear([train], Model())
+    base = stage_nonlinear([train], Model())  # fit-nonlinear as the command runs it
     start = base.values()
     work = model_of(start)
     row("authors (IDIM-LS)", AUTHORS, train, test)
