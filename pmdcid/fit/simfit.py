@@ -275,10 +275,14 @@ def _errors(Jm, fun, fit: _Fit, redchi: float, hjac, hse):
 def _with_noise_model(run, sol, segments, whiten: list, order: int, slowest):
     """With an AR noise model (``order`` > 0): each block's whitening filter estimated from the
     residual at ``sol`` (into ``whiten``; ``slowest(sol)``: each block's largest pole modulus of
-    a sensor's noise), the fit run again from there, twice; else ``sol``."""
+    a sensor's noise), the fit run again from there, twice; else ``sol``. Where every block is
+    left white the criterion is unchanged and so is ``sol``: no run again."""
     for _ in range(2 if order > 0 else 0):
+        before = list(whiten)
         whiten[:] = [ar_whitener(sol.fun[a:b], order, w, z) for (_, a, b), w, z
                      in zip(segments, whiten, slowest(sol), strict=True)]
+        if all(w is None for w in whiten) and all(w is None for w in before):
+            break
         sol = run(sol.z)
     return sol
 
