@@ -336,8 +336,10 @@ def _diverged(model: Model, before: Model, logs) -> str | None:
 
 
 def _require_mechanics(res: IdentifyResult, moving) -> None:
-    """Moving logs and still no J: raise, naming what each stage said (no half model)."""
-    if _has_mech(res.model):
+    """Moving logs and still no J a stage fitted (none, or only the linear start's, a start
+    value without an uncertainty that no fit confirmed): raise, naming what each stage said (no
+    half model, no guessed one)."""
+    if _staged_mech(res):
         return
     said = "; ".join(res.notes) or "no stage gave J"
     raise FitError("identify could not fit the mechanics (J, bv) from the moving logs: " + said,

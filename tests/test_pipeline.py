@@ -326,3 +326,18 @@ def test_a_quantised_measured_voltage_step_is_held_not_rich():
     v = np.round((step(t, 12.0, 0.5) + rng.normal(0, 0.3 * q, len(t))) / q) * q
     steps = held_steps(t, v)
     assert len(steps) == 1 and steps[0].t0 == pytest.approx(0.5, abs=2e-3)
+
+
+def test_a_log_at_one_steady_speed_writes_no_guessed_mechanics(tmp_path):
+    """One constant input, the rotor at one steady speed: the joint fit has nothing to fit and
+    the linear start's J, bv (no uncertainty, bv off by a factor 2 on this log) were written as
+    the model, exit 0. Now identify says it could not fit the mechanics (exit 1, one line) and
+    leaves no model behind."""
+    rng = np.random.default_rng(8)
+    t = np.arange(3000) / 1000.0
+    f = tmp_path / "steady.csv"
+    write_log(f, t, {"v": np.full(3000, 6.0), "omega": 60.0 + rng.normal(0.0, 0.3, 3000)})
+    out = CliRunner().invoke(main, ["identify", str(f), "-m", str(tmp_path / "m.json")])
+    assert out.exit_code == 1, out.output
+    assert "could not fit the mechanics" in out.output and "Traceback" not in out.output
+    assert not (tmp_path / "m.json").exists()
