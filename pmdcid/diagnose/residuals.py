@@ -78,7 +78,7 @@ def whiteness(problem: Problem, sims: list[SimResult]) -> list[Whiteness]:
             # a derived speed's noise is filtered, correlated over about 1/(2 fc): test the
             # residual at that spacing, where filtered white noise is nearly white again
             log = problem.logs[ch.log]
-            step = (ch.idx[1] - ch.idx[0]) * log.dt if len(ch.idx) > 1 else log.dt
+            step = ch.rows.step * log.dt if len(ch.meas) > 1 else log.dt
             r = r[:: max(1, int(math.ceil(1.0 / (2.0 * ch.derived_cutoff * step))))]
         r = r[np.isfinite(r)]
         if len(r) < 30:

@@ -135,9 +135,9 @@ def residual_shapes(problem, sims, floor: float | None = None,
         log = problem.logs[ch.log]
         r = ch.meas - problem.simulated(sims, ch)
         w = ch.meas
-        dt = log.dt * (ch.idx[1] - ch.idx[0] if len(ch.idx) > 1 else 1)
+        dt = log.dt * (ch.rows.step if len(ch.meas) > 1 else 1)
         unit = "τ" if log.drive == "tau" else "v"
-        for item in (_speed_shape(r, w), _input_shape(r, np.asarray(log.u)[ch.idx], unit),
+        for item in (_speed_shape(r, w), _input_shape(r, np.asarray(log.u)[ch.rows], unit),
                      _time_shape(r, dt, log.duration), _angle_shape(r, w, dt)):
             if item is None:
                 continue

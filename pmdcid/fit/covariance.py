@@ -114,26 +114,39 @@ def integrated_time(r: np.ndarray) -> float:
     return float(max(tau[W], 1.0))
 
 
-def block_covariance(jac: np.ndarray, resid: np.ndarray, segments, white_cov: np.ndarray):
+def finite_residual(resid: np.ndarray) -> np.ndarray:
+    """``resid`` with its non-finite values 0 (a copy only when it has any)."""
+    r = np.asarray(resid, float)
+    return r if np.isfinite(r).all() else np.where(np.isfinite(r), r, 0.0)
+
+
+def correlation_time(resid: np.ndarray, segments) -> float:
+    """Integrated autocorrelation time [samples] of a residual: the longest of its signal blocks'
+    (``segments`` as :func:`block_covariance` takes them; non-finite values count as 0)."""
+    r = finite_residual(resid)
+    return max((integrated_time(r[a:b]) for _, a, b in segments), default=1.0)
+
+
+def block_covariance(jac: np.ndarray, resid: np.ndarray, segments, white_cov: np.ndarray,
+                     tau: float | None = None):
     """HAC covariance of the parameters by block sums (module docstring).
 
     ``jac``: (n, p) Jacobian of the residual vector with respect to the parameters, ``resid``:
     (n,) residual at the solution, ``segments``: one (log index, start, stop) per signal block
     of the residual vector, in the order of the vector (the rows ``start:stop`` are that
     signal's samples of that log, in time order). ``white_cov``: the textbook covariance, for
-    the reported inflation. Returns ``(cov, CovarianceInfo)``; ``cov`` is ``white_cov`` when
-    the blocks are too few to estimate anything.
+    the reported inflation. ``tau``: the residual's :func:`correlation_time` when the caller
+    has it (a long fit takes it before its Jacobian exists: the FFT's buffers and an m x n
+    matrix never live together). Returns ``(cov, CovarianceInfo)``; ``cov`` is ``white_cov``
+    when the blocks are too few to estimate anything.
     """
     jac = np.asarray(jac, float)
-    r = np.where(np.isfinite(resid), resid, 0.0)
+    r = finite_residual(resid)
     logs: dict[int, list[tuple[int, int]]] = {}
     for k, a, b in segments:
         logs.setdefault(k, []).append((a, b))
-    taus, lengths = [], []
-    for parts in logs.values():
-        lengths.append(min(b - a for a, b in parts))
-        taus.extend(integrated_time(r[a:b]) for a, b in parts)
-    tau = max(taus) if taus else 1.0
+    lengths = [min(b - a for a, b in parts) for parts in logs.values()]
+    tau = correlation_time(r, segments) if tau is None else tau
     want = max(1, math.ceil(BLOCK_TAUS * tau))
     cap = max(1, min(lengths) // MIN_BLOCKS) if lengths else 1
     block = min(want, cap)
@@ -180,12 +193,13 @@ def correlated_covariance(jac: np.ndarray, resid: np.ndarray, segments):
     return block_covariance(jac, resid, segments, white_covariance(jac, resid))
 
 
-def parameter_covariance(jac, fun, nd, segments, redchi, correlated, weight=1.0):
+def parameter_covariance(jac, fun, nd, segments, redchi, correlated, weight=1.0, tau=None):
     """Parameter covariance of a simulation-error fit: the data rows' (the first ``nd`` rows of
     ``jac`` and ``fun``; white or correlated-residual sandwich), combined with the prior rows'
     information: ``(Hd + P)^-1 (Sd + w^2 P) (Hd + P)^-1`` where ``Sd`` is the data score's
     covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision and ``w`` their
-    weight (the prior means' own variance, scaled like their rows). Returns ``(cov, info)``.
+    weight (the prior means' own variance, scaled like their rows); ``tau``: the data rows'
+    :func:`correlation_time` when known. Returns ``(cov, info)``.
 
     Computed with the Jacobian's columns scaled to unit norm (``jac`` is scaled in place) and
     scaled back (the same covariance): parameters of very different sizes (LuGre's sigma0 ~
@@ -194,7 +208,7 @@ def parameter_covariance(jac, fun, nd, segments, redchi, correlated, weight=1.0)
     norms = column_norms(jac)
     d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
     jac *= d  # in place: the caller's matrix, not used after (no m x n copy on long logs)
-    cov, info = _scaled_covariance(jac, fun, nd, segments, redchi, correlated, weight)
+    cov, info = _scaled_covariance(jac, fun, nd, segments, redchi, correlated, weight, tau)
     return cov * np.outer(d, d), info
 
 
@@ -209,13 +223,13 @@ def column_norms(J: np.ndarray) -> np.ndarray:
     return np.sqrt(ss)
 
 
-def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight):
+def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight, tau):
     Jd = Jm[:nd]
     Hd = Jd.T @ Jd
     cov = np.linalg.pinv(Hd) * redchi
     info = None
     if correlated:
-        cov, info = block_covariance(Jd, fun[:nd], segments, cov)
+        cov, info = block_covariance(Jd, fun[:nd], segments, cov, tau)
     if nd == len(fun):
         return cov, info
     Jp = Jm[nd:]
@@ -256,10 +270,8 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel, parallel: bool = True) -> np.ndar
             zu[j], zd[j] = up, dn
             fu = fun(zu) if up > z[j] else f0
             fd = fun(zd) if dn < z[j] else f0
-            d = fu - fd  # then divided in place: one temporary of the residual's length
-            d /= up - dn
-            J[:, j] = d
-            del d
+            np.subtract(fu, fd, out=J[:, j])  # straight into the column: no temporary
+            J[:, j] /= up - dn
             if np.any(J[:, j] != 0):
                 break
 
@@ -268,5 +280,5 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel, parallel: bool = True) -> np.ndar
 
 
 __all__ = ["CovarianceInfo", "block_covariance", "column_norms", "correlated_covariance",
-           "envelope_jacobian", "integrated_time", "parameter_covariance", "propagated",
-           "white_covariance"]
+           "correlation_time", "envelope_jacobian", "finite_residual", "integrated_time",
+           "parameter_covariance", "propagated", "white_covariance"]

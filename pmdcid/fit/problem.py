@@ -81,14 +81,15 @@ def available_signals(log, signals: Sequence[str]) -> list[str]:
 
 @dataclass
 class Channel:
-    """One measured signal of one log at the compared samples ``idx``."""
+    """One measured signal of one log at the compared samples ``rows``, every ``rows.step``-th
+    sample of the log (a slice: no index array of the log's length is kept)."""
 
     log: int
     signal: str
-    idx: np.ndarray
+    rows: slice
     meas: np.ndarray
     sigma: float
-    fit: np.ndarray  # bool over idx: fit part (True) or held-out (False)
+    fit: np.ndarray  # bool over the compared samples: fit part (True) or held-out (False)
     #: the speed was derived from the angle (filter + derivative, cut-off [Hz]): the simulated
     #: speed is derived the same way before the comparison
     derived_cutoff: float | None = None
@@ -99,10 +100,20 @@ class Channel:
         every residual evaluation of a fit selects them (issue #16: Python time per call)."""
         got = self._parts.get(part)
         if got is None:
-            keep = (slice(None) if part == "all" else self.fit if part == "fit"
-                    else ~self.fit)
-            got = self._parts[part] = (as_slice(self.idx[keep]), self.meas[keep])
+            if part == "all":
+                got = (self.rows, self.meas)
+            else:
+                keep = self.fit if part == "fit" else ~self.fit
+                idx = np.arange(self.rows.start, self.rows.stop, self.rows.step)[keep]
+                got = (as_slice(idx), self.meas[keep])
+            self._parts[part] = got
         return got
+
+
+def compact(x: np.ndarray, rows: slice) -> np.ndarray:
+    """``x`` at ``rows``: a view when the slice is contiguous (every sample compared), else a
+    compact copy (a strided view would keep the whole array alive)."""
+    return np.ascontiguousarray(x[rows])
 
 
 def as_slice(idx: np.ndarray):
@@ -182,12 +193,12 @@ class Problem:
         self.channels: list[Channel] = []
         for k, log in enumerate(self.logs):
             stride = 1 if max_samples is None else max(1, int(math.ceil(log.n / max_samples)))
-            idx = np.arange(0, log.n, stride)
-            fit = self.fit_mask(k)[idx]
+            rows = slice(0, log.n, stride)
+            fit = compact(self.fit_mask(k), rows)
             if signals is None:
-                self.channels += _judged_channels(k, log, idx, fit)
+                self.channels += _judged_channels(k, log, rows, fit)
             else:
-                self.channels += [_channel(k, log, s, idx, fit, given[k])
+                self.channels += [_channel(k, log, s, rows, fit, given[k])
                                   for s in available_signals(log, signals)]
         self._check(signals)
         self.blocked = [log.blocked for log in self.logs]
@@ -233,13 +244,15 @@ class Problem:
         last compared sample: the kernel, its input and its sensors are causal. All of them
         when a channel derives the speed by a zero-phase filter (it looks ahead)."""
         n = self.logs[k].n
+        if part == "all":
+            return n
         chans = [ch for ch in self.channels if ch.log == k]
         last = -1
         for ch in chans:
             picked = np.arange(n)[ch.part(part)[0]]
             if len(picked):
                 last = max(last, int(picked[-1]))
-        if part == "all" or (last >= 0 and part == "held"):
+        if last >= 0 and part == "held":
             return n
         if last < 0:
             return 0
@@ -290,7 +303,7 @@ class Problem:
         same zero-phase filter and derivative (an unfiltered simulated speed would differ at
         every stick-slip edge)."""
         sim = sims[ch.log]
-        idx = ch.idx if idx is None else idx
+        idx = ch.rows if idx is None else idx
         if ch.derived_cutoff is not None:
             log = self.logs[ch.log]
             return speed_from_position(sim.theta, log.dt, ch.derived_cutoff)[idx]
@@ -350,7 +363,7 @@ class Problem:
 
     def count(self, part: str) -> int:
         return sum(int(ch.fit.sum()) if part == "fit" else int((~ch.fit).sum())
-                   if part == "held" else len(ch.idx) for ch in self.channels)
+                   if part == "held" else len(ch.meas) for ch in self.channels)
 
     def measures(self, signal: str) -> bool:
         """Some log measures ``signal`` by its own sensor (not derived from another signal)."""
@@ -443,14 +456,13 @@ class Problem:
         return dict(zip(free, (float(e) for e in se), strict=True)), info
 
 
-def _channel(k: int, log, s: str, idx, fit, given: dict[str, float]) -> Channel:
+def _channel(k: int, log, s: str, rows, fit, given: dict[str, float]) -> Channel:
     """Signal ``s`` of log ``k`` weighted by ``given[s]``, else by its noise level."""
     x = np.asarray(log.u if s == "u" else log[s], float)
-    meas = x if len(idx) == len(x) else x[idx]
-    return Channel(k, s, idx, meas, float(given.get(s, noise_level(x))), fit)
+    return Channel(k, s, rows, compact(x, rows), float(given.get(s, noise_level(x))), fit)
 
 
-def _judged_channels(k: int, log, idx, fit) -> list[Channel]:
+def _judged_channels(k: int, log, rows, fit) -> list[Channel]:
     """diagnose's channels of log ``k``: every signal measured by its own sensor."""
     have = log.compared_signals()
     measured = [s for s in have if s not in log.derived] or have
@@ -471,7 +483,7 @@ def _judged_channels(k: int, log, idx, fit) -> list[Channel]:
             # (encoder quantisation) through the filter and derivative does.
             sigma = max(sigma, derivative_noise_gain(log.dt, fc, 1)
                         * noise_std(np.asarray(log["theta"], float)))
-        out.append(Channel(k, s, idx, x[idx], sigma, fit, fc))
+        out.append(Channel(k, s, rows, compact(x, rows), sigma, fit, fc))
     return out
 
 

@@ -22,6 +22,7 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.fit.covariance import (
     block_covariance,
+    correlation_time,
     envelope_jacobian,
     parameter_covariance,
     propagated,
@@ -217,13 +218,19 @@ class _Fit:
         # covariance from the Jacobian at the solution, scaled by the reduced chi-square. The
         # solver's forward differences may not cross any switching event for a parameter like
         # dz (a zero column, hence a zero standard error): the covariance uses central
-        # differences over a wider step, the slope of the cost's smooth envelope.
+        # differences over a wider step, the slope of the cost's smooth envelope. The
+        # residual's correlation time first, beside no m-row matrix (the kernel's buffers freed,
+        # the Jacobian's simulations take fresh ones): on a long log its FFT's buffers are the
+        # fit's largest temporaries.
+        self.bufs.clear()
+        tau = (correlation_time(sol.fun[:self.nd], self.problem.segments("all"))
+               if self.options.correlated else None)
         with blas_single_thread():
             Jm = self.jacobian(sol)
             Jm /= self.scale[None, :]
             hjac, hse = self.held_columns(sol.z, held)
         self.bufs.clear()  # no simulation until the last: freed for the covariance
-        se, corr, info = _errors(Jm, sol.fun, self, stats.redchi, hjac, hse)
+        se, corr, info = _errors(Jm, sol.fun, self, stats.redchi, hjac, hse, tau)
         est = {n: Estimate(n, float(v), float(e), unit_of(n))
                for n, v, e in zip(free, x[:npar], se[:npar], strict=True)}
         correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
@@ -256,13 +263,14 @@ class _Fit:
         return cols, np.array([held[n][1] for n in names])
 
 
-def _errors(Jm, fun, fit: _Fit, redchi: float, hjac, hse):
-    """(standard errors, correlation matrix, CovarianceInfo or None) of the fit's vector."""
+def _errors(Jm, fun, fit: _Fit, redchi: float, hjac, hse, tau):
+    """(standard errors, correlation matrix, CovarianceInfo or None) of the fit's vector;
+    ``tau``: the residual's correlation time (None: not needed or not known)."""
     n = Jm.shape[1]
     try:
         extra = propagated(Jm, hjac, hse)  # before the covariance, which rescales Jm's columns
         cov, info = parameter_covariance(Jm, fun, fit.nd, fit.problem.segments("all"), redchi,
-                                         fit.options.correlated, fit.weight)
+                                         fit.options.correlated, fit.weight, tau)
         cov = cov + extra
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
         with np.errstate(invalid="ignore", divide="ignore"):

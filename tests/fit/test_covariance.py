@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import lfilter
 
-from pmdcid.fit.covariance import block_covariance, integrated_time
+from pmdcid.fit.covariance import block_covariance, correlation_time, integrated_time
 
 
 @pytest.mark.parametrize(("rho", "theory"), [(0.0, 1.0), (0.9, 19.0), (0.98, 99.0)])
@@ -77,6 +77,24 @@ def test_correlation_longer_than_a_tenth_of_the_log_is_flagged():
     r = np.sin(np.arange(n) / 40.0)
     _, info = block_covariance(jac, r, [(0, 0, n)], np.eye(2))
     assert info.lower_bound and info.block == n // 10 and info.blocks == 10
+
+
+def test_a_correlation_time_taken_first_gives_the_same_covariance(rng):
+    """A long fit takes its residual's correlation time before its Jacobian exists and passes it
+    in: the same covariance and info, bit for bit, as block_covariance's own. The time is the
+    longest of the signal blocks', a non-finite value counting as 0."""
+    n = 6000
+    jac = np.column_stack([np.ones(2 * n), np.linspace(0, 1, 2 * n)])
+    r = lfilter([1.0], [1.0, -0.95], rng.normal(size=2 * n))
+    r[n + 17] = np.nan
+    segs = [(0, 0, n), (1, n, 2 * n)]
+    white = np.linalg.inv(jac.T @ jac)
+    tau = correlation_time(r, segs)
+    own, own_info = block_covariance(jac, r, segs, white)
+    given, given_info = block_covariance(jac, r, segs, white, tau)
+    assert own.tobytes() == given.tobytes() and own_info == given_info
+    zeroed = np.where(np.isfinite(r), r, 0.0)
+    assert tau == max(integrated_time(zeroed[a:b]) for _, a, b in segs) == own_info.tau_int
 
 
 def test_too_few_blocks_fall_back_to_white():

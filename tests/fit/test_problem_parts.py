@@ -23,6 +23,21 @@ def test_as_slice_selects_the_same_samples(rng):
     assert isinstance(as_slice(np.arange(0, 1000, 6)), slice)
 
 
+def test_channels_keep_no_index_or_copy_of_the_log_length():
+    """Every sample compared (a simulation-error fit): the channel's samples are a slice and its
+    measured values the log's own column, no array of the log's length is added (the 2 M-row
+    fit's peak memory); strided (diagnose): a compact copy, not a view holding the column."""
+    log = read_log(HIDDEN / "triangle.csv")
+    (every,) = Problem([log], max_samples=None, plan=["fit"], signals=("omega",)).channels
+    assert every.rows == slice(0, log.n, 1)
+    assert np.shares_memory(every.meas, np.asarray(log["omega"], float))
+    (strided,) = Problem([log], max_samples=1000, plan=["fit"], signals=("omega",)).channels
+    stride = -(-log.n // 1000)
+    assert stride > 1 and strided.rows == slice(0, log.n, stride)
+    assert strided.meas.flags.c_contiguous and strided.meas.base is None
+    np.testing.assert_array_equal(strided.meas, np.asarray(log["omega"], float)[::stride])
+
+
 @pytest.mark.parametrize("plan", [None, ["fit", "held", "split", "split", "held", "fit"]])
 def test_weighted_parts_match_residual_then_mask(plan):
     logs = [read_log(p) for p in sorted(HIDDEN.glob("step_*.csv"))]
