@@ -482,10 +482,12 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     fit = fit_simulation(logs, work, _parameters(ls_free, best, bounds, DIFF_STEP,
                                                  prior_terms(prior), held),
                          signals, sigma=sigma, options=opts)
+    filters = fit.noise_filters  # what the noise model did, said by the route line
     fit = _polish(logs, work, ls_free, signals, fit, sigma, max_nfev, bounds,
                   prior_terms(prior), held)
     fit = _scan_inertia(logs, work, ls_free, signals, fit, sigma, max_nfev, bounds,
                         prior_terms(prior), held, base_vals)
+    fit.noise_filters = fit.noise_filters or filters
     if "dz" in free and len(free) > 1:
         # check dz at the fitted point: the grid's hint comes from its coarse bc, and a local
         # stage may stop where dz = 0 (a bound) or in a side valley. If some dz on the profile
