@@ -65,6 +65,7 @@ def test_weighted_parts_match_residual_then_mask(plan):
 @pytest.mark.parametrize("plan", [None, ["fit", "held", "split", "split", "held", "fit", "split"]])
 @pytest.mark.parametrize("extra", [{}, {"delay": 4e-3, "latency": 3e-3, "omega0": 0.05},
                                    {"ramp": 0.5, "latency": 3e-3}])
+@pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 def test_each_part_simulated_only_as_far_as_it_needs(plan, extra, tmp_path):
     """The fit part's simulations stop at its last compared sample (a log held out whole is
     not simulated): the kernel, a late input or one read between samples (``ramp``) and a

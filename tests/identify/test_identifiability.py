@@ -27,6 +27,7 @@ def _slow_log(dt, noise, seed, seconds=200.0):
     return as_log("slow.csv", t, {"tau": u, "omega": om}), vals
 
 
+@pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 @pytest.mark.parametrize("seed", [1, 2])
 def test_inertia_lost_to_slow_sampling_is_flagged(seed):
     """Sampled every 1 s, ten mechanical time constants: each transient is over within a
@@ -82,6 +83,7 @@ def test_fit_nonlinear_starts_quasi_static_when_inverse_dynamics_fails(monkeypat
         assert res.estimates[k].value == pytest.approx(vals[k], rel=0.03), k
 
 
+@pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 def test_slowly_logged_ramp_input_is_read_between_samples():
     """The triangle generated continuously and logged at 10 Hz (J/bv = 0.1 s): read as held,
     the input acts half a sample late and J absorbed the lag (-63 %, a 4 % standard error).
@@ -102,6 +104,7 @@ def test_slowly_logged_ramp_input_is_read_between_samples():
     assert not any("changes at almost every sample" in w for w in res1.warnings)
 
 
+@pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 @pytest.mark.parametrize("step", [100, 30])
 def test_slowly_logged_held_input_keeps_an_honest_inertia(step):
     """A drive that really holds each 10 Hz (33 Hz) sample, simulated from the slow samples:

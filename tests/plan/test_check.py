@@ -44,6 +44,7 @@ def truth(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 def test_plan_for_a_model_recorded_and_identified_within_its_predicted_stderr(tmp_path, truth):
     _run("plan", "-m", truth, "--vmax", 12, "--budget", 60, "-o", tmp_path / "plan")
     plan = json.loads((tmp_path / "plan" / "plan.json").read_text())

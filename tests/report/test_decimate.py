@@ -130,6 +130,7 @@ def _pixels(png: bytes) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(png)))
 
 
+@pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 def test_reused_figures_draw_the_same_pixels_as_new_ones(tmp_path, rng):
     cmps = [_log(tmp_path, rng, "long.csv", 60_000, 2.0),
             _log(tmp_path, rng, "blocked.csv", 1500, 1.0, blocked=True),
