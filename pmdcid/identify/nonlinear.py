@@ -294,7 +294,7 @@ def _parameters(free, start, bounds, steps, priors, held: dict[str, float]) -> P
 POLISH_STEPS = (3e-2, 1e-1)
 
 
-def _polish(logs, work, free, signals, fit, sigma, max_nfev, bounds, priors, held):
+def _polish(logs, work, free, signals, fit, sigma, opts, bounds, priors, held):
     """A lumped model with an electrical lag (tau_e, ke_share free; else ``fit`` as it is):
     local fits again from the
     solution with wider finite-difference steps (:data:`POLISH_STEPS`), the lowest chi-square
@@ -308,8 +308,7 @@ def _polish(logs, work, free, signals, fit, sigma, max_nfev, bounds, priors, hel
             params = _parameters(free, best.values(), bounds,
                                  {k: max(step, DIFF_STEP.get(k, 0.0)) for k in free}, priors,
                                  held)
-            f = fit_simulation(logs, work, params, signals, sigma=sigma,
-                               options=FitOptions(max_nfev))
+            f = fit_simulation(logs, work, params, signals, sigma=sigma, options=opts)
         except FitError:
             continue
         if f.stats.chisqr < best.stats.chisqr:
@@ -323,7 +322,7 @@ SCAN_SE = (-4.0, -3.0, -2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 SCAN_DROP = 2.0
 
 
-def _scan_inertia(logs, work, free, signals, fit, sigma, max_nfev, bounds, priors, held,
+def _scan_inertia(logs, work, free, signals, fit, sigma, opts, bounds, priors, held,
                   base_vals):
     """The local stage again from a clearly lower point of the cost along J alone (others
     held, :data:`SCAN_SE` standard errors), else ``fit`` as it is. The stick-slip cost has
@@ -343,8 +342,7 @@ def _scan_inertia(logs, work, free, signals, fit, sigma, max_nfev, bounds, prior
     try:
         params = _parameters(free, sets[1 + int(np.argmin(c[1:]))], bounds, DIFF_STEP, priors,
                              held)
-        f = fit_simulation(logs, work, params, signals, sigma=sigma,
-                           options=FitOptions(max_nfev))
+        f = fit_simulation(logs, work, params, signals, sigma=sigma, options=opts)
     except FitError:
         return fit
     return f if f.stats.chisqr < fit.stats.chisqr else fit
@@ -483,9 +481,10 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
                                                  prior_terms(prior), held),
                          signals, sigma=sigma, options=opts)
     filters = fit.noise_filters  # what the noise model did, said by the route line
-    fit = _polish(logs, work, ls_free, signals, fit, sigma, max_nfev, bounds,
+    # the same criterion as the fit they may replace (its noise model included)
+    fit = _polish(logs, work, ls_free, signals, fit, sigma, opts, bounds,
                   prior_terms(prior), held)
-    fit = _scan_inertia(logs, work, ls_free, signals, fit, sigma, max_nfev, bounds,
+    fit = _scan_inertia(logs, work, ls_free, signals, fit, sigma, opts, bounds,
                         prior_terms(prior), held, base_vals)
     fit.noise_filters = fit.noise_filters or filters
     if "dz" in free and len(free) > 1:

@@ -9,6 +9,7 @@ from click.testing import CliRunner
 from ident_util import as_log, blocked_logs, perturbed_truth, step_logs, triangle_log
 
 from pmdcid.fit.results import nrmse
+from pmdcid.fit.simfit import FitOptions
 from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.mechanical import fit_mechanical
@@ -205,7 +206,7 @@ def test_a_local_stage_stopped_off_the_inertias_minimum_is_restarted(rng, paper_
     (chi_off,) = _cost([log], base, [off], res.signals, res.fit.sigma)
     stopped = SimFitResult({k: Estimate(k, off[k], res.fit.estimates[k].stderr) for k in free},
                            FitStats(res.stats.ndata, len(free), float(chi_off)))
-    back = _scan_inertia([log], m, free, res.signals, stopped, res.fit.sigma, 100, {}, {}, {},
-                         base)
+    back = _scan_inertia([log], m, free, res.signals, stopped, res.fit.sigma, FitOptions(100),
+                         {}, {}, {}, base)
     assert back.stats.chisqr < chi_off - 4.0
     assert abs(back.estimates["J"].value - J.value) < J.stderr
