@@ -32,7 +32,7 @@ test-fast: $(STAMP) $(AOT)
 	$(PY) -m pytest -n 2 -m "not slow"
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check pmdcid tests bench
+	$(VENV)/bin/ruff check pmdcid tests bench docs/examples
 
 bench: $(STAMP) $(AOT)
 	$(PY) bench/run.py

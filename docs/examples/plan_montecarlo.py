@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from pmdcid.plan import fisher as fi
-from pmdcid.plan.paper_protocol import paper_profiles, protocol_seconds, protocol_stderr
 from pmdcid.plan.design import Settings, plan_for_model
 from pmdcid.plan.montecarlo import monte_carlo
+from pmdcid.plan.paper_protocol import paper_profiles, protocol_seconds, protocol_stderr
 from pmdcid.synth import PAPER, truth_model
 
 MECH = ("J", "bv", "bc", "dz")
