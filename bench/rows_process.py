@@ -108,6 +108,12 @@ def scaling_rows(quick: bool, tmp: Path) -> list[Row]:
     return rows
 
 
+#: runs of the 2 M-row fit: its peak memory varies by about +-40 MB from run to run (the
+#: allocator's arenas; session 10 measured 442-482 MB over 8 runs), so one run can pass or fail
+#: the 500 MB target by chance
+LARGE_ROUNDS = 3
+
+
 def _large_rows(pm: list[str], start: Path, tmp: Path) -> list[Row]:
     """fit-nonlinear on a 2,000,000-row triangle log, whole process: time and peak memory."""
     import numpy as np
@@ -124,11 +130,12 @@ def _large_rows(pm: list[str], start: Path, tmp: Path) -> list[Row]:
     fitm = tmp / "fit2M.json"
     try:
         got = _turns({"fit": (pm + ["fit-nonlinear", str(path), "-m", str(fitm)], fitm)},
-                     start, 1)
+                     start, LARGE_ROUNDS)
     except Exception as exc:  # noqa: BLE001
         return [na("fit-nonlinear on 2 million rows", f"failed: {exc}")]
     s, mem = got["fit"]
     return [Row("whole process: `pmdcid fit-nonlinear` on 2 million rows (2000 s)", s, "s",
-                "", "<= 10 s", s.median <= 10.0, "1 run"),
+                "", "<= 10 s", s.median <= 10.0, f"median of {LARGE_ROUNDS} runs"),
             Row("peak memory: fit-nonlinear on 2 million rows", mem, "MB", "",
-                "<= 500 MB", mem.median <= 500.0, "child's VmHWM")]
+                "<= 500 MB", mem.median <= 500.0,
+                f"child's VmHWM, median of {LARGE_ROUNDS} runs")]
