@@ -66,7 +66,8 @@ def _errors(model, logs) -> list[float]:
 
 
 def micromouse() -> None:
-    from pmdcid.fit.simfit import ar_whitener, noise_level
+    from pmdcid.fit.problem import noise_level
+    from pmdcid.fit.simfit import ar_whitener
     from pmdcid.identify.runners import per_volt, stage_nonlinear
     from pmdcid.model import Model
     from pmdcid.model.lumped import mark_lumped
