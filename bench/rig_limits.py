@@ -9,7 +9,8 @@ far a model of the tool's class can go on the rig's logs, and why:
   logs get and with the plain simulation error; the OE residual's size against the speed's
   white-noise level and its AR(2) whitener; then an *oracle*: the base model with Stribeck
   friction and a sensor delay fitted to all four runs at once (held-out runs included), the
-  best this model class does on these logs.
+  best this model class does on these logs; and any friction law of speed (the friction
+  curve's knots free of sign), fitted on the fit runs and, as an oracle, on all four.
 - **emps**: the symmetric model fitted on each file (fit-nonlinear, the benchmark's error on
   both); the force diagnose's model lacks on each file, by the validation file's pulse phase
   and direction (where the extra friction of the validation run sits); diagnose's model with
@@ -37,9 +38,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench import closedloop, realdata  # noqa: E402
 
 
-def _refit(model, names, logs):
+def _refit(model, names, logs, free_sign=()):
     """``model`` with ``names`` refitted by speed simulation error (each log's NRMSE squared,
-    summed) on ``logs``: a copy."""
+    summed) on ``logs``: a copy. Every parameter is kept >= 0 but those of ``free_sign``."""
     from pmdcid.report.compare import simulate_for
 
     work = model.copy()
@@ -56,8 +57,9 @@ def _refit(model, names, logs):
         return np.concatenate([(simulate_for(lg, m).omega - lg["omega"])
                                / (np.std(lg["omega"]) * np.sqrt(lg.n)) for lg in logs])
 
+    low = [-np.inf if n in free_sign else 0.0 for n in names]
     sol = least_squares(resid, x0, x_scale=np.maximum(np.abs(x0), 1e-3), diff_step=0.02,
-                        bounds=(0.0, np.inf), max_nfev=200)
+                        bounds=(low, np.inf), max_nfev=200)
     return put(sol.x)
 
 
@@ -105,6 +107,30 @@ def micromouse() -> None:
     oracle = _refit(start, ["J", "bv", "bc", "dz", "fs", "ws", "delay"], fit + held)
     print(f"micromouse oracle (Stribeck + sensor delay, fitted on all four runs): held out "
           f"{_errors(oracle, held)}, fit logs {_errors(oracle, fit)}")
+    _any_friction_law(models[0], fit, held)
+
+
+def _any_friction_law(model, fit, held) -> None:
+    """The bound of any friction law of speed: the friction curve's knot values free of sign
+    (the total friction may even turn negative, which no passive friction does) with J, bv,
+    bc, fitted on the fit runs, then on all four runs (the oracle)."""
+    from pmdcid.model.effects.friction import TOP_QUANTILE
+    from pmdcid.model.effects.friction_curve import CURVE_FRACTIONS, CURVE_VALUES
+
+    w = np.abs(np.concatenate([lg["omega"] for lg in fit]))
+    top = float(np.quantile(w[w > 0.02 * w.max()], TOP_QUANTILE))
+    start = model.copy()
+    start.add_effect("friction_curve")
+    for k, f in enumerate((*CURVE_FRACTIONS, 1.0)):
+        start.set(f"fcw{k + 1}", f * top)
+    for n in CURVE_VALUES:
+        start.set(n, 0.0)
+    names = ["J", "bv", "bc", *CURVE_VALUES]
+    for label, logs in (("the fit runs", fit), ("all four runs (oracle)", fit + held)):
+        m = _refit(start, names, logs, free_sign=("bv", *CURVE_VALUES))
+        law = {n: round(m.value(n), 3) for n in ("bc", "bv", *CURVE_VALUES)}
+        print(f"micromouse, any friction law of speed fitted on {label}: {law}; held out "
+              f"{_errors(m, held)}, fit logs {_errors(m, fit)}")
 
 
 def emps() -> None:
