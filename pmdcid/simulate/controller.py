@@ -6,8 +6,10 @@ commas (``type=PI,kp=0.05,ki=2,umax=7.4``). Keys (docs/cli.md, "Closed-loop logs
 - ``type``: ``P``, ``PI`` or ``PID`` (default ``PI``); ``kp``, ``ki``, ``kd``: gains, in the
   controller's output unit per unit of the measured signal (ki per second, kd times seconds);
 - ``umin``, ``umax``: output limits (default unbounded; ``ulimit`` sets both to ±value);
-- ``period`` [s]: the controller's period, a whole number of log samples (default: one step per
-  log sample, as a loop-timed log records one row per step);
+- ``period`` [s]: the controller's period (default: one step per log sample, as a loop-timed
+  log records one row per step); a period that is not a whole number of log samples (a 1 kHz
+  loop logged every 2-13 ms) runs on its own clock between the samples
+  (:mod:`pmdcid.simulate.closedloop`);
 - ``reference``: the log column holding the set-point (default ``omega_ref``); ``measured``:
   ``omega`` or ``theta``, the signal the controller acts on (default ``omega``);
 - ``derivative``: ``measurement`` (default: the D term differentiates −measured, no kick on a
