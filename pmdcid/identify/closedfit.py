@@ -27,6 +27,7 @@ from pmdcid.fit.simfit import FitOptions, fit_simulation
 from pmdcid.fit.solver import blas_single_thread
 from pmdcid.identify.nonlinear import (
     DIFF_STEP,
+    DZ_CAVEAT,
     REFINE_RANGE,
     NonlinearResult,
     fit_nonlinear,
@@ -108,7 +109,9 @@ def fit_closed_loop(logs, model: Model, spec: ControllerSpec, free=None, signals
 
 def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
            max_nfev) -> NonlinearResult:
-    masked = "dz" in first.estimates and first.estimates["dz"].interval is not None
+    # a dead zone masked by the friction stays so; one bounded by the logged input's levels
+    # is refitted: the simulated controller output moves between them
+    masked = "dz" in first.estimates and first.estimates["dz"].caveat == DZ_CAVEAT
     free = [n for n in first.estimates if n != "ramp" and not (n == "dz" and masked)]
     start = {n: first.estimates[n].value for n in free}
     work = model.copy()
