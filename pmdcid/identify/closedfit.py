@@ -30,6 +30,7 @@ from pmdcid.identify.nonlinear import (
     DZ_CAVEAT,
     REFINE_RANGE,
     NonlinearResult,
+    dz_between_levels,
     fit_nonlinear,
 )
 from pmdcid.identify.nonlinear_setup import reference_column
@@ -80,6 +81,34 @@ def logged_output_route(logs, spec=None, filters=()) -> Route:
     return Route("logged output", why)
 
 
+#: a closed loop's measured signal follows its set-point: over a whole log, a least-squares
+#: gain of the measured signal on the reference outside this range says they are in different
+#: units (a reference in rpm against a speed in rad/s: 0.105; degrees against radians: 0.017)
+TRACK_RANGE = (0.5, 2.0)
+
+
+def reference_scale_warning(log, spec: ControllerSpec) -> str | None:
+    """A warning when the measured signal does not follow the spec's reference in scale (the
+    gain g of ``measured ~ g reference`` by least squares over the log outside
+    :data:`TRACK_RANGE`); None when it does, or the reference never leaves 0."""
+    r = reference_of(log, spec)
+    y = np.asarray(log[spec.measured], float) if log.has(spec.measured) else None
+    if y is None:
+        return None
+    ok = np.isfinite(r) & np.isfinite(y)
+    den = float(np.sum(r[ok] ** 2))
+    if den <= 0.0:
+        return None
+    g = float(np.sum(r[ok] * y[ok])) / den
+    if TRACK_RANGE[0] <= g <= TRACK_RANGE[1]:
+        return None
+    return (f"{log.path}: the measured {spec.measured} follows the controller's reference "
+            f"'{spec.reference}' at {g:.3g} times its value; a loop tracks its set-point, so "
+            "the two are likely in different units: the controller reads the reference in the "
+            f"measured signal's SI unit (map it, e.g. -c {spec.measured}_ref="
+            f"{spec.reference}*rpm, and name {spec.measured}_ref as the spec's reference)")
+
+
 def loop_simulator(spec: ControllerSpec):
     """``f(log, vals, x0)`` for :func:`fit_simulation`: the closed loop on the log's reference,
     the integrator started at the log's first controller output."""
@@ -104,7 +133,9 @@ def fit_closed_loop(logs, model: Model, spec: ControllerSpec, free=None, signals
                           noise_model=noise_model_for(logs, spec))
     measured = tuple(signals) if signals else ()
     with blas_single_thread():
-        return _refit(logs, model, spec, first, measured, priors, max_nfev)
+        res = _refit(logs, model, spec, first, measured, priors, max_nfev)
+    res.warnings.extend(w for w in (reference_scale_warning(lg, spec) for lg in logs) if w)
+    return res
 
 
 def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
@@ -134,6 +165,9 @@ def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
     est = dict(fit.estimates)
     if masked:
         est["dz"] = first.estimates["dz"]
+    elif "dz" in est and spec.quantum > 0:  # the simulated output on the logged levels
+        vals = {**{n: p.value for n, p in work.parameters.items()}, **fit.values()}
+        est["dz"] = dz_between_levels(logs, vals, est["dz"])
     route = Route("controller", f"--controller given: the loop simulated from the logged "
                   f"reference '{spec.reference}' ({spec.describe()}); fitted on the logged "
                   f"controller output{''.join(', ' + s for s in measured)}")

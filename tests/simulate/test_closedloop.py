@@ -252,6 +252,21 @@ def test_controller_route_on_a_log_slower_than_its_loop():
         assert abs(e.value - TRUE[name]) < 3 * e.stderr, (name, e)
 
 
+def test_a_reference_in_another_unit_is_said():
+    """The controller route reads the reference in the measured signal's unit: a set-point left
+    in rpm against a speed in rad/s (the loop's speed follows it at about 0.1 times its value) gets
+    a warning naming the column and the mapping; the reference in rad/s gets none."""
+    from pmdcid.identify.closedfit import reference_scale_warning
+
+    log, spec = closed_loop_log(np.random.default_rng(4), n=3000, hold=1000)
+    assert reference_scale_warning(log, spec) is None
+    rpm = Log("loop.csv", log.t, dict(log.data),
+              extra={"targetSpeed": log.extra["omega_ref"] * 60 / (2 * np.pi)})
+    said = reference_scale_warning(rpm, controller_from_dict({**PI, "reference": "targetSpeed"}))
+    g = float(said.split(" at ")[1].split(" times")[0])
+    assert 0.09 < g < 0.105 and "different units" in said and "targetSpeed*rpm" in said
+
+
 def test_a_missing_reference_column_is_one_clear_error():
     log, spec = closed_loop_log(np.random.default_rng(1), n=500)
     other = controller_from_dict({**PI, "reference": "speed_target"})
