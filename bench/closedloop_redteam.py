@@ -233,7 +233,7 @@ def speed_spec() -> str:
     """The firmware's PI as --controller: gains per rad/s of the mapped speed, in PWM counts,
     scaled to the mapped volts."""
     spec = {"type": "PI", "kp": KP_RPM / RPM, "ki": KI_RPM / RPM, "umin": -255, "umax": 255,
-            "quantum": 1, "scale": VNOM / 255}
+            "quantum": 1, "rounding": "zero", "scale": VNOM / 255}
     return json.dumps(spec)
 
 

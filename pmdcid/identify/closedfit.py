@@ -30,7 +30,6 @@ from pmdcid.identify.nonlinear import (
     DZ_CAVEAT,
     REFINE_RANGE,
     NonlinearResult,
-    dz_between_levels,
     fit_nonlinear,
 )
 from pmdcid.identify.nonlinear_setup import reference_column
@@ -111,12 +110,15 @@ def reference_scale_warning(log, spec: ControllerSpec) -> str | None:
 
 def loop_simulator(spec: ControllerSpec):
     """``f(log, vals, x0)`` for :func:`fit_simulation`: the closed loop on the log's reference,
-    the integrator started at the log's first controller output."""
+    the integrator started at the log's first controller output, an output quantum taken as
+    its mean (half a count less): rounded, the simulated output would move by whole counts
+    and the cost by steps, which a finite-difference Jacobian reads as flat (the fit stopped
+    at its start: bench/closedloop_redteam.py a+)."""
 
     def sim(log, vals, x0):
         return simulate_closed_loop(log.t, vals, spec, reference_of(log, spec),
                                     log.drive == "tau", x0, logged_u=log.u,
-                                    feedforward=feedforward_of(log, spec))
+                                    feedforward=feedforward_of(log, spec), mean_quantum=True)
     return sim
 
 
@@ -141,7 +143,7 @@ def fit_closed_loop(logs, model: Model, spec: ControllerSpec, free=None, signals
 def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
            max_nfev) -> NonlinearResult:
     # a dead zone masked by the friction stays so; one bounded by the logged input's levels
-    # is refitted: the simulated controller output moves between them
+    # is refitted: the simulated controller output (its quantum taken as its mean) is smooth
     masked = "dz" in first.estimates and first.estimates["dz"].caveat == DZ_CAVEAT
     free = [n for n in first.estimates if n != "ramp" and not (n == "dz" and masked)]
     start = {n: first.estimates[n].value for n in free}
@@ -165,9 +167,6 @@ def _refit(logs, model, spec, first: NonlinearResult, measured, priors,
     est = dict(fit.estimates)
     if masked:
         est["dz"] = first.estimates["dz"]
-    elif "dz" in est and spec.quantum > 0:  # the simulated output on the logged levels
-        vals = {**{n: p.value for n, p in work.parameters.items()}, **fit.values()}
-        est["dz"] = dz_between_levels(logs, vals, est["dz"])
     route = Route("controller", f"--controller given: the loop simulated from the logged "
                   f"reference '{spec.reference}' ({spec.describe()}); fitted on the logged "
                   f"controller output{''.join(', ' + s for s in measured)}")

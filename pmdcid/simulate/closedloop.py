@@ -89,7 +89,8 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
                          torque_driven: bool = False, x0=None, *, nsub: int | None = None,
                          logged_u: np.ndarray | None = None,
                          noise: np.ndarray | None = None,
-                         feedforward: np.ndarray | None = None) -> ClosedLoopResult:
+                         feedforward: np.ndarray | None = None,
+                         mean_quantum: bool = False) -> ClosedLoopResult:
     """Simulate the motor ``vals`` (:func:`pmdcid.simulate.param_values`) under ``spec`` at
     instants ``t`` [s] from ``x0``, the set-point ``ref`` (the measured signal's unit).
 
@@ -98,6 +99,9 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
     measurement the controller reads at each sample (a synthetic log's sensor noise, fed back
     as a real loop feeds it back); the result's measured signal then includes it.
     ``feedforward``: added to the controller's output after its limits (controller units).
+    ``mean_quantum``: the output's quantum as its mean effect (half a count less, smooth)
+    instead of the rounding (:class:`~pmdcid.simulate.controller.ControllerState`; position
+    form only): a fit's view, whose cost would otherwise be a staircase in the parameters.
     """
     t = np.asarray(t, float)
     ref = np.asarray(ref, float)
@@ -108,11 +112,12 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
     x = np.empty((len(t), NSTATE))
     x[0] = state_vector(x0)
     ff = np.zeros(len(t)) if feedforward is None else np.asarray(feedforward, float)
+    ctrl = ControllerState(spec, mean_quantum)
     if on_samples(t, spec):
-        u = _run_loop(t, p, spec, (ref, ff), torque_driven, x, controller_ticks(t, spec),
+        u = _run_loop(t, p, ctrl, (ref, ff), torque_driven, x, controller_ticks(t, spec),
                       logged_u, noise, vals, nsub)
     else:
-        u = _run_own_clock(t, p, spec, (ref, ff), torque_driven, x, logged_u, noise, vals,
+        u = _run_own_clock(t, p, ctrl, (ref, ff), torque_driven, x, logged_u, noise, vals,
                            nsub)
     sensor = {"delay": float(vals.get("delay", 0.0)), "omega0": float(vals.get("omega0", 0.0))}
     om, th = apply_sensors(t, x[:, OMEGA_STATE], x[:, THETA_STATE], sensor)
@@ -141,12 +146,12 @@ def _measured(t, x, k, spec, vals, noise) -> float:
     return y
 
 
-def _run_loop(t, p, spec, inputs, torque_driven, x, ticks, logged_u, noise, vals, nsub):
-    """Fill ``x`` (n, NSTATE) sample by sample; returns the controller output held at each
-    (``inputs``: the reference and the feedforward)."""
+def _run_loop(t, p, ctrl, inputs, torque_driven, x, ticks, logged_u, noise, vals, nsub):
+    """Fill ``x`` (n, NSTATE) sample by sample under the controller ``ctrl``; returns its
+    output held at each sample (``inputs``: the reference and the feedforward)."""
     ref, ff = inputs
     n = len(t)
-    ctrl = ControllerState(spec)
+    spec = ctrl.spec
     u = np.empty(n)
     run = _compiled("run_into")
     buf = np.empty((2, NSTATE))
@@ -215,16 +220,16 @@ def _read_at(now, state, seen, k, spec, vals, noise) -> float:
     return y
 
 
-def _run_own_clock(t, p, spec, inputs, torque_driven, x, logged_u, noise, vals, nsub):
+def _run_own_clock(t, p, ctrl, inputs, torque_driven, x, logged_u, noise, vals, nsub):
     """Fill ``x`` with the controller on its own clock: it ticks at t0 + j period [s], reads
     the simulated measurement there (the reference, feedforward and noise of the log sample
     the tick falls in held), and its output is held until the next tick; the kernel steps the
     motor between ticks and samples. Returns the output in effect at each sample (after a tick
     at the sample itself): what a log task records of a faster loop."""
     ref, ff = inputs
+    spec = ctrl.spec
     n, period = len(t), float(spec.period)
     eps = 1e-9 * period
-    ctrl = ControllerState(spec)
     motor = _Stepper(p, torque_driven, nsub)
     u = np.empty(n)
     out, j, state = 0.0, 0, x[0].copy()
