@@ -101,11 +101,12 @@ def reference_scale_warning(log, spec: ControllerSpec) -> str | None:
     g = float(np.sum(r[ok] * y[ok])) / den
     if TRACK_RANGE[0] <= g <= TRACK_RANGE[1]:
         return None
-    return (f"{log.path}: the measured {spec.measured} follows the controller's reference "
-            f"'{spec.reference}' at {g:.3g} times its value; a loop tracks its set-point, so "
-            "the two are likely in different units: the controller reads the reference in the "
-            f"measured signal's SI unit (map it, e.g. -c {spec.measured}_ref="
-            f"{spec.reference}*rpm, and name {spec.measured}_ref as the spec's reference)")
+    unit = "rad/s" if spec.measured == "omega" else "rad"
+    ref = f"{spec.measured}_ref"
+    return (f"{log.path}: {spec.measured} follows the controller's reference "
+            f"'{spec.reference}' at {g:.3g} times its value, not about 1: a unit apart? The "
+            f"controller reads it in {unit}: map it (-c {ref}={spec.reference}*rpm) and set "
+            f"reference={ref}")
 
 
 def loop_simulator(spec: ControllerSpec):
