@@ -351,6 +351,37 @@ def _scan_inertia(logs, work, free, signals, fit, sigma, opts, bounds, priors, h
 #: the words beside a dead zone these logs only bound
 DZ_CAVEAT = ("not identifiable from these logs, masked by the Coulomb friction: record fast "
              "reversals or steps down through zero")
+#: the words beside a dead zone that falls between two levels of a quantised input
+DZ_LEVELS_CAVEAT = ("the input is held at the levels it logged (an integer PWM duty: "
+                    "discrete levels): every dead zone between the two around it acts the same "
+                    "on these logs")
+
+
+def input_levels_around(logs, dz: float) -> tuple[float, float] | None:
+    """(largest |input| below ``dz``, smallest at or above it) over the logs' samples [input
+    unit]; None when every sample is on one side."""
+    a = np.unique(np.abs(np.concatenate([np.asarray(lg.u, float) for lg in logs])))
+    below, above = a[a < dz], a[a >= dz]
+    if not len(below) or not len(above):
+        return None
+    return float(below[-1]), float(above[0])
+
+
+def dz_between_levels(logs, vals: dict, e: Estimate) -> Estimate:
+    """A hard dead zone acting on the logged input itself (a torque-driven kernel: a torque log,
+    or a lumped model without an electrical lag, whose dead zone is on the applied volts; the
+    input held between samples) is only bounded by the input's levels: any dz in (lo, hi], the
+    adjacent |input| levels around it, gives the same simulation, so the cost is flat there
+    and its curvature says nothing. When that width exceeds 2 standard errors (a quantised
+    input: an integer PWM duty), dz is written as that interval; else ``e`` unchanged."""
+    on_input = (all(lg.drive == "tau" for lg in logs) and not float(vals.get("tau_e", 0) or 0)
+                and not float(vals.get("latency", 0) or 0) and vals.get("ramp") is None)
+    around = input_levels_around(logs, e.value) if on_input else None
+    if around is None or not (around[1] - around[0] > 2 * e.stderr or math.isnan(e.stderr)):
+        return e
+    return bounded(e.name, around[0], around[1], e.unit, DZ_LEVELS_CAVEAT, value=e.value)
+
+
 #: the words beside the lumped model's tau_e standard error
 TAU_E_CAVEAT = "a lower bound: its 2-sigma interval held the true L/R in 15 of 20 synthetic seeds"
 
@@ -507,6 +538,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
         masked = bool(c[0] - min(c.min(), cfit) <= max(thr, MASK_REL * min(c.min(), cfit)))
     est = dict(fit.estimates)
     est.update(secant_errors(logs, base_vals, fit, signals, sigma, warns))
+    if "dz" in est and not masked:
+        est["dz"] = dz_between_levels(logs, {**base_vals[0], **held}, est["dz"])
     if masked:
         upper = masked_upper(dzs, c, thr)
         if upper < dzs[-1]:  # refine the edge inside the next interval

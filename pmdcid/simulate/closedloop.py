@@ -7,12 +7,15 @@ kernel (:func:`pmdcid.simulate.kernel.run_kernel`'s compiled loop, unchanged) st
 through it. No second integrator: the kernel is called once per period with the input held.
 
 Times may be non-uniform (a loop-timed log: one row per controller step, 2–13 ms apart): each
-period is stepped with its own length (its discretisation cached by length).
+period is stepped with its own length (its discretisation cached by length). A ``period`` that
+is not a whole number of log samples (a 1 kHz loop logged by a slower task) runs the controller
+on its own clock, ticking between the samples (:func:`_run_own_clock`).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,25 +61,36 @@ def feedforward_of(log, spec: ControllerSpec) -> np.ndarray | None:
     return None if spec.feedforward is None else reference_of(log, spec, "feedforward")
 
 
+def on_samples(t: np.ndarray, spec: ControllerSpec) -> bool:
+    """True when the controller updates at log samples: every sample (no ``period``), or every
+    ``period`` that is a whole number of samples of a uniform log. False: it runs on its own
+    clock, between the samples (a 1 kHz loop logged every 2-13 ms)."""
+    if spec.period is None:
+        return True
+    dt = float((t[-1] - t[0]) / (len(t) - 1))
+    m = spec.period / dt
+    return round(m) >= 1 and abs(m - round(m)) <= 0.01 * m
+
+
 def controller_ticks(t: np.ndarray, spec: ControllerSpec) -> np.ndarray:
     """Sample indices where the controller updates: every sample, or every ``period``
-    (a whole number of samples of a uniform log)."""
+    (a whole number of samples of a uniform log: :func:`on_samples`)."""
     n = len(t)
     if spec.period is None:
         return np.arange(n)
-    dt = float((t[-1] - t[0]) / (n - 1))
-    m = spec.period / dt
-    if abs(m - round(m)) > 0.01 * m or round(m) < 1:
+    if not on_samples(t, spec):
         raise LogError(f"the controller period {spec.period:g} s is not a whole number of "
-                       f"samples ({dt:g} s apart)")
-    return np.arange(0, n, int(round(m)))
+                       f"samples ({float((t[-1] - t[0]) / (n - 1)):g} s apart)")
+    dt = float((t[-1] - t[0]) / (n - 1))
+    return np.arange(0, n, int(round(spec.period / dt)))
 
 
 def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: np.ndarray,
                          torque_driven: bool = False, x0=None, *, nsub: int | None = None,
                          logged_u: np.ndarray | None = None,
                          noise: np.ndarray | None = None,
-                         feedforward: np.ndarray | None = None) -> ClosedLoopResult:
+                         feedforward: np.ndarray | None = None,
+                         mean_quantum: bool = False) -> ClosedLoopResult:
     """Simulate the motor ``vals`` (:func:`pmdcid.simulate.param_values`) under ``spec`` at
     instants ``t`` [s] from ``x0``, the set-point ``ref`` (the measured signal's unit).
 
@@ -85,6 +99,9 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
     measurement the controller reads at each sample (a synthetic log's sensor noise, fed back
     as a real loop feeds it back); the result's measured signal then includes it.
     ``feedforward``: added to the controller's output after its limits (controller units).
+    ``mean_quantum``: the output's quantum as its mean effect (half a count less, smooth)
+    instead of the rounding (:class:`~pmdcid.simulate.controller.ControllerState`; position
+    form only): a fit's view, whose cost would otherwise be a staircase in the parameters.
     """
     t = np.asarray(t, float)
     ref = np.asarray(ref, float)
@@ -92,11 +109,16 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
         raise ModelError("input_delay (latency) and a ramp reading are not simulated in closed "
                          "loop; simulate without --controller")
     p = param_vector(vals)
-    ticks = controller_ticks(t, spec)
     x = np.empty((len(t), NSTATE))
     x[0] = state_vector(x0)
     ff = np.zeros(len(t)) if feedforward is None else np.asarray(feedforward, float)
-    u = _run_loop(t, p, spec, (ref, ff), torque_driven, x, ticks, logged_u, noise, vals, nsub)
+    ctrl = ControllerState(spec, mean_quantum)
+    if on_samples(t, spec):
+        u = _run_loop(t, p, ctrl, (ref, ff), torque_driven, x, controller_ticks(t, spec),
+                      logged_u, noise, vals, nsub)
+    else:
+        u = _run_own_clock(t, p, ctrl, (ref, ff), torque_driven, x, logged_u, noise, vals,
+                           nsub)
     sensor = {"delay": float(vals.get("delay", 0.0)), "omega0": float(vals.get("omega0", 0.0))}
     om, th = apply_sensors(t, x[:, OMEGA_STATE], x[:, THETA_STATE], sensor)
     if noise is not None:
@@ -124,12 +146,12 @@ def _measured(t, x, k, spec, vals, noise) -> float:
     return y
 
 
-def _run_loop(t, p, spec, inputs, torque_driven, x, ticks, logged_u, noise, vals, nsub):
-    """Fill ``x`` (n, NSTATE) sample by sample; returns the controller output held at each
-    (``inputs``: the reference and the feedforward)."""
+def _run_loop(t, p, ctrl, inputs, torque_driven, x, ticks, logged_u, noise, vals, nsub):
+    """Fill ``x`` (n, NSTATE) sample by sample under the controller ``ctrl``; returns its
+    output held at each sample (``inputs``: the reference and the feedforward)."""
     ref, ff = inputs
     n = len(t)
-    ctrl = ControllerState(spec)
+    spec = ctrl.spec
     u = np.empty(n)
     run = _compiled("run_into")
     buf = np.empty((2, NSTATE))
@@ -157,6 +179,82 @@ def _run_loop(t, p, spec, inputs, torque_driven, x, ticks, logged_u, noise, vals
             hold[:] = out * spec.scale
             run(hold, p, Phi, Gam, m, bool(torque_driven), x[k], buf)
             x[k + 1] = buf[1]
+    return u
+
+
+class _Stepper:
+    """The motor stepped over a held input for any length of time (discretisations cached)."""
+
+    def __init__(self, p, torque_driven, nsub):
+        self.p, self.td, self.nsub = p, bool(torque_driven), nsub
+        self.run = _compiled("run_into")
+        self.cache: dict[float, tuple] = {}
+        self.buf = np.empty((2, NSTATE))
+        self.hold = np.empty(2)
+
+    def advance(self, state: np.ndarray, u: float, h: float) -> np.ndarray:
+        """The state ``h`` seconds after ``state`` under the input ``u`` held."""
+        Phi, Gam, m = _stepper(self.cache, self.p, h, self.td, self.nsub)
+        self.hold[:] = u
+        self.run(self.hold, self.p, Phi, Gam, m, self.td, state, self.buf)
+        return self.buf[1].copy()
+
+
+def _read_at(now, state, seen, k, spec, vals, noise) -> float:
+    """What the controller reads at time ``now`` inside sample k's interval (state ``state``):
+    the sensor's view (a delay read from ``seen``, the (time, signal) pairs of the ticks and
+    samples so far), the noise of sample k added."""
+    col = OMEGA_STATE if spec.measured == "omega" else THETA_STATE
+    y = float(state[col])
+    seen.append((now, y))
+    d = float(vals.get("delay", 0.0))
+    if d > 0.0:
+        while len(seen) > 2 and seen[1][0] <= now - d:  # keep one pair at or before now - d
+            seen.popleft()
+        ts, ys = zip(*seen, strict=True)
+        y = float(np.interp(now - d, ts, ys))
+    if spec.measured == "omega":
+        y += float(vals.get("omega0", 0.0))
+    if noise is not None:
+        y += float(noise[k])
+    return y
+
+
+def _run_own_clock(t, p, ctrl, inputs, torque_driven, x, logged_u, noise, vals, nsub):
+    """Fill ``x`` with the controller on its own clock: it ticks at t0 + j period [s], reads
+    the simulated measurement there (the reference, feedforward and noise of the log sample
+    the tick falls in held), and its output is held until the next tick; the kernel steps the
+    motor between ticks and samples. Returns the output in effect at each sample (after a tick
+    at the sample itself): what a log task records of a faster loop."""
+    ref, ff = inputs
+    spec = ctrl.spec
+    n, period = len(t), float(spec.period)
+    eps = 1e-9 * period
+    motor = _Stepper(p, torque_driven, nsub)
+    u = np.empty(n)
+    out, j, state = 0.0, 0, x[0].copy()
+    seen = deque([(float(t[0]), float(state[OMEGA_STATE if spec.measured == "omega"
+                                            else THETA_STATE]))])
+    for k in range(n):
+        now, end = float(t[k]), float(t[k + 1]) if k + 1 < n else float(t[k])
+        u[k] = out
+        while t[0] + j * period <= max(now + eps, end - eps):
+            tick = float(t[0] + j * period)
+            if tick > now:
+                state = motor.advance(state, out * spec.scale, tick - now)
+                now = tick
+            y = _read_at(now, state, seen, k, spec, vals, noise)
+            if j == 0:
+                lg = None if logged_u is None else float(logged_u[0]) / spec.scale - ff[0]
+                out = ctrl.start(float(ref[k]), y, period, lg) + ff[k]
+            else:
+                out = ctrl.step(float(ref[k]), y, period) + ff[k]
+            j += 1
+            if tick <= t[k] + eps:
+                u[k] = out
+        if k + 1 < n:
+            x[k + 1] = motor.advance(state, out * spec.scale, end - now) if end > now else state
+            state = x[k + 1].copy()
     return u
 
 

@@ -6,8 +6,10 @@ commas (``type=PI,kp=0.05,ki=2,umax=7.4``). Keys (docs/cli.md, "Closed-loop logs
 - ``type``: ``P``, ``PI`` or ``PID`` (default ``PI``); ``kp``, ``ki``, ``kd``: gains, in the
   controller's output unit per unit of the measured signal (ki per second, kd times seconds);
 - ``umin``, ``umax``: output limits (default unbounded; ``ulimit`` sets both to ±value);
-- ``period`` [s]: the controller's period, a whole number of log samples (default: one step per
-  log sample, as a loop-timed log records one row per step);
+- ``period`` [s]: the controller's period (default: one step per log sample, as a loop-timed
+  log records one row per step); a period that is not a whole number of log samples (a 1 kHz
+  loop logged every 2-13 ms) runs on its own clock between the samples
+  (:mod:`pmdcid.simulate.closedloop`);
 - ``reference``: the log column holding the set-point (default ``omega_ref``); ``measured``:
   ``omega`` or ``theta``, the signal the controller acts on (default ``omega``);
 - ``derivative``: ``measurement`` (default: the D term differentiates −measured, no kick on a
@@ -19,7 +21,9 @@ commas (``type=PI,kp=0.05,ki=2,umax=7.4``). Keys (docs/cli.md, "Closed-loop logs
   kp Δe + ki e Ts + kd Δ²(...): the output itself is the integrator, clipped to the limits);
 - ``integrate``: ``time`` (default: the integral adds ki·e·Ts) or ``steps`` (adds ki·e per
   step: a loop that ignores its own period; ki is then per step);
-- ``quantum``: the output's resolution, rounded down (an integer PWM count; default 0: none);
+- ``quantum``: the output's resolution (an integer PWM count; default 0: none), rounded as
+  ``rounding`` says: ``down`` (default, floor), ``zero`` (toward zero: C's integer cast of a
+  float, ``(int)u``) or ``nearest``;
 - ``scale``: the plant input per unit of controller output (EMPS: the drive gain 35.15 N/V;
   default 1); limits and quantum apply to the controller's own output;
 - ``feedforward``: a log column added to the controller's output after its limits (EMPS's
@@ -44,6 +48,7 @@ _CHOICES = {
     "type": ("P", "PI", "PID"), "measured": ("omega", "theta"),
     "derivative": ("measurement", "error"), "antiwindup": ("clamp", "none"),
     "form": ("position", "velocity"), "integrate": ("time", "steps"),
+    "rounding": ("down", "zero", "nearest"),
 }
 
 
@@ -66,6 +71,7 @@ class ControllerSpec:
     form: str = "position"
     integrate: str = "time"
     quantum: float = 0.0
+    rounding: str = "down"
     scale: float = 1.0
     feedforward: str | None = None
 
@@ -185,8 +191,13 @@ def _check(spec: ControllerSpec) -> None:
 class ControllerState:
     """One running controller: :meth:`step` gives the output for one period."""
 
-    def __init__(self, spec: ControllerSpec):
+    def __init__(self, spec: ControllerSpec, mean_quantum: bool = False):
         self.spec = spec
+        #: the quantum's mean effect (u - quantum/2, a smooth output) instead of the rounding:
+        #: a fit's view, whose cost must move continuously with the motor's parameters. Position
+        #: form only: in the velocity form the rounded output is the integrator's state, and
+        #: half a count less every step would accumulate
+        self.mean_quantum = mean_quantum and spec.form == "position"
         self.integral = 0.0
         self.u_prev = 0.0
         self.e_prev = math.nan
@@ -250,6 +261,24 @@ class ControllerState:
 
     def _limit(self, u: float) -> float:
         q = self.spec.quantum
-        if q > 0:
-            u = q * math.floor(u / q + 1e-6)  # a millionth of a count: rounding, not a level
+        if q > 0 and self.mean_quantum:
+            u -= _mean_rounding(self.spec.rounding, u) * q
+        elif q > 0:
+            u = q * _ROUND[self.spec.rounding](u / q)
         return min(max(u, self.spec.umin), self.spec.umax)
+
+
+#: the output's rounding to whole quanta (a millionth of a count: rounding, not a level)
+_ROUND = {"down": lambda x: math.floor(x + 1e-6),
+          "zero": lambda x: float(math.trunc(x + math.copysign(1e-6, x))),
+          "nearest": lambda x: math.floor(x + 0.5)}
+
+
+def _mean_rounding(rounding: str, u: float) -> float:
+    """What the rounding takes off on average [quanta]: half of one rounding down, half toward
+    zero, none to the nearest."""
+    if rounding == "down":
+        return 0.5
+    if rounding == "zero":
+        return 0.5 * (1.0 if u > 0 else -1.0 if u < 0 else 0.0)
+    return 0.0

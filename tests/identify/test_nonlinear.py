@@ -86,6 +86,33 @@ def test_torque_driven_round_trip(seed):
     assert "torque_offset" in m.effects and "R" not in m.parameters
 
 
+@pytest.mark.slow
+def test_dead_zone_on_a_quantised_input_is_the_interval_between_its_levels():
+    """A torque log whose input takes discrete levels (q = 0.8 mN m, an integer duty): every dz
+    between the two levels around the true one simulates the same, so dz is written as that
+    interval (width q, the truth inside), not as a value with a curvature's standard error;
+    with a continuous input the levels around dz are a sample's step of the triangle apart:
+    either a standard error or an interval that narrow, the truth inside."""
+    rng = np.random.default_rng(5)
+    vals = {**neutral_values(), **PAPER, "tau0": 0.0}
+    t = np.arange(20000) * 1e-3
+    q = 8e-4
+    for quantum in (q, 0.0):
+        u = triangle(t, 0.04, 10.0)
+        u = q * np.floor(u / q) if quantum else u
+        cols, _ = synth_log(t, u, vals, PAPER_NOISE, rng, torque_driven=True)
+        dz = fit_nonlinear([as_log("tau.csv", t, cols)], Model(), dead_zone=True).estimates["dz"]
+        if quantum:
+            lo, hi = dz.interval
+            assert hi - lo == pytest.approx(q) and lo < vals["dz"] <= hi, dz
+            assert math.isnan(dz.stderr) and "discrete levels" in dz.caveat
+        elif dz.interval is not None:
+            lo, hi = dz.interval
+            assert hi - lo < q / 10 and lo < vals["dz"] <= hi, dz
+        else:
+            assert abs(dz.value - vals["dz"]) < 3 * dz.stderr, dz
+
+
 def test_free_subset_and_signals(rng, paper_values):
     """--free bc,dz --signals omega: only those change; the others stay as in the model."""
     vals = dict(paper_values)

@@ -97,16 +97,39 @@ def test_loop_timed_samples_are_stepped_as_logged():
 
 
 def test_a_controller_period_holds_its_output():
-    """``period`` = 3 samples: the output changes only every third sample."""
+    """``period`` = 3 samples: the output changes only every third sample; 2.5 samples: on the
+    controller's own clock: the logged output changes at the first sample at or after each
+    tick (2.5 j ms: samples 0, 3, 5, 8, 10, ...)."""
     t = np.arange(300) * 1e-3
     spec = controller_from_dict({"type": "PI", "kp": 0.5, "ki": 5.0, "period": 3e-3})
     sim = simulate_closed_loop(t, param_values(_model(), True), spec, np.full(300, 10.0), True)
     steps = np.flatnonzero(np.diff(sim.u)) + 1
     assert len(steps) > 20 and np.all(steps % 3 == 0)
-    with pytest.raises(LogError, match="whole number of samples"):
-        simulate_closed_loop(t, param_values(_model(), True),
-                             controller_from_dict({"type": "P", "kp": 1, "period": 2.5e-3}),
-                             np.zeros(300), True)
+    odd = simulate_closed_loop(t, param_values(_model(), True),
+                               controller_from_dict({"type": "PI", "kp": 0.5, "ki": 5.0,
+                                                     "period": 2.5e-3}), np.full(300, 10.0), True)
+    steps = np.flatnonzero(np.diff(odd.u)) + 1
+    assert len(steps) > 20 and set(steps % 5) == {0, 3}
+
+
+def test_a_loop_faster_than_its_log_is_the_fine_loop_sampled():
+    """A 1 kHz loop logged every 8 ms (``period`` below the log's sample, the controller on its
+    own clock between the samples): its states and logged outputs equal the loop simulated at
+    1 kHz read every 8th sample, to rounding; noise of a sample is fed back at its ticks."""
+    vals = param_values(_model(), True)
+    t = np.arange(4000) * 1e-3
+    ref = np.repeat(np.random.default_rng(2).uniform(-40, 40, 50), 80)  # held per log sample
+    pi = controller_from_dict(PI)
+    fine = simulate_closed_loop(t, vals, pi, ref, True, logged_u=np.full(4000, 3.0))
+    slow = simulate_closed_loop(t[::8], vals, controller_from_dict({**PI, "period": 1e-3}),
+                                ref[::8], True, logged_u=np.full(500, 3.0))
+    assert np.max(np.abs(slow.omega - fine.omega[::8])) < 1e-9 * np.max(np.abs(fine.omega))
+    assert np.max(np.abs(slow.u - fine.u[::8])) < 1e-9 * np.max(np.abs(fine.u))
+    noise = np.random.default_rng(3).normal(0.0, 1.0, 500)
+    noisy = simulate_closed_loop(t[::8], vals, controller_from_dict({**PI, "period": 1e-3}),
+                                 ref[::8], True, noise=noise)
+    both = simulate_closed_loop(t, vals, pi, ref, True, noise=np.repeat(noise, 8))
+    assert np.max(np.abs(noisy.u - both.u[::8])) < 1e-9 * np.max(np.abs(both.u))
 
 
 def test_spec_inline_json_and_file(tmp_path):
@@ -208,6 +231,96 @@ def test_controller_route_recovers_the_motor():
         e = res.estimates[name]
         assert abs(e.value / TRUE[name] - 1) < tol, (name, e)
         assert abs(e.value - TRUE[name]) < 3 * e.stderr, (name, e)
+
+
+@pytest.mark.slow
+def test_controller_route_on_a_log_slower_than_its_loop():
+    """A 1 kHz PI loop logged every 5 ms (--controller with period=0.001: before, 'not a
+    whole number of samples'): the controller route recovers J and bv within 3 %, bc within
+    25 % (a fifth of the samples: its standard error is ~17 %), each within 3 standard
+    errors."""
+    rng = np.random.default_rng(11)
+    log, _ = closed_loop_log(rng, n=4000, coloured=False, hold=1000)
+    keep = slice(None, None, 5)
+    slow = Log("slow.csv", log.t[keep], {"v": log["v"][keep], "omega": log["omega"][keep]},
+               extra={"omega_ref": log.extra["omega_ref"][keep]})
+    res = _fit(slow, controller=controller_from_dict({**PI, "period": 1e-3}))
+    assert res.route.name == "controller"
+    for name, tol in (("J", 0.03), ("bv", 0.03), ("bc", 0.25)):
+        e = res.estimates[name]
+        assert abs(e.value / TRUE[name] - 1) < tol, (name, e)
+        assert abs(e.value - TRUE[name]) < 3 * e.stderr, (name, e)
+
+
+def test_output_rounding_modes():
+    """quantum with rounding down (floor), zero (C's integer cast) and nearest; a fit's view
+    (mean_quantum) takes each rounding's mean instead: half a count less, half a count toward
+    zero, none."""
+    from pmdcid.simulate.controller import ControllerState
+
+    for rounding, want, mean in (("down", (-2.0, 1.0), (-1.7, 1.2)),
+                                 ("zero", (-1.0, 1.0), (-0.7, 1.2)),
+                                 ("nearest", (-1.0, 2.0), (-1.2, 1.7))):
+        spec = controller_from_dict({"type": "P", "kp": 1.0, "quantum": 1.0,
+                                     "rounding": rounding})
+        got = tuple(ControllerState(spec).step(0.0, y, 1e-3) for y in (1.2, -1.7))
+        smooth = tuple(ControllerState(spec, mean_quantum=True).step(0.0, y, 1e-3)
+                       for y in (1.2, -1.7))
+        assert got == want and smooth == pytest.approx(mean), rounding
+
+
+def test_a_fit_sees_a_quantised_output_move_smoothly():
+    """Rounded to its quantum, the simulated output moves with J by whole counts or not at all
+    (a finite-difference Jacobian reads steps); with the quantum's mean (the fit's view) it
+    moves in proportion to the change of J."""
+    rng = np.random.default_rng(8)
+    t = np.arange(2000) * 1e-3
+    ref = np.repeat(rng.uniform(-40, 40, 3), 1000)[:2000]
+    spec = controller_from_dict({**PI, "quantum": 0.2})
+
+    def u(dJ, mean):
+        vals = param_values(_model({**TRUE, "J": TRUE["J"] * (1 + dJ)}), True)
+        return simulate_closed_loop(t, vals, spec, ref, True, mean_quantum=mean).u
+
+    d1, d2 = u(1e-4, True) - u(0, True), u(2e-4, True) - u(0, True)
+    assert np.max(np.abs(d1)) > 0 and np.sum(d2 * d1) / np.sum(d1 * d1) == pytest.approx(2, 0.1)
+    r1 = u(1e-4, False) - u(0, False)
+    assert np.allclose(np.round(r1 / 0.2), r1 / 0.2)  # whole counts: steps, no slope
+
+
+@pytest.mark.slow
+def test_controller_route_on_a_quantised_output():
+    """A PI loop whose output is rounded to 0.2 V (a coarse PWM duty): the controller route
+    recovers J and bv within 3 %, bc within 10 %, each within 3 standard errors."""
+    rng = np.random.default_rng(8)
+    n, hold = 4000, 1000
+    t = np.arange(n) * 1e-3
+    ref = np.repeat(rng.uniform(-40, 40, n // hold + 1), hold)[:n]
+    spec = controller_from_dict({**PI, "quantum": 0.2})
+    sim = simulate_closed_loop(t, param_values(_model(), True), spec, ref, True,
+                               noise=rng.normal(0.0, 1.0, n))
+    log = Log("loop.csv", t, {"v": sim.u, "omega": sim.omega}, extra={"omega_ref": ref})
+    res = _fit(log, controller=spec)
+    for name, tol in (("J", 0.03), ("bv", 0.03), ("bc", 0.10)):
+        e = res.estimates[name]
+        assert abs(e.value / TRUE[name] - 1) < tol, (name, e)
+        assert abs(e.value - TRUE[name]) < 3 * e.stderr, (name, e)
+
+
+def test_a_reference_in_another_unit_is_said():
+    """The controller route reads the reference in the measured signal's unit: a set-point left
+    in rpm against a speed in rad/s (the loop's speed follows it at about 0.1 times its value) gets
+    a warning naming the column and the mapping; the reference in rad/s gets none."""
+    from pmdcid.identify.closedfit import reference_scale_warning
+
+    log, spec = closed_loop_log(np.random.default_rng(4), n=3000, hold=1000)
+    assert reference_scale_warning(log, spec) is None
+    rpm = Log("loop.csv", log.t, dict(log.data),
+              extra={"targetSpeed": log.extra["omega_ref"] * 60 / (2 * np.pi)})
+    said = reference_scale_warning(rpm, controller_from_dict({**PI, "reference": "targetSpeed"}))
+    g = float(said.split(" at ")[1].split(" times")[0])
+    assert 0.09 < g < 0.105 and "a unit apart" in said and "targetSpeed*rpm" in said
+    assert len(said) < 300 - len("warning: ")  # one line, not elided (errors.MAX_MESSAGE)
 
 
 def test_a_missing_reference_column_is_one_clear_error():
