@@ -30,6 +30,7 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.fit.covariance import block_covariance
 from pmdcid.fit.results import Estimate, FitStats, bounded, format_estimates, write_estimate
+from pmdcid.identify.steps import held_levels
 from pmdcid.model import Model
 
 STAGE = "fit-electrical"
@@ -178,9 +179,14 @@ class FreeRunResult:
 
 
 def _rows(log) -> tuple[np.ndarray, np.ndarray]:
-    """Regressors [i[k], v[k], w[k], w[k+1]] and target i[k+1] of one log."""
+    """Regressors [i[k], v[k], w[k], w[k+1]] and target i[k+1] of one log. A measured voltage
+    held at levels enters as its plateaus' means (:func:`~pmdcid.identify.steps.held_levels`):
+    its noise is the sensor's, not the armature's, and as a regressor it would bias the fit
+    and, as noise, swamp the current's."""
     i = np.asarray(log["i"], float)
     v = np.asarray(log["v"], float)
+    held = held_levels(log.t, v)
+    v = v if held is None else held
     w = np.asarray(log["omega"], float) if log.has("omega") else np.zeros(len(i))
     X = np.column_stack([i[:-1], v[:-1], w[:-1], w[1:]])
     return X, i[1:]
