@@ -236,11 +236,13 @@ def _level(u: np.ndarray, seg: tuple[int, int, int]) -> float:
 
 def _flat(u: np.ndarray, b: int, e: int, du: float, det: _Detector) -> bool:
     """Whether the input holds its level from ``b`` to ``e``: its variation, the noise averaged
-    over the detector's coarsest scale, under a tenth of the step ``du`` or of the level itself
-    (a PWM average ripples in proportion to the duty) plus 6 noise std of that average."""
+    over the detector's coarsest scale, under a tenth of the step ``du`` or a fifth of the level
+    itself (a PWM average ripples in proportion to the duty: a supply's +-10 %), plus 6 noise
+    std of that average."""
     w = det.coarsest
     level = float(np.mean(u[b:e]))
-    tol = 0.1 * max(abs(du), abs(level)) + 6 * det.sig / math.sqrt(max(1, min(w, (e - b) // 4)))
+    tol = max(0.1 * abs(du), 0.2 * abs(level)) + 6 * det.sig / math.sqrt(
+        max(1, min(w, (e - b) // 4)))
     return _spread(u[b:e], w) <= tol
 
 
