@@ -1,6 +1,6 @@
 """identify on step logs whose voltage is *measured* (noisy): does it take the clean logs' route?
 
-``python -m bench.noisy_steps [--seeds 10] [--sigmas 0.3 1 1.5] [--rates 1000 500 100]``:
+``python -m bench.noisy_steps [--seeds 10] [--sigmas 0 0.3 1 1.5] [--rates 1000 500 100]``:
 issue #24 item 7's logs (three free-running 4 s step logs, 0->6->0, 3->9->3, 0->12->0 V, the
 level changing at 1 s and 2.5 s; the paper's motor with back-EMF ke = km; current 20 mA and
 speed 0.2 rad/s of noise) with ``sigma_v`` of white noise on the logged voltage only, and a PWM
@@ -104,7 +104,7 @@ def same(a: Run, ref: Run, sigma_v: float, rate: float) -> tuple[bool, bool]:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
-    ap.add_argument("--sigmas", type=float, nargs="+", default=[0.3, 1.0, 1.5])
+    ap.add_argument("--sigmas", type=float, nargs="+", default=[0.0, 0.3, 1.0, 1.5])
     ap.add_argument("--rates", type=float, nargs="+", default=[1000.0, 500.0, 100.0])
     ap.add_argument("--no-ripple", action="store_true")
     args = ap.parse_args(argv)
