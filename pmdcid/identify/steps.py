@@ -383,24 +383,33 @@ def held_steps(t: np.ndarray, u: np.ndarray) -> list[StepInfo]:
     return steps if covered >= HELD_FRACTION * n else []
 
 
-def held_levels(t: np.ndarray, u: np.ndarray) -> np.ndarray | None:
+@dataclass
+class HeldInput:
+    """A noisy input held at levels with each plateau replaced by its mean (``u``, the
+    transitions as logged) and the plateaus: (first sample, end, standard error of the mean
+    [unit of the input])."""
+
+    u: np.ndarray
+    plateaus: list[tuple[int, int, float]]
+
+
+def held_levels(t: np.ndarray, u: np.ndarray) -> HeldInput | None:
     """A noisy input held at levels (:func:`held_steps`) with each plateau replaced by its mean
-    (the noise and ripple averaged; the transitions as logged); None for an input not held at
-    levels or one whose changes are seen sample to sample (nothing to average)."""
+    (the noise and ripple averaged); None for an input not held at levels or one whose changes
+    are seen sample to sample (nothing to average)."""
     u = np.asarray(u, float)
-    if _detector(u).coarsest == 1:
+    det = _detector(u)
+    if det.coarsest == 1:
         return None
     steps = held_steps(t, u)
     if not steps:
         return None
     out = u.copy()
-    first = steps[0]
-    if first.prev_start == 0 and first.onset > 0:
-        out[:first.onset] = first.before
-    for s in steps:
-        e = s.end if s.end is not None else len(u)
-        out[s.onset:e] = s.after
-    return out
+    spans = [(0, steps[0].onset, steps[0].before)] if steps[0].onset > 0 else []
+    spans += [(s.onset, s.end if s.end is not None else len(u), s.after) for s in steps]
+    for a, e, level in spans:
+        out[a:e] = level
+    return HeldInput(out, [(a, e, det.sig / math.sqrt(e - a)) for a, e, _ in spans])
 
 
 @dataclass

@@ -212,16 +212,17 @@ def _measured_voltage_steps(rng, sigma_v):
 @pytest.mark.parametrize("seed", [41, 42])
 def test_free_running_on_a_noisy_measured_voltage_held_at_levels(seed):
     """1.5 V of noise on the logged voltage of step logs: the regression takes each plateau's
-    mean voltage (the sensor's noise is not the armature's), so R, L, ke come out as from the
-    clean voltage, within 3 standard errors, and ke's error no larger than 1.5 times the clean
-    fit's. Measured (seeds 41, 42, 1, 2): ke +- 0.0030-0.0033 (clean the same), R +- 0.0044-0.0049
-    ohm. Before, with the neighbours' mean as the voltage's instrument: ke +- 0.025-0.031 (8-10
-    times the clean fit's; seed 2 ke 0.022, unresolved, so identify made the model per volt),
-    R +- 0.036-0.045 ohm."""
+    mean voltage (the sensor's noise is not the armature's) and carries the means' standard
+    errors into R, L, ke, so they come out within 3 standard errors of the truth, ke's error
+    under twice the clean fit's. Measured (seeds 41, 42, 1, 2): ke +- 0.0045-0.0050 V s/rad
+    (clean 0.0029-0.0033), R +- 0.011 ohm (clean 0.0043-0.0049); over 30 seeds at 500 Hz and
+    1 kHz, ke's z-scores have a std of 0.70-0.88 and 29 of 30 lie within 2. Before, with the
+    neighbours' mean as the voltage's instrument: ke +- 0.025-0.031 (seed 2 ke 0.022,
+    unresolved, so identify made the model per volt), R +- 0.036-0.045 ohm."""
     vals, clean = _measured_voltage_steps(np.random.default_rng(seed), 0.0)
     _, noisy = _measured_voltage_steps(np.random.default_rng(seed), 1.5)
     ref = fit_electrical(clean, Model()).estimates
     est = fit_electrical(noisy, Model()).estimates
     for k in ("R", "L", "ke"):
         assert abs(est[k].value - vals[k]) < 3 * est[k].stderr, k
-    assert est["ke"].stderr < 1.5 * ref["ke"].stderr
+    assert ref["ke"].stderr < est["ke"].stderr < 2 * ref["ke"].stderr

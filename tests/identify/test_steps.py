@@ -90,9 +90,12 @@ def test_held_levels_average_the_plateaus_of_a_noisy_input_only():
     t, v = _steps(1000.0, 3.0, 9.0)
     assert held_levels(t, v) is None
     vm = v + rng.normal(0.0, 1.0, len(t))
-    h = held_levels(t, vm)
-    assert h is not None and len(np.unique(h)) == 3
+    held = held_levels(t, vm)
+    assert held is not None and len(np.unique(held.u)) == 3
+    h = held.u
     assert h[1200] == pytest.approx(float(np.mean(vm[1000:2500])), abs=0.01)
     assert h[100] == pytest.approx(float(np.mean(vm[:1000])), abs=0.01)
     assert np.max(np.abs(h - v)) < 0.15
+    assert [(a, e) for a, e, _ in held.plateaus] == [(0, 1000), (1000, 2500), (2500, 4000)]
+    assert held.plateaus[1][2] == pytest.approx(1.0 / math.sqrt(1500), rel=0.15)
     assert held_levels(t, np.sin(t) * 6 + rng.normal(0.0, 1.0, len(t))) is None
