@@ -6,10 +6,10 @@ level changing at 1 s and 2.5 s; the paper's motor with back-EMF ke = km; curren
 speed 0.2 rad/s of noise) with ``sigma_v`` of white noise on the logged voltage only, and a PWM
 duty times a supply rippling 5 % (137 Hz and 3 Hz). Per case, over the seeds: identify ran
 without error and wrote J; the logs sorted and the stages run as with the clean voltage (same
-seed); the same steps (log, instant, from rest or moving) with amplitudes within 4 standard
-errors (:func:`same`); J and bv within 2 of their stated standard errors of the truth (per volt
-without the current column: J R/km, bv R/km + ke). ``identify --no-diagnose`` in memory, as the
-command runs it. ``--no-ripple`` leaves out the rippling supply's cases.
+seed); the same steps (log, instant within a sample, from rest or moving) with amplitudes
+within 4 standard errors (:func:`same`); J and bv within 2 of their stated standard errors of the
+truth (per volt without the current column: J R/km, bv R/km + ke). ``identify --no-diagnose``
+in memory, as the command runs it. ``--no-ripple`` leaves out the rippling supply's cases.
 """
 
 from __future__ import annotations
@@ -81,8 +81,7 @@ def run(seed, sigma_v, rate, current, ripple) -> Run:
         return Run(False)
     route = (tuple(p.kind for p in res.plan), tuple(name for name, _ in res.stages))
     mech = [r for name, r in res.stages if name.startswith("fit-mechanical")]
-    steps = tuple((s.path, round(s.t0, 2), s.from_rest, s.moved) for s in mech[0].steps) if mech \
-        else ()
+    steps = tuple((s.path, s.t0, s.from_rest, s.moved) for s in mech[0].steps) if mech else ()
     amps = tuple(s.amplitude for s in mech[0].steps) if mech else ()
     within = []
     for k, true in zip(("J", "bv"), truth(current), strict=True):
@@ -93,11 +92,15 @@ def run(seed, sigma_v, rate, current, ripple) -> Run:
 
 
 def same(a: Run, ref: Run, sigma_v: float, rate: float) -> tuple[bool, bool]:
-    """Same route; same steps with amplitudes within 4 standard errors of two plateau means
-    (1 s or more each) plus 1 % of the range (a slow ripple's mean)."""
+    """Same route; same steps (log, from rest or moving, the instant within a sample) with
+    amplitudes within 4 standard errors of two plateau means (1 s or more each) plus 1 % of the
+    range (a slow ripple's mean)."""
+    if len(a.steps) != len(ref.steps):
+        return a.route == ref.route, False
     tol = 4 * sigma_v * math.sqrt(2.0 / rate) + 0.01 * 12.0
-    steps = (a.steps == ref.steps and len(a.amps) == len(ref.amps)
-             and all(abs(x - y) <= tol for x, y in zip(a.amps, ref.amps, strict=True)))
+    steps = all(x[0] == y[0] and x[2:] == y[2:] and abs(x[1] - y[1]) <= 1.5 / rate
+                and abs(ax - ay) <= tol
+                for x, y, ax, ay in zip(a.steps, ref.steps, a.amps, ref.amps, strict=True))
     return a.route == ref.route, steps
 
 

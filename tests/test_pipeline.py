@@ -386,3 +386,26 @@ def test_identify_on_a_noisy_measured_voltage_takes_the_clean_route(tmp_path, se
     assert g["km"]["stage"].startswith("ke")
     for k in ("J", "bv"):
         assert abs(g[k]["value"] - PAPER[k]) < 3 * g[k]["stderr"], (k, g[k])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("seed", "sigma_v"), [(4, 1.0), (5, 1.5)])
+def test_identify_on_a_noisy_measured_voltage_without_current_takes_the_clean_route(
+        tmp_path, seed, sigma_v):
+    """The same logs without the current column: the same route (steps, fit-mechanical, per
+    volt), exit 0, and J, bv per volt within 12 % and 3 % of J R/km and bv R/km + ke. The
+    lumped J carries the electrical lag when tau_e is not separated from it, (L/R) bv R/km =
+    +7.6 % on this motor (pmdcid/model/lumped.py): over 10 seeds at 1 kHz J came out between
+    -1 % and +10 % (most +6 to +10 %) at every sigma_v from 0 to 1.5 V, and its stated error is
+    not to be relied on (within 2 of them in 7 of 10 seeds with a clean voltage: the lumped
+    joint fit's, bench/noisy_steps.py)."""
+    paths = _measured_voltage_step_logs(tmp_path, seed, sigma_v, current=False)
+    model = tmp_path / "m.json"
+    r = CliRunner().invoke(main, ["identify", *paths, "-m", str(model), "--no-diagnose"])
+    assert r.exit_code == 0, r.output
+    assert r.output.count("  step     the input is held at levels (2 steps)") == 3, r.output
+    assert "== fit-mechanical\n" in r.output and "same amplitude" not in r.output
+    g = json.loads(model.read_text())["parameters"]
+    r_km = PAPER["R"] / PAPER["km"]
+    assert g["J"]["value"] == pytest.approx(PAPER["J"] * r_km, rel=0.12)
+    assert g["bv"]["value"] == pytest.approx(PAPER["bv"] * r_km + PAPER["km"], rel=0.03)
