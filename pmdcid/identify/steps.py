@@ -395,8 +395,9 @@ class HeldInput:
 
 def held_levels(t: np.ndarray, u: np.ndarray) -> HeldInput | None:
     """A noisy input held at levels (:func:`held_steps`) with each plateau replaced by its mean
-    (the noise and ripple averaged); None for an input not held at levels or one whose changes
-    are seen sample to sample (nothing to average)."""
+    (the noise and a fast ripple averaged); None for an input not held at levels, one whose
+    changes are seen sample to sample (nothing to average), or one whose plateaus vary more
+    than their noise when averaged (:func:`_white`: a slow ripple the armature follows)."""
     u = np.asarray(u, float)
     det = _detector(u)
     if det.coarsest == 1:
@@ -404,12 +405,26 @@ def held_levels(t: np.ndarray, u: np.ndarray) -> HeldInput | None:
     steps = held_steps(t, u)
     if not steps:
         return None
-    out = u.copy()
     spans = [(0, steps[0].onset, steps[0].before)] if steps[0].onset > 0 else []
     spans += [(s.onset, s.end if s.end is not None else len(u), s.after) for s in steps]
+    if not all(_white(u[a:e], det) for a, e, _ in spans):
+        return None
+    out = u.copy()
     for a, e, level in spans:
         out[a:e] = level
     return HeldInput(out, [(a, e, det.sig / math.sqrt(e - a)) for a, e, _ in spans])
+
+
+def _white(x: np.ndarray, det: _Detector) -> bool:
+    """Whether a plateau varies as its white noise does: the means of its blocks of the
+    detector's coarsest scale scatter by at most 1.5 times sig/sqrt(w), plus 3 standard errors
+    of that scatter."""
+    w = det.coarsest
+    m = len(x) // w
+    if m < 4:
+        return True
+    means = x[:m * w].reshape(m, w).mean(axis=1)
+    return float(np.std(means, ddof=1)) <= det.sig / math.sqrt(w) * (1.5 + 3 / math.sqrt(2 * m))
 
 
 @dataclass
