@@ -30,6 +30,7 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.fit.covariance import block_covariance
 from pmdcid.fit.results import Estimate, FitStats, bounded, format_estimates, write_estimate
+from pmdcid.identify.steps import held_levels
 from pmdcid.model import Model
 
 STAGE = "fit-electrical"
@@ -177,13 +178,23 @@ class FreeRunResult:
         return "\n".join(lines)
 
 
-def _rows(log) -> tuple[np.ndarray, np.ndarray]:
-    """Regressors [i[k], v[k], w[k], w[k+1]] and target i[k+1] of one log."""
+def _rows(log) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int, float]]]:
+    """Regressors [i[k], v[k], w[k], w[k+1]], target i[k+1] of one log, and the rows of the
+    voltage's plateaus with their means' standard errors [V]. A measured voltage held at levels
+    enters as its plateaus' means (:func:`~pmdcid.identify.steps.held_levels`): its noise is
+    the sensor's, not the armature's, and as a regressor it would bias the fit and, as noise,
+    swamp the current's; each mean's own error is carried into the estimates
+    (:func:`_level_covariance`)."""
     i = np.asarray(log["i"], float)
     v = np.asarray(log["v"], float)
+    held = held_levels(log.t, v)
+    plateaus = []
+    if held is not None:
+        v = held.u
+        plateaus = [(a, min(e, len(v) - 1), se) for a, e, se in held.plateaus if a < len(v) - 1]
     w = np.asarray(log["omega"], float) if log.has("omega") else np.zeros(len(i))
     X = np.column_stack([i[:-1], v[:-1], w[:-1], w[1:]])
-    return X, i[1:]
+    return X, i[1:], plateaus
 
 
 def _simulated_current(A, th, starts, ends) -> np.ndarray:
@@ -231,10 +242,10 @@ def _neighbour_mean(v: np.ndarray, starts, ends) -> np.ndarray:
 def _iv_regression(parts):
     """Least squares, then refined instrumental variables, on the stacked rows of every log
     (one offset column per log). Returns (theta, HAC covariance, residual, CovarianceInfo)."""
-    X = np.concatenate([x for x, _ in parts])
-    y = np.concatenate([t for _, t in parts])
-    ends = np.cumsum([len(t) for _, t in parts])
-    starts = ends - np.array([len(t) for _, t in parts])
+    X = np.concatenate([x for x, _, _ in parts])
+    y = np.concatenate([t for _, t, _ in parts])
+    ends = np.cumsum([len(t) for _, t, _ in parts])
+    starts = ends - np.array([len(t) for _, t, _ in parts])
     ind = np.zeros((len(y), len(parts)))
     for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
         ind[a:b, k] = 1.0
@@ -257,7 +268,20 @@ def _iv_regression(parts):
     ZZ = Z.T @ Z
     cov_z, info = block_covariance(Z, r, segs, np.linalg.pinv(ZZ) * s2)
     M = np.linalg.pinv(Z.T @ A) @ ZZ  # IV sandwich: (Z'A)^-1 S (A'Z)^-1
-    return th, M @ cov_z @ M.T, r, info
+    cov = M @ cov_z @ M.T + _level_covariance(th, Z, A, parts, starts)
+    return th, cov, r, info
+
+
+def _level_covariance(th, Z, A, parts, starts) -> np.ndarray:
+    """The covariance the plateau means of a noisy held voltage add to the estimates: a mean
+    off by dv on its rows moves theta by -(Z'A)^-1 Z'[rows] 1 g dv (g = theta's conductance),
+    and each mean is off by its standard error, independently."""
+    G = [Z[s0 + a:s0 + e].sum(axis=0) * (th[1] * se)
+         for (_, _, plateaus), s0 in zip(parts, starts, strict=True) for a, e, se in plateaus]
+    if not G:
+        return np.zeros((len(th), len(th)))
+    G = np.linalg.pinv(Z.T @ A) @ np.array(G).T
+    return G @ G.T
 
 
 def _offsets(logs, th, cov, warns) -> dict[str, Estimate]:

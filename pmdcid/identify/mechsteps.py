@@ -96,7 +96,7 @@ def window(log, step, pre=5):
     a = max(step.prev_start, step.onset - pre)
     e = step.end if step.end is not None else log.n
     w = np.asarray(log["omega"], float)
-    st = StepInfo(step.onset - a, step.t0, step.before, step.after, e - a, 0)
+    st = StepInfo(step.onset - a, step.t0, step.before, step.after, e - a, 0, step.before_se)
     return log.t[a:e], w[a:e], st
 
 
@@ -108,8 +108,10 @@ def fit_step(log, step, tau_e, km, R, sig, warns):
     ms = MechStep(log.path, step.amplitude, False, level=step.after, t0=step.t0)
     st = strejc(t, w, st_w)
     w0, w_end = st.initial, st.final
-    # from rest: the rotor still and the input 0 before (within 2 % of the level: input noise)
-    ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= 0.02 * abs(step.after)
+    # from rest: the rotor still and the input 0 before (within 2 % of the level, or 4 standard
+    # errors of the level before: a measured input's noise)
+    ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= max(
+        0.02 * abs(step.after), 4 * step.before_se)
     if abs(w_end) <= MOVE_SIGMAS * sig:
         ms.note = "did not move" if ms.from_rest else "coasts to rest"
         return ms, None

@@ -3,10 +3,12 @@
 Small pure functions shared by fit-electrical and fit-mechanical. Time in s; the response ``y``
 in its own unit (A or rad/s); the input ``u`` in V.
 
-The step is found in the input column alone (no position given by the user): the levels before
-and after are robust medians, the onset is the first sample where the input crosses half-way.
-The kernel's (and a DAC's) zero-order hold makes the new level act from that sample's instant on,
-so the response model starts there; a dead time ``d`` >= 0 absorbs sensor or drive latency.
+The step is found in the input column alone (no position given by the user), against the
+input's own noise (:func:`find_steps`: a commanded input sample to sample, a measured, noisy one
+between means of up to :data:`MAX_SCALE` samples); the levels before and after are the plateaus'
+means, the onset is the first sample where the input crosses half-way. The kernel's (and a
+DAC's) zero-order hold makes the new level act from that sample's instant on, so the response
+model starts there; a dead time ``d`` >= 0 absorbs sensor or drive latency.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ class StepInfo:
     #: the interval before the step (its previous plateau)
     end: int | None = None
     prev_start: int = 0
+    #: standard error of the level before [unit of the input] (a noisy measured input)
+    before_se: float = 0.0
 
     @property
     def amplitude(self) -> float:
@@ -73,21 +77,134 @@ def find_step(t: np.ndarray, u: np.ndarray, path: str | None = None) -> StepInfo
 
 #: a plateau shorter than this many samples is a glitch, not a step
 MIN_PLATEAU_SAMPLES = 10
-#: an input change larger than this many noise std of the input's sample-to-sample differences
+#: an input change larger than this many noise std of the input (its white noise, from the
+#: sample-to-sample differences) divided by the square root of the samples averaged on each side
 CHANGE_SIGMAS = 8.0
 #: ... and than this fraction of the input's range (an ADC's one-count flicker is not a step)
 MIN_STEP_FRACTION = 0.01
+#: changes are looked for between single samples, then between the means of 2, 4, ... samples
+#: on each side while the noise hides a change of :data:`SCALE_FRACTION` of the input's range
+#: (a measured, noisy input), up to :data:`MAX_SCALE` samples
+MAX_SCALE = 32
+SCALE_FRACTION = 0.05
 
 
-def _input_noise(u: np.ndarray) -> float:
-    d = np.diff(u)
+#: the input's noise is estimated in blocks of this many samples, the noisiest quarter's
+#: (:func:`_input_noise`; on white noise 8 % above its std)
+NOISE_BLOCK = 128
+NOISE_QUANTILE = 75.0
+
+
+def _mad_noise(d: np.ndarray) -> float:
+    """White-noise std of a signal from its first differences ``d``: their MAD over sqrt(2)."""
     return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
 
 
-def _segments(u: np.ndarray, thr: float) -> list[tuple[int, int, int]]:
-    """(transition start, plateau start, plateau end) of every interval between input changes;
-    consecutive changing samples (a ramped edge) form one transition."""
-    ch = np.nonzero(np.abs(np.diff(u)) > thr)[0] + 1  # u[k] differs from u[k-1]
+def _input_noise(u: np.ndarray) -> float:
+    """White-noise std of an input (its unit), robust to its steps and ramps: the MAD of its
+    first differences over sqrt(2) (the whole log), or of its second differences over sqrt(6)
+    in blocks of :data:`NOISE_BLOCK` samples, the :data:`NOISE_QUANTILE` percentile of the
+    blocks', whichever is larger (a PWM average rippling in proportion to the duty is noisy on
+    some plateaus only; a ramp has no second differences)."""
+    d = np.diff(u)
+    whole = _mad_noise(d)
+    nb = (len(d) - 1) // NOISE_BLOCK
+    if nb < 2:
+        return whole
+    d2 = np.diff(d)[:nb * NOISE_BLOCK].reshape(nb, NOISE_BLOCK)
+    mad = np.median(np.abs(d2 - np.median(d2, axis=1, keepdims=True)), axis=1)
+    return max(whole, 1.4826 * float(np.percentile(mad, NOISE_QUANTILE)) / math.sqrt(6.0))
+
+
+@dataclass
+class _Detector:
+    """How changes are told from noise in one input: its white-noise std ``sig`` (unit of the
+    input), the floor no change is below (``floor``), the scales (samples averaged on each side
+    of a change) it is looked for at."""
+
+    sig: float
+    floor: float
+    scales: tuple[int, ...]
+
+    def thr(self, w: int) -> float:
+        """The smallest change seen at scale ``w``: CHANGE_SIGMAS noise std of a w-sample mean."""
+        return max(CHANGE_SIGMAS * self.sig / math.sqrt(w), self.floor)
+
+    @property
+    def coarsest(self) -> int:
+        return self.scales[-1]
+
+
+def _detector(u: np.ndarray) -> _Detector:
+    """The input's noise, floor and scales: coarser scales while CHANGE_SIGMAS noise std of a
+    w-sample mean exceed :data:`SCALE_FRACTION` of the input's range (1st to 99th percentile);
+    a noise-free input is looked at sample to sample only."""
+    sig = _input_noise(u)
+    # a measured input quantised by its ADC has no sample-to-sample noise most of the time
+    # (sig = 0): its one-count flicker is not a step, hence a floor of a fraction of the range
+    floor = max(1e-9 * max(float(np.max(np.abs(u))), 1e-300),
+                MIN_STEP_FRACTION * float(np.ptp(u)))
+    scales = [1]
+    if sig > 0:
+        span = float(np.percentile(u, 99) - np.percentile(u, 1))
+        while (CHANGE_SIGMAS * sig / math.sqrt(scales[-1]) > SCALE_FRACTION * span
+               and 2 * scales[-1] <= min(MAX_SCALE, len(u) // 4)):
+            scales.append(2 * scales[-1])
+    return _Detector(sig, floor, tuple(scales))
+
+
+def _run_peaks(x: np.ndarray, above: np.ndarray) -> np.ndarray:
+    """The index of the largest ``x`` in every run of consecutive ``above`` samples."""
+    idx = np.flatnonzero(above)
+    if len(idx) == 0:
+        return idx
+    run = np.concatenate(([0], np.cumsum(np.diff(idx) > 1)))
+    starts = np.flatnonzero(np.concatenate(([True], np.diff(run) > 0)))
+    top = np.maximum.reduceat(x[idx], starts)
+    hit = np.flatnonzero(x[idx] == top[run])
+    _, first = np.unique(run[hit], return_index=True)
+    return idx[hit[first]]
+
+
+def _split(c: np.ndarray, p: int, w: int) -> int:
+    """The least-squares single change point (first sample of the new level) in the 2w samples
+    around ``p``; ``c``: the input's cumulative sum with a leading 0."""
+    a, b = p - w, p + w
+    j = np.arange(a + 1, b)
+    left = (c[j] - c[a]) / (j - a)
+    right = (c[b] - c[j]) / (b - j)
+    gain = (j - a) * (b - j) / (b - a) * (left - right) ** 2
+    return int(j[np.argmax(gain)])
+
+
+def _changes(u: np.ndarray, det: _Detector) -> np.ndarray:
+    """Sorted samples ``k`` where the input changes (u[k] differs from u[k-1] beyond the noise at
+    the finest scale that shows it; a change seen at a coarser scale is located by
+    least squares between its two levels)."""
+    found = np.nonzero(np.abs(np.diff(u)) > det.thr(1))[0] + 1
+    if det.coarsest == 1:
+        return found
+    c = np.concatenate(([0.0], np.cumsum(u)))
+    for w in det.scales[1:]:
+        k = np.arange(w, len(u) - w + 1)
+        d = np.abs((c[k + w] - c[k]) - (c[k] - c[k - w])) / w
+        peaks = k[_run_peaks(d, d > det.thr(w))]
+        peaks = np.array([_split(c, int(p), w) for p in peaks
+                          if len(u) - w >= p >= w], int)
+        if len(peaks) == 0:
+            continue
+        pos = np.searchsorted(found, peaks)
+        near = np.zeros(len(peaks), bool)
+        for side in (pos - 1, pos):
+            ok = (side >= 0) & (side < len(found))
+            near[ok] |= np.abs(found[side[ok]] - peaks[ok]) <= w
+        found = np.unique(np.concatenate((found, peaks[~near])))
+    return found
+
+
+def _segments(ch: np.ndarray, n: int) -> list[tuple[int, int, int]]:
+    """(transition start, plateau start, plateau end) of every interval between input changes
+    ``ch`` (sorted samples); consecutive changing samples (a ramped edge) form one transition."""
     out, start, k = [], 0, 0
     bounds = []
     while k < len(ch):
@@ -100,7 +217,88 @@ def _segments(u: np.ndarray, thr: float) -> list[tuple[int, int, int]]:
     for a, b in bounds:
         out.append((start, prev, a))
         start, prev = a, b
-    out.append((start, prev, len(u)))
+    out.append((start, prev, n))
+    return out
+
+
+def _spread(x: np.ndarray, w: int) -> float:
+    """The 95 % range of ``x`` averaged over ``w`` samples (the noise averaged, the wave kept)."""
+    w = max(1, min(w, len(x) // 4))
+    if w > 1:
+        c = np.concatenate(([0.0], np.cumsum(x)))
+        x = (c[w:] - c[:-w]) / w
+    return float(np.percentile(x, 97.5) - np.percentile(x, 2.5))
+
+
+def _level(u: np.ndarray, seg: tuple[int, int, int]) -> float:
+    """A plateau's input: the mean of its samples (noise and ripple averaged)."""
+    a, b, e = seg
+    return float(np.mean(u[b:e])) if e > b else float(u[a])
+
+
+def _flat(u: np.ndarray, b: int, e: int, du: float, det: _Detector) -> bool:
+    """Whether the input holds its level from ``b`` to ``e``: its variation, the noise averaged
+    over the detector's coarsest scale, under a tenth of the step ``du`` or a fifth of the level
+    itself (a PWM average ripples in proportion to the duty: a supply's +-10 %), plus 6 noise
+    std of that average."""
+    w = det.coarsest
+    level = float(np.mean(u[b:e]))
+    tol = max(0.1 * abs(du), 0.2 * abs(level)) + 6 * det.sig / math.sqrt(
+        max(1, min(w, (e - b) // 4)))
+    return _spread(u[b:e], w) <= tol
+
+
+def _line(x: np.ndarray, at: float) -> tuple[float, float]:
+    """The least-squares line through ``x`` (samples 0..len-1): its value at sample ``at`` and
+    its change over ``x`` (slope times length)."""
+    k = np.arange(len(x), dtype=float)
+    slope, icpt = np.polyfit(k, x, 1) if len(x) > 1 else (0.0, float(x[0]))
+    return float(icpt + slope * at), float(slope * len(x))
+
+
+def _jump(u: np.ndarray, prev: tuple[int, int, int], seg: tuple[int, int, int],
+          det: _Detector) -> bool:
+    """For a noisy input (changes looked for at coarser scales than one sample), whether the
+    change from plateau ``prev`` to ``seg`` is a discontinuity, not a ramp or wave cut in two:
+    the straight lines through the two plateaus, extended to the transition, part by more than
+    :data:`CHANGE_SIGMAS` standard errors, and each plateau's own trend is under a tenth of
+    that jump plus 4 of its standard errors. Always true for a noise-free input."""
+    if det.coarsest == 1:
+        return True
+    (_, b0, e0), (a, b, e) = prev, seg
+    if e0 - b0 < 2:
+        return False
+    mid = 0.5 * (a + b)
+    left, trend0 = _line(u[b0:e0], mid - b0)
+    right, trend = _line(u[b:e], mid - b)
+    gap = right - left
+    if not abs(gap) > CHANGE_SIGMAS * 2 * det.sig * math.sqrt(1 / (e0 - b0) + 1 / (e - b)):
+        return False
+    return all(abs(tr) <= 0.1 * abs(gap) + 4 * det.sig * math.sqrt(12 / m)
+               for tr, m in ((trend0, e0 - b0), (trend, e - b)))
+
+
+def _merge(u: np.ndarray, segs: list[tuple[int, int, int]], det: _Detector,
+           thr: float) -> list[tuple[int, int, int]]:
+    """For a noisy input, the intervals between changes with every change that is no jump taken
+    out: first those within ``thr`` of the level before (a slow ripple or the noise seen at a
+    coarse scale), then a ramp or wave cut in two (:func:`_jump`), so that neither cuts a
+    plateau short. A noise-free input's are kept."""
+    if det.coarsest == 1:
+        return segs
+    segs = _merge_pass(segs, lambda p, q: abs(_level(u, q) - _level(u, p)) > thr)
+    return _merge_pass(segs, lambda p, q: _jump(u, p, q, det))
+
+
+def _merge_pass(segs, is_jump) -> list[tuple[int, int, int]]:
+    """``segs`` with each change for which ``is_jump(previous, next)`` is false taken out."""
+    out = [segs[0]]
+    for seg in segs[1:]:
+        prev = out[-1]
+        if is_jump(prev, seg):
+            out.append(seg)
+        else:
+            out[-1] = (prev[0], prev[1], seg[2])
     return out
 
 
@@ -109,9 +307,13 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
     """Every step in input ``u`` (e.g. V): an interval of constant input after a change, up to
     the next change (up or down, several per log; a last plateau of a few samples is a glitch).
 
+    Changes are told from the input's own noise (:func:`_input_noise`, robust): a jump between
+    samples, or for a noisy measured input a jump between the means of up to
+    :data:`MAX_SCALE` samples on each side (:func:`_changes`); a plateau's level is its mean.
     Onset: the first sample of the transition past half-way between the levels (for a
-    zero-order-held input, the sample of the jump). Raises :class:`FitError` when the input holds
-    no plateau after a clear change (constant, noisy, or varying all the time: ramps, sines).
+    zero-order-held input, the sample of the jump; for a noisy one, the least-squares change
+    point). Raises :class:`FitError` when the input holds no plateau after a clear change
+    (constant, noisy, or varying all the time: ramps, sines).
 
     ``at_start``: the caller knows the system was at rest with the input 0 before the log (a
     rig that applies the input from its first logged sample): a nonzero first plateau is then a
@@ -121,36 +323,37 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
     n = len(u)
     if n < 10:
         raise FitError(f"{path}: too short ({n} samples) to hold a step response")
-    sig = _input_noise(u)
-    # a measured input quantised by its ADC has no sample-to-sample noise most of the time
-    # (sig = 0): its one-count flicker is not a step, hence a floor of a fraction of the range
-    thr = max(CHANGE_SIGMAS * sig, 1e-9 * max(float(np.max(np.abs(u))), 1e-300),
-              MIN_STEP_FRACTION * float(np.ptp(u)))
-    segs = _segments(u, thr)
-    levels = [float(np.median(u[b:e])) if e > b else float(u[a]) for a, b, e in segs]
+    det = _detector(u)
+    thr = max(det.thr(det.coarsest), 5 * det.sig / math.sqrt(det.coarsest))
+    segs = _merge(u, _segments(_changes(u, det), n), det, thr)
+    levels = [_level(u, s) for s in segs]
     steps = []
     a0, b0, e0 = segs[0]
-    if at_start and b0 == 0 and e0 >= MIN_PLATEAU_SAMPLES and abs(levels[0]) > max(thr, 5 * sig):
+    if at_start and b0 == 0 and e0 >= MIN_PLATEAU_SAMPLES and abs(levels[0]) > thr:
         steps.append(StepInfo(0, float(t[0]), 0.0, levels[0], e0, 0))
     for j in range(1, len(segs)):
         a, b, e = segs[j]
         lev, before = levels[j], levels[j - 1]
         du = lev - before
-        plateau = u[b:e]
-        if e - b < MIN_PLATEAU_SAMPLES or abs(du) <= max(thr, 5 * sig):
-            continue
-        spread = float(np.percentile(plateau, 97.5) - np.percentile(plateau, 2.5))
-        if spread > 0.1 * abs(du) + 6 * sig:
-            continue  # not constant: a ramp or a wave between the changes
+        if (e - b < max(MIN_PLATEAU_SAMPLES, det.coarsest) or abs(du) <= thr
+                or not _flat(u, b, e, du, det) or not _jump(u, segs[j - 1], segs[j], det)):
+            continue  # a glitch, a change within the noise, or a ramp or wave between changes
         mid = 0.5 * (before + lev)
         sg = 1.0 if du > 0 else -1.0
         k = a + int(np.argmax(sg * (u[a:b + 1] - mid) > 0))
-        steps.append(StepInfo(k, float(t[k]), before, lev, e, segs[j - 1][0]))
+        steps.append(StepInfo(k, float(t[k]), before, lev, e, segs[j - 1][0],
+                              _level_se(det, segs[j - 1])))
     if not steps:
         raise FitError(f"{path or 'log'}: no step found in the input (it is constant, noisy or "
                        "never held after a change); the stage needs intervals of constant "
                        "input after a change")
     return steps
+
+
+def _level_se(det: _Detector, seg: tuple[int, int, int]) -> float:
+    """Standard error of a plateau's mean input from the input's white noise."""
+    a, b, e = seg
+    return det.sig / math.sqrt(max(e - b, 1))
 
 
 #: an input is held (piecewise constant) when this fraction of its samples lie on the
@@ -163,7 +366,8 @@ def held_steps(t: np.ndarray, u: np.ndarray) -> list[StepInfo]:
     :func:`find_steps` finds, when at least :data:`HELD_FRACTION` of the samples lie on their
     plateaus or on the level before the first. An input that varies between its levels (a
     ramp, a sine), or holds no step, gives []. Robust to a noisy measured input: a change is
-    a jump beyond :data:`CHANGE_SIGMAS` of its sample-to-sample noise."""
+    a jump beyond :data:`CHANGE_SIGMAS` noise std of the means it is seen between
+    (:func:`find_steps`)."""
     try:
         steps = find_steps(t, u)
     except FitError:
@@ -173,10 +377,54 @@ def held_steps(t: np.ndarray, u: np.ndarray) -> list[StepInfo]:
     first = steps[0]
     head = u[:first.onset]
     du = abs(first.amplitude)
-    flat_head = len(head) > 0 and float(np.ptp(head)) <= 0.1 * du + 6 * _input_noise(u)
+    flat_head = len(head) > 0 and _flat(u, 0, first.onset, du, _detector(u))
     covered = (first.onset if flat_head else 0) + sum(
         (s.end if s.end is not None else n) - s.onset for s in steps)
     return steps if covered >= HELD_FRACTION * n else []
+
+
+@dataclass
+class HeldInput:
+    """A noisy input held at levels with each plateau replaced by its mean (``u``, the
+    transitions as logged) and the plateaus: (first sample, end, standard error of the mean
+    [unit of the input])."""
+
+    u: np.ndarray
+    plateaus: list[tuple[int, int, float]]
+
+
+def held_levels(t: np.ndarray, u: np.ndarray) -> HeldInput | None:
+    """A noisy input held at levels (:func:`held_steps`) with each plateau replaced by its mean
+    (the noise and a fast ripple averaged); None for an input not held at levels, one whose
+    changes are seen sample to sample (nothing to average), or one whose plateaus vary more
+    than their noise when averaged (:func:`_white`: a slow ripple the armature follows)."""
+    u = np.asarray(u, float)
+    det = _detector(u)
+    if det.coarsest == 1:
+        return None
+    steps = held_steps(t, u)
+    if not steps:
+        return None
+    spans = [(0, steps[0].onset, steps[0].before)] if steps[0].onset > 0 else []
+    spans += [(s.onset, s.end if s.end is not None else len(u), s.after) for s in steps]
+    if not all(_white(u[a:e], det) for a, e, _ in spans):
+        return None
+    out = u.copy()
+    for a, e, level in spans:
+        out[a:e] = level
+    return HeldInput(out, [(a, e, det.sig / math.sqrt(e - a)) for a, e, _ in spans])
+
+
+def _white(x: np.ndarray, det: _Detector) -> bool:
+    """Whether a plateau varies as its white noise does: the means of its blocks of the
+    detector's coarsest scale scatter by at most 1.5 times sig/sqrt(w), plus 3 standard errors
+    of that scatter."""
+    w = det.coarsest
+    m = len(x) // w
+    if m < 4:
+        return True
+    means = x[:m * w].reshape(m, w).mean(axis=1)
+    return float(np.std(means, ddof=1)) <= det.sig / math.sqrt(w) * (1.5 + 3 / math.sqrt(2 * m))
 
 
 @dataclass
