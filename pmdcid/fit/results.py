@@ -232,6 +232,10 @@ class SimFitResult:
     #: with an AR noise model: per residual block, the whitening filter's coefficients
     #: (1, a1, ...), or None where the block was left white
     noise_filters: list = field(default_factory=list)
+    #: the part of the free parameters' covariance that the held parameters' own errors add
+    #: (:func:`pmdcid.fit.covariance.propagated`), in ``estimates``' order; the rest is the
+    #: logs' own (None: not formed)
+    held_cov: np.ndarray | None = None
 
     def values(self) -> dict[str, float]:
         return {k: e.value for k, e in self.estimates.items()}

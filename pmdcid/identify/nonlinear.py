@@ -41,6 +41,7 @@ from pmdcid.fit.results import (
 )
 from pmdcid.fit.simfit import FitOptions, fit_simulation
 from pmdcid.fit.solver import blas_single_thread
+from pmdcid.identify.dead_zone import dead_zone_interval
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
 from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re-exported
@@ -56,6 +57,7 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
 )
 from pmdcid.identify.ramp_profile import hold_profile
 from pmdcid.model import Model
+from pmdcid.notes import Note
 from pmdcid.simulate import param_values
 
 STAGE = "fit-nonlinear"
@@ -413,6 +415,19 @@ def secant_errors(logs, base_vals, fit, signals, sigma, warns) -> dict[str, Esti
     return out
 
 
+def _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns) -> None:
+    """dz's standard error from its profile-likelihood interval where the covariance's is
+    narrower (:mod:`.dead_zone`): ``est`` updated in place (every free parameter moved to the
+    interval's middle on the profile line, their own errors kept), a note added."""
+    moved, why = dead_zone_interval(lambda sets: _cost(logs, base_vals, sets, signals, sigma),
+                                    fit)
+    for k, e in moved.items():
+        se = max(e.stderr, est[k].stderr) if k == "dz" else est[k].stderr
+        est[k] = Estimate(k, e.value, se, e.unit, caveat=est[k].caveat)
+    if why:
+        warns.append(Note(why, about="dz", severity="note"))
+
+
 def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool = False,
                   grid: bool = True, max_nfev: int = 200,
                   priors: bool = True, noise_model: int = 0) -> NonlinearResult:
@@ -507,6 +522,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
         masked = bool(c[0] - min(c.min(), cfit) <= max(thr, MASK_REL * min(c.min(), cfit)))
     est = dict(fit.estimates)
     est.update(secant_errors(logs, base_vals, fit, signals, sigma, warns))
+    if not masked:
+        _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns)
     if masked:
         upper = masked_upper(dzs, c, thr)
         if upper < dzs[-1]:  # refine the edge inside the next interval
