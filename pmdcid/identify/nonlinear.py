@@ -416,9 +416,10 @@ def secant_errors(logs, base_vals, fit, signals, sigma, warns) -> dict[str, Esti
 
 
 def _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns) -> None:
-    """dz's standard error from its profile-likelihood interval where the covariance's is
-    narrower (:mod:`.dead_zone`): ``est`` updated in place (every free parameter moved to the
-    interval's middle on the profile line, their own errors kept), a note added."""
+    """dz from its profile-likelihood interval (:mod:`.dead_zone`: the cost is a staircase in
+    dz): ``est`` updated in place, every free parameter moved to the interval's middle on the
+    profile line with its standard error kept (a wider one from :func:`secant_errors` too),
+    dz's the profile's; a note when that changed anything visibly."""
     moved, why = dead_zone_interval(lambda sets: _cost(logs, base_vals, sets, signals, sigma),
                                     fit)
     for k, e in moved.items():
