@@ -1,5 +1,6 @@
-"""The dead zone's standard error from its profile-likelihood interval (pmdcid/identify/dead_zone.py):
-on a staircase cost, on a smooth one, and its coverage over seeds of fit-nonlinear."""
+"""The dead zone's standard error from its profile-likelihood interval
+(pmdcid/identify/dead_zone.py): on a staircase cost, on a smooth one, and its coverage over
+seeds of fit-nonlinear."""
 
 import math
 
@@ -96,7 +97,8 @@ def test_dead_zone_errors_cover_the_truth_over_seeds():
     The binomial reasoning: the count inside is Binomial(30, p). An honest standard error
     (p = 0.95) gives fewer than 26 with probability 1.6 %; the covariance's error of the
     staircase cost, as before the profile interval, covered 72 % of bench/stderr_coverage.py's
-    200 seeds, which reaches 26 with probability 5 % (and on these logs it held TODO of 30)."""
+    200 seeds, which reaches 26 with probability 5 %. Measured on these seeds: the
+    covariance's errors 23 of 30, the profile's 29."""
     inside = bounded = 0
     for seed in SEEDS:
         rng = np.random.default_rng(seed)
