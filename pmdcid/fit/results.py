@@ -236,6 +236,10 @@ class SimFitResult:
     #: (:func:`pmdcid.fit.covariance.propagated`), in ``estimates``' order; the rest is the
     #: logs' own (None: not formed)
     held_cov: np.ndarray | None = None
+    #: the data rows' ``(J'J)^-1`` in ``estimates``' order: the chi-square's own curvature,
+    #: inverted (a profile's direction: the others' conditional optimum moves by
+    #: ``curvature[:, j] / curvature[j, j]`` per unit of parameter j; None: not formed)
+    curvature: np.ndarray | None = None
 
     def values(self) -> dict[str, float]:
         return {k: e.value for k, e in self.estimates.items()}

@@ -11,16 +11,17 @@ spread 2.2x more than the printed errors, and 72 % of the seeds held the truth w
 them.
 
 :func:`dead_zone_interval` reads the profile-likelihood interval instead: the cost along dz
-with the other free parameters following their conditional optimum (their regression on dz in
-the logs' own covariance, without the held parameters' part, :attr:`SimFitResult.held_cov`:
-the profile's direction at the held values; on those seeds it agreed with refitting J, bv, bc
-at each dz to a unit of chi-square), the interval where it stays within ``4 x`` the reduced
-chi-square (x the correlated-residual inflation squared) of its lowest: two standard errors.
-The estimate is moved to that interval's middle (every free parameter on the line: the fit's
-own point is one arbitrary point of a flat floor), dz's standard error is a quarter of the
-interval's width where that exceeds the covariance's logs' part, the held parameters' (R, L)
-part added back in quadrature. Where the cost is a smooth parabola the interval is +-2 of the
-covariance's standard errors about the fit's point and nothing changes. Measured on those 200
+with the other free parameters following their conditional optimum (by the chi-square's own
+curvature, :attr:`SimFitResult.curvature`; on those seeds this line agreed with refitting J,
+bv, bc at each dz to a unit of chi-square), the interval where it stays within two standard
+errors' rise of its lowest (the rise the envelope would have over two of dz's own standard
+errors: 4 x the reduced chi-square for white residuals). The estimate is moved to that
+interval's middle (every free parameter on the line: the fit's own point is one arbitrary
+point of a flat floor), dz's standard error is a quarter of the interval's width where that
+exceeds the covariance's logs' part, the held parameters' (R, L) part
+(:attr:`SimFitResult.held_cov`) added back in quadrature. Where the cost is a smooth parabola
+the interval is +-2 of the covariance's standard errors about the fit's point and nothing
+changes. Measured on those 200
 seeds: the truth within 2 standard errors in 96 % (bench/stderr_coverage.py;
 docs/identification.md's coverage table).
 """
@@ -42,40 +43,33 @@ WIDEN = 4.0
 #: a move of the estimate to the interval's middle said in words beyond this many of dz's own
 #: standard errors
 MOVED = 0.5
-#: the profile interval's threshold in standard errors: a rise of ``TWO_SE**2`` x the reduced
-#: chi-square (x the inflation squared) above the line's lowest point
+#: the profile interval's half-width in standard errors on a smooth envelope (its threshold:
+#: the chi-square's rise over that many, :func:`profile_line`)
 TWO_SE = 2.0
 
 
 def profile_line(fit, name: str = "dz"):
-    """(free names, values, direction, standard error) of the profile line through ``fit``'s
-    solution: per unit of ``name``'s own (logs') standard error, the others moving by their
-    regression on it in the logs' covariance (the fit's covariance less what its held
-    parameters add). None when that covariance has no positive variance for ``name``."""
+    """(free names, values, direction, standard error, threshold) of the profile line through
+    ``fit``'s solution. The direction: per unit of ``name``'s own standard error (the logs'
+    part: the fit's covariance less what its held parameters add), the others moving to their
+    conditional optimum by the chi-square's own curvature (``fit.curvature``, the data rows'
+    ``(J'J)^-1``: the profile's direction; the sandwich covariance's regression would not be
+    one where the residual is correlated). The threshold: the chi-square's rise over two of
+    those standard errors on the envelope, ``4 se^2 / curvature[j, j]`` (4 x the reduced
+    chi-square for white residuals). None when either is not positive and finite."""
     free = list(fit.estimates)
-    if name not in free:
+    curv = getattr(fit, "curvature", None)
+    if name not in free or curv is None or curv.shape != (len(free), len(free)):
         return None
-    se = np.array([fit.estimates[k].stderr for k in free])
-    x = np.array([fit.estimates[k].value for k in free])
-    if not np.all(np.isfinite(se) & (se > 0)):
-        return None
-    corr = np.array([[1.0 if a == b else fit.correlation(a, b) for b in free] for a in free])
-    cov = np.nan_to_num(corr) * np.outer(se, se)
-    held = getattr(fit, "held_cov", None)
-    data = cov - held if held is not None and held.shape == cov.shape else cov
     j = free.index(name)
-    if not data[j, j] > 0:
+    se = fit.estimates[name].stderr
+    var = se**2 - _held_var(fit, j)
+    h = curv[j, j]
+    if not (np.all(np.isfinite(curv[:, j])) and h > 0 and math.isfinite(var) and var > 0):
         return None
-    sd = math.sqrt(data[j, j])
-    return free, x, data[:, j] / data[j, j] * sd, sd
-
-
-def threshold(fit) -> float:
-    """Two standard errors' rise of the chi-square: ``4 x`` the reduced chi-square (at least 1)
-    x the correlated-residual inflation squared (the units the covariance counts in)."""
-    cov = fit.covariance
-    infl = cov.inflation if cov is not None and cov.inflation > 1 else 1.0
-    return TWO_SE ** 2 * max(fit.stats.redchi, 1.0) * infl ** 2
+    sd = math.sqrt(var)
+    x = np.array([fit.estimates[k].value for k in free])
+    return free, x, curv[:, j] / h * sd, sd, TWO_SE**2 * var / h
 
 
 def _scan(cost, free, x, d, j, span):
@@ -102,9 +96,8 @@ def dead_zone_interval(cost, fit, name: str = "dz") -> tuple[dict[str, Estimate]
     line = profile_line(fit, name)
     if line is None:
         return {}, ""
-    free, x, d, sd = line
+    free, x, d, sd, thr = line
     j = free.index(name)
-    thr = threshold(fit)
     span = SPAN
     for _ in range(2):
         a, rise = _scan(cost, free, x, d, j, span)
@@ -140,4 +133,4 @@ def _held_var(fit, j: int) -> float:
     return float(held[j, j]) if held is not None and held[j, j] > 0 else 0.0
 
 
-__all__ = ["dead_zone_interval", "profile_line", "threshold"]
+__all__ = ["dead_zone_interval", "profile_line"]

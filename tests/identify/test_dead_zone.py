@@ -24,6 +24,7 @@ def _fit(corr: float = 0.0, held: float = 0.0) -> SimFitResult:
     res = SimFitResult(est, FitStats(1000, 2, 998.0), {"J": {"dz": corr * SE / se},
                                                        "dz": {"J": corr * SE / se}})
     res.held_cov = np.diag([0.0, held])
+    res.curvature = SE**2 * np.array([[1.0, corr], [corr, 1.0]])  # white: redchi 1
     return res
 
 
