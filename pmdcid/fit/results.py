@@ -227,8 +227,10 @@ class SimFitResult:
     covariance: CovarianceInfo | None = None
     #: per log: the state (i, omega, theta) it was simulated from (measured or fitted start)
     initial: list = field(default_factory=list)
-    #: name -> (mean, std) of the Gaussian prior terms that entered the fit
+    #: name -> (mean, std) of the Gaussian prior terms that entered the fit, and the weight
+    #: their rows had (``weight (x - mean)/std``: the data's honest information, simfit.py)
     priors: dict = field(default_factory=dict)
+    prior_weight: float = 1.0
     #: with an AR noise model: per residual block, the whitening filter's coefficients
     #: (1, a1, ...), or None where the block was left white
     noise_filters: list = field(default_factory=list)

@@ -242,6 +242,7 @@ class _Fit:
         res.curvature = curv[:npar, :npar]
         res.initial = self.state(x)
         res.priors = {free[j]: (m, sd) for j, m, sd in self.prior_rows}
+        res.prior_weight = self.weight
         if self.options.noise_model:
             res.noise_filters = [None if w is None else tuple(map(float, w))
                                  for w in self.whiten]

@@ -60,25 +60,49 @@ def profile_line(fit, name: str = "dz"):
     curv = getattr(fit, "curvature", None)
     if name not in free or curv is None or curv.shape != (len(free), len(free)):
         return None
+    if not np.all(np.isfinite(curv)):
+        return None
+    curv = _with_priors(curv, fit, free)
     j = free.index(name)
     se = fit.estimates[name].stderr
     var = se**2 - _held_var(fit, j)
     h = curv[j, j]
-    if not (np.all(np.isfinite(curv[:, j])) and h > 0 and math.isfinite(var) and var > 0):
+    if not (h > 0 and math.isfinite(var) and var > 0):
         return None
     sd = math.sqrt(var)
     x = np.array([fit.estimates[k].value for k in free])
     return free, x, curv[:, j] / h * sd, sd, TWO_SE**2 * var / h
 
 
-def _scan(cost, free, x, d, j, span):
+def _with_priors(curv: np.ndarray, fit, free) -> np.ndarray:
+    """The whole criterion's inverse curvature: the data rows' ``(J'J)^-1`` with the prior
+    rows' information added (``(Hd + w^2 P)^-1``; ``curv`` itself without priors), inverted on
+    the correlation scale (entries of very different sizes)."""
+    rows = [(free.index(n), s) for n, (_, s) in fit.priors.items() if n in free and s > 0]
+    if not rows:
+        return curv
+    dg = np.sqrt(np.clip(np.diag(curv), 1e-300, None))
+    h = np.linalg.pinv(curv / np.outer(dg, dg))  # Hd on the scaled axes
+    for i, s in rows:
+        h[i, i] += (fit.prior_weight * dg[i] / s) ** 2
+    return np.linalg.pinv(h) * np.outer(dg, dg)
+
+
+def _prior_cost(fit, sets) -> np.ndarray:
+    """The prior rows' part of the criterion at each set (0 without priors)."""
+    w = fit.prior_weight
+    return np.array([sum((w * (s[n] - m) / sd) ** 2 for n, (m, sd) in fit.priors.items()
+                         if n in s and sd > 0) for s in sets])
+
+
+def _scan(cost, fit, free, x, d, j, span):
     """Cost rise along the line at ``POINTS`` steps over +-``span`` (dz kept >= 0; the points
     below it get an infinite cost) and the cost at the solution."""
     a = np.linspace(-span, span, POINTS)
     ok = x[j] + a * d[j] >= 0
     sets = [dict(zip(free, x, strict=True))] + [dict(zip(free, x + s * d, strict=True))
                                                for s in a[ok]]
-    c = np.asarray(cost(sets), float)
+    c = np.asarray(cost(sets), float) + _prior_cost(fit, sets)
     rise = np.full(len(a), np.inf)
     rise[ok] = c[1:] - c[0]
     return a, rise
@@ -99,7 +123,7 @@ def dead_zone_interval(cost, fit, name: str = "dz") -> tuple[dict[str, Estimate]
     j = free.index(name)
     span = SPAN
     for _ in range(2):
-        a, rise = _scan(cost, free, x, d, j, span)
+        a, rise = _scan(cost, fit, free, x, d, j, span)
         low = min(0.0, float(rise.min()))
         inside = a[rise - low <= thr]
         if len(inside) == 0 or (inside.min() > a[0] and inside.max() < a[-1]):
