@@ -63,6 +63,19 @@ def test_the_others_follow_dz_along_their_regression():
     assert moved["J"].value - 1.0 == pytest.approx(0.5 * shift, rel=1e-9)
 
 
+def test_a_prior_holds_the_others_on_the_line():
+    """J correlated with dz (0.9) in the logs, but held by a prior 10 times narrower than its
+    own error (an earlier stage's estimate): the profile line is the whole criterion's, so J
+    hardly follows dz (on fra233-g04's paper sequence a data-only line moved J 4.8 times off
+    its prior)."""
+    fit = _fit(corr=0.9)
+    fit.priors = {"J": (1.0, SE / 10)}
+    moved, _ = dead_zone_interval(lambda sets: _cost(sets, 5 * SE, 0.4 * SE), fit)
+    shift = moved["dz"].value - 1.0
+    assert shift > SE
+    assert abs(moved["J"].value - 1.0) < 0.1 * shift  # 0.045 (4.74 / 105.3); 0.9 unheld
+
+
 def test_a_smooth_cost_changes_nothing():
     """A parabola in dz: the interval is +-2 standard errors about the fit's point, so the
     value, the standard error and the words stay."""
