@@ -51,9 +51,10 @@ def profile_line(fit, name: str = "dz"):
     """(free names, values, direction, standard error, threshold) of the profile line through
     ``fit``'s solution. The direction: per unit of ``name``'s own standard error (the logs'
     part: the fit's covariance less what its held parameters add), the others moving to their
-    conditional optimum by the chi-square's own curvature (``fit.curvature``, the data rows'
-    ``(J'J)^-1``: the profile's direction; the sandwich covariance's regression would not be
-    one where the residual is correlated). The threshold: the chi-square's rise over two of
+    conditional optimum by the criterion's own curvature (``fit.curvature``, the data rows'
+    ``(J'J)^-1``, with the prior rows' information where the fit had priors: the profile's
+    direction; the sandwich covariance's regression would not be one where the residual is
+    correlated). The threshold: the chi-square's rise over two of
     those standard errors on the envelope, ``4 se^2 / curvature[j, j]`` (4 x the reduced
     chi-square for white residuals). None when either is not positive and finite."""
     free = list(fit.estimates)
