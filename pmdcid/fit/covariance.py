@@ -199,7 +199,8 @@ def parameter_covariance(jac, fun, nd, segments, redchi, correlated, weight=1.0,
     information: ``(Hd + P)^-1 (Sd + w^2 P) (Hd + P)^-1`` where ``Sd`` is the data score's
     covariance (``Hd cov_d Hd``), ``P`` the (weighted) prior rows' precision and ``w`` their
     weight (the prior means' own variance, scaled like their rows); ``tau``: the data rows'
-    :func:`correlation_time` when known. Returns ``(cov, info)``.
+    :func:`correlation_time` when known. Returns ``(cov, info, curv)``, ``curv`` the data
+    rows' ``Hd^-1`` (the cost's own curvature, inverted: the direction a profile follows).
 
     Computed with the Jacobian's columns scaled to unit norm (``jac`` is scaled in place) and
     scaled back (the same covariance): parameters of very different sizes (LuGre's sigma0 ~
@@ -208,8 +209,9 @@ def parameter_covariance(jac, fun, nd, segments, redchi, correlated, weight=1.0,
     norms = column_norms(jac)
     d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
     jac *= d  # in place: the caller's matrix, not used after (no m x n copy on long logs)
-    cov, info = _scaled_covariance(jac, fun, nd, segments, redchi, correlated, weight, tau)
-    return cov * np.outer(d, d), info
+    cov, info, curv = _scaled_covariance(jac, fun, nd, segments, redchi, correlated, weight,
+                                         tau)
+    return cov * np.outer(d, d), info, curv * np.outer(d, d)
 
 
 def column_norms(J: np.ndarray) -> np.ndarray:
@@ -226,17 +228,18 @@ def column_norms(J: np.ndarray) -> np.ndarray:
 def _scaled_covariance(Jm, fun, nd, segments, redchi, correlated, weight, tau):
     Jd = Jm[:nd]
     Hd = Jd.T @ Jd
-    cov = np.linalg.pinv(Hd) * redchi
+    curv = np.linalg.pinv(Hd)
+    cov = curv * redchi
     info = None
     if correlated:
         cov, info = block_covariance(Jd, fun[:nd], segments, cov, tau)
     if nd == len(fun):
-        return cov, info
+        return cov, info, curv
     Jp = Jm[nd:]
     P = Jp.T @ Jp
     Sd = Hd @ cov @ Hd
     Hinv = np.linalg.pinv(Hd + P)
-    return Hinv @ (Sd + weight**2 * P) @ Hinv, info
+    return Hinv @ (Sd + weight**2 * P) @ Hinv, info, curv
 
 
 def propagated(jac: np.ndarray, held_jac: np.ndarray, held_se: np.ndarray) -> np.ndarray:

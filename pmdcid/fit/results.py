@@ -227,11 +227,21 @@ class SimFitResult:
     covariance: CovarianceInfo | None = None
     #: per log: the state (i, omega, theta) it was simulated from (measured or fitted start)
     initial: list = field(default_factory=list)
-    #: name -> (mean, std) of the Gaussian prior terms that entered the fit
+    #: name -> (mean, std) of the Gaussian prior terms that entered the fit, and the weight
+    #: their rows had (``weight (x - mean)/std``: the data's honest information, simfit.py)
     priors: dict = field(default_factory=dict)
+    prior_weight: float = 1.0
     #: with an AR noise model: per residual block, the whitening filter's coefficients
     #: (1, a1, ...), or None where the block was left white
     noise_filters: list = field(default_factory=list)
+    #: the part of the free parameters' covariance that the held parameters' own errors add
+    #: (:func:`pmdcid.fit.covariance.propagated`), in ``estimates``' order; the rest is the
+    #: logs' own (None: not formed)
+    held_cov: np.ndarray | None = None
+    #: the data rows' ``(J'J)^-1`` in ``estimates``' order: the chi-square's own curvature,
+    #: inverted (a profile's direction: the others' conditional optimum moves by
+    #: ``curvature[:, j] / curvature[j, j]`` per unit of parameter j; None: not formed)
+    curvature: np.ndarray | None = None
 
     def values(self) -> dict[str, float]:
         return {k: e.value for k, e in self.estimates.items()}

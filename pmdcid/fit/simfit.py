@@ -230,7 +230,7 @@ class _Fit:
             Jm /= self.scale[None, :]
             hjac, hse = self.held_columns(sol.z, held)
         self.bufs.clear()  # no simulation until the last: freed for the covariance
-        se, corr, info = _errors(Jm, sol.fun, self, stats.redchi, hjac, hse, tau)
+        se, corr, info, extra, curv = _errors(Jm, sol.fun, self, stats.redchi, hjac, hse, tau)
         est = {n: Estimate(n, float(v), float(e), unit_of(n))
                for n, v, e in zip(free, x[:npar], se[:npar], strict=True)}
         correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
@@ -238,8 +238,11 @@ class _Fit:
         with blas_single_thread():
             errs, sig_out = _per_log(self.problem, self.sims(x))
         res = SimFitResult(est, stats, correl, errs, sig_out, info)
+        res.held_cov = extra[:npar, :npar]
+        res.curvature = curv[:npar, :npar]
         res.initial = self.state(x)
         res.priors = {free[j]: (m, sd) for j, m, sd in self.prior_rows}
+        res.prior_weight = self.weight
         if self.options.noise_model:
             res.noise_filters = [None if w is None else tuple(map(float, w))
                                  for w in self.whiten]
@@ -264,20 +267,22 @@ class _Fit:
 
 
 def _errors(Jm, fun, fit: _Fit, redchi: float, hjac, hse, tau):
-    """(standard errors, correlation matrix, CovarianceInfo or None) of the fit's vector;
-    ``tau``: the residual's correlation time (None: not needed or not known)."""
+    """(standard errors, correlation matrix, CovarianceInfo or None, the part of the covariance
+    the held parameters' errors add, the data rows' inverse curvature ``(J'J)^-1``) of the fit's
+    vector; ``tau``: the residual's correlation time (None: not needed or not known)."""
     n = Jm.shape[1]
+    extra, curv = np.zeros((n, n)), np.full((n, n), math.nan)
     try:
         extra = propagated(Jm, hjac, hse)  # before the covariance, which rescales Jm's columns
-        cov, info = parameter_covariance(Jm, fun, fit.nd, fit.problem.segments("all"), redchi,
-                                         fit.options.correlated, fit.weight, tau)
+        cov, info, curv = parameter_covariance(Jm, fun, fit.nd, fit.problem.segments("all"),
+                                               redchi, fit.options.correlated, fit.weight, tau)
         cov = cov + extra
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = cov / np.outer(se, se)
     except np.linalg.LinAlgError:
-        return np.full(n, math.nan), np.full((n, n), math.nan), None
-    return se, corr, info
+        return np.full(n, math.nan), np.full((n, n), math.nan), None, extra, curv
+    return se, corr, info, extra, curv
 
 
 def _with_noise_model(run, sol, segments, whiten: list, order: int, slowest):
