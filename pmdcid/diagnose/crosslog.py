@@ -1,0 +1,173 @@
+"""A transient held out across logs: the test of an effect whose signature sits in transients.
+
+A log without repeats is split in time (:mod:`pmdcid.diagnose.folds`): its head, which holds
+its steps' transients, is fitted, and its steady tail held out. An effect whose signature sits
+in transients (a sensor delay, a Stribeck breakaway) changes nothing on the tails the other
+parameters could not: *possible, not testable* (:mod:`pmdcid.diagnose.testable`), even where
+another log's transient could test it.
+
+With two or more such logs, each log's transient tests what the others' fitted. *Fold k*
+holds out log k's head (its transient) and fits its tail (its steady level at that operating
+point) and every other split log whole; the candidate and the model it extends are each
+refitted on the fold, and the held-out test is :func:`~pmdcid.diagnose.testable.heldout_test`
+on log k's head with *every* free parameter of the model able to stand in for the effect (not
+only those the effect interacts with: a refit on fewer logs extrapolates, and an effect must
+not be credited with correcting that). The effect is testable when at least one fold can tell
+it from the other parameters, and confirmed only when *every* fold that can tell it bears it
+out (the rule of testable.py, per fold). The held-out likelihood ratio, the held-out gain and
+the rise of a held-out head's speed error (diagnose's other held-out rules) are then taken
+over the folds' held-out heads.
+
+Cost: two refits per fold (the candidate's and the model it extends, the latter shared by the
+round's candidates) and the test's simulations, for candidates the time split could not test
+and whose fit-part ΔBIC passes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from dataclasses import dataclass
+
+from pmdcid.diagnose.rules import failed_refit
+from pmdcid.diagnose.starts import staged_fit
+from pmdcid.diagnose.testable import HeldoutTest, heldout_floor, heldout_test
+from pmdcid.fit.problem import FitOutcome, Problem
+from pmdcid.model import EFFECTS
+
+#: fewest logs split in time for the folds (one log's transient tests the other's)
+MIN_LOGS = 2
+
+
+@dataclass(frozen=True)
+class FoldsTest:
+    """The held-out test over the folds (chi-square units, summed over the folds that can
+    test the effect; ``folds``: (log, its own test) per fold)."""
+
+    folds: tuple[tuple[str, HeldoutTest], ...]
+
+    @property
+    def _testing(self) -> list[HeldoutTest]:
+        return [t for _, t in self.folds if t.testable]
+
+    @property
+    def distinct(self) -> float:
+        return float(sum(t.distinct for t in self._testing))
+
+    @property
+    def confirmed(self) -> float:
+        return float(sum(t.confirmed for t in self._testing))
+
+    @property
+    def floor(self) -> float:
+        testing = self._testing or [t for _, t in self.folds]
+        return float(min(t.floor for t in testing)) if testing else 1.0
+
+    @property
+    def testable(self) -> bool:
+        return bool(self._testing)
+
+    @property
+    def confirms(self) -> bool:
+        return self.testable and all(t.confirms for t in self._testing)
+
+    @property
+    def where(self) -> str:
+        return ", ".join(os.path.basename(p) for p, t in self.folds if t.testable)
+
+
+def fold_logs(problem: Problem) -> list[int]:
+    """The logs whose heads the folds hold out: every log split in time, when there are at
+    least :data:`MIN_LOGS` (else none)."""
+    split = [k for k, p in enumerate(problem.plan) if p == "split"]
+    return split if len(split) >= MIN_LOGS else []
+
+
+def fold_problem(problem: Problem, k: int, max_samples: int | None) -> Problem:
+    """Fold ``k``: log ``k``'s head held out, its tail and every other split log fitted, the
+    other logs as planned (at most ``max_samples`` compared samples per channel)."""
+    plan = ["head" if j == k else ("fit" if p == "split" else p)
+            for j, p in enumerate(problem.plan)]
+    fold = Problem(problem.logs, problem.split, max_samples, plan,
+                   simulation=problem.simulation)
+    fold.set_readings(problem.readings)
+    return fold
+
+
+class Folds:
+    """The folds of one diagnose run and, per model a round extends, its refit on each fold
+    (made once, shared by the round's candidates: threads may ask at once)."""
+
+    def __init__(self, run):
+        self.run = run
+        self.logs = fold_logs(run.problem)
+        self.problems = {k: fold_problem(run.problem, k, run.settings.max_samples)
+                         for k in self.logs}
+        self._refs: dict[int, dict[int, FitOutcome]] = {}
+        self._lock = threading.Lock()
+
+    def __bool__(self) -> bool:
+        return bool(self.logs)
+
+    def fit(self, k: int, start: dict[str, float], free: list[str]) -> FitOutcome:
+        run = self.run
+        return staged_fit(self.problems[k], start, free, "fit", run.settings.max_nfev, run.typ,
+                          run.limits)
+
+    def references(self, cur: FitOutcome, free: list[str]) -> dict[int, FitOutcome]:
+        """The model ``cur`` (its parameters ``free``) refitted on every fold."""
+        with self._lock:
+            got = self._refs.get(id(cur.values))
+            if got is None:
+                got = {k: self.fit(k, cur.values, free) for k in self.logs}
+                self._refs = {id(cur.values): got}  # one model per round
+            return got
+
+
+@dataclass
+class FoldEvidence:
+    """What the folds say about one candidate (:class:`Candidate`'s held-out fields)."""
+
+    test: FoldsTest
+    heldout: float  # summed held-out n log(chi-square ratio); < 0 better
+    chi2_ref: float  # held-out chi-square of the model it extends, summed
+    chi2_cand: float
+    n_held: int
+    rise: float  # largest relative rise of a held-out head's speed error
+    rise_log: str
+
+
+def fold_evidence(folds: Folds, name: str, fo: FitOutcome, cur: FitOutcome, cur_free: list[str],
+                  free: list[str]) -> FoldEvidence | None:
+    """The candidate ``name`` (refitted as ``fo`` on the time split, ``free`` its refit's
+    parameters) refitted and tested on every fold against ``cur`` (parameters ``cur_free``)
+    refitted there; None without folds."""
+    if not folds:
+        return None
+    refs = folds.references(cur, cur_free)
+    eff = EFFECTS[name]
+    off = {p.name: p.neutral for p in eff.params if p.name not in eff.held}
+    run = folds.run
+    tests, ho, c_ref, c_cand, n_held, rise, rise_log = [], 0.0, 0.0, 0.0, 0, -math.inf, ""
+    for k in folds.logs:
+        prob, ref = folds.problems[k], refs[k]
+        cand = folds.fit(k, fo.values, free)
+        if failed_refit(cand.chi2["fit"], ref.chi2["fit"]):
+            cand = folds.fit(k, {**ref.values, **off}, free)  # the effect off is reachable
+        n = prob.count("held")
+        floor = heldout_floor(run.settings.rules, n, ref.chi2["held"])
+        others = [p for p in free if p not in off]
+        test = heldout_test(prob, cand.values, name, others, run.ctx0.torque_scale, floor)
+        path = prob.logs[k].path
+        tests.append((path, test))
+        a, b = max(cand.chi2["held"], 1e-300), max(ref.chi2["held"], 1e-300)
+        ho += n * math.log(a / b)
+        c_ref, c_cand, n_held = c_ref + b, c_cand + a, n_held + n
+        if math.sqrt(a / b) - 1.0 > rise:
+            rise, rise_log = math.sqrt(a / b) - 1.0, os.path.basename(path)
+    return FoldEvidence(FoldsTest(tuple(tests)), ho, c_ref, c_cand, n_held, rise, rise_log)
+
+
+__all__ = ["MIN_LOGS", "FoldEvidence", "Folds", "FoldsTest", "fold_evidence", "fold_logs",
+           "fold_problem"]
