@@ -13,9 +13,10 @@ A candidate is first *checked* (is its refit evidence at all?), then *judged* ag
   delay or a speed law; such an effect is *possible, not testable with these logs*, unless
   each of two or more logs' transients, held out in turn, can test it:
   :mod:`pmdcid.diagnose.crosslog`) and bearing out what they can tell; the held-out likelihood
-  ratio below ``heldout``; the effect's size at least ``min_z`` standard errors; the chi-square drop at least ``min_gain`` of the excess on
-  both parts; the speed NRMSE of no log held out whole rising by more than ``max_rise``
-  (relative). The first rule a candidate fails is its reason.
+  ratio below ``heldout``; the effect's size at least ``min_z`` standard errors; the
+  chi-square drop at least ``min_gain`` of the excess on both parts; the speed NRMSE of no log
+  held out whole (or head held out across logs) rising by more than ``max_rise`` (relative).
+  The first rule a candidate fails is its reason.
 """
 
 from __future__ import annotations

@@ -12,9 +12,10 @@ Which data are fitted and which held out is a per-log *plan* ('fit', 'held', 'sp
 'head'; see :func:`pmdcid.diagnose.folds.holdout_plan`): a log is fitted or held out whole, or
 split in time (its first ``split`` fitted, the rest held out; 'head': the same split the other
 way round, its head held out and its tail fitted: :mod:`pmdcid.diagnose.crosslog`). The
-residual, the simulations it needs and its covariance are per *part*: 'fit', 'held' or 'all'. A simulation-error fit
-(:func:`pmdcid.fit.simfit.fit_simulation`) fits every sample of the signals it names (plan
-'fit'); diagnose judges its candidates on held-out data they were not fitted on.
+residual, the simulations it needs and its covariance are per *part*: 'fit', 'held' or
+'all'. A simulation-error fit (:func:`pmdcid.fit.simfit.fit_simulation`) fits every sample of
+the signals it names (plan 'fit'); diagnose judges its candidates on held-out data they were
+not fitted on.
 """
 
 from __future__ import annotations
