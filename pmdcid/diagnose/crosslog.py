@@ -138,6 +138,20 @@ class FoldEvidence:
     rise_log: str
 
 
+def fold_start(name: str, refit: dict[str, float], ref: dict[str, float]) -> dict[str, float]:
+    """Where a fold's refit of effect ``name`` starts: the model it extends as refitted on the
+    fold (``ref``), the effect's size at neutral and its other parameters (a Stribeck speed, a
+    cogging order and phase) as the candidate's refit ``refit`` found them. Never the refit's
+    size: that refit saw the head the fold holds out, and a size the fold's own data cannot
+    pull away from neutral must not be carried into its test."""
+    eff = EFFECTS[name]
+    size = set(eff.size_params or (eff.params[0].name,))
+    start = {**ref, **{p: refit[p] for p in eff.param_names}}
+    start.update({p.name: p.neutral for p in eff.params
+                  if p.name in size and math.isfinite(p.neutral)})
+    return start
+
+
 def fold_evidence(folds: Folds, name: str, fo: FitOutcome, cur: FitOutcome, cur_free: list[str],
                   free: list[str]) -> FoldEvidence | None:
     """The candidate ``name`` (refitted as ``fo`` on the time split, ``free`` its refit's
@@ -152,9 +166,9 @@ def fold_evidence(folds: Folds, name: str, fo: FitOutcome, cur: FitOutcome, cur_
     tests, ho, c_ref, c_cand, n_held, rise, rise_log = [], 0.0, 0.0, 0.0, 0, -math.inf, ""
     for k in folds.logs:
         prob, ref = folds.problems[k], refs[k]
-        cand = folds.fit(k, fo.values, free)
+        cand = folds.fit(k, fold_start(name, fo.values, ref.values), free)
         if failed_refit(cand.chi2["fit"], ref.chi2["fit"]):
-            cand = folds.fit(k, {**ref.values, **off}, free)  # the effect off is reachable
+            cand = FitOutcome({**ref.values, **off}, {}, ref.stats, ref.chi2, ref.n)
         n = prob.count("held")
         floor = heldout_floor(run.settings.rules, n, ref.chi2["held"])
         others = [p for p in free if p not in off]
