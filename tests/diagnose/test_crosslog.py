@@ -9,7 +9,7 @@ import pytest
 
 from pmdcid.api import diagnose, identify
 from pmdcid.diagnose.crosslog import FoldsTest, fold_logs, fold_problem
-from pmdcid.diagnose.testable import HeldoutTest
+from pmdcid.diagnose.testable import HeldoutTest, heldout_test
 from pmdcid.fit.problem import Problem
 from pmdcid.io import Log
 from pmdcid.simulate import neutral_values, simulate_values
@@ -134,3 +134,16 @@ def test_a_dead_zone_the_logs_cannot_see_stays_where_the_model_had_it():
     assert dz.interval is not None and dz.value == pytest.approx(model.value("dz")), dz
     held = low_step(vals, np.random.default_rng(5))
     assert _nrmse(res.model, held) <= 1.05 * _nrmse(model, held)
+
+
+def test_a_load_torque_beside_a_coulomb_friction_at_its_bound_is_not_distinct():
+    """On a log turning one way a load torque is a Coulomb friction: the held-out test must
+    project bc out even where a refit left bc at its bound, 1e-17 (before: a relative step of
+    5e-19, a column of rounding dropped, and the load torque passed as distinct: one 5 -> 15 V
+    log with a speed bias got a torque_offset)."""
+    vals = _truth(omega0=15.0)
+    logs = two_logs(vals, np.random.default_rng(6))[:1]
+    problem = Problem(logs, 0.6, None, ["split"])
+    fitted = {**vals, "omega0": 0.0, "bc": 1e-17, "dz": 0.0, "tau0": -3e-3}
+    test = heldout_test(problem, fitted, "torque_offset", ["bc"], 0.15, 25.0)
+    assert test.distinct < 1.0, test
