@@ -104,7 +104,9 @@ class Folds:
         self.logs = fold_logs(run.problem)
         self.problems = {k: fold_problem(run.problem, k, run.settings.max_samples)
                          for k in self.logs}
-        self._refs: dict[int, dict[int, FitOutcome]] = {}
+        #: (the values of the model a round extends, its refit per fold): the values are kept,
+        #: not their id, which a later round's values could reuse
+        self._refs: tuple[dict | None, dict[int, FitOutcome]] = (None, {})
         self._lock = threading.Lock()
 
     def __bool__(self) -> bool:
@@ -118,11 +120,9 @@ class Folds:
     def references(self, cur: FitOutcome, free: list[str]) -> dict[int, FitOutcome]:
         """The model ``cur`` (its parameters ``free``) refitted on every fold."""
         with self._lock:
-            got = self._refs.get(id(cur.values))
-            if got is None:
-                got = {k: self.fit(k, cur.values, free) for k in self.logs}
-                self._refs = {id(cur.values): got}  # one model per round
-            return got
+            if self._refs[0] is not cur.values:
+                self._refs = (cur.values, {k: self.fit(k, cur.values, free) for k in self.logs})
+            return self._refs[1]
 
 
 @dataclass
