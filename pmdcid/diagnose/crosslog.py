@@ -6,17 +6,21 @@ in transients (a sensor delay, a Stribeck breakaway) changes nothing on the tail
 parameters could not: *possible, not testable* (:mod:`pmdcid.diagnose.testable`), even where
 another log's transient could test it.
 
-With two or more such logs, each log's transient tests what the others' fitted. *Fold k*
-holds out log k's head (its transient) and fits its tail (its steady level at that operating
-point) and every other split log whole; the candidate and the model it extends are each
-refitted on the fold, and the held-out test is :func:`~pmdcid.diagnose.testable.heldout_test`
-on log k's head with *every* free parameter of the model able to stand in for the effect (not
-only those the effect interacts with: a refit on fewer logs extrapolates, and an effect must
-not be credited with correcting that). The effect is testable when at least one fold can tell
-it from the other parameters, and confirmed only when *every* fold that can tell it bears it
-out (the rule of testable.py, per fold). The held-out likelihood ratio, the held-out gain and
-the rise of a held-out head's speed error (diagnose's other held-out rules) are then taken
-over the folds' held-out heads.
+With two or more such logs, each log's transient tests what the others' fitted. A *fold*
+holds out the heads (the transients) of its logs and fits their tails (their steady levels at
+those operating points) and every other split log whole; there are at most :data:`MAX_FOLDS`
+(the logs, ordered by operating point, dealt round the folds: each fold spans the operating
+points, and twenty logs cost three folds, not twenty); the candidate and the model it extends
+are each refitted on the fold, and the held-out test is
+:func:`~pmdcid.diagnose.testable.heldout_test` on the fold's heads with *every* free parameter
+of the model able to stand in for the effect (not only those the effect interacts with: a refit
+on fewer logs extrapolates, and an effect must not be credited with correcting that). The
+candidate's refit on a fold starts from the model refitted there with the effect's size at
+neutral, never from its own refit, which saw the heads the fold holds out. The effect is
+testable when at least one fold can tell it from the other parameters, and confirmed only when
+*every* fold that can tell it bears it out (the rule of testable.py, per fold). The held-out
+likelihood ratio, the held-out gain and the rise of a fold's held-out speed error (diagnose's
+other held-out rules) are then taken over the folds' held-out heads.
 
 Cost: two refits per fold (the candidate's and the model it extends, the latter shared by the
 round's candidates) and the test's simulations, for candidates the time split could not test
@@ -30,6 +34,8 @@ import os
 import threading
 from dataclasses import dataclass
 
+import numpy as np
+
 from pmdcid.diagnose.rules import failed_refit
 from pmdcid.diagnose.starts import staged_fit
 from pmdcid.diagnose.testable import HeldoutTest, heldout_floor, heldout_test
@@ -38,6 +44,8 @@ from pmdcid.model import EFFECTS
 
 #: fewest logs split in time for the folds (one log's transient tests the other's)
 MIN_LOGS = 2
+#: most folds (each a refit of the model a round extends and of each candidate tested)
+MAX_FOLDS = 3
 
 
 @dataclass(frozen=True)
@@ -77,17 +85,23 @@ class FoldsTest:
         return ", ".join(os.path.basename(p) for p, t in self.folds if t.testable)
 
 
-def fold_logs(problem: Problem) -> list[int]:
-    """The logs whose heads the folds hold out: every log split in time, when there are at
-    least :data:`MIN_LOGS` (else none)."""
+def fold_logs(problem: Problem) -> list[tuple[int, ...]]:
+    """The folds: the logs whose heads each holds out. Every log split in time, when there are
+    at least :data:`MIN_LOGS`, ordered by operating point (mean absolute input) and dealt round
+    :data:`MAX_FOLDS` folds at most; none otherwise."""
     split = [k for k, p in enumerate(problem.plan) if p == "split"]
-    return split if len(split) >= MIN_LOGS else []
+    if len(split) < MIN_LOGS:
+        return []
+    split.sort(key=lambda k: float(np.mean(np.abs(np.asarray(problem.logs[k].u, float)))))
+    n = min(len(split), MAX_FOLDS)
+    return [tuple(sorted(split[j::n])) for j in range(n)]
 
 
-def fold_problem(problem: Problem, k: int, max_samples: int | None) -> Problem:
-    """Fold ``k``: log ``k``'s head held out, its tail and every other split log fitted, the
-    other logs as planned (at most ``max_samples`` compared samples per channel)."""
-    plan = ["head" if j == k else ("fit" if p == "split" else p)
+def fold_problem(problem: Problem, ks, max_samples: int | None) -> Problem:
+    """The fold holding out the heads of logs ``ks``: their tails and every other split log
+    fitted, the other logs as planned (at most ``max_samples`` compared samples per
+    channel)."""
+    plan = ["head" if j in ks else ("fit" if p == "split" else p)
             for j, p in enumerate(problem.plan)]
     fold = Problem(problem.logs, problem.split, max_samples, plan,
                    simulation=problem.simulation)
@@ -102,22 +116,22 @@ class Folds:
     def __init__(self, run):
         self.run = run
         self.logs = fold_logs(run.problem)
-        self.problems = {k: fold_problem(run.problem, k, run.settings.max_samples)
-                         for k in self.logs}
+        self.problems = {ks: fold_problem(run.problem, ks, run.settings.max_samples)
+                         for ks in self.logs}
         #: (the values of the model a round extends, its refit per fold): the values are kept,
         #: not their id, which a later round's values could reuse
-        self._refs: tuple[dict | None, dict[int, FitOutcome]] = (None, {})
+        self._refs: tuple[dict | None, dict[tuple[int, ...], FitOutcome]] = (None, {})
         self._lock = threading.Lock()
 
     def __bool__(self) -> bool:
         return bool(self.logs)
 
-    def fit(self, k: int, start: dict[str, float], free: list[str]) -> FitOutcome:
+    def fit(self, k: tuple[int, ...], start: dict[str, float], free: list[str]) -> FitOutcome:
         run = self.run
         return staged_fit(self.problems[k], start, free, "fit", run.settings.max_nfev, run.typ,
                           run.limits)
 
-    def references(self, cur: FitOutcome, free: list[str]) -> dict[int, FitOutcome]:
+    def references(self, cur: FitOutcome, free: list[str]) -> dict[tuple[int, ...], FitOutcome]:
         """The model ``cur`` (its parameters ``free``) refitted on every fold."""
         with self._lock:
             if self._refs[0] is not cur.values:
@@ -173,7 +187,7 @@ def fold_evidence(folds: Folds, name: str, fo: FitOutcome, cur: FitOutcome, cur_
         floor = heldout_floor(run.settings.rules, n, ref.chi2["held"])
         others = [p for p in free if p not in off]
         test = heldout_test(prob, cand.values, name, others, run.ctx0.torque_scale, floor)
-        path = prob.logs[k].path
+        path = ", ".join(os.path.basename(prob.logs[j].path) for j in k)
         tests.append((path, test))
         a, b = max(cand.chi2["held"], 1e-300), max(ref.chi2["held"], 1e-300)
         ho += n * math.log(a / b)

@@ -65,8 +65,8 @@ def test_a_fold_holds_out_one_log_head_and_fits_the_rest():
     rng = np.random.default_rng(3)
     logs = two_logs(_truth(), rng)
     problem = Problem(logs, 0.6, None, ["split", "split"])
-    assert fold_logs(problem) == [0, 1]
-    fold = fold_problem(problem, 0, None)
+    assert sorted(fold_logs(problem)) == [(0,), (1,)]
+    fold = fold_problem(problem, (0,), None)
     assert fold.plan == ["head", "fit"]
     head = logs[0].t < logs[0].t[0] + 0.6 * logs[0].duration
     assert np.array_equal(fold.fit_mask(0), ~head)
@@ -75,6 +75,17 @@ def test_a_fold_holds_out_one_log_head_and_fits_the_rest():
     # one log split in time: nothing else's transient to fit, no fold
     assert fold_logs(Problem(logs[:1], 0.6, None, ["split"])) == []
     assert fold_logs(Problem(logs, 0.6, None, ["fit", "held"])) == []
+
+
+def test_many_logs_cost_three_folds_each_spanning_the_operating_points():
+    t = np.arange(0.0, 2.0, DT)
+    logs = [Log.from_arrays(t, v=np.where(t >= 0.5, a, 0.0), omega=np.zeros_like(t) + a,
+                            name=f"step_{a}V") for a in (9.0, 1.0, 5.0, 3.0, 7.0, 2.0, 8.0)]
+    folds = fold_logs(Problem(logs, 0.6, None, ["split"] * len(logs)))
+    assert len(folds) == 3
+    assert sorted(k for f in folds for k in f) == list(range(len(logs)))  # each held out once
+    levels = [sorted(logs[k].u.max() for k in f) for f in folds]
+    assert levels == [[1.0, 5.0, 9.0], [2.0, 7.0], [3.0, 8.0]]  # dealt in order of level
 
 
 def test_folds_confirm_only_when_every_fold_that_can_tell_bears_it_out():
