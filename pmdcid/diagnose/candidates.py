@@ -162,6 +162,19 @@ def unphysical(fo: FitOutcome, ctx) -> str | None:
     return None
 
 
+def stand_ins(name: str, free: list[str]) -> list[str]:
+    """The parameters of ``free`` that can stand in for effect ``name`` on held-out data: the
+    base parameters it interacts with, and those of the effects the model already has that
+    interact with any of them (a direction asymmetry of the viscous friction beside a friction
+    curve fitted on one log per direction is the curve's shape at a second speed)."""
+    eff = EFFECTS[name]
+    shared = set(eff.interacts)
+    others = [e for e in EFFECTS.values()
+              if e.name != name and shared & set(e.interacts)]
+    owned = {p for e in others for p in e.param_names}
+    return [p for p in free if p in shared or p in owned]
+
+
 def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[Candidate, dict]:
     """Refit one screened effect and measure its evidence against the better of the current
     model and the refit's own values with the effect switched off (the refit may also have
@@ -203,7 +216,7 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
             c.status, c.reason = "implausible", why + "; not counted"
         else:
             floor = heldout_floor(run.settings.rules, n_held, ref["held"])
-            others = [p for p in free if p in eff.interacts]
+            others = stand_ins(name, free)
             c.test = heldout_test(run.problem, fo.values, name, others,
                                   run.ctx0.torque_scale, floor)
             if not c.test.testable and c.delta_bic < run.settings.rules.bic:
@@ -226,4 +239,4 @@ def across_logs(run, c: Candidate, cur: FitOutcome, free: list[str]) -> None:
 
 
 __all__ = ["Candidate", "effect_free", "effect_z", "evaluate", "gain", "refit_starts",
-           "unphysical"]
+           "stand_ins", "unphysical"]
