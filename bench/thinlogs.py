@@ -17,11 +17,12 @@ a PI-controlled run with a reversal) from their measured first samples, as ``pmd
 - ``c``, ``c2``, ``c2:EFFECT``: a torque-driven rig (``tau`` column), one or two logs;
 - ``d``, ``d:brush_drop``: the two logs with the current logged, a real brush drop or none.
 
-The tally counts false adds (an effect in the final model the truth lacks; back-EMF is real on
-every voltage rig), true effects added from one log (b1), the friction curve standing in for a
-named law, misses (the truth's effect absent though leaving it out of the truth moves a
-held-out run by more than 2 % NRMSE) and held-out runs whose error diagnose raised by more than
-5 %. Not a test: nothing here asserts. About 15 minutes for 10 seeds on 2 free cores.
+The tally counts false adds (an effect in the final model the truth lacks, by identify's stages
+or by diagnose; back-EMF is real on every voltage rig), true effects added from one log (b1),
+the friction curve standing in for a named law, misses (the truth's effect absent though leaving
+it out of the truth moves a held-out run by more than 2 % NRMSE) and held-out runs whose error
+diagnose raised by more than 5 %.
+Not a test: nothing here asserts. About 15 minutes for 10 seeds on 2 free cores.
 """
 
 from __future__ import annotations
@@ -222,7 +223,8 @@ def classify(r: dict) -> dict[str, list[str]]:
         if e in real:
             continue
         curve = e == "friction_curve" and truth_eff in STANDS_IN and truth_eff not in final
-        out["stands in" if curve else "false add"].append(e)
+        by = "identify" if e in r["before_effects"] else "diagnose"
+        out["stands in" if curve else f"false add ({by})"].append(e)
     if kind == "b1" and truth_eff in r["added"]:
         out["added from one log"].append(truth_eff)
     standing_in = out.get("stands in")
