@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pmdcid.diagnose.crosslog import FoldsTest, fold_evidence
 from pmdcid.diagnose.residuals import error_table, pooled
 from pmdcid.diagnose.rules import at_bound, failed_refit
 from pmdcid.diagnose.testable import HeldoutTest, heldout_floor, heldout_test
@@ -52,8 +53,9 @@ class Candidate:
     rise: float | None = None  # largest relative rise of a held-out log's speed NRMSE
     rise_log: str | None = None
     starts: int = 0
-    #: what the held-out data can say about the effect (:mod:`pmdcid.diagnose.testable`)
-    test: HeldoutTest | None = None
+    #: what the held-out data can say about the effect (:mod:`pmdcid.diagnose.testable`; over
+    #: the transients held out across logs: :mod:`pmdcid.diagnose.crosslog`)
+    test: HeldoutTest | FoldsTest | None = None
 
     @property
     def counted(self) -> bool:
@@ -160,6 +162,19 @@ def unphysical(fo: FitOutcome, ctx) -> str | None:
     return None
 
 
+def stand_ins(name: str, free: list[str]) -> list[str]:
+    """The parameters of ``free`` that can stand in for effect ``name`` on held-out data: the
+    base parameters it interacts with, and those of the effects the model already has that
+    interact with any of them (a direction asymmetry of the viscous friction beside a friction
+    curve fitted on one log per direction is the curve's shape at a second speed)."""
+    eff = EFFECTS[name]
+    shared = set(eff.interacts)
+    others = [e for e in EFFECTS.values()
+              if e.name != name and shared & set(e.interacts)]
+    owned = {p for e in others for p in e.param_names}
+    return [p for p in free if p in shared or p in owned]
+
+
 def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[Candidate, dict]:
     """Refit one screened effect and measure its evidence against the better of the current
     model and the refit's own values with the effect switched off (the refit may also have
@@ -201,11 +216,27 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
             c.status, c.reason = "implausible", why + "; not counted"
         else:
             floor = heldout_floor(run.settings.rules, n_held, ref["held"])
-            others = [p for p in free if p in eff.interacts]
+            others = stand_ins(name, free)
             c.test = heldout_test(run.problem, fo.values, name, others,
                                   run.ctx0.torque_scale, floor)
+            if not c.test.testable and c.delta_bic < run.settings.rules.bic:
+                across_logs(run, c, cur, free)
     return c, {"values": ref_vals, "chi2": ref}
 
 
+def across_logs(run, c: Candidate, cur: FitOutcome, free: list[str]) -> None:
+    """An effect the time split cannot test, tested on each log's transient held out while
+    the other logs' are fitted (:mod:`pmdcid.diagnose.crosslog`), where there are such logs:
+    the candidate's held-out evidence is then the folds'."""
+    own = set(effect_free(c.effect))
+    ev = fold_evidence(run.folds, c.effect, c.outcome, cur, [p for p in free if p not in own],
+                       free)
+    if ev is None:
+        return
+    c.test, c.heldout = ev.test, ev.heldout
+    c.gain_held = gain(ev.chi2_ref, ev.chi2_cand, ev.n_held)
+    c.rise, c.rise_log = ev.rise, ev.rise_log
+
+
 __all__ = ["Candidate", "effect_free", "effect_z", "evaluate", "gain", "refit_starts",
-           "unphysical"]
+           "stand_ins", "unphysical"]

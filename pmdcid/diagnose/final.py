@@ -22,7 +22,6 @@ from pmdcid.fit.results import Estimate, bounded
 from pmdcid.identify.nonlinear import DZ_CAVEAT, masked_upper
 from pmdcid.model import EFFECTS
 from pmdcid.model.lumped import is_lumped, lumped_unit
-from pmdcid.model.params import kept_within
 
 #: added effects that can lower the total friction (removed, the last added first, when the
 #: final model's friction is negative somewhere within the logged speeds)
@@ -104,6 +103,12 @@ def free_of(run, added: list[str]) -> list[str]:
     return run.base_free + [p for e in added for p in effect_free(e)]
 
 
+def inside(par, upper: float) -> bool:
+    """Whether the model's dead zone ``par`` (any stage's, bounded or not) lies in [0,
+    ``upper``]."""
+    return par is not None and math.isfinite(par.value) and 0.0 <= par.value <= upper
+
+
 def settle_dead_zone(run, final: FitOutcome, free: list[str],
                      notes: list[str]) -> tuple[FitOutcome, list[str]]:
     """The dead zone when these logs cannot see it: the interval's midpoint (not identified) or
@@ -114,10 +119,13 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
     upper = dead_zone_range(problem, final)
     if upper is not None:
         # its refit value and standard error would mean nothing: written as the interval, as
-        # fit-nonlinear does, the others refitted at the point inside that the model keeps (a
-        # dz other data determined, else the midpoint)
+        # fit-nonlinear does, the others refitted at the point inside that the model keeps: the
+        # model's own dz where it lies inside (other data determined it, or an earlier stage
+        # bounded it: these logs cannot see it, so they leave it where it was; a refit drifts
+        # along the flat cost, and its interval's midpoint can be a dead zone no earlier fit
+        # had), else the midpoint
         free = [p for p in free if p != "dz"]
-        kept = kept_within(run.model.parameters.get("dz"), 0.0, upper)
+        kept = inside(run.model.parameters.get("dz"), upper)
         point = run.vals0["dz"] if kept else 0.5 * upper
         final = run.fit({**final.values, "dz": point}, free, "all")
         unit = lumped_unit("N m") if is_lumped(run.model) else "N m"

@@ -25,6 +25,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
+from pmdcid.diagnose.crosslog import Folds
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
 from pmdcid.diagnose.lag import LAG_PARAMS, lag_for_delay
@@ -80,6 +81,8 @@ class Run:
         self.base_free = free_base(problem, self.vals0, model)
         self.refresh()
         self.floors = repeatability(problem.logs)
+        #: each log's transient held out across logs (:mod:`pmdcid.diagnose.crosslog`)
+        self.folds: Folds | None = None
 
     def refresh(self) -> None:
         """The start's residual context, typical scales and the effects' limits (again after
@@ -297,6 +300,7 @@ def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> Diagn
     run.say = say
     notes: list[str] = []
     read_slow_inputs(run, ramp, notes)
+    run.folds = Folds(run)  # after the input readings: the folds share them
     base = baseline(run)
     cur, added, seen, history = search(run, base, pool, notes)
     new = model.copy()

@@ -10,11 +10,13 @@ A candidate is first *checked* (is its refit evidence at all?), then *judged* ag
   effects the logs cannot tell apart). Never counted.
 - the rules, in order: ΔBIC on the fit part below ``bic``; the held-out data able to test the
   effect at all (:mod:`pmdcid.diagnose.testable`: one log at one operating point cannot test a
-  delay or a speed law; such an effect is *possible, not testable with these logs*) and bearing
-  out what they can tell; the held-out likelihood ratio below ``heldout``; the effect's size at
-  least ``min_z`` standard errors; the chi-square drop at least ``min_gain`` of the excess on
-  both parts; the speed NRMSE of no log held out whole rising by more than ``max_rise``
-  (relative). The first rule a candidate fails is its reason.
+  delay or a speed law; such an effect is *possible, not testable with these logs*, unless
+  each of two or more logs' transients, held out in turn, can test it:
+  :mod:`pmdcid.diagnose.crosslog`) and bearing out what they can tell; the held-out likelihood
+  ratio below ``heldout``; the effect's size at least ``min_z`` standard errors; the
+  chi-square drop at least ``min_gain`` of the excess on both parts; the speed NRMSE of no log
+  held out whole (or head held out across logs) rising by more than ``max_rise`` (relative).
+  The first rule a candidate fails is its reason.
 """
 
 from __future__ import annotations
@@ -83,6 +85,9 @@ def judge(c, rules: Rules) -> tuple[bool, str]:
         return False, pre + (f"speed NRMSE of held-out log {c.rise_log} rises {_pct(c.rise)} > "
                              f"{_pct(rules.max_rise)}")
     held = f", held-out Δ {c.heldout:+.0f}" if c.heldout is not None else ""
+    where = getattr(c.test, "where", "")
+    if where:
+        held += f" on the transients of {where} held out"
     return True, (f"passes: ΔBIC {c.delta_bic:+.0f}{held}, {z:.3g} standard errors, gains "
                   f"{_pct(gf)} / {_pct(gh)}")
 

@@ -93,10 +93,22 @@ def heldout_floor(rules, n_held: int, chi2_held: float) -> float:
     return max(rules.min_z ** 2, rules.min_gain * chi2_held) if n_held else 1.0
 
 
+#: torques whose sensitivity step is at least a share of the torque scale
+TORQUES = ("bc", "dz", "tau0", "fs")
+#: that share: a friction fitted to its bound at 1e-17 would otherwise get a step of 5e-19,
+#: a column of rounding that is dropped, and an effect it could absorb (a load torque beside
+#: bc on a log turning one way) would look distinct from it
+MIN_TORQUE = 0.01
+
+
 def _step(name: str, value: float, torque_scale: float) -> float:
-    if value != 0.0 and math.isfinite(value):
-        return STEP * abs(value)
-    return STEP * torque_scale if name in ("bc", "dz", "tau0", "fs") else 0.0
+    """The step of ``name``'s held-out sensitivity column: :data:`STEP` of its value, of at
+    least :data:`MIN_TORQUE` of the torque scale for a torque (0: no column)."""
+    if not math.isfinite(value):
+        return 0.0
+    if name in TORQUES:
+        return STEP * max(abs(value), MIN_TORQUE * torque_scale)
+    return STEP * abs(value)
 
 
 def _project_out(b: np.ndarray | None, y: np.ndarray) -> np.ndarray:

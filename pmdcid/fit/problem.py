@@ -8,12 +8,14 @@ the kernel still runs at full rate; every sample when None), weighted by the sig
 level. The residual is ``(simulated - measured) / sigma`` per channel, non-finite values 0 (the
 sign of every fit of pmdcid).
 
-Which data are fitted and which held out is a per-log *plan* ('fit', 'held' or 'split'; see
-:func:`pmdcid.diagnose.folds.holdout_plan`): a log is fitted or held out whole, or split in
-time (its first ``split`` fitted, the rest held out). The residual, the simulations it needs and
-its covariance are per *part*: 'fit', 'held' or 'all'. A simulation-error fit
-(:func:`pmdcid.fit.simfit.fit_simulation`) fits every sample of the signals it names (plan
-'fit'); diagnose judges its candidates on held-out data they were not fitted on.
+Which data are fitted and which held out is a per-log *plan* ('fit', 'held', 'split' or
+'head'; see :func:`pmdcid.diagnose.folds.holdout_plan`): a log is fitted or held out whole, or
+split in time (its first ``split`` fitted, the rest held out; 'head': the same split the other
+way round, its head held out and its tail fitted: :mod:`pmdcid.diagnose.crosslog`). The
+residual, the simulations it needs and its covariance are per *part*: 'fit', 'held' or
+'all'. A simulation-error fit (:func:`pmdcid.fit.simfit.fit_simulation`) fits every sample of
+the signals it names (plan 'fit'); diagnose judges its candidates on held-out data they were
+not fitted on.
 """
 
 from __future__ import annotations
@@ -259,12 +261,14 @@ class Problem:
         return n if any(ch.derived_cutoff is not None for ch in chans) else last + 1
 
     def fit_mask(self, k: int) -> np.ndarray:
-        """Samples of log ``k`` (full rate) that are fitted: all, none, or its first part."""
+        """Samples of log ``k`` (full rate) that are fitted: all, none, its first part
+        ('split') or the rest ('head': its first part held out)."""
         log = self.logs[k]
         plan = self.plan[k]
         if plan in ("fit", "held"):
             return np.full(log.n, plan == "fit")
-        return log.t < log.t[0] + self.split * log.duration
+        head = log.t < log.t[0] + self.split * log.duration
+        return ~head if plan == "head" else head
 
     @property
     def held_logs(self) -> list[int]:
