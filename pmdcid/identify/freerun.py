@@ -31,6 +31,7 @@ from pmdcid.errors import FitError
 from pmdcid.fit.covariance import block_covariance
 from pmdcid.fit.results import Estimate, FitStats, bounded, format_estimates, write_estimate
 from pmdcid.identify.steps import held_levels
+from pmdcid.io.derive import mad_std
 from pmdcid.model import Model
 
 STAGE = "fit-electrical"
@@ -90,7 +91,7 @@ def first_diff_noise_std(x: np.ndarray) -> float:
     d = np.diff(np.asarray(x, float))
     if len(d) < 3:
         return 0.0
-    return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
+    return mad_std(d) / math.sqrt(2.0)
 
 
 def rotor_turns(omega: np.ndarray) -> bool:

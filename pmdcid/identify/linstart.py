@@ -31,6 +31,7 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.fit.results import Estimate, ResultProtocol, format_estimates
+from pmdcid.io.derive import mad_std
 from pmdcid.model import Model
 from pmdcid.model.lumped import is_lumped
 
@@ -43,7 +44,7 @@ MIN_ROWS = 20
 
 def _noise(w: np.ndarray) -> float:
     d = np.diff(w)
-    return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0) if len(d) else 0.0
+    return mad_std(d) / math.sqrt(2.0) if len(d) else 0.0
 
 
 def drive_torque(log, model: Model) -> tuple[np.ndarray, float]:

@@ -21,6 +21,7 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.fit.covariance import block_covariance, white_covariance
 from pmdcid.fit.solver import scale_of, solve
+from pmdcid.io.derive import mad_std
 
 #: Strejc's table: Tu/Tn of the tangent at the inflection point for n equal lags, n = 1..6
 STREJC_TU_TN = (0.0, 0.104, 0.218, 0.319, 0.410, 0.493)
@@ -97,7 +98,7 @@ NOISE_QUANTILE = 75.0
 
 def _mad_noise(d: np.ndarray) -> float:
     """White-noise std of a signal from its first differences ``d``: their MAD over sqrt(2)."""
-    return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
+    return mad_std(d) / math.sqrt(2.0)
 
 
 def _input_noise(u: np.ndarray) -> float:
@@ -617,4 +618,4 @@ def residual_std(t, y, step: StepInfo) -> float:
     pre = np.asarray(y[: step.onset], float)
     if len(pre) < 5:
         return math.nan
-    return 1.4826 * float(np.median(np.abs(pre - np.median(pre))))
+    return mad_std(pre)

@@ -40,6 +40,14 @@ def default_cutoff(dt: float) -> float:
     return min(DEFAULT_CUTOFF_FRACTION / dt, DEFAULT_CUTOFF_MAX_HZ)
 
 
+def mad_std(x: np.ndarray) -> float:
+    """The robust std of ``x`` (its unit): 1.4826 times its median absolute deviation, the std
+    of normal samples. Of a signal's first differences, over sqrt(2), it is the signal's
+    white-noise std; of its second differences, over sqrt(6)."""
+    x = np.asarray(x, dtype=float)
+    return 1.4826 * float(np.median(np.abs(x - np.median(x))))
+
+
 def noise_std(x: np.ndarray) -> float:
     """Robust white-noise std of a signal (its unit) from the MAD of its second difference,
     at least quantum/sqrt(12) for a quantised signal (encoder angle)."""
@@ -47,7 +55,7 @@ def noise_std(x: np.ndarray) -> float:
     if len(x) < 5:
         return 0.0
     d2 = np.diff(x, 2)
-    s = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+    s = mad_std(d2) / math.sqrt(6.0)
     steps = np.abs(np.diff(x))
     steps = steps[steps > 0]
     if len(steps):
