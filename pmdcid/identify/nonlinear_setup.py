@@ -65,7 +65,7 @@ def start_values(logs, model: Model, free, warns,
         try:
             idm = fit_inverse_dynamics(tau_logs, model)
             start.update({k: v for k, v in idm.values().items() if math.isfinite(v)})
-            warns.extend(w for w in idm.warnings if "tau0" in free or "tau0" not in w)
+            warns.extend(w for w in idm.warnings if "tau0" not in w)  # tau0: its own rule here
             starts = competing_starts(tau_logs, model, start)
             nstarts = len(starts)
             start.update(starts[min(pick, nstarts - 1)])
