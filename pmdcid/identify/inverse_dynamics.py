@@ -36,6 +36,9 @@ STAGE = "inverse-dynamics"
 EDGE_PERIODS = 5.0
 #: rows at speeds below this fraction of the log's (99th percentile) speed are left out
 REST_FRACTION = 0.02
+#: a regressed torque offset is kept when it lies more than this many standard errors from 0
+#: (as fit-nonlinear's, :data:`pmdcid.identify.nonlinear.OFFSET_SE`)
+OFFSET_SE = 2.0
 
 
 def _units() -> dict[str, str]:
@@ -196,21 +199,14 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
                      "Coulomb friction; tau0 fixed at 0")
         X = X[:, :3]
         names = names[:3]
-    scale = np.linalg.norm(X, axis=0)
-    scale[scale == 0] = 1.0
-    Xs = X / scale
-    theta_s, _, rank, sv = np.linalg.lstsq(Xs, y, rcond=None)
-    if rank < Xs.shape[1]:
-        raise FitError("the logs do not excite the model (regressor matrix rank-deficient): "
-                       "use a log with acceleration, varying speed and both directions")
-    theta = theta_s / scale
-    resid = y - X @ theta
+    theta, se, resid, sv = _solve(X, y, segments)
+    if len(names) == 4 and not abs(theta[3]) > OFFSET_SE * se[3]:
+        warns.append(f"tau0 = {theta[3]:.3g} ± {se[3]:.2g} is within {OFFSET_SE:g} standard "
+                     "errors of 0: these logs show no torque offset; tau0 fixed at 0")
+        X = X[:, :3]
+        names = names[:3]
+        theta, se, resid, sv = _solve(X, y, segments)
     n, p = X.shape
-    s2 = float(resid @ resid) / max(n - p, 1)
-    cov = np.linalg.inv(Xs.T @ Xs) * s2 / np.outer(scale, scale)
-    # the torque residual is model error, correlated in time: block sandwich (covariance.py)
-    cov, _ = block_covariance(X, resid, segments, cov)
-    se = np.sqrt(np.clip(np.diag(cov), 0, None))
     units = _units()
     est = {nm: Estimate(nm, float(v), float(e), units[nm]) for nm, v, e in
            zip(names, theta, se, strict=True)}
@@ -226,6 +222,26 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
     rel = 100.0 * float(np.linalg.norm(resid) / np.linalg.norm(y)) if np.any(y) else math.nan
     return InverseDynamicsResult(est, rel, n, float(min(fcs)), k_used,
                                  float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf, warns)
+
+
+def _solve(X, y, segments):
+    """Column-scaled least squares of ``y`` on ``X``: (theta, standard errors from the block
+    sandwich, residual, singular values); raises :class:`FitError` when ``X`` is rank-deficient."""
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    theta_s, _, rank, sv = np.linalg.lstsq(Xs, y, rcond=None)
+    if rank < Xs.shape[1]:
+        raise FitError("the logs do not excite the model (regressor matrix rank-deficient): "
+                       "use a log with acceleration, varying speed and both directions")
+    theta = theta_s / scale
+    resid = y - X @ theta
+    n, p = X.shape
+    s2 = float(resid @ resid) / max(n - p, 1)
+    cov = np.linalg.inv(Xs.T @ Xs) * s2 / np.outer(scale, scale)
+    # the torque residual is model error, correlated in time: block sandwich (covariance.py)
+    cov, _ = block_covariance(X, resid, segments, cov)
+    return theta, np.sqrt(np.clip(np.diag(cov), 0, None)), resid, sv
 
 
 def fit_quasi_static(logs, model: Model | None = None,

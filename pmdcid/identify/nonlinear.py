@@ -53,6 +53,7 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     chosen_signals,
     default_signals,
     free_parameters,
+    held_offset,
     working_model,
 )
 from pmdcid.identify.ramp_profile import hold_profile
@@ -103,6 +104,8 @@ class NonlinearResult(ResultProtocol):
     route: object = None
     #: the controller route: the logged-output fit it started from
     open_loop: object = None
+    #: how many starts the logs gave (the fit ran from each, this one the lowest chi-square)
+    starts: int = 1
 
     @property
     def stats(self):
@@ -488,19 +491,56 @@ def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool =
     white; closed-loop logs, :func:`pmdcid.fit.simfit.fit_simulation`).
     The model is not modified: call :meth:`NonlinearResult.apply`.
     """
+    run = partial(_best_start, logs, model, free, signals, dead_zone, grid, max_nfev, priors,
+                  noise_model)
     with blas_single_thread():
-        return _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev, priors,
-                              noise_model)
+        res = run()
+        if free is None and not offset_shown(res.estimates.get("tau0")):
+            e = res.estimates["tau0"]
+            again = run(offset=False)
+            again.warnings.insert(0, Note(OFFSET_UNSHOWN.format(v=e.value, se=e.stderr, u=e.unit)
+                                          + held_offset(model), about="tau0",
+                                          severity="note"))
+            res = again
+        return res
+
+
+#: a fitted torque offset is kept when it lies more than this many standard errors from 0
+OFFSET_SE = 2.0
+OFFSET_UNSHOWN = ("tau0 = {v:.3g} ± {se:.2g} {u} is within 2 standard errors of 0: these logs "
+                  "show no torque offset, so it is not fitted")
+
+
+def offset_shown(e: Estimate | None) -> bool:
+    """True when there is no fitted tau0 to judge, or it lies more than :data:`OFFSET_SE`
+    standard errors from 0 (an undetermined one, its standard error not finite, is not shown)."""
+    if e is None or not e.vary:
+        return True
+    return math.isfinite(e.stderr) and abs(e.value) > OFFSET_SE * e.stderr
+
+
+def _best_start(*args, offset: bool = True) -> NonlinearResult:
+    """The fit from each start the logs give (:func:`.nonlinear_setup.competing_starts`:
+    torque-driven logs), the lowest chi-square kept; a start that fails to fit is passed over."""
+    best = _fit_nonlinear(*args, offset=offset)
+    for pick in range(1, best.starts):
+        try:
+            other = _fit_nonlinear(*args, offset=offset, pick=pick)
+        except FitError:
+            continue
+        if other.stats.chisqr < best.stats.chisqr:
+            best = other
+    return best
 
 
 def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
-                   priors=True, noise_model=0) -> NonlinearResult:
+                   priors=True, noise_model=0, offset=True, pick=0) -> NonlinearResult:
     t_start = time.perf_counter()
     check_logs(logs)
     prior = stage_priors(model, KNOWN_FREE, STAGE) if priors else {}
-    free = free_parameters(logs, model, free, dead_zone)
     signals, warns = chosen_signals(logs, signals)
-    work, start, guessed = working_model(logs, model, free, warns)
+    free = free_parameters(logs, model, free, dead_zone, warns, offset)
+    work, start, guessed, nstarts = working_model(logs, model, free, warns, pick)
     base_vals = [param_values(work, lg.drive == "tau", {k: start[k] for k in free})
                  for lg in logs]
     sigma = [{s: noise_level(lg[s]) for s in signals if lg.has(s)} for lg in logs]
@@ -594,5 +634,5 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
         warns.append(hold)
     used = {n: prior[n][0] for n in fit.priors}
     return NonlinearResult(est, fit, signals, [lg.path for lg in logs], start, best, nsets,
-                           time.perf_counter() - t_start, warns, used)
+                           time.perf_counter() - t_start, warns, used, starts=nstarts)
 

@@ -12,6 +12,7 @@ import numpy as np
 from pmdcid.errors import FitError, ModelError
 from pmdcid.io.mapping import is_setpoint
 from pmdcid.model import Model
+from pmdcid.notes import Note
 
 SIGNALS = ("omega", "theta")
 #: free parameters fitted by default: voltage-driven and torque-driven logs
@@ -45,14 +46,18 @@ def default_signals(logs) -> tuple[str, ...]:
                    "(map one with -c)")
 
 
-def start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set[str]]:
+def start_values(logs, model: Model, free, warns,
+                 pick: int = 0) -> tuple[dict[str, float], set[str], int]:
     """Starting values: the model's (fit-mechanical) for voltage logs, inverse dynamics for
     torque-driven logs, else a quasi-static fit with J from a one-sample time constant (too slow
-    a sampling to see the acceleration), else the model. Returns (start, names guessed)."""
+    a sampling to see the acceleration), else the model. Torque-driven logs may give several
+    starts (:func:`competing_starts`, lowest simulation error first): ``pick`` chooses one.
+    Returns (start, names guessed, how many starts there are)."""
     from pmdcid.identify.inverse_dynamics import fit_inverse_dynamics, fit_quasi_static
 
     start: dict[str, float] = {}
     guessed: set[str] = set()
+    nstarts = 1
     tau_logs = [lg for lg in logs if lg.drive == "tau"]
     if tau_logs and _earlier_mechanics(model):
         tau_logs = []  # a lumped model from fit-mechanical: its J, bv are the better start
@@ -60,9 +65,10 @@ def start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set
         try:
             idm = fit_inverse_dynamics(tau_logs, model)
             start.update({k: v for k, v in idm.values().items() if math.isfinite(v)})
-            warns.extend(idm.warnings)
-            if closed_loop_logs(tau_logs):
-                start.update(closed_loop_start(tau_logs, model, start))
+            warns.extend(w for w in idm.warnings if "tau0" not in w)  # tau0: its own rule here
+            starts = competing_starts(tau_logs, model, start)
+            nstarts = len(starts)
+            start.update(starts[min(pick, nstarts - 1)])
         except FitError as exc:
             try:
                 start.update(fit_quasi_static(tau_logs, model))
@@ -94,7 +100,7 @@ def start_values(logs, model: Model, free, warns) -> tuple[dict[str, float], set
         tb = model.extra.get("fits", {}).get("fit-mechanical", {}).get("breakaway_torque")
         start["dz"] = float(tb) if isinstance(tb, (int, float)) and tb > 0 else start["bc"]
     start.setdefault("tau0", 0.0)
-    return start, guessed
+    return start, guessed, nstarts
 
 
 def reference_column(logs, names=None) -> str | None:
@@ -113,38 +119,91 @@ def closed_loop_logs(logs, names=None) -> bool:
     return reference_column(logs, names) is not None
 
 
+def competing_starts(logs, model: Model, idm: dict[str, float]) -> list[dict[str, float]]:
+    """The torque-driven fit's starts, lowest simulation error on ``logs`` first: inverse
+    dynamics' (``idm``), the J, bv, bc the model holds (the first-order least squares of every
+    moving log, :mod:`.linstart`, or an earlier run's) and, for closed-loop logs, the
+    quasi-static friction with inverse dynamics' J (:func:`closed_loop_start`).
+
+    Inverse dynamics regresses the torque on a filtered acceleration: with a noisy speed its
+    cut-off falls to a few Hz and a few dozen rows remain, and a friction that is no
+    ``bc sign(omega)`` (Stribeck's, falling from breakaway) is read as inertia and offset
+    (bench/torquerig.py's Stribeck rig at 100 Hz: J 2-10 % of the truth, and the local stage,
+    held within 10x of its start, could not reach it). Which start is best shows only after
+    the fit (a start's own simulation error does not rank the basins it leads to): the fit
+    runs from each (:func:`pmdcid.identify.nonlinear.fit_nonlinear`)."""
+    sets = [idm]
+    held = _model_start(model, idm)
+    if held:
+        sets.append(held)
+    if closed_loop_logs(logs):
+        qs = closed_loop_candidate(logs, model, idm)
+        if qs:
+            sets.append(qs)
+    return _by_cost(logs, model, sets)
+
+
+def _model_start(model: Model, idm: dict[str, float]) -> dict[str, float] | None:
+    """The model's own J, bv, bc as a start (tau0 0 unless it holds one), None without J, bv."""
+    if not (model.has("J") and model.has("bv")):
+        return None
+    out = {**idm, "J": model.value("J"), "bv": model.value("bv"),
+           "bc": max(model.value("bc"), 0.0) if model.has("bc") else 0.0,
+           "tau0": model.value("tau0") if model.has("tau0") else 0.0}
+    return out if out["J"] > 0 and out["bv"] > 0 else None
+
+
 def closed_loop_start(logs, model: Model, idm: dict[str, float]) -> dict[str, float]:
     """Closed-loop logs: inverse dynamics regresses the torque on a speed and an acceleration
     whose noise the controller fed back into that torque (biased: bv 1e-4 of its value on a PI
     loop with 1 rad/s of speed noise, tests/simulate/test_closedloop.py). The quasi-static friction
     (torque against the speed at the samples, no acceleration) with inverse dynamics' J
     competes with it by simulation error; the lower wins."""
-    from pmdcid.fit.problem import noise_level
-    from pmdcid.identify.grid import batch_cost
+    qs = closed_loop_candidate(logs, model, idm)
+    return _lowest_cost(logs, model, [idm, qs]) if qs else idm
+
+
+def closed_loop_candidate(logs, model: Model, idm: dict[str, float]) -> dict[str, float] | None:
+    """The quasi-static friction with inverse dynamics' J (None when it gives none)."""
     from pmdcid.identify.inverse_dynamics import fit_quasi_static
-    from pmdcid.simulate import param_values
-    from pmdcid.simulate.initial import initial_state
 
     try:
         qs = {**idm, **fit_quasi_static(logs, model)}
     except FitError:
-        return idm
+        return None
     qs["bc"] = max(qs["bc"], 0.0)
-    if not (qs["bv"] > 0 and idm.get("J", 0.0) > 0):
-        return idm
-    sets = [idm, qs]
-    cost = np.zeros(2)
+    return qs if qs["bv"] > 0 and idm.get("J", 0.0) > 0 else None
+
+
+def _lowest_cost(logs, model: Model, sets: list[dict[str, float]]) -> dict[str, float]:
+    """The set of ``sets`` with the lowest speed simulation error on ``logs``."""
+    return _by_cost(logs, model, sets)[0]
+
+
+def _by_cost(logs, model: Model, sets: list[dict[str, float]]) -> list[dict[str, float]]:
+    """``sets`` in order of their speed simulation error on ``logs`` (as given when they cannot
+    be compared: a log without a speed, a model the kernel refuses)."""
+    from pmdcid.fit.problem import noise_level
+    from pmdcid.identify.grid import batch_cost
+    from pmdcid.simulate import param_values
+    from pmdcid.simulate.initial import initial_state
+
+    if len(sets) < 2:
+        return sets
     try:
-        base = param_values(model, True, {"J": idm["J"]})
+        base = param_values(model, True, {"J": sets[0]["J"]})
     except ModelError:
-        return idm
+        return sets
+    cost = np.zeros(len(sets))
     for lg in logs:
         if not lg.has("omega"):
-            return idm
+            return sets
         sig = noise_level(lg["omega"])
         cost += batch_cost(lg, [{**base, **{k: v for k, v in c.items() if k in base}}
                                 for c in sets], {"omega": sig}, x0=initial_state(lg, sig))
-    return sets[int(np.argmin(cost))] if np.all(np.isfinite(cost)) else idm
+    if not np.all(np.isfinite(cost)):
+        return sets
+    return [sets[i] for i in np.argsort(cost, kind="stable")]
 
 
 def _earlier_mechanics(model: Model) -> bool:
@@ -167,14 +226,21 @@ def check_logs(logs) -> None:
                            f"least {MIN_SAMPLES})", lg.path)
 
 
-def free_parameters(logs, model: Model, free, dead_zone: bool) -> list[str]:
+def free_parameters(logs, model: Model, free, dead_zone: bool, warns=None,
+                    offset: bool = True) -> list[str]:
     """The parameters fitted: given, or J, bv, bc, dz (voltage logs; R, L, km required) or
-    J, bv, bc, tau0 (torque logs; dz with ``dead_zone``)."""
+    J, bv, bc, tau0 (torque logs; dz with ``dead_zone``; tau0 only where the speed moves both
+    ways, :func:`both_directions`, and ``offset``, a note in ``warns`` when left out)."""
     any_v = any(lg.drive == "v" for lg in logs)
     if any_v:
         model.require("R", "L", "km", stage="fit-nonlinear")
     if free is None:
         free = list(FREE_V if any_v else FREE_TAU)
+        if "tau0" in free and not (offset and both_directions(logs)):
+            free.remove("tau0")
+            if warns is not None and offset:
+                warns.append(Note(OFFSET_ONE_WAY + held_offset(model), about="tau0",
+                                  severity="note"))
         if dead_zone and "dz" not in free:
             free.append("dz")
     free = list(dict.fromkeys(free))
@@ -183,6 +249,46 @@ def free_parameters(logs, model: Model, free, dead_zone: bool) -> list[str]:
         raise FitError(f"cannot fit {', '.join(bad)} here (choose among "
                        f"{', '.join(KNOWN_FREE)})")
     return free
+
+
+#: the note when the logs turn one way only
+OFFSET_ONE_WAY = ("the speed never reverses in these logs: a torque offset tau0 cannot be told "
+                  "from Coulomb friction (bc + tau0 is what they determine), so tau0 is not "
+                  "fitted")
+#: a moving sample's speed is beyond this many noise levels; each direction must hold at least
+#: :data:`DIRECTION_SHARE` of the moving samples
+MOVING_NOISE = 4.0
+DIRECTION_SHARE = 0.01
+
+
+def held_offset(model: Model) -> str:
+    if model.has("tau0") and "torque_offset" in model.effects:
+        return f" (the model's tau0 = {model.value('tau0'):.3g} from other data is kept)"
+    return " (0: torque_offset not written)"
+
+
+def both_directions(logs) -> bool:
+    """True when the measured speed (or the angle's first difference) moves clearly both ways
+    over ``logs``: each direction holds at least 1 % of the samples faster than 4 noise levels
+    and 2 % of the 99th-percentile speed. Only then is a constant torque (tau0, the same sign
+    either way) told from Coulomb friction (bc sign(omega))."""
+    from pmdcid.fit.problem import noise_level
+
+    pos = neg = 0
+    for lg in logs:
+        if lg.has("omega"):
+            w = np.asarray(lg["omega"], float)
+        elif lg.has("theta"):
+            w = np.diff(np.asarray(lg["theta"], float)) / lg.dt
+        else:
+            continue
+        w = w[np.isfinite(w)]
+        if len(w) < 5:
+            continue
+        thr = max(MOVING_NOISE * noise_level(w), 0.02 * float(np.percentile(np.abs(w), 99)))
+        pos += int(np.sum(w > thr))
+        neg += int(np.sum(w < -thr))
+    return min(pos, neg) >= DIRECTION_SHARE * max(pos + neg, 1) and min(pos, neg) > 0
 
 
 def chosen_signals(logs, signals) -> tuple[tuple[str, ...], list[str]]:
@@ -200,17 +306,17 @@ def chosen_signals(logs, signals) -> tuple[tuple[str, ...], list[str]]:
     return signals, warns
 
 
-def working_model(logs, model: Model, free, warns):
-    """A copy of ``model`` holding the starting values (:func:`start_values`) of the fitted
-    parameters and of those it lacks (no dead zone unless the model has one or it is fitted);
-    returns (model, start values, names guessed)."""
+def working_model(logs, model: Model, free, warns, pick: int = 0):
+    """A copy of ``model`` holding the starting values (:func:`start_values`, the ``pick``-th
+    start) of the fitted parameters and of those it lacks (no dead zone unless the model has one
+    or it is fitted); returns (model, start values, names guessed, how many starts there are)."""
     work = model.copy()
     if "tau0" in free:
         work.add_effect("torque_offset")
-    start, guessed = start_values(logs, work, free, warns)
+    start, guessed, nstarts = start_values(logs, work, free, warns, pick)
     if "dz" not in free and not work.has("dz"):
         start["dz"] = 0.0
     for name in ("J", "bv", "bc", "dz", "tau0", *LUMPED_FREE):
         if name in free or (not work.has(name) and name in ("J", "bv", "bc", "dz")):
             work.set(name, start[name], stage="start")
-    return work, start, guessed
+    return work, start, guessed, nstarts

@@ -17,11 +17,12 @@ BASE = {"J": 3.1e-3, "bv": 0.0314, "bc": 5e-3, "tau0": 1e-3}
 
 
 def torque_log(tmp_path, rng, jf=1.0, ff=1.0, fs=1000.0, duration=20.0, encoder=4096,
-               keep=("tau", "theta"), speed_noise=0.0, amplitude=0.08, one_way=False):
+               keep=("tau", "theta"), speed_noise=0.0, amplitude=0.08, one_way=False,
+               tau0=None):
     """A torque-driven staircase log (levels held 5 mechanical time constants) -> Log, truth."""
     vals = {**neutral_values(), "R": 1.0, "L": 1.0, "km": 1.0,
             "J": BASE["J"] * jf, "bv": BASE["bv"] * ff, "bc": BASE["bc"] * ff,
-            "tau0": BASE["tau0"] * ff}
+            "tau0": BASE["tau0"] * ff if tau0 is None else tau0}
     t = np.arange(int(duration * fs)) / fs
     tau = staircase(t, amplitude * ff, 5 * vals["J"] / vals["bv"], rng)
     if one_way:
@@ -126,3 +127,20 @@ def test_slow_short_log_fails_cleanly():
     log = Log(path="slow.csv", t=t, data={"tau": u, "omega": om})
     with pytest.raises(FitError):
         fit_inverse_dynamics([log])
+
+
+@pytest.mark.parametrize("seed", [7, 8])
+def test_no_offset_in_the_truth_is_fixed_at_zero(tmp_path, seed):
+    """Both directions, no torque offset, a noisy speed: the regressed tau0 lies within 2
+    standard errors of 0, so it is fixed at 0 with a warning and ``apply`` writes no
+    ``torque_offset``; J, bv, bc as before (3 %)."""
+    rng = np.random.default_rng(seed)
+    log, truth = torque_log(tmp_path, rng, keep=("tau", "omega"), speed_noise=0.05, tau0=0.0)
+    res = fit_inverse_dynamics([log])
+    assert not res.estimates["tau0"].vary and res.estimates["tau0"].value == 0.0
+    assert any("within 2 standard errors of 0" in w for w in res.warnings)
+    for name in ("J", "bv", "bc"):
+        assert res.estimates[name].value == pytest.approx(truth[name], rel=0.03), name
+    m = Model()
+    res.apply(m)
+    assert "torque_offset" not in m.effects
