@@ -40,7 +40,7 @@ import numpy as np
 from pmdcid.errors import FitError, PmdcidError
 from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import closed_loop_logs
-from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau
+from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau, typical_speed
 from pmdcid.identify.runners import (
     apply_stage,
     fit_stage,
@@ -359,12 +359,13 @@ def _diverged(model: Model, before: Model, logs) -> str | None:
     """Why a fitted model's mechanics cannot be what the logs determined (None: plausible)."""
     if model is before:
         return None
-    tau = mechanical_tau(model)
+    speed = typical_speed(logs)
+    tau = mechanical_tau(model, speed)
     longest = max(float(lg.t[-1] - lg.t[0]) for lg in logs)
     if not math.isfinite(tau) or tau <= 0:
         return "no finite mechanical time constant"
     if tau > MAX_TAU_MECHANICAL or tau > DIVERGED_DURATIONS * longest:
-        was = mechanical_tau(before)
+        was = mechanical_tau(before, speed)
         was = f"; the stages gave {was:.3g} s" if math.isfinite(was) else ""
         return f"mechanical time constant {tau:.3g} s, the longest log {longest:.3g} s{was}"
     return None

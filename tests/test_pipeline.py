@@ -194,6 +194,30 @@ def test_lumped_parameters_no_motor_has_are_refused_unless_forced():
         gate_result(sticky, [_log(3.0)])  # the input never exceeds 1 V
 
 
+def test_a_quadratic_drag_that_holds_the_speed_passes_the_per_volt_gates():
+    """diagnose may fit a quadratic drag that holds the speed where bv came out near 0 (seen on
+    a motor whose PWM driver conducts discontinuously at low duty, bench/newrigs.py dcm-pwm):
+    the gates read 1/bv = 2e4 rad/s/V and J/bv = 4e12 s and identify refused its own model. The
+    steady speed per volt and the time constant are now the model's own at the logs' speeds:
+    the same model without the drag is still refused."""
+    from pmdcid.identify.plausibility import gate_result, steady_speed_per_volt
+
+    t = np.arange(3000) / 1000.0
+    logs = [Log("x.csv", t, {"v": step(t, 12.0, 0.3), "omega": np.full(len(t), 900.0)})]
+    m = _model(0.1)
+    m.set("J", 1e-3)
+    m.set("bv", 1e-9)
+    m.extra["lumped"] = True
+    with pytest.raises(LogError, match="speed per volt"):
+        gate_result(m, logs)
+    m.add_effect("quadratic_drag")
+    m.set("bq", 1.4e-5)  # 12 V holds about 925 rad/s: 77 rad/s/V
+    assert steady_speed_per_volt(m, 12.0) == pytest.approx(77.2, rel=0.01)
+    gate_result(m, logs)  # J/(2 bq 900 rad/s) = 0.04 s: no error
+    plain = _model(0.1)
+    assert steady_speed_per_volt(plain, 12.0) == pytest.approx(1 / 0.01)  # 1/bv, unchanged
+
+
 def _lumped_logs(tmp_path, rng, speed_per_volt=50.0, scale=1.0, name="omega"):
     """Voltage + speed step logs of a per-volt motor (1/bv' = ``speed_per_volt`` rad/s/V, time
     constant 0.1 s); the speed column ``name`` holds ``scale`` x rad/s."""
