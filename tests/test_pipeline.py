@@ -445,6 +445,7 @@ def _aprbs(t, rng, lo, hi, hold):
     return u
 
 
+@pytest.mark.slow
 def test_an_aprbs_whose_levels_do_not_settle_is_fitted_as_rich_not_as_steps():
     """An APRBS whose levels (0.05-0.3 s) end before the speed settles (J/bv = 0.155 s), voltage
     and speed logged (a per-volt model), is held at levels but no step experiment: fit-mechanical
