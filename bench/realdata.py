@@ -147,14 +147,21 @@ def predict(model, log) -> float:
 
 
 def paper_sequence(rig: Rig, km=None):
-    """fit-mechanical on the steps, then fit-nonlinear on the rich logs (priors)."""
-    from pmdcid.identify.runners import per_volt
+    """fit-mechanical on the steps, then fit-nonlinear on the rich logs (priors); first
+    fit-electrical on the logs with current (free-running: R, L, ke), and torque steps to
+    fit-nonlinear (fit-mechanical reads voltage steps)."""
+    from pmdcid.identify.runners import per_volt, stage_electrical
     from pmdcid.model import Model
     from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
     from pmdcid.pipeline import _mechanical, _nonlinear
 
     model = Model()
     steps, rich = read(rig, rig.steps), read(rig, rig.rich)
+    with_current = [lg for lg in steps + rich if lg.has("i") and lg.drive == "v"]
+    if with_current:  # the paper's first stage: R, L (and ke, km = ke: free-running logs)
+        stage_electrical(with_current, model).apply(model)
+    if steps and all(lg.drive == "tau" for lg in steps):  # fit-mechanical reads voltage steps
+        steps, rich = [], steps + rich
     if wants_lumped(steps + rich, model):
         mark_lumped(model)
     for logs, stage in ((steps, _mechanical), (rich, _nonlinear(True))):

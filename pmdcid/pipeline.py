@@ -40,7 +40,7 @@ import numpy as np
 from pmdcid.errors import FitError, PmdcidError
 from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import closed_loop_logs
-from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau
+from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau, typical_speed
 from pmdcid.identify.runners import (
     apply_stage,
     fit_stage,
@@ -259,13 +259,14 @@ def _mechanical_start(res: IdentifyResult, groups, say) -> None:
     """J and viscous friction before the joint fit, from the first source that gives them: the
     step logs (fit-mechanical), the steps inside the rich logs, a first-order least-squares fit
     of every moving log (:mod:`pmdcid.identify.linstart`)."""
+    unsettled = []
     if groups["step"]:
         say("fit-mechanical")
-        _stage(res, "fit-mechanical", groups["step"], _mechanical)
+        unsettled = _step_stage(res, groups)
     # a controller's output (a closed-loop log: a set-point column) is no step experiment: its
     # jumps answer the measured speed, and a step fit there reads the loop's lag as a latency
     inside = [lg for lg in groups["rich"] if not _has_mech(res.model)
-              and not closed_loop_logs([lg]) and _any_step(lg)]
+              and not closed_loop_logs([lg]) and lg not in unsettled and _any_step(lg)]
     if inside:
         say("fit-mechanical")
         _stage(res, "fit-mechanical (steps inside the rich logs)", inside, _mechanical)
@@ -273,6 +274,40 @@ def _mechanical_start(res: IdentifyResult, groups, say) -> None:
         say("linear start")
         _stage(res, "linear start (first-order fit of the moving logs)",
                groups["step"] + groups["rich"], _linear_start)
+
+
+def _step_stage(res: IdentifyResult, groups) -> list:
+    """fit-mechanical on the step logs. A log held at levels most of whose steps end before the
+    speed settles (fit-mechanical refused more of them as too short than it used: an APRBS, a
+    fast random staircase) is no step experiment: the few steps that pass are fitted with the
+    response of the earlier ones still in them (a time constant of a few ms behind a dead time
+    of a tenth of a second). Such logs are sorted as rich (fit-nonlinear, by simulation error),
+    and fit-mechanical runs again without them. Returns those logs."""
+    before = res.model
+    _stage(res, "fit-mechanical", groups["step"], _mechanical)
+    if res.model is before:
+        return []
+    steps = res.stages[-1][1].steps
+    unsettled = [lg for lg in groups["step"] if _mostly_unsettled(steps, lg.path)]
+    if not unsettled:
+        return []
+    _undo(res, before)
+    for lg in unsettled:
+        groups["step"].remove(lg)
+        groups["rich"].append(lg)
+        k = next(j for j, p in enumerate(res.plan) if p.path == lg.path and p.kind == "step")
+        res.plan[k] = LogPlan(lg.path, "rich", res.plan[k].why + ", most too short for the "
+                              "speed to settle (an APRBS): fitted by simulation error")
+    if groups["step"]:
+        _stage(res, "fit-mechanical", groups["step"], _mechanical)
+    return unsettled
+
+
+def _mostly_unsettled(steps, path: str) -> bool:
+    """More of the log's steps refused as too short to settle than used."""
+    mine = [s for s in steps if s.path == path]
+    short = sum(1 for s in mine if not s.moved and s.note == "plateau too short")
+    return short > sum(1 for s in mine if s.moved)
 
 
 def _any_step(log) -> bool:
@@ -324,12 +359,13 @@ def _diverged(model: Model, before: Model, logs) -> str | None:
     """Why a fitted model's mechanics cannot be what the logs determined (None: plausible)."""
     if model is before:
         return None
-    tau = mechanical_tau(model)
+    speed = typical_speed(logs)
+    tau = mechanical_tau(model, speed)
     longest = max(float(lg.t[-1] - lg.t[0]) for lg in logs)
     if not math.isfinite(tau) or tau <= 0:
         return "no finite mechanical time constant"
     if tau > MAX_TAU_MECHANICAL or tau > DIVERGED_DURATIONS * longest:
-        was = mechanical_tau(before)
+        was = mechanical_tau(before, speed)
         was = f"; the stages gave {was:.3g} s" if math.isfinite(was) else ""
         return f"mechanical time constant {tau:.3g} s, the longest log {longest:.3g} s{was}"
     return None

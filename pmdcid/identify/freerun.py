@@ -30,6 +30,7 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.fit.covariance import block_covariance
 from pmdcid.fit.results import Estimate, FitStats, bounded, format_estimates, write_estimate
+from pmdcid.identify.plausibility import MAX_TAU_ELECTRICAL
 from pmdcid.identify.steps import held_levels
 from pmdcid.io.derive import mad_std
 from pmdcid.model import Model
@@ -354,10 +355,13 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
                        "voltage must vary (steps, a ramp) while the current is logged", names)
     a_se = math.sqrt(max(cov[0, 0], 0.0))
     bound = not math.isfinite(tau)
+    tau_at = None  # the lag simulations use when the bound is none (below)
     if bound:  # a <= 0: only an upper bound on tau_e from a's upper confidence limit
         a_hi = min(max(a, 0.0) + 2 * a_se, 1 - 1e-12)
         tau = -dt / math.log(a_hi) if a_hi > 0 else dt / math.log(1e12)
         tau_se = tau
+        if tau > MAX_TAU_ELECTRICAL:  # a's interval reaches 1: the logs bound no lag at all
+            tau, tau_at = MAX_TAU_ELECTRICAL, dt / math.log(1e12)
     else:
         tau_se = float(se[1])
     resolved = bool(not bound and tau >= MIN_TAU_SAMPLES * dt and tau_se < MAX_L_REL_SE * tau)
@@ -397,8 +401,14 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
     if bound:  # only an upper bound: the interval up to it, its value as before
         why = ("not resolved by these logs, L/R under the sample period: sample faster, or "
                "record a blocked-rotor log")
-        est["L"] = bounded("L", 0.0, float(L), "H", why, float(L))
-        est["tau_e"] = bounded("tau_e", 0.0, float(tau), "s", why, float(tau))
+        at = tau if tau_at is None else tau_at
+        if tau_at is not None:  # no bound: simulating at its end would be a lag of a second
+            why = ("not resolved by these logs: the current does not bound L/R below any "
+                   f"motor's ({MAX_TAU_ELECTRICAL:g} s; a measured voltage's noise hides the "
+                   "armature's lag), simulated as under one sample period, as the regression's "
+                   "own estimate gives it: sample faster, or record a blocked-rotor log")
+        est["L"] = bounded("L", 0.0, float(L), "H", why, float(at * R))
+        est["tau_e"] = bounded("tau_e", 0.0, float(tau), "s", why, float(at))
     stats = FitStats(len(r), len(th), float(r @ r), 0, True)
     return FreeRunResult(est, offsets, [lg.path for lg in logs], stats, dt, resolved, bound,
                          bool(ke_ok), warns, info.describe())

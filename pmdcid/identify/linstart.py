@@ -17,9 +17,15 @@ and the model hold:
 - ``km (v - ke omega)/R`` (R, km known, no current: the electrical lag L/R neglected, the
   back-EMF damping km ke/R taken out of bv afterwards).
 
-The electrical lag and the speed sensor's noise bias this estimate (noise on omega[k] pulls a
-towards 0: J low by about the noise-to-signal variance ratio over dt/tau), so it is a start for
-the fits that follow, written with stage ``start`` (never a prior) and no standard error.
+The speed sensor's noise on omega[k] would pull a towards 0 (J low by about the noise-to-signal
+variance ratio over dt/tau: on a 256-count encoder read at 1 kHz, bv 2000 times the truth, beyond
+the joint fit's reach of 10 times its start). Where that noise dominates the speed's first
+difference, omega[k] is instrumented by omega[k - m], m samples back where the noise no longer
+reaches (:func:`noise_lag`): the same regression, instrumental variables. A drive that leaves
+no damping the logs' span resolves (a ~ 1: a current-driven rotor whose viscous friction is
+tiny) gives J = dt/g and a damping of J/span to start from. The electrical lag still biases it,
+so it is a start for the fits that follow, written with stage ``start`` (never a prior) and no
+standard error.
 """
 
 from __future__ import annotations
@@ -40,6 +46,8 @@ STAGE = "start"
 TURN_SIGMAS = 3.0
 #: fewest samples the regression needs
 MIN_ROWS = 20
+#: the longest reach of the speed's noise looked for [samples] (a firmware's moving average)
+MAX_NOISE_LAG = 16
 
 
 def _noise(w: np.ndarray) -> float:
@@ -65,14 +73,47 @@ def drive_torque(log, model: Model) -> tuple[np.ndarray, float]:
     return km * np.asarray(log["v"], float) / R, km * ke / R
 
 
+def noise_lag(w: np.ndarray) -> int:
+    """How many samples back the speed's noise no longer reaches [samples]: 0 when its first
+    difference is not dominated by noise, else the last lag (up to :data:`MAX_NOISE_LAG`) at
+    which the first difference's autocorrelation differs from its far lags' (the smooth
+    signal's share, lags up to twice as far) by more than 3 times their scatter (at least
+    1/sqrt(n)). The difference of a noise
+    that reaches q samples (white: 0; an encoder's count difference: 1; a firmware's moving
+    average of 4: 3) is correlated up to lag q + 1, with a negative autocorrelation somewhere
+    (its autocorrelations sum to -1/2): without one, the differences are the signal's."""
+    d = np.diff(w[np.isfinite(w)])
+    d = d - np.mean(d) if len(d) else d
+    den = float(d @ d)
+    if len(d) < 10 * MAX_NOISE_LAG or not den > 0:
+        return 0
+    r = np.array([float(d[:-j] @ d[j:]) / den for j in range(1, 2 * MAX_NOISE_LAG + 1)])
+    far = r[MAX_NOISE_LAG:]
+    dev = r[:MAX_NOISE_LAG] - float(np.median(far))
+    lim = 3.0 * max(1.0 / math.sqrt(len(d)), mad_std(far))
+    if not np.any(dev < -lim):
+        return 0
+    return int(np.flatnonzero(np.abs(dev) > lim)[-1]) + 1
+
+
 def _rows(log, model: Model):
+    """Regressors [omega[k], T[k], -sign omega[k]], their instruments (omega[k] replaced by
+    omega[k - m], m = :func:`noise_lag`: the speed's noise in omega[k] is in the regressor and
+    pulls a towards 0; m samples back it is independent of the noise at k and k + 1), target
+    omega[k + 1], the back-EMF damping, dt."""
     T, emf = drive_torque(log, model)
     w = np.asarray(log["omega"], float)
     sig = _noise(w)
+    m = noise_lag(w)
     turning = np.abs(w) > TURN_SIGMAS * max(sig, 1e-12)
-    ok = turning[:-1] & turning[1:] & np.isfinite(w[:-1]) & np.isfinite(w[1:]) & np.isfinite(T[:-1])
-    X = np.column_stack([w[:-1], T[:-1], -np.sign(w[:-1])])[ok]
-    return X, w[1:][ok], emf, float(log.dt)
+    k = np.arange(m, len(w) - 1)
+    ok = (turning[k] & turning[k + 1] & np.isfinite(w[k]) & np.isfinite(w[k + 1])
+          & np.isfinite(T[k]) & np.isfinite(w[k - m]))
+    k = k[ok]
+    X = np.column_stack([w[k], T[k], -np.sign(w[k])])
+    Z = X.copy()
+    Z[:, 0] = w[k - m]
+    return X, Z, w[k + 1], emf, float(log.dt)
 
 
 @dataclass
@@ -106,25 +147,33 @@ def linear_start(logs, model: Model) -> LinearStart:
         raise FitError("a linear start needs a speed (or angle) column", names)
     parts = [_rows(lg, model) for lg in logs]
     X = np.concatenate([p[0] for p in parts])
-    y = np.concatenate([p[1] for p in parts])
+    Z = np.concatenate([p[1] for p in parts])
+    y = np.concatenate([p[2] for p in parts])
     if len(y) < MIN_ROWS:
         raise FitError("the rotor hardly turns: too few moving samples for a linear start", names)
-    dt = float(np.median([p[3] for p in parts]))
+    dt = float(np.median([p[4] for p in parts]))
     scale = np.maximum(np.sqrt(np.mean(X**2, axis=0)), 1e-300)
-    th = np.linalg.lstsq(X / scale, y, rcond=None)[0] / scale
+    th = np.linalg.lstsq((Z / scale).T @ (X / scale), (Z / scale).T @ y, rcond=None)[0] / scale
     a, g, gbc = th
-    if not (0 < a < 1 and g > 0):
+    span = max(float(lg.t[-1] - lg.t[0]) for lg in logs)
+    if not (0 < a < 1 + dt / span and g > 0):
         raise FitError(f"the speed does not follow the drive as a first-order system (a = {a:.3g},"
                        f" g = {g:.3g}): check the sign of the speed against the input", names)
-    b_total = (1 - a) / g
-    emf = float(np.median([p[2] for p in parts]))
-    bv = b_total - emf
+    emf = float(np.median([p[3] for p in parts]))
     warns = []
+    if a >= 1 - dt / span:  # no damping the logs resolve: J from the drive's gain alone
+        b_total = dt / (g * span)
+        J = dt / g
+        warns.append(f"no damping within the logs' span ({span:.3g} s): J from the drive's gain "
+                     "alone, the damping started at J / span")
+    else:
+        b_total = (1 - a) / g
+        J = -dt * b_total / math.log(a)
+    bv = b_total - emf
     if not bv > 0:
         warns.append(f"the first-order damping {b_total:.3g} is no more than the back-EMF's "
                      f"{emf:.3g}: bv starts at a tenth of it")
         bv = 0.1 * b_total
-    J = -dt * b_total / math.log(a)
     bc = max(gbc / g, 0.0)
     est = {"J": Estimate("J", J, math.nan, "kg m^2"),
            "bv": Estimate("bv", bv, math.nan, "N m s/rad"),

@@ -127,13 +127,25 @@ def _val(model, name: str) -> float:
     return p.value if p is not None else math.nan
 
 
-def mechanical_tau(model) -> float:
-    """The model's mechanical time constant J/(b + km^2/R) [s] (per volt: J/bv); NaN without J
-    or damping."""
+def mechanical_tau(model, speed: float = 0.0) -> float:
+    """The model's mechanical time constant J/(b + km^2/R + 2 bq speed) [s] at ``speed``
+    [rad/s] (per volt: J/(bv + 2 bq speed)); the quadratic drag's part only where the model has
+    it (it can hold the speed alone, bv near 0 beside it). NaN without J or damping."""
     R, km, J = _val(model, "R"), _val(model, "km"), _val(model, "J")
     b = _val(model, "bv") if math.isfinite(_val(model, "bv")) else _val(model, "b")
     damping = (b if math.isfinite(b) else 0.0) + (km * km / R if R > 0 and km > 0 else 0.0)
+    bq = _val(model, "bq") if "quadratic_drag" in model.effects else math.nan
+    if bq > 0 and speed > 0:
+        damping += 2.0 * bq * speed
     return J / damping if damping > 0 else math.nan
+
+
+def typical_speed(logs) -> float:
+    """The logs' typical moving speed [rad/s]: the 90th percentile of |omega| (0 without)."""
+    w = [np.abs(np.asarray(lg["omega"], float)) for lg in logs if lg.has("omega")]
+    w = np.concatenate(w) if w else np.zeros(0)
+    w = w[np.isfinite(w)]
+    return float(np.quantile(w, 0.9)) if w.size else 0.0
 
 
 #: a fitted time constant longer than this many times the longest log was not determined by
@@ -141,13 +153,13 @@ def mechanical_tau(model) -> float:
 UNDETERMINED_DURATIONS = 3.0
 
 
-def _tau_messages(model) -> list[tuple[str, float]]:
+def _tau_messages(model, speed: float = 0.0) -> list[tuple[str, float]]:
     R, L = _val(model, "R"), _val(model, "L")
     msgs = []
     if R > 0 and L / R > MAX_TAU_ELECTRICAL:
         msgs.append((f"the fitted armature time constant L/R = {L / R:.3g} s is beyond any "
                      "motor's (< 1 s)", L / R))
-    tau = mechanical_tau(model)
+    tau = mechanical_tau(model, speed)
     if tau > MAX_TAU_MECHANICAL:
         msgs.append((f"the fitted mechanical time constant J/(b+km^2/R) = {tau:.3g} s is "
                      "beyond any motor's (< 100 s)", tau))
@@ -157,6 +169,40 @@ def _tau_messages(model) -> list[tuple[str, float]]:
 #: steady speed per volt [rad/s/V] above which omega is taken for rpm or deg/s: KV 9550 rpm/V,
 #: beyond all but the smallest coreless motors (a 7 mm drone motor reaches ~1400: --force)
 MAX_SPEED_PER_VOLT = 1000.0
+
+
+def steady_speed_per_volt(model, vmax: float) -> float:
+    """A per-volt model's steady speed per volt above its breakaway [rad/s/V]: the speed where
+    its friction (bv omega, Coulomb, and the effects' sliding friction: quadratic drag, Stribeck,
+    asymmetry, the friction curve) meets the largest input ``vmax`` [V] less the dead zone,
+    over that input less the friction at rest. Without effects exactly 1/bv; a quadratic drag
+    that holds the speed down lowers it (diagnose may fit bv near 0 beside it); inf when no
+    speed balances the input."""
+    from pmdcid.simulate import param_values, param_vector
+    from pmdcid.simulate.terms import sliding_friction
+
+    bv = _val(model, "bv") if math.isfinite(_val(model, "bv")) else _val(model, "b")
+    if not (math.isfinite(vmax) and vmax > 0) or not model.effects:
+        return 1.0 / bv
+    p = param_vector(param_values(model, True))
+    drive = vmax - max(_val(model, "dz"), 0.0) if model.has("dz") else vmax
+
+    def excess(w: float) -> float:  # friction less the drive at speed w
+        return bv * w + sliding_friction(p, w, 1.0) - drive
+
+    lo, hi = 0.0, max(drive / bv, 1.0)
+    if excess(0.0) >= 0:
+        return 1.0 / bv
+    for _ in range(200):  # bracket, then bisect
+        if excess(hi) >= 0:
+            break
+        hi *= 2.0
+    else:
+        return math.inf
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if excess(mid) < 0 else (lo, mid)
+    return hi / -excess(0.0)
 
 
 def lumped_issues(model, logs) -> list[str]:
@@ -175,8 +221,9 @@ def lumped_issues(model, logs) -> list[str]:
                        "(-c v=COLUMN*SCALE: a duty or PWM count needs the supply voltage, e.g. "
                        "-c v=pwm*12/255) and the speed's sign against v (-c omega=COLUMN*-1)")
     bv = _val(model, "bv") if math.isfinite(_val(model, "bv")) else _val(model, "b")
-    if bv > 0 and 1.0 / bv > MAX_SPEED_PER_VOLT:
-        out.append(f"the steady speed per volt 1/bv = {1 / bv:.4g} rad/s/V is beyond any "
+    rate = steady_speed_per_volt(model, vmax) if bv > 0 else math.nan
+    if rate > MAX_SPEED_PER_VOLT:
+        out.append(f"the steady speed per volt 1/bv = {rate:.4g} rad/s/V is beyond any "
                    f"brushed motor's (< {MAX_SPEED_PER_VOLT:g}; a micro coreless motor may "
                    "reach 1400: --force): omega is likely in rpm (x 9.55) or deg/s (x 57.3), "
                    "not rad/s: map it with -c omega=COLUMN*rpm (or *deg)")
@@ -194,7 +241,7 @@ def gate_result(model, logs, force: bool = False) -> None:
                 raise LogError(f"{msg} (or --force to write it anyway)",
                                logs[0].path if logs else None)
             warn(msg, logs[0].path if logs else None)
-    msgs = _tau_messages(model)
+    msgs = _tau_messages(model, typical_speed(logs))
     if not msgs:
         return
     text, tau = msgs[0]

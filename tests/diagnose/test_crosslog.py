@@ -158,3 +158,26 @@ def test_a_load_torque_beside_a_coulomb_friction_at_its_bound_is_not_distinct():
     fitted = {**vals, "omega0": 0.0, "bc": 1e-17, "dz": 0.0, "tau0": -3e-3}
     test = heldout_test(problem, fitted, "torque_offset", ["bc"], 0.15, 25.0)
     assert test.distinct < 1.0, test
+
+
+def test_speed_rise_reads_the_speed_alone_not_a_better_current():
+    """The held-out rise rule is on the speed's error (diagnose's 5 % rule): on a log with the
+    current, the rise is the speed channel's alone, as on the same log without the current,
+    not the whole chi-square's (where a brush drop that fitted the current better hid every
+    log's speed error rising 8-11 %, bench/newrigs.py freerun-vmeas seed 2)."""
+    from pmdcid.diagnose.crosslog import speed_rise
+
+    rng = np.random.default_rng(8)
+    vals = _truth()
+    t = np.arange(0.0, 4.0, 1e-3)
+    v = np.where(t >= 0.5, 6.0, 0.0) + np.where(t >= 2.0, 3.0, 0.0)
+    s = simulate_values(t, v, vals)
+    w, i = s.omega + rng.normal(0, 1.0, len(t)), s.i + rng.normal(0, 0.02, len(t))
+    with_i = Problem([Log.from_arrays(t, v=v, omega=w, i=i, name="a")], 0.6, None, ["split"])
+    speed = Problem([Log.from_arrays(t, v=v, omega=w, name="a")], 0.6, None, ["split"])
+    cand = {**vals, "bv": 3 * vals["bv"], "R": 1.02 * vals["R"]}
+    assert speed_rise(with_i, vals, vals) == pytest.approx(0.0, abs=1e-12)
+    alone = np.sqrt(speed.chi2(cand)["held"] / speed.chi2(vals)["held"]) - 1
+    whole = np.sqrt(with_i.chi2(cand)["held"] / with_i.chi2(vals)["held"]) - 1
+    assert speed_rise(with_i, cand, vals) == pytest.approx(alone, rel=1e-9)
+    assert abs(whole - alone) > 0.1 * abs(alone)  # the current's share moves the whole

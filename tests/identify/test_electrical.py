@@ -226,3 +226,34 @@ def test_free_running_on_a_noisy_measured_voltage_held_at_levels(seed):
     for k in ("R", "L", "ke"):
         assert abs(est[k].value - vals[k]) < 3 * est[k].stderr, k
     assert ref["ke"].stderr < est["ke"].stderr < 2 * ref["ke"].stderr
+
+
+def test_free_running_lag_the_current_does_not_bound_is_simulated_under_a_sample(rng,
+                                                                               monkeypatch):
+    """A regression whose armature pole a comes out below 0 with a standard error of 0.5 (seen
+    on a rig at 1 kHz with L/R 0.5 ms, a measured voltage with 0.3 V of noise that sags with
+    the load, a 256-count encoder): a's upper limit reached 1, the bound L/R = 1e9 s was
+    written as L's value, and identify refused the model ("beyond any motor's"). The interval
+    now ends at any motor's L/R (1 s) and the value simulated is under one sample period, as
+    the regression's own a <= 0 says."""
+    from pmdcid.identify import freerun
+    from pmdcid.identify.plausibility import MAX_TAU_ELECTRICAL, _tau_messages
+
+    real = freerun._iv_regression
+
+    def weak(parts):
+        th, cov, r, info = real(parts)
+        th, cov = th.copy(), cov.copy()
+        th[0], cov[0, 0] = -0.16, 0.5 ** 2
+        return th, cov, r, info
+
+    monkeypatch.setattr(freerun, "_iv_regression", weak)
+    vals = _free_truth(rng)
+    logs = _free_logs(vals, rng, rate=1000.0)
+    res = fit_electrical(logs, Model())
+    R, L, dt = res.estimates["R"].value, res.estimates["L"], logs[0].dt
+    assert L.interval == pytest.approx((0.0, MAX_TAU_ELECTRICAL * R))
+    assert 0 < L.value < dt * R
+    m = Model()
+    res.apply(m)
+    assert not _tau_messages(m)
