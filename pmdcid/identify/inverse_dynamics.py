@@ -29,6 +29,7 @@ from pmdcid.fit.results import Estimate, ResultProtocol
 from pmdcid.io.derive import check_cutoff, choose_cutoff, log_cutoff, log_kinematics, lowpass
 from pmdcid.model import Model
 from pmdcid.model.spec import BASE_PARAMS
+from pmdcid.notes import Note
 
 PARAMS = ("J", "bv", "bc", "tau0")
 STAGE = "inverse-dynamics"
@@ -201,8 +202,9 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
         names = names[:3]
     theta, se, resid, sv = _solve(X, y, segments)
     if len(names) == 4 and not abs(theta[3]) > OFFSET_SE * se[3]:
-        warns.append(f"tau0 = {theta[3]:.3g} ± {se[3]:.2g} is within {OFFSET_SE:g} standard "
-                     "errors of 0: these logs show no torque offset; tau0 fixed at 0")
+        warns.append(Note(f"tau0 = {theta[3]:.3g} ± {se[3]:.2g} is within {OFFSET_SE:g} "
+                          "standard errors of 0: these logs show no torque offset; tau0 fixed "
+                          "at 0", about="tau0", severity="note"))
         X = X[:, :3]
         names = names[:3]
         theta, se, resid, sv = _solve(X, y, segments)
