@@ -315,24 +315,24 @@ def final_model(run: Run, cur: FitOutcome, added: list[str], notes: list[str], h
     """The final fit on all data (:func:`~pmdcid.diagnose.final.finalise`) and the lag tried in
     a sensor delay's place (:mod:`pmdcid.diagnose.lag`), also the delay the model came with
     (fit-mechanical's latency, fitted without the effects found here) when nothing was added:
-    (fit, its free parameters, whether the lag replaced a delay); (None, [], False) when there
-    is nothing to write."""
+    (fit, its free parameters, how the lag came in: ``lag_for_delay``'s "replaced", "beside"
+    or ""); (None, [], "") when there is nothing to write."""
     retry = not (added or run.lag_taken) and lag_applies(run, added, cur.values)
     if not (added or run.lag_taken or retry):
-        return None, [], False
+        return None, [], ""
     run.say("diagnose: final refit")
     said: list[str] = []  # a retry that keeps the delay writes nothing and says nothing new
     final, free = finalise(run, cur, added, said, history)
-    final, free, lagged = lag_for_delay(run, final, free, added, said)
-    if retry and not lagged:
+    final, free, how = lag_for_delay(run, final, free, added, said)
+    if retry and not how:
         notes.extend(n for n in said if n.startswith(DELAY_EFFECT))
-        return None, [], False
+        return None, [], ""
     notes.extend(said)
-    if lagged:  # the model's own delay is gone too: not refitted with the lag after this
+    if how == "replaced":  # the model's own delay is gone too: not refitted after this
         run.base_free = [p for p in run.base_free if p != DELAY]
     if run.lag_taken:
         notes.append(lag_note(final.values))
-    return final, free, lagged
+    return final, free, how
 
 
 def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> DiagnoseResult:
@@ -346,17 +346,18 @@ def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> Diagn
     base = baseline(run)
     cur, added, seen, history = search(run, base, pool, notes)
     new = model.copy()
-    final, free, lagged = final_model(run, cur, added, notes, history)
-    if added or lagged or run.lag_taken:
+    final, free, how = final_model(run, cur, added, notes, history)
+    lagged = bool(how) or run.lag_taken
+    if added or lagged:
         write_model(new, final, free, added)
-        if lagged and DELAY_EFFECT in new.effects:  # the model's own delay, now the lag
+        if how == "replaced" and DELAY_EFFECT in new.effects:  # the model's own, now the lag
             new.effects.remove(DELAY_EFFECT)
             new.parameters.pop(DELAY, None)
         final_vals = final.values
     else:
         final_vals = cur.values
     return summarise(run, new, base, final_vals, added, seen, history, notes,
-                     LAG_PARAMS if lagged or run.lag_taken else ())
+                     LAG_PARAMS if lagged else ())
 
 
 __all__ = ["Candidate", "DiagnoseResult", "Settings", "diagnose", "free_base", "search_pool"]
