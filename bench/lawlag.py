@@ -151,7 +151,8 @@ def run_case(seed: int, lag_ms: float, rate: float, eff: str) -> dict:
                tau_e=after.value("tau_e") if after.has("tau_e") else None,
                delay=after.value("delay") if after.has("delay") else None,
                zJ=_z(after, "J", pv["J"]), zbv=_z(after, "bv", pv["bv"]),
-               notes=[n for n in summ.get("notes", []) if "delay" in n or "tau_e" in n])
+               notes=[n for n in summ.get("notes", []) if "delay" in n or "tau_e" in n]
+               + [n for n in res.notes if n.startswith("diagnose: skipped")])
     row["rise"] = max(a / b - 1 for a, b in zip(row["held_after"], row["held_before"],
                                                 strict=True))
     return row
@@ -188,6 +189,8 @@ def classify(r: dict) -> dict[str, list[str]]:
         out["wrong speed law"] += [e for e in laws if e != eff]
     elif eff not in LAWS and laws:
         out["speed law where none"] += laws
+    if any(n.startswith("diagnose: skipped") for n in r["notes"]):
+        out["error"].append(r["notes"][-1])
     if r["rise"] > 0.05:
         out["held-out rise > 5 %"].append(f"{r['rise']:+.0%}")
     for k in ("zJ", "zbv"):

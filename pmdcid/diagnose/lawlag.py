@@ -27,6 +27,12 @@ The lag's fit starts from a grid (:func:`lag_start`): tau_e over a few sample fr
 delay it replaces), then the back-EMF's share with the dead zone, as fit-nonlinear does (at a
 share of 1 a dead zone above bc holds every steady state: a local fit from there stops far off;
 a friction curve's lag was once refused at 3x the delay's chi-square that way).
+
+A lumped model that comes with a lag (fit-mechanical resolved it) has it refitted with every
+candidate (:func:`~pmdcid.diagnose.loop.free_base`: it was fitted without the effects diagnose
+adds), and tau_e then stands in for a sensor delay in the held-out test
+(:func:`~pmdcid.diagnose.candidates.stand_ins`). Measured: ``python bench/lawlag.py`` (docs/
+effects.md, "The speed law and the armature's lag").
 """
 
 from __future__ import annotations
@@ -147,7 +153,8 @@ def decide(run, best, passing: list, cur: FitOutcome, free: list[str], effect_fr
 
 
 def _delay_or_lag(run, best, free: list[str]):
-    """The lag in the delay's place where it fits the fit part at least as well."""
+    """The lag in the delay's place, both refitted on the fit part, where it holds on every
+    sample (:func:`lag_holds`): (None, the lag's fit), else (``best``, None)."""
     delay = best.outcome.values[DELAY]
     dt = min(log.dt for log in run.problem.logs)
     taus = sorted({delay, *(f * dt for f in TAU_SAMPLES)} - {0.0})

@@ -166,8 +166,12 @@ def baseline(run: Run) -> FitOutcome:
 def screen(run: Run, cur: FitOutcome, pool: list[str]) -> list[Screen]:
     """Every effect of ``pool`` screened against the residual of ``cur``."""
     sims = run.problem.simulate_all(cur.values)
-    scr = Screener(run.problem, cur.values, context(run.problem, cur.values, sims), run.base_free)
-    pmap(scr.base_column, run.base_free)  # shared by every effect's screen: made first
+    # a lumped model's lag is not a column of the screen: its sensitivity is nearly J's (the
+    # folded lag is J's share), and a linearised step along both threw J negative on the L298N
+    # rig (a start no refit survives); the refits free it
+    base = [p for p in run.base_free if p not in LAG_PARAMS]
+    scr = Screener(run.problem, cur.values, context(run.problem, cur.values, sims), base)
+    pmap(scr.base_column, base)  # shared by every effect's screen: made first
     return pmap(lambda e: scr.screen(EFFECTS[e]), pool)
 
 
