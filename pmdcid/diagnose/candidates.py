@@ -53,6 +53,7 @@ class Candidate:
     rise: float | None = None  # largest relative rise of a held-out log's speed NRMSE
     rise_log: str | None = None
     starts: int = 0
+    passed: bool = False  # passed every rule this round (chosen or not)
     #: what the held-out data can say about the effect (:mod:`pmdcid.diagnose.testable`; over
     #: the transients held out across logs: :mod:`pmdcid.diagnose.crosslog`)
     test: HeldoutTest | FoldsTest | None = None
@@ -166,9 +167,12 @@ def stand_ins(name: str, free: list[str]) -> list[str]:
     """The parameters of ``free`` that can stand in for effect ``name`` on held-out data: the
     base parameters it interacts with, and those of the effects the model already has that
     interact with any of them (a direction asymmetry of the viscous friction beside a friction
-    curve fitted on one log per direction is the curve's shape at a second speed)."""
+    curve fitted on one log per direction is the curve's shape at a second speed; a lumped
+    model's lag ``tau_e``, where it is free, for a sensor delay)."""
     eff = EFFECTS[name]
     shared = set(eff.interacts)
+    if name == "sensor_delay":
+        shared.add("tau_e")  # a lumped model's armature lag also starts the speed late
     others = [e for e in EFFECTS.values()
               if e.name != name and shared & set(e.interacts)]
     owned = {p for e in others for p in e.param_names}

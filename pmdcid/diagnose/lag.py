@@ -5,61 +5,118 @@ of the speed after each edge of the input is either the speed read late (``senso
 the armature current rising with its time constant L/R (the lumped model's ``tau_e``), which
 every motor has. Where fit-mechanical's steps did not resolve the lag (the model has none),
 diagnose's delay finds L/R (issue 24's checks: 1.91 ms on a motor with L/R 2 ms and no
-latency). So once the final model holds a sensor delay, the same model with the delay off and
-a lag of the same time in its place (the back-EMF's share 1, refitted with every parameter the
-final fit frees, on all data) is fitted too; where it fits better without any delay, the lag
-is written (``tau_e``, ``ke_share``) and the delay is not; a note gives both chi-squares
-either way. The lag's fit frees what the final fit freed, the delay excepted: a dead zone the
-final fit settled at a point (:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there.
+latency). The round that would add the delay already tries the lag in its place
+(:mod:`pmdcid.diagnose.lawlag`); a delay that got past it (added in a later round, kept
+there, or the model's own: fit-mechanical's latency, fitted without the speed law diagnose
+found) is tried once more in the final model: the same model with the delay off and the lag
+free in its place (from :func:`~pmdcid.diagnose.lawlag.lag_start`'s grid, refitted with every
+parameter the final fit frees, on all data); unless the delay fits decisively better
+(:func:`~pmdcid.diagnose.lawlag.lag_holds`), the lag is written (``tau_e``, ``ke_share``) and
+the delay is not; a note gives both chi-squares either way. The lag's fit frees what the final
+fit freed, the delay excepted: a dead zone the final fit settled at a point
+(:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there.
 """
 
 from __future__ import annotations
 
+import math
+
 from pmdcid.diagnose.final import honest_errors
+from pmdcid.diagnose.lawlag import (
+    DELAY,
+    DELAY_EFFECT,
+    LAG_PARAMS,
+    TAU_SAMPLES,
+    lag_holds,
+    lag_start,
+)
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.model.lumped import is_lumped
 
-#: the effect replaced, its parameter, and the lag's parameters (model/lumped.py)
-DELAY_EFFECT, DELAY = "sensor_delay", "delay"
-LAG_PARAMS = ("tau_e", "ke_share")
+
+def lag_applies(run, added: list[str], vals: dict[str, float]) -> bool:
+    """On a lumped model whose lag fit-mechanical did not resolve, on logs without current: a
+    sensor delay added without a lag (``vals``: the fit's; a delay added beside a lag diagnose
+    took was tested against it), or the delay the model came with (fit-mechanical's latency,
+    fitted without the effects found here)."""
+    if not is_lumped(run.model) or run.problem.measures("i") or run.vals0.get("tau_e", 0.0) > 0:
+        return False
+    return ((DELAY_EFFECT in added and not vals.get("tau_e", 0.0) > 0)
+            or DELAY_EFFECT in run.model.effects)
 
 
-def lag_applies(run, added: list[str]) -> bool:
-    """A sensor delay added to a lumped model without a lag, on logs without current."""
-    return (DELAY_EFFECT in added and is_lumped(run.model) and not run.problem.measures("i")
-            and not run.vals0.get("tau_e", 0.0) > 0)
+def _lag_fit(run, final: FitOutcome, lag_free: list[str], start: dict[str, float],
+             taus) -> FitOutcome:
+    """The final fit's parameters ``lag_free`` refitted on all data from ``start``, from the
+    best of a grid over tau_e (``taus``), the back-EMF's share and the dead zone when the fit
+    has no lag yet (lawlag.lag_start: from a share of 1 alone a local fit stopped at 3x the
+    delay's chi-square beside a friction curve); the final fit's other estimates carried."""
+    if not final.values.get("tau_e", 0.0) > 0:
+        start = lag_start(run, start, lag_free, "all", [t for t in taus if t > 0])
+    fo = run.fit(start, lag_free, "all")
+    for name, est in final.estimates.items():
+        if name not in lag_free and name != DELAY:
+            fo.estimates.setdefault(name, est)  # the settled dead zone's interval
+    return fo
 
 
 def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
-                  notes: list[str]) -> tuple[FitOutcome, list[str], bool]:
-    """The final fit with the armature's lag in place of its sensor delay where that fits all
-    data better (module docstring): (fit, its free parameters, whether the lag replaced the
-    delay); ``added`` and ``notes`` updated in place."""
-    if not lag_applies(run, added):
-        return final, free, False
+                  notes: list[str]) -> tuple[FitOutcome, list[str], str]:
+    """The final fit with the armature's lag in place of its sensor delay (added, or the
+    model's own) where that fits all data about as well, else beside it where that is decisive
+    (module docstring): (fit, its free parameters, "replaced", "beside" or "" for neither);
+    ``added`` and ``notes`` updated in place."""
+    if not lag_applies(run, added, final.values):
+        return final, free, ""
     delay = final.values[DELAY]
+    n, dt = run.problem.count("all"), min(lg.dt for lg in run.problem.logs)
+    taus = sorted({delay, *(f * dt for f in TAU_SAMPLES)})
     # the final fit's free parameters (a dead zone it settled at a point stays there: refitted,
     # it drifts along the flat cost, once to 3.3 +- 17 V on the L298N rig) but the delay's
-    lag_free = [p for p in free if p != DELAY] + list(LAG_PARAMS)
-    start = {**final.values, DELAY: 0.0, "tau_e": delay, "ke_share": 1.0}
-    lag = run.fit(start, lag_free, "all")
-    for name, est in final.estimates.items():
-        if name not in lag_free and name != DELAY:
-            lag.estimates.setdefault(name, est)  # the settled dead zone's interval
-    if not lag.chi2["all"] < final.chi2["all"]:
+    lag_free = list(dict.fromkeys([p for p in free if p != DELAY] + list(LAG_PARAMS)))
+    lag = _lag_fit(run, final, lag_free, {**final.values, DELAY: 0.0}, taus)
+    if lag_holds(n, lag.chi2["all"], final.chi2["all"], run.settings.rules.bic, delay / dt):
+        _replaced(run, final, lag, lag_free, added, notes)
+        return lag, lag_free, "replaced"
+    # a real latency: the lag beside it, where decisive (fit-mechanical's latency holds the
+    # lag too when its steps saw both: 6.2 ms for a 2 ms L/R and a 4 ms latency)
+    both_free = list(dict.fromkeys([*free, DELAY, *LAG_PARAMS]))
+    both = _lag_fit(run, final, both_free, final.values,
+                    [f * dt for f in TAU_SAMPLES if f * dt < delay])
+    dbic = (n * math.log(max(both.chi2["all"], 1e-300) / max(final.chi2["all"], 1e-300))
+            + len(LAG_PARAMS) * math.log(max(n, 2)))
+    if dbic < run.settings.rules.bic and both.values.get("tau_e", 0.0) > 0:
+        honest_errors(run, both, both_free, notes)
         notes.append(
-            f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms) kept: the armature's electrical lag in its "
-            f"place (tau_e {1e3 * lag.values['tau_e']:.3g} ms, no delay) fits worse "
-            f"(chi-square {lag.chi2['all']:.6g} against {final.chi2['all']:.6g})")
-        return final, free, False
-    added.remove(DELAY_EFFECT)
+            f"{DELAY_EFFECT} kept ({1e3 * both.values[DELAY]:.3g} ms, {1e3 * delay:.3g} ms "
+            f"alone) beside the armature's electrical lag tau_e = "
+            f"{1e3 * both.values['tau_e']:.3g} ms (L/R, the lumped model's own): the lag in its "
+            f"place fits worse (chi-square {lag.chi2['all']:.6g} against "
+            f"{final.chi2['all']:.6g}), beside it better (ΔBIC {dbic:+.0f})")
+        return both, both_free, "beside"
+    notes.append(
+        f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms) kept: the armature's electrical lag in its "
+        f"place (tau_e {1e3 * lag.values['tau_e']:.3g} ms, no delay) fits worse "
+        f"(chi-square {lag.chi2['all']:.6g} against {final.chi2['all']:.6g}), beside it not "
+        f"decisively better (ΔBIC {dbic:+.0f})")
+    return final, free, ""
+
+
+def _replaced(run, final, lag, lag_free, added, notes) -> None:
+    delay = final.values[DELAY]
+    what = f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms)"
+    if DELAY_EFFECT in added:
+        added.remove(DELAY_EFFECT)
+    else:
+        what = (f"the model's {DELAY_EFFECT} (fit-mechanical's latency, "
+                f"{1e3 * run.vals0.get(DELAY, 0.0):.3g} ms; {1e3 * delay:.3g} ms with the effects "
+                "found here)")
     honest_errors(run, lag, lag_free, notes)
     notes.append(
-        f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms) replaced by the armature's electrical lag tau_e "
+        f"{what} replaced by the armature's electrical lag tau_e "
         f"= {1e3 * lag.values['tau_e']:.3g} ms (L/R, the lumped model's own): without any delay "
-        f"the lag fits every log better (chi-square {lag.chi2['all']:.6g} against "
+        f"the lag fits every log about as well or better (chi-square {lag.chi2['all']:.6g} against "
         f"{final.chi2['all']:.6g}); fit-mechanical's steps had not resolved it")
-    return lag, lag_free, True
 
 
 __all__ = ["LAG_PARAMS", "lag_for_delay"]

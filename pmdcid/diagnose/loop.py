@@ -28,7 +28,8 @@ from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
 from pmdcid.diagnose.crosslog import Folds
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
-from pmdcid.diagnose.lag import LAG_PARAMS, lag_for_delay
+from pmdcid.diagnose.lag import lag_applies, lag_for_delay
+from pmdcid.diagnose.lawlag import DELAY, DELAY_EFFECT, LAG_PARAMS, decide, lag_note
 from pmdcid.diagnose.named import generalises, prefer_named, with_named
 from pmdcid.diagnose.residuals import context, error_table, typical_scales
 from pmdcid.diagnose.rules import Rules, judge, same_rows
@@ -54,14 +55,19 @@ NUDGE = 0.2
 
 def free_base(problem: Problem, vals: dict[str, float], model: Model) -> list[str]:
     """Parameters refitted with every candidate: those of J, bv, bc (and dz when the model has a
-    dead zone) that moving logs inform, R and L when a current is logged, and the parameters of
-    the effects the model already declares."""
+    dead zone) that moving logs inform, R and L when a current is logged (else a lumped model's
+    lag tau_e and ke_share where it has one), and the parameters of the effects the model
+    already declares."""
     out = []
     moving = problem.has_signal("omega", moving=True) or problem.has_signal("theta", moving=True)
     if moving:
         out += [p for p in MECHANICAL_BASE if p != "dz" or model.has("dz")]
     if problem.has_signal("i"):
         out += list(ELECTRICAL_BASE)
+    elif moving and is_lumped(model) and vals.get("tau_e", 0.0) > 0:
+        # a lumped model's armature lag, fitted by identify without the effects diagnose
+        # adds: refitted with them (a speed law the steps lacked moves it; lawlag.py)
+        out += list(LAG_PARAMS)
     for e in model.effects:
         if e in EFFECTS and (moving or EFFECTS[e].acts_on == "electrical"):
             out += [p for p in EFFECTS[e].param_names if p not in EFFECTS[e].held]
@@ -83,6 +89,8 @@ class Run:
         self.floors = repeatability(problem.logs)
         #: each log's transient held out across logs (:mod:`pmdcid.diagnose.crosslog`)
         self.folds: Folds | None = None
+        #: the armature's lag taken into the base parameters (:mod:`pmdcid.diagnose.lawlag`)
+        self.lag_taken = False
 
     def refresh(self) -> None:
         """The start's residual context, typical scales and the effects' limits (again after
@@ -158,8 +166,12 @@ def baseline(run: Run) -> FitOutcome:
 def screen(run: Run, cur: FitOutcome, pool: list[str]) -> list[Screen]:
     """Every effect of ``pool`` screened against the residual of ``cur``."""
     sims = run.problem.simulate_all(cur.values)
-    scr = Screener(run.problem, cur.values, context(run.problem, cur.values, sims), run.base_free)
-    pmap(scr.base_column, run.base_free)  # shared by every effect's screen: made first
+    # a lumped model's lag is not a column of the screen: its sensitivity is nearly J's (the
+    # folded lag is J's share), and a linearised step along both threw J negative on the L298N
+    # rig (a start no refit survives); the refits free it
+    base = [p for p in run.base_free if p not in LAG_PARAMS]
+    scr = Screener(run.problem, cur.values, context(run.problem, cur.values, sims), base)
+    pmap(scr.base_column, base)  # shared by every effect's screen: made first
     return pmap(lambda e: scr.screen(EFFECTS[e]), pool)
 
 
@@ -185,6 +197,7 @@ def accept(cands: list[Candidate], rules: Rules) -> Candidate | None:
             if ok and generalises(c):
                 ok, c.reason = False, generalises(c)
             if ok:
+                c.passed = True
                 passing.append(c)
     if not passing:
         return None
@@ -239,6 +252,15 @@ def search(run: Run, cur: FitOutcome, pool: list[str], notes: list[str]):
                                                     or ref["chi2"]["fit"] < rebase[1]["fit"]):
                 rebase = (ref["values"], ref["chi2"])
         best = accept(cands, run.settings.rules)
+        # on a lumped model whose armature lag is folded, a delay or a speed law and the lag
+        # are decided together (lawlag.py): the lag may take the delay's place or join the law
+        best, lagged = decide(run, best, [c for c in cands if c.passed], cur, cur_free,
+                              effect_free)
+        if lagged is not None:
+            cur_free = run.base_free + [p for e in added for p in effect_free(e)]
+        if best is None and lagged is not None:
+            cur = run.robust_fit(lagged.values, cur_free, nfev=4 * run.settings.max_nfev)
+            continue
         if best is None:
             gain = run.settings.rules.min_gain
             if rebase is not None and rebase[1]["fit"] < (1 - gain) * cur.chi2["fit"]:
@@ -293,6 +315,30 @@ def search_pool(problem: Problem, model: Model, effects) -> list[str]:
             and all(problem.measures(s) for s in EFFECTS[e].requires)]
 
 
+def final_model(run: Run, cur: FitOutcome, added: list[str], notes: list[str], history):
+    """The final fit on all data (:func:`~pmdcid.diagnose.final.finalise`) and the lag tried in
+    a sensor delay's place (:mod:`pmdcid.diagnose.lag`), also the delay the model came with
+    (fit-mechanical's latency, fitted without the effects found here) when nothing was added:
+    (fit, its free parameters, how the lag came in: ``lag_for_delay``'s "replaced", "beside"
+    or ""); (None, [], "") when there is nothing to write."""
+    retry = not (added or run.lag_taken) and lag_applies(run, added, cur.values)
+    if not (added or run.lag_taken or retry):
+        return None, [], ""
+    run.say("diagnose: final refit")
+    said: list[str] = []  # a retry that keeps the delay writes nothing and says nothing new
+    final, free = finalise(run, cur, added, said, history)
+    final, free, how = lag_for_delay(run, final, free, added, said)
+    if retry and not how:
+        notes.extend(n for n in said if n.startswith(DELAY_EFFECT))
+        return None, [], ""
+    notes.extend(said)
+    if how == "replaced":  # the model's own delay is gone too: not refitted after this
+        run.base_free = [p for p in run.base_free if p != DELAY]
+    if run.lag_taken:
+        notes.append(lag_note(final.values))
+    return final, free, how
+
+
 def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> DiagnoseResult:
     problem = Problem(logs, settings.split, settings.max_samples, holdout_plan(logs))
     pool = search_pool(problem, model, effects)
@@ -304,14 +350,13 @@ def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> Diagn
     base = baseline(run)
     cur, added, seen, history = search(run, base, pool, notes)
     new = model.copy()
-    final = None
-    lagged = False
-    if added:
-        say("diagnose: final refit")
-        final, free = finalise(run, cur, added, notes, history)
-        final, free, lagged = lag_for_delay(run, final, free, added, notes)
+    final, free, how = final_model(run, cur, added, notes, history)
+    lagged = bool(how) or run.lag_taken
     if added or lagged:
         write_model(new, final, free, added)
+        if how == "replaced" and DELAY_EFFECT in new.effects:  # the model's own, now the lag
+            new.effects.remove(DELAY_EFFECT)
+            new.parameters.pop(DELAY, None)
         final_vals = final.values
     else:
         final_vals = cur.values

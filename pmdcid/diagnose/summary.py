@@ -71,9 +71,8 @@ def heldout_errors(run, base: FitOutcome, final_vals: dict[str, float],
         return []
     after_vals = base.values
     if added or lag:
-        after_vals = run.fit(final_vals, run.base_free + [p for e in added
-                                                          for p in effect_free(e)]
-                             + list(lag)).values
+        free = run.base_free + [p for e in added for p in effect_free(e)] + list(lag)
+        after_vals = run.fit(final_vals, list(dict.fromkeys(free))).values
     b = error_table(run.problem, run.problem.simulate_all(base.values))
     a = error_table(run.problem, run.problem.simulate_all(after_vals))
     return [{"log": run.problem.logs[k].path, "before": b[k], "after": a[k]} for k in held]

@@ -71,11 +71,14 @@ def test_one_step_log_adds_nothing_it_cannot_test(rig):
 def test_logs_at_other_operating_points_confirm_the_effect(rig):
     step, stair, model = rig
     res = diagnose([step, stair], model, progress=False)
-    laws = [e for e in SPEED_LAWS if e in res.summary["added"]]
-    assert laws, res.table()
+    # the drag and no delay: the motor's L/R (2 ms, a fifth of a sample) is folded into J in
+    # the model given, and its residual at every edge made the friction curve beat the drag by
+    # 77 in ΔBIC and a sensor delay of 1.99 ms (the L/R) follow it; decided with the lag
+    # (diagnose/lawlag.py), the drag is chosen and the lag written in place of a delay
+    assert res.summary["added"] == ["quadratic_drag"], res.table()
+    assert "sensor_delay" not in res.model.effects and "friction_curve" not in res.model.effects
+    assert res.model.value("tau_e") == pytest.approx(MOTOR["L"] / MOTOR["R"], rel=0.25)
     assert res.after[1]["omega"] < 0.25 * res.before[1]["omega"], res.table()  # the staircase
-    if laws[0] != "quadratic_drag":
-        return  # the curve stands in for the drag: it has no bq to compare
     bq = res.model.parameters["bq"]
     true_bq = MOTOR["bq"] * MOTOR["R"] / MOTOR["km"]  # per volt
     assert abs(bq.value - true_bq) <= max(3 * bq.stderr, 0.02 * true_bq), (bq, true_bq)

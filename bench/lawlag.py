@@ -1,0 +1,265 @@
+"""The speed law and the electrical lag on voltage + speed logs: a red team over seeds (issue 24,
+"no delay effect added when there is none").
+
+    python bench/lawlag.py --out DIR [--seeds 10] [--jobs 2] [--rates 100,500,1000]
+                           [--lags 2,4] [--truths none,quadratic_drag,friction_curve,sensor_delay]
+    python bench/lawlag.py --tally DIR/results.jsonl
+
+A bench motor with back-EMF (tests/diagnose/test_testable.py's: R 1 ohm, km = ke 0.05, J 5e-4,
+every parameter moved by up to 20 % per seed) whose L/R is 2 or 4 ms, logged as voltage, speed
+and angle (no current: a lumped, per-volt model) at 100 Hz, 500 Hz or 1 kHz with 0.5 rad/s of
+speed noise. Two fit logs at different operating points, as in the test: a 5 -> 15 V step
+starting while turning and an 8-level staircase from rest. Held out: a 10 V step from rest, a
+12 -> 3 V step and a -6 -> -12 V step, predicted from their measured first samples (``simulate
+--x0 measured``). Truths: nothing else, a quadratic drag, a friction curve (rising then falling
+back: no named law), or a real sensor delay of 2 samples. Each case runs
+:func:`pmdcid.pipeline.identify` without diagnose, then its diagnose step on the same logs (what
+``pmdcid identify`` does), and records the effects, the held-out errors before and after
+diagnose, and J', bv' against the per-volt truth (J R/km, bv R/km + ke) in standard errors.
+
+The tally counts: a delay (``sensor_delay``, ``input_delay``) in the final model where the truth
+has none (identify's own, or diagnose's); the wrong speed law (the curve for the drag or the
+drag for the curve) and a speed law where the truth has none; a real delay missed; held-out
+runs whose error diagnose raised > 5 %; J' and bv' within +-2 standard errors. Not a test:
+nothing here asserts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+MOTOR = {"R": 1.0, "km": 0.05, "J": 5e-4, "bv": 1e-5, "bc": 2e-3, "dz": 3e-3}
+#: the truths' effects at a size that matters on this motor (SI; the delay in samples)
+DRAG = {"bq": 1e-6}
+#: a friction curve with no named law: up to ~0.05 N m by half the top speed, back to 0 at it
+CURVE = (0.02, 0.05, 0.03)
+DELAY_SAMPLES = 2
+TRUTHS = ("none", "quadratic_drag", "friction_curve", "sensor_delay")
+LAWS = ("quadratic_drag", "friction_curve")
+DELAYS = ("sensor_delay", "input_delay")
+NOISE = 0.5  # rad/s
+NSUB = 64  # the truth's internal steps per sample at 100 Hz (finer than any fit)
+
+
+def truth(seed: int, lag_ms: float, rate: float, eff: str) -> dict:
+    """SI values of the seed's motor with its L/R and the effect of the truth."""
+    from pmdcid.simulate import neutral_values
+
+    rng = np.random.default_rng(seed)
+    vals = {**neutral_values(), **{k: x * rng.uniform(0.8, 1.2) for k, x in MOTOR.items()}}
+    vals["ke"] = vals["km"]
+    vals["L"] = vals["R"] * lag_ms * 1e-3
+    if eff == "quadratic_drag":
+        vals.update(DRAG)
+    elif eff == "friction_curve":
+        top = 24.0 / vals["km"]  # about the staircase's top speed (back-EMF dominates)
+        vals.update({f"fcw{k + 1}": f * top for k, f in enumerate((0.15, 0.4, 0.7, 1.0))})
+        vals.update({f"fc{k + 1}": c for k, c in enumerate(CURVE)})
+    elif eff == "sensor_delay":
+        vals["delay"] = DELAY_SAMPLES / rate
+    return vals
+
+
+def per_volt(vals: dict) -> dict:
+    g = vals["R"] / vals["km"]
+    return {"J": vals["J"] * g, "bv": vals["bv"] * g + vals["ke"],
+            "tau_e": vals["L"] / vals["R"]}
+
+
+def levels(t, pts):
+    u = np.zeros_like(t)
+    for t0, lev in pts:
+        u[t >= t0] = lev
+    return u
+
+
+def make_log(name, t, u, vals, rng, start=None):
+    from pmdcid.io import Log
+    from pmdcid.simulate import simulate_values
+
+    dt = float(t[1] - t[0])
+    nsub = max(1, int(round(NSUB * 0.01 / dt)))
+    x0 = None
+    if start is not None:  # the state after 3 s at ``start`` from rest
+        tt = np.arange(0.0, 3.0, 1e-3)
+        s = simulate_values(tt, np.full_like(tt, start), vals, nsub=8)
+        x0 = np.array([s.i[-1], s.omega[-1], 0.0])
+    s = simulate_values(t, u, vals, nsub=nsub, x0=x0)
+    w = s.omega + rng.normal(0.0, NOISE, t.size)
+    return Log.from_arrays(t, v=u, omega=w, theta=s.theta, name=name)
+
+
+def scenario(seed: int, lag_ms: float, rate: float, eff: str):
+    """(fit logs, held-out logs, SI truth)."""
+    vals = truth(seed, lag_ms, rate, eff)
+    rng = np.random.default_rng(1000 + seed)
+    t4, t8 = np.arange(int(4 * rate)) / rate, np.arange(int(8 * rate)) / rate
+    stair = np.array([8.0, 18.0, 12.0, 24.0, 6.0, 16.0, 22.0, 10.0])
+    fit = [make_log("step_5_15V", t4, levels(t4, [(0, 5.0), (1.0, 15.0)]), vals, rng, 5.0),
+           make_log("staircase", t8, stair[np.minimum((t8 // 1).astype(int), 7)], vals, rng)]
+    held = [make_log("held_up10", t4, levels(t4, [(0.5, 10.0)]), vals, rng),
+            make_log("held_down", t4, levels(t4, [(0, 12.0), (1.0, 3.0)]), vals, rng, 12.0),
+            make_log("held_neg", t4, levels(t4, [(0, -6.0), (1.0, -12.0)]), vals, rng, -6.0)]
+    return fit, held, vals
+
+
+def predict(model, log) -> float:
+    """Speed NRMSE of ``model`` on ``log`` from its measured first samples."""
+    from pmdcid.synth import simulated_columns
+
+    _, cols, _ = simulated_columns(log, model, x0="measured")
+    w = np.asarray(log["omega"], float)
+    return float(np.sqrt(np.mean((cols["omega"] - w) ** 2)) / np.std(w))
+
+
+def _z(model, name, true) -> float | None:
+    if not model.has(name):
+        return None
+    p = model.parameters[name]
+    return (p.value - true) / p.stderr if p.stderr > 0 else float("inf")
+
+
+def run_case(seed: int, lag_ms: float, rate: float, eff: str) -> dict:
+    from pmdcid.model import Model
+    from pmdcid.pipeline import _diagnose, identify
+
+    fit, held, vals = scenario(seed, lag_ms, rate, eff)
+    t0 = time.time()
+    row = {"seed": seed, "lag_ms": lag_ms, "rate": rate, "truth": eff}
+    try:
+        res = identify(fit, Model(), run_diagnose=False)
+        before = res.model.copy()
+        _diagnose(res, fit)
+    except Exception as exc:  # a bench row, not a crash
+        row["error"] = f"{type(exc).__name__}: {exc}"[-300:]
+        return row
+    after, pv = res.model, per_volt(vals)
+    summ = res.diagnose.summary if res.diagnose is not None else {}
+    row.update(secs=round(time.time() - t0, 1), before_effects=list(before.effects),
+               after_effects=list(after.effects), added=list(summ.get("added", [])),
+               held_before=[round(predict(before, lg), 4) for lg in held],
+               held_after=[round(predict(after, lg), 4) for lg in held],
+               tau_e_before=before.value("tau_e") if before.has("tau_e") else None,
+               tau_e=after.value("tau_e") if after.has("tau_e") else None,
+               delay=after.value("delay") if after.has("delay") else None,
+               zJ=_z(after, "J", pv["J"]), zbv=_z(after, "bv", pv["bv"]),
+               notes=[n for n in summ.get("notes", []) if "delay" in n or "tau_e" in n]
+               + [n for n in res.notes if n.startswith("diagnose: skipped")])
+    row["rise"] = max(a / b - 1 for a, b in zip(row["held_after"], row["held_before"],
+                                                strict=True))
+    return row
+
+
+def cases(args) -> list[tuple]:
+    return [(s, float(lag), float(rate), eff) for s in range(args.first, args.first + args.seeds)
+            for lag in args.lags.split(",") for rate in args.rates.split(",")
+            for eff in args.truths.split(",")]
+
+
+def sweep(out: Path, todo) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "results.jsonl", "a") as f:
+        for c in todo:
+            row = run_case(*c)
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            print(json.dumps(row), flush=True)
+
+
+def classify(r: dict) -> dict[str, list[str]]:
+    final, eff = set(r["after_effects"]), r["truth"]
+    out = collections.defaultdict(list)
+    if eff != "sensor_delay" and any(e in final for e in DELAYS):
+        by = "identify" if any(e in r["before_effects"] for e in DELAYS) else "diagnose"
+        out[f"delay where none ({by})"] += [e for e in DELAYS if e in final]
+    elif eff == "sensor_delay" and "sensor_delay" not in final:
+        out["real delay missed"].append(f"tau_e {r['tau_e']}")
+    laws = [e for e in LAWS if e in final]
+    if eff in LAWS and eff not in final:
+        out["wrong speed law" if laws else "speed law missed"] += laws or [eff]
+    elif eff in LAWS and len(laws) > 1:
+        out["wrong speed law"] += [e for e in laws if e != eff]
+    elif eff not in LAWS and laws:
+        out["speed law where none"] += laws
+    if any(n.startswith("diagnose: skipped") for n in r["notes"]):
+        out["error"].append(r["notes"][-1])
+    if r["rise"] > 0.05:
+        out["held-out rise > 5 %"].append(f"{r['rise']:+.0%}")
+    for k in ("zJ", "zbv"):
+        if r[k] is None or not abs(r[k]) <= 2:
+            out[f"{k[1:]} outside 2 se"].append(f"{r[k]:.3g}" if r[k] is not None else "none")
+    return out
+
+
+def tally(path: Path) -> None:
+    rows = [json.loads(line) for line in open(path)]
+    counts: dict = collections.defaultdict(collections.Counter)
+    n = collections.Counter()
+    for r in rows:
+        key = (r["truth"], r["rate"])
+        n[key] += 1
+        if "error" in r:
+            counts[key]["error"] += 1
+            print(f"error: {r}")
+            continue
+        for cat, what in classify(r).items():
+            counts[key][cat] += 1
+            print(f"{cat}: {r['truth']} {r['rate']:g} Hz L/R {r['lag_ms']:g} ms seed {r['seed']}:"
+                  f" {what}; identify {r['before_effects']} tau_e {r['tau_e_before']}, final "
+                  f"{r['after_effects']} tau_e {r['tau_e']}; held-out {r['held_before']} -> "
+                  f"{r['held_after']}")
+    cats = ["delay where none (diagnose)", "delay where none (identify)", "real delay missed",
+            "wrong speed law", "speed law missed", "speed law where none", "held-out rise > 5 %",
+            "J outside 2 se", "bv outside 2 se", "error"]
+    print("\n| truth | rate | runs | " + " | ".join(cats) + " |")
+    print("|---" * (len(cats) + 3) + "|")
+    for key in sorted(n, key=lambda k: (TRUTHS.index(k[0]), k[1])):
+        print(f"| {key[0]} | {key[1]:g} Hz | {n[key]} | "
+              + " | ".join(str(counts[key][c]) for c in cats) + " |")
+    tot = collections.Counter()
+    for c in counts.values():
+        tot.update(c)
+    print(f"| all | | {sum(n.values())} | " + " | ".join(str(tot[c]) for c in cats) + " |")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, help="run the cases, rows into OUT/results.jsonl")
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--first", type=int, default=1)
+    ap.add_argument("--jobs", type=int, default=1, help="processes (cases split between them)")
+    ap.add_argument("--rates", default="100,500,1000")
+    ap.add_argument("--lags", default="2,4", help="L/R [ms]")
+    ap.add_argument("--truths", default=",".join(TRUTHS))
+    ap.add_argument("--part", help=argparse.SUPPRESS)
+    ap.add_argument("--tally", type=Path, help="count a results.jsonl")
+    args = ap.parse_args(argv)
+    if args.tally:
+        tally(args.tally)
+        return 0
+    if args.out is None:
+        ap.error("give --out DIR or --tally FILE")
+    todo = cases(args)
+    if args.part:
+        j, k = map(int, args.part.split("/"))
+        sweep(args.out, todo[j::k])
+        return 0
+    if args.jobs == 1:
+        sweep(args.out, todo)
+        return 0
+    passed = [a for a in (argv if argv is not None else sys.argv[1:])]
+    procs = [subprocess.Popen([sys.executable, __file__, *passed, "--part", f"{j}/{args.jobs}"])
+             for j in range(args.jobs)]
+    return max(p.wait() for p in procs)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

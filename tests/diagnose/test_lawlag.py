@@ -1,0 +1,59 @@
+"""On voltage + speed logs (a lumped model), the armature's lag L/R is not written as a delay
+where there is none, and a real delay is not taken for the lag (diagnose/lawlag.py, lag.py).
+
+Round trips through ``identify`` (with diagnose) on ``bench/lawlag.py``'s rigs: a bench motor
+with back-EMF and an L/R of 2 ms (every parameter moved up to 20 % by the seed), logged as a
+5 -> 15 V step while turning and a staircase from rest, speed noise 0.5 rad/s from
+``default_rng``. At 100 Hz the L/R is a fifth of a sample: fit-mechanical's steps do not resolve
+it and the model comes to diagnose with the lag folded into J. Main at c558e30 added a
+``sensor_delay`` of about the L/R in each of the three no-delay cases below and missed the
+real delay in both delay cases (fit-mechanical's lag held lag and latency together).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from bench.lawlag import scenario
+from pmdcid.api import identify
+from pmdcid.diagnose.lawlag import lag_holds
+
+DELAYS = ("sensor_delay", "input_delay")
+LAG = 2e-3
+
+
+def test_the_lag_holds_against_a_delay_it_cannot_be_told_from():
+    # a delay under two samples must fit decisively better (n log of the ratio beyond 10)
+    assert lag_holds(1200, 1095.5, 1094.9, -10.0, delay_samples=0.18)
+    assert not lag_holds(1200, 1150.0, 1094.9, -10.0, delay_samples=0.18)
+    # from two samples (fit-mechanical's own least latency) it must fit at least as well
+    assert not lag_holds(6000, 5987.6, 5986.0, -10.0, delay_samples=3.0)
+    assert lag_holds(6000, 5980.0, 5986.0, -10.0, delay_samples=3.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rate, truth", [(100.0, "none"), (100.0, "friction_curve"),
+                                         (1000.0, "friction_curve")])
+def test_no_delay_is_added_where_there_is_none(rate, truth):
+    fit, _, _ = scenario(1, 1e3 * LAG, rate, truth)
+    model = identify(fit, diagnose=True, progress=False).model
+    assert not [e for e in DELAYS if e in model.effects], model.effects
+    if truth == "friction_curve":
+        assert "friction_curve" in model.effects, model.effects
+    if model.has("tau_e"):  # where a stage wrote the lag, it is the L/R
+        assert model.value("tau_e") == pytest.approx(LAG, rel=0.25)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rate", [100.0, 500.0])
+def test_a_real_delay_is_not_taken_for_the_lag(rate):
+    # a 2-sample latency beside the 2 ms L/R: fit-mechanical's lag takes both (tau_e about
+    # their sum, no delay); diagnose refits the lag with a delay and keeps the delay. On voltage
+    # and speed the two trade off, so the split is asserted loosely, their sum closely. (At
+    # 1 kHz, a 2 ms latency beside the 2 ms lag, it is split in some seeds only: docs/effects.md)
+    fit, _, vals = scenario(1, 1e3 * LAG, rate, "sensor_delay")
+    model = identify(fit, diagnose=True, progress=False).model
+    assert "sensor_delay" in model.effects, model.effects
+    lag = model.value("tau_e") if model.has("tau_e") else 0.0
+    assert model.value("delay") > 0.5 / rate
+    assert model.value("delay") + lag == pytest.approx(vals["delay"] + LAG, rel=0.15)
