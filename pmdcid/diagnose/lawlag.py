@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 
 from pmdcid.diagnose.named import CURVE, NAMED_LAWS, NAMED_MARGIN
-from pmdcid.diagnose.starts import _lowest
+from pmdcid.diagnose.starts import lowest_trial
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.identify.latency import MIN_SAMPLES
 from pmdcid.identify.nonlinear import KE_SHARES
@@ -71,7 +71,7 @@ def lag_start(run, vals: dict[str, float], free, part: str, taus) -> dict[str, f
     well without the onset)."""
     problem = run.problem
     trials = [{**vals, "tau_e": t, "ke_share": s} for t in taus for s in KE_SHARES]
-    best, _ = _lowest(problem, trials, part, trials[0], problem.cost(trials[0], part))
+    best, _ = lowest_trial(problem, trials, part, trials[0], problem.cost(trials[0], part))
     return best
 
 

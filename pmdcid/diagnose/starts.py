@@ -45,15 +45,15 @@ def grid_start(problem, vals: dict[str, float], free, torque_scale: float,
         # trials are simulated side by side and then compared in order, as one by one
         trials = [{**best, **dict(zip(sw, point, strict=True))}
                   for point in zip(*(a.ravel() for a in axes), strict=True)]
-        best, best_c = _lowest(problem, trials, part, best, best_c)
+        best, best_c = lowest_trial(problem, trials, part, best, best_c)
     if "bv" in free and best.get("bv", 0.0) > 0:
         bv0 = best["bv"]
         trials = [{**best, "bv": bv0 * f} for f in BV_FACTORS]
-        best, best_c = _lowest(problem, trials, part, best, best_c)
+        best, best_c = lowest_trial(problem, trials, part, best, best_c)
     return best
 
 
-def _lowest(problem, trials, part, best, best_c):
+def lowest_trial(problem, trials, part, best, best_c):
     """The first trial of lowest ``part`` chi-square if below ``best_c``, else ``best``; the
     trials simulated on the spare CPUs (:func:`pmdcid.runtime.cpus.pmap`)."""
     costs = pmap(lambda v: problem.cost(v, part), trials)
@@ -61,9 +61,6 @@ def _lowest(problem, trials, part, best, best_c):
         if c < best_c:
             best, best_c = trial, c
     return best, best_c
-
-
-
 
 
 #: points of the profile scan of each switching parameter, and its half-width (relative)
@@ -95,7 +92,7 @@ def profile_best(problem, vals: dict[str, float], free, part: str = "all") -> di
             xs = v * np.linspace(1 - PROFILE_SPAN, 1 + PROFILE_SPAN, PROFILE_N)
         else:
             continue
-        best, best_c = _lowest(problem, [{**best, name: float(x)} for x in xs], part, best,
+        best, best_c = lowest_trial(problem, [{**best, name: float(x)} for x in xs], part, best,
                                best_c)
     return best
 
@@ -164,4 +161,4 @@ def _parabola_halfwidth(x: np.ndarray, c: np.ndarray, rise: float) -> float:
     return float(0.5 * (ok.max() - ok.min()))
 
 
-__all__ = ["grid_start", "profile_best", "profile_stderr", "staged_fit"]
+__all__ = ["grid_start", "lowest_trial", "profile_best", "profile_stderr", "staged_fit"]
