@@ -178,29 +178,28 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
 
 def dead_zone_line(problem: Problem, final: FitOutcome, names: list[str], curv: np.ndarray,
                    notes: list[str]) -> None:
-    """dz after the effects were added, read as fit-nonlinear reads it: its profile-likelihood
-    interval (:func:`pmdcid.identify.dead_zone.dead_zone_interval`: the cost is a staircase
-    in dz), the free parameters (``names``, ``curv`` their envelope ``(J'J)^-1``) moved to the
-    interval's middle on the profile line, dz's standard error at least a quarter of its
-    width; ``final`` updated in place, a note when that changed anything visibly. Before,
-    dz's error here was the profile's with the others held, and the refit's dz could sit
-    wherever its local stage stopped on the staircase (docs/identification.md)."""
+    """dz's standard error after the effects were added, from its profile-likelihood interval
+    as fit-nonlinear reads it (:func:`pmdcid.identify.dead_zone.dead_zone_interval`: the cost
+    is a staircase in dz; the free parameters ``names`` following on the profile line, ``curv``
+    their envelope ``(J'J)^-1``): a quarter of the interval's width where that is wider,
+    never narrower (``final`` updated in place, a note when it widened). The values stay the
+    refit's: moved to the interval's middle with an added effect, the total friction could
+    turn negative within the logged speeds (tests/system/test_diagnose.py's quadratic drag)."""
     shim = SimpleNamespace(estimates={n: final.estimates[n] for n in names}, curvature=curv,
                            held_cov=None, priors={}, prior_weight=1.0)
 
     def cost(sets):
         return pmap(lambda s: problem.chi2({**final.values, **s})["all"], sets)
 
-    moved, why = dead_zone_interval(cost, shim)
-    if not moved:
+    moved, _ = dead_zone_interval(cost, shim)
+    est = final.estimates["dz"]
+    if "dz" not in moved or not moved["dz"].stderr > est.stderr:
         return
-    for k, e in moved.items():
-        se = e.stderr if k == "dz" else final.estimates[k].stderr
-        final.estimates[k] = Estimate(k, e.value, se, e.unit)
-        final.values[k] = e.value
-    final.chi2 = problem.chi2(final.values)
-    if why:
-        notes.append(why)
+    final.estimates["dz"] = Estimate("dz", est.value, moved["dz"].stderr, est.unit)
+    mid = moved["dz"].value
+    notes.append(f"dz's standard error {est.stderr:.2g} -> {moved['dz'].stderr:.2g}: a quarter "
+                 "of its profile-likelihood interval's width (the cost is a staircase in dz, "
+                 f"flat between the dead zone's events; the interval's middle {mid:.5g})")
 
 
 def finalise(run, cur: FitOutcome, added: list[str], notes: list[str], history):

@@ -14,7 +14,7 @@ def _run(tau_e: float):
 def test_a_lumped_lag_is_refitted_with_the_added_effects():
     """A lumped model with an electrical lag: tau_e and ke_share are free in the final refits
     once an effect is added (the share sets where the dead zone acts; held, dz took up the
-    difference: bench/pervolt_coverage.py --diagnose, dz +5.9 % -> +1.2 %)."""
+    difference: bench/pervolt_coverage.py --diagnose, dz +5.9 % -> +2.1 %)."""
     assert free_of(_run(3e-3), ["quadratic_drag"]) == ["J", "bv", "bc", "dz", "bq", "tau_e",
                                                         "ke_share"]
 
