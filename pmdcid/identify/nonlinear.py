@@ -299,8 +299,11 @@ def masked_upper(dzs, cost, thr) -> float:
 def _chisqr_and_J(logs, work, free, signals, start, sigma, max_nfev, bounds, prior,
                   ramp: float) -> tuple[float, float]:
     """The local fit with the input read at ``ramp`` between samples: (chi-square, J)."""
-    params = _parameters(free, start, bounds, DIFF_STEP, prior_terms(prior), {"ramp": ramp})
-    f = fit_simulation(logs, work, params, signals, sigma=sigma, options=FitOptions(max_nfev))
+    held = {"ramp": ramp}
+    params = _parameters(free, start, bounds, DIFF_STEP, prior_terms(prior), held)
+    opts = FitOptions(max_nfev)
+    f = fit_simulation(logs, work, params, signals, sigma=sigma, options=opts)
+    f = _polish(logs, work, free, signals, f, sigma, opts, bounds, prior_terms(prior), held)
     return f.stats.chisqr, f.estimates["J"].value if "J" in f.estimates else 0.0
 
 

@@ -75,16 +75,31 @@ def parabola_minimum(x: np.ndarray, y: np.ndarray, scale: float) -> tuple[float,
             min(math.sqrt(max(scale, 1e-12) / a), spread))
 
 
+def roughness(x: np.ndarray, y: np.ndarray) -> float:
+    """The scatter of ``y`` about the least-squares parabola through all of (x, y): the rms
+    residual over the len(x) - 3 degrees of freedom (0 with three points or fewer). Each of the
+    profile's points is a local fit that stops in some dip of a cost made rough by the dead
+    zone's events: measured on the paper's motor with a 10 Hz triangle (a lumped model,
+    tests/system/test_diagnose.py), fits at neighbouring ramps stopped 20-160 chi-square units
+    off a smooth profile, and read with a rise of 1 the ramp's standard error came out 0.012
+    at 25 standard errors from the truth."""
+    if len(x) <= 3:
+        return 0.0
+    r = y - np.polyval(np.polyfit(x, y, 2), x)
+    return float(math.sqrt(np.sum(r ** 2) / (len(x) - 3)))
+
+
 def ramp_profile(fit_at: Callable[[float], tuple[float, float]], redchi: float) -> RampProfile:
     """Profile of the ramp: ``fit_at(r)`` runs the local fit with the input read at ramp ``r``
     and returns (chi-square, fitted J [kg m^2]); ``redchi`` scales the width (the noise
-    weights' honesty). J's slope in the ramp is taken between the neighbours of the lowest
+    weights' honesty), and so does the profile's own scatter (:func:`roughness`) where it is
+    larger. J's slope in the ramp is taken between the neighbours of the lowest
     point, where the minimum lies."""
     xs = np.array(RAMPS)
     got = [fit_at(float(r)) for r in xs]
     chi = np.array([c for c, _ in got])
     js = np.array([j for _, j in got])
-    value, se = parabola_minimum(xs, chi, max(redchi, 1.0))
+    value, se = parabola_minimum(xs, chi, max(redchi, 1.0, roughness(xs, chi)))
     k = min(max(int(np.argmin(chi)), 1), len(xs) - 2)
     dJ = float((js[k + 1] - js[k - 1]) / (xs[k + 1] - xs[k - 1]))
     return RampProfile(value, se, tuple(float(c) for c in chi), dJ)
@@ -101,4 +116,5 @@ def hold_profile(logs, start: dict, free, fit_at) -> RampProfile | None:
     return ramp_profile(fit_at, 1.0)
 
 
-__all__ = ["RAMPS", "RampProfile", "hold_profile", "parabola_minimum", "ramp_profile"]
+__all__ = ["RAMPS", "RampProfile", "hold_profile", "parabola_minimum", "ramp_profile",
+           "roughness"]
