@@ -89,17 +89,23 @@ def roughness(x: np.ndarray, y: np.ndarray) -> float:
     return float(math.sqrt(np.sum(r ** 2) / (len(x) - 3)))
 
 
-def ramp_profile(fit_at: Callable[[float], tuple[float, float]], redchi: float) -> RampProfile:
+def ramp_profile(fit_at: Callable[[float], tuple[float, float]], redchi: float,
+                 rough: bool = False) -> RampProfile:
     """Profile of the ramp: ``fit_at(r)`` runs the local fit with the input read at ramp ``r``
     and returns (chi-square, fitted J [kg m^2]); ``redchi`` scales the width (the noise
-    weights' honesty), and so does the profile's own scatter (:func:`roughness`) where it is
-    larger. J's slope in the ramp is taken between the neighbours of the lowest
-    point, where the minimum lies."""
+    weights' honesty), and, ``rough`` (the local fits stop in dips of a rough cost: a lumped
+    model with an electrical lag), the profile's own scatter (:func:`roughness`) where it is
+    larger. Not otherwise: a smooth profile that drops steeply from one end is no parabola
+    either (on the paper's 10 Hz triangle with km known its scatter about one was 85
+    chi-square units where its points lay within 10 of the lowest from ramp 0.5 to 1).
+    J's slope in the ramp is taken between the neighbours of the lowest point, where the
+    minimum lies."""
     xs = np.array(RAMPS)
     got = [fit_at(float(r)) for r in xs]
     chi = np.array([c for c, _ in got])
     js = np.array([j for _, j in got])
-    value, se = parabola_minimum(xs, chi, max(redchi, 1.0, roughness(xs, chi)))
+    scatter = roughness(xs, chi) if rough else 0.0
+    value, se = parabola_minimum(xs, chi, max(redchi, 1.0, scatter))
     k = min(max(int(np.argmin(chi)), 1), len(xs) - 2)
     dJ = float((js[k + 1] - js[k - 1]) / (xs[k + 1] - xs[k - 1]))
     return RampProfile(value, se, tuple(float(c) for c in chi), dJ)
@@ -107,13 +113,14 @@ def ramp_profile(fit_at: Callable[[float], tuple[float, float]], redchi: float) 
 
 def hold_profile(logs, start: dict, free, fit_at) -> RampProfile | None:
     """The ramp's profile when some log's input reading moves J (``start``: the fit's starting
-    J [kg m^2] and bv [N m s/rad]; ``free``: the fitted names), else None."""
+    J [kg m^2] and bv [N m s/rad]; ``free``: the fitted names; a free ``tau_e``, a lumped
+    model's lag, makes the cost rough: :func:`ramp_profile`), else None."""
     from pmdcid.identify.identifiability import hold_matters
 
     if "J" not in free or not any(hold_matters(lg, start["J"], start.get("bv", math.nan))
                                   for lg in logs):
         return None
-    return ramp_profile(fit_at, 1.0)
+    return ramp_profile(fit_at, 1.0, rough="tau_e" in free)
 
 
 __all__ = ["RAMPS", "RampProfile", "hold_profile", "parabola_minimum", "ramp_profile",
