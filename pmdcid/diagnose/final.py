@@ -12,6 +12,7 @@ errors of the switching parameters.
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -19,9 +20,11 @@ from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.results import Estimate, bounded
+from pmdcid.identify.dead_zone import dead_zone_interval
 from pmdcid.identify.nonlinear import DZ_CAVEAT, masked_upper
 from pmdcid.model import EFFECTS
-from pmdcid.model.lumped import is_lumped, lumped_unit
+from pmdcid.model.lumped import LUMPED_ONLY, is_lumped, lumped_unit
+from pmdcid.runtime.cpus import pmap
 
 #: added effects that can lower the total friction (removed, the last added first, when the
 #: final model's friction is negative somewhere within the logged speeds)
@@ -100,7 +103,12 @@ def prune(run, final: FitOutcome, added: list[str], notes: list[str],
 
 
 def free_of(run, added: list[str]) -> list[str]:
-    return run.base_free + [p for e in added for p in effect_free(e)]
+    """The final refits' free parameters: the base's, the added effects', and a lumped model's
+    electrical lag (tau_e, ke_share, :mod:`pmdcid.model.lumped`) where it has one: the share
+    sets where the dead zone acts, and the joint fit found it without the effects (held, dz
+    took up the difference: bench/pervolt_coverage.py --diagnose, docs/identification.md)."""
+    lag = [p for p in LUMPED_ONLY if added and run.vals0.get("tau_e", 0.0) > 0]
+    return run.base_free + [p for e in added for p in effect_free(e)] + lag
 
 
 def inside(par, upper: float) -> bool:
@@ -146,7 +154,8 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
 def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> None:
     """Standard errors the data support: the profile's for the switching parameters (the
     Jacobian sees nothing between events) and the correlated-residual (HAC) ones, whichever is
-    larger (``final.estimates`` updated in place)."""
+    larger (``final.estimates`` updated in place); then dz's profile-likelihood interval
+    (:func:`dead_zone_line`)."""
     problem = run.problem
     for name in ("bc", "dz"):
         est = final.estimates.get(name)
@@ -155,13 +164,42 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
             if math.isfinite(se) and not se <= est.stderr:
                 final.estimates[name] = Estimate(name, est.value, se, est.unit)
     # the refits' errors assume white residuals; on real data the residual is correlated
-    hac, info = problem.correlated_stderr(final.values, list(final.estimates))
+    hac, info, curv = problem.envelope_errors(final.values, list(final.estimates))
     for name, se in hac.items():
         est = final.estimates[name]
         if math.isfinite(se) and se > est.stderr and name in free:
             final.estimates[name] = Estimate(name, est.value, se, est.unit)
     if info is not None and (info.inflation > 1.5 or info.lower_bound):
         notes.append(info.describe())
+    if "dz" in free and curv is not None:
+        dead_zone_line(problem, final, [n for n in final.estimates if n in final.values], curv,
+                       notes)
+
+
+def dead_zone_line(problem: Problem, final: FitOutcome, names: list[str], curv: np.ndarray,
+                   notes: list[str]) -> None:
+    """dz's standard error after the effects were added, from its profile-likelihood interval
+    as fit-nonlinear reads it (:func:`pmdcid.identify.dead_zone.dead_zone_interval`: the cost
+    is a staircase in dz; the free parameters ``names`` following on the profile line, ``curv``
+    their envelope ``(J'J)^-1``): a quarter of the interval's width where that is wider,
+    never narrower (``final`` updated in place, a note when it widened). The values stay the
+    refit's: moved to the interval's middle with an added effect, the total friction could
+    turn negative within the logged speeds (tests/system/test_diagnose.py's quadratic drag)."""
+    shim = SimpleNamespace(estimates={n: final.estimates[n] for n in names}, curvature=curv,
+                           held_cov=None, priors={}, prior_weight=1.0)
+
+    def cost(sets):
+        return pmap(lambda s: problem.chi2({**final.values, **s})["all"], sets)
+
+    moved, _ = dead_zone_interval(cost, shim)
+    est = final.estimates["dz"]
+    if "dz" not in moved or not moved["dz"].stderr > est.stderr:
+        return
+    final.estimates["dz"] = Estimate("dz", est.value, moved["dz"].stderr, est.unit)
+    mid = moved["dz"].value
+    notes.append(f"dz's standard error {est.stderr:.2g} -> {moved['dz'].stderr:.2g}: a quarter "
+                 "of its profile-likelihood interval's width (the cost is a staircase in dz, "
+                 f"flat between the dead zone's events; the interval's middle {mid:.5g})")
 
 
 def finalise(run, cur: FitOutcome, added: list[str], notes: list[str], history):

@@ -436,9 +436,19 @@ class Problem:
         correlated in time (block sandwich, :mod:`pmdcid.fit.covariance`): the refits'
         white-residual errors count every sample as independent evidence. Central differences
         with relative step ``rel`` (2 simulations per parameter)."""
+        se, info, _ = self.envelope_errors(vals, free, rel)
+        return se, info
+
+    def envelope_errors(self, vals: dict[str, float], free: Sequence[str],
+                        rel: float = 1e-2) -> tuple[dict[str, float], CovarianceInfo | None,
+                                                    np.ndarray | None]:
+        """:meth:`correlated_stderr`'s standard errors and info, and the envelope Jacobian's
+        inverse curvature ``(J'J)^-1`` over the names of ``free`` found in ``vals`` (in that
+        order; None when it cannot be inverted): the direction a profile follows
+        (:func:`pmdcid.identify.dead_zone.profile_line`)."""
         free = [n for n in free if n in vals]
         if not free:
-            return {}, None
+            return {}, None, None
         params = Parameters.of(free, vals)
         x0 = np.array([vals[n] for n in free], float)
         scale = params.scales(x0)
@@ -453,11 +463,12 @@ class Problem:
         lo, hi = params.bounds()
         jm = envelope_jacobian(resid, z0, f0, lo / scale, hi / scale, rel) / scale[None, :]
         try:
+            curv = np.linalg.pinv(jm.T @ jm)
             cov, info = correlated_covariance(jm, f0, self.segments("all"))
         except np.linalg.LinAlgError:
-            return {}, None
+            return {}, None, None
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
-        return dict(zip(free, (float(e) for e in se), strict=True)), info
+        return dict(zip(free, (float(e) for e in se), strict=True)), info, curv
 
 
 def _channel(k: int, log, s: str, rows, fit, given: dict[str, float]) -> Channel:

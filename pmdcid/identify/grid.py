@@ -8,8 +8,13 @@ sigma_theta)^2)``. Nothing of size (sets x samples) is kept, so a grid of hundre
 120 s, 1 kHz log needs no more memory than a few simulations: one state buffer per thread,
 reused set after set (fresh arrays of a long log cost page faults every set).
 
-Sensor delay and a late input (input_delay) are not applied here (only the speed offset): the
-grid is a starting point; the least-squares stage that follows uses the full simulation.
+Sensor delay is not applied here (only the speed offset): the grid is a starting point; the
+least-squares stage that follows uses the full simulation. How the input is read between
+samples is (a late input, ``latency``, or a ``ramp`` reading, :mod:`pmdcid.simulate.input_grid`,
+on the same fine grid as :func:`pmdcid.simulate.simulate_values`): fit-nonlinear's checks after
+its local stage (the secant errors, the share's valley, dz's interval) read this cost at the
+fit's point, and held where the fit read a slow log at ramp 0.9 it was 3700 chi-square units
+above the fit's own and lowest elsewhere (tests/system/test_diagnose.py's 10 Hz triangle).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import numpy as np
 
 from pmdcid.model.lumped import kernel_values, lag_substeps
 from pmdcid.simulate import compiled, param_vector
+from pmdcid.simulate.input_grid import late_input, parts_for, ramp_input
 from pmdcid.simulate.kernel import _run_into, discretize
 from pmdcid.simulate.layout import (
     KM,
@@ -84,6 +90,13 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
             idx = [k for k, m in enumerate(mapped) if m[1] == flag]
             cost[idx] = batch_cost(log, [vals_list[k] for k in idx], sigma, nsub, x0)
         return cost
+    readings = {_reading(v) for v in vals_list}
+    if len(readings) > 1:  # sets read the input differently: one call each
+        cost = np.empty(len(vals_list))
+        for rd in readings:
+            idx = [k for k, v in enumerate(vals_list) if _reading(v) == rd]
+            cost[idx] = batch_cost(log, [vals_list[k] for k in idx], sigma, nsub, x0)
+        return cost
     lag = torque and not mapped[0][1]  # a lumped model's lag: steps that resolve it
     torque = mapped[0][1]
     P = np.array([param_vector(v) for v, _ in mapped], dtype=float)
@@ -94,6 +107,7 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
         nsub = max(choose_substeps(dt, p) for p in P)
     if lag:
         nsub = max(nsub, max(lag_substeps(dt, v["L"]) for v, _ in mapped))
+    u, dt, nsub, q = _read_input(np.asarray(log.u, float), dt, nsub, _reading(vals_list[0]))
     h = dt / nsub
     Phi = np.empty((len(P), 2, 3, 3))
     Gam = np.empty((len(P), 2, 3, 3))
@@ -104,15 +118,46 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
             cache[key] = discretize(p, h, torque)
         Phi[k], Gam[k] = cache[key]
     nan = np.full(log.n, np.nan)
-    w = np.ascontiguousarray(log["omega"], float) if "omega" in sigma else nan
-    th = np.ascontiguousarray(log["theta"], float) if "theta" in sigma else nan
+    w = _on_grid(log["omega"] if "omega" in sigma else nan, q)
+    th = _on_grid(log["theta"] if "theta" in sigma else nan, q)
     omega0 = float(vals_list[0].get("omega0", 0.0))
     ahead = compiled.load()  # the C build (one thread) when current, else numba's JIT
     fn = ahead.batch_cost if ahead is not None else _batch_cost
-    bufs = np.empty((min(_threads(ahead), len(P)), log.n, NSTATE))  # one simulation per thread
-    return fn(np.ascontiguousarray(log.u, float), P, Phi, Gam, int(nsub), bool(torque), w, th,
+    bufs = np.empty((min(_threads(ahead), len(P)), len(u), NSTATE))  # one simulation per thread
+    return fn(np.ascontiguousarray(u, float), P, Phi, Gam, int(nsub), bool(torque), w, th,
               float(sigma.get("omega", 0.0)), float(sigma.get("theta", 0.0)), omega0,
               state_vector(x0), bufs)
+
+
+def _reading(vals: dict[str, float]) -> tuple[float, float | None] | None:
+    """How a set reads the input between samples: (latency [s], ramp) or None (held, on
+    time)."""
+    latency, ramp = float(vals.get("latency", 0.0)), vals.get("ramp")
+    if latency > 0.0 or ramp is not None:
+        return latency, (None if ramp is None else float(ramp))
+    return None
+
+
+def _read_input(u: np.ndarray, dt: float, nsub: int, reading):
+    """(input, its step [s], internal steps per input step, fine steps per sample q): ``u``
+    itself when held on time (q = 1), else on the fine grid as
+    :func:`pmdcid.simulate.simulate_values` builds it."""
+    if reading is None:
+        return u, dt, nsub, 1
+    latency, ramp = reading
+    q = parts_for(nsub)
+    fine = late_input(u, dt, latency, q) if ramp is None else ramp_input(u, dt, latency, ramp, q)
+    return fine, dt / q, 1, q
+
+
+def _on_grid(meas, q: int) -> np.ndarray:
+    """The measured signal at every q-th row of the fine grid, NaN between (skipped)."""
+    meas = np.asarray(meas, float)
+    if q == 1:
+        return np.ascontiguousarray(meas)
+    out = np.full(len(meas) * q, np.nan)
+    out[::q] = meas
+    return out
 
 
 def _threads(ahead) -> int:

@@ -57,7 +57,9 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     working_model,
 )
 from pmdcid.identify.ramp_profile import hold_profile
+from pmdcid.identify.share_valley import share_interval
 from pmdcid.model import Model
+from pmdcid.model.lumped import same_response
 from pmdcid.notes import Note
 from pmdcid.simulate import param_values
 
@@ -68,8 +70,9 @@ GRID_BV = 7
 #: a lumped model's tau_e is fitted down to this fraction of the sample period (at 0 the model
 #: has no lag and its dead zone acts on v, pmdcid/model/lumped.py: a different model)
 TAU_E_FLOOR = 0.01
-#: grid of a lumped model's back-EMF share of bv (ke_share, pmdcid/model/lumped.py)
-KE_SHARES = (0.5, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0)
+#: grid of a lumped model's back-EMF share of bv (ke_share, pmdcid/model/lumped.py): its whole
+#: range, each point with the J and tau_e of the same linear response (:func:`share_points`)
+KE_SHARES = (0.0, 0.1, 0.25, 0.5, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0)
 #: relative finite-difference steps of the local stage: the switching parameters move events by
 #: whole internal steps, so their steps must span several (a torque ramp of ~1e-3 relative per
 #: internal step on a slow triangle)
@@ -241,10 +244,9 @@ def _grid_search(logs, base_vals, start, free, signals, sigma, tscale):
         # is v - ke w): the local stage does not cross between its valleys, a grid over the
         # share and dz together does (at a share of 1 a dead zone above bc would hold every
         # steady state, so dz alone looks masked); then the switching parameters again
-        shares = sorted({*KE_SHARES, best["ke_share"]})
         dzs = list(_axis("dz", start, tscale)) + [best["dz"]] if "dz" in free else [None]
-        sets = [{"ke_share": v, **({"dz": d} if d is not None else {})}
-                for v in shares for d in dzs]
+        sets = [{**lag, **({"dz": d} if d is not None else {})}
+                for lag in share_points(best) for d in dzs]
         cost = run(sets)
         nsets += len(sets)
         best.update(sets[int(np.argmin(cost))])
@@ -256,6 +258,25 @@ def _grid_search(logs, base_vals, start, free, signals, sigma, tscale):
         nsets += len(sets)
         best.update(sets[int(np.argmin(cost))])
     return best, nsets
+
+
+def share_points(best: dict[str, float]) -> list[dict[str, float]]:
+    """The back-EMF shares :data:`KE_SHARES` (and ``best``'s) to grid a lumped model's lag
+    over, each with the J and tau_e that keep ``best``'s linear response
+    (:func:`pmdcid.model.lumped.same_response`; J, tau_e held where ``best`` has neither).
+    At fixed J the grid cannot leave the valley it starts in: the share trades with J and
+    tau_e (on the paper's motor, share 0.033, a start at share 1 carries J +7.6 %,
+    bench/pervolt_coverage.py)."""
+    out = []
+    for v in sorted({*KE_SHARES, best["ke_share"]}):
+        pt = {"ke_share": v}
+        if "J" in best and "tau_e" in best:
+            moved = same_response(best["J"], best["tau_e"], best["bv"], best["ke_share"], v)
+            if moved is None:
+                continue
+            pt["J"], pt["tau_e"] = moved
+        out.append(pt)
+    return out
 
 
 def dz_profile(logs, base_vals, point, signals, sigma, ndata, n=DZ_PROFILE_N):
@@ -281,8 +302,11 @@ def masked_upper(dzs, cost, thr) -> float:
 def _chisqr_and_J(logs, work, free, signals, start, sigma, max_nfev, bounds, prior,
                   ramp: float) -> tuple[float, float]:
     """The local fit with the input read at ``ramp`` between samples: (chi-square, J)."""
-    params = _parameters(free, start, bounds, DIFF_STEP, prior_terms(prior), {"ramp": ramp})
-    f = fit_simulation(logs, work, params, signals, sigma=sigma, options=FitOptions(max_nfev))
+    held = {"ramp": ramp}
+    params = _parameters(free, start, bounds, DIFF_STEP, prior_terms(prior), held)
+    opts = FitOptions(max_nfev)
+    f = fit_simulation(logs, work, params, signals, sigma=sigma, options=opts)
+    f = _polish(logs, work, free, signals, f, sigma, opts, bounds, prior_terms(prior), held)
     return f.stats.chisqr, f.estimates["J"].value if "J" in f.estimates else 0.0
 
 
@@ -449,6 +473,18 @@ def secant_errors(logs, base_vals, fit, signals, sigma, warns) -> dict[str, Esti
     return out
 
 
+def _share_valley(logs, base_vals, fit, signals, sigma, est, warns) -> None:
+    """A lumped model's back-EMF share, J and tau_e read along their valley of equal linear
+    response (:mod:`.share_valley`): ``est`` updated in place, a note when they moved."""
+    if "ke_share" not in est:
+        return
+    moved, why = share_interval(lambda sets: _cost(logs, base_vals, sets, signals, sigma),
+                                fit, est)
+    est.update(moved)
+    if why:
+        warns.append(Note(why, about=("J", "tau_e", "ke_share"), severity="note"))
+
+
 def _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns) -> None:
     """A dead zone the logs see: its interval along the profile line
     (:func:`_profile_dead_zone`), then, on a quantised input, the levels around it
@@ -609,6 +645,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
         masked = bool(c[0] - min(c.min(), cfit) <= max(thr, MASK_REL * min(c.min(), cfit)))
     est = dict(fit.estimates)
     est.update(secant_errors(logs, base_vals, fit, signals, sigma, warns))
+    _share_valley(logs, base_vals, fit, signals, sigma, est, warns)
     if not masked:
         _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns)
     if masked:

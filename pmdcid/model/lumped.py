@@ -87,6 +87,26 @@ def kernel_values(vals: dict[str, float], torque_driven: bool) -> tuple[dict[str
     return out, False
 
 
+def same_response(J: float, tau_e: float, bv: float, share: float,
+                  new_share: float) -> tuple[float, float] | None:
+    """(J [V s^2/rad], tau_e [s]) with which a lumped model of back-EMF share ``new_share``
+    answers the voltage exactly as one with ``J``, ``tau_e``, ``bv`` [V s/rad] and ``share``
+    does, while the rotor moves freely: None when no such pair exists.
+
+    Linear, v -> omega is ``1 / (tau_e J s^2 + (J + tau_e (1 - share) bv) s + bv)``: three
+    coefficients for four parameters, so the share moves along a valley of equal linear
+    response, only the friction and the dead zone (on the lagged torque) telling its points
+    apart. Keeping ``a1 = tau_e J`` and ``a2 = J + tau_e (1 - share) bv``, J is the mechanical
+    (larger) root of ``J^2 - a2 J + a1 (1 - new_share) bv = 0`` and tau_e = a1 / J."""
+    a1 = tau_e * J
+    a2 = J + tau_e * (1.0 - share) * bv
+    disc = a2 * a2 - 4.0 * a1 * (1.0 - new_share) * bv
+    if not (a1 > 0 and disc >= 0):
+        return None
+    j = 0.5 * (a2 + math.sqrt(disc))
+    return j, a1 / j
+
+
 def is_lumped(model: Model) -> bool:
     """True for a per-volt model (``"lumped": true`` in the model file)."""
     return bool(model.extra.get(KEY, False))

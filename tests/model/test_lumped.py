@@ -113,3 +113,33 @@ def test_lumped_round_trip_keeps_the_electrical_lag():
         assert m.value(k) == pytest.approx(PER_VOLT[k], rel=tol), k
     dz = m.parameters["dz"]
     assert abs(dz.value - PER_VOLT["dz"]) <= 3.0 * dz.stderr
+
+
+@pytest.mark.parametrize("share", [0.0, 0.3, 1.0])
+def test_same_response_keeps_the_linear_response(share):
+    """Moved along the valley of equal linear response to another back-EMF share (friction and
+    dead zone off), a lumped model answers a voltage step with the same speed: the
+    characteristic polynomial's coefficients kept, the simulation equal to rounding."""
+    from pmdcid.model.lumped import same_response
+
+    base = {**PER_VOLT, "bc": 0.0, "dz": 0.0}
+    J, tau = same_response(base["J"], base["tau_e"], base["bv"], base["ke_share"], share)
+    s0 = base["ke_share"]
+    assert tau * J == pytest.approx(base["tau_e"] * base["J"], rel=1e-12)
+    assert J + tau * (1 - share) * base["bv"] == pytest.approx(
+        base["J"] + base["tau_e"] * (1 - s0) * base["bv"], rel=1e-12)
+    assert J >= tau * base["bv"] * (1 - share)  # the mechanical root, not the swapped one
+    t = np.arange(1500) * DT
+    u = step(t, 6.0, 0.2)
+    views = [as_log("s", t, {"v": u, "omega": np.zeros_like(t)})]
+    ref = simulate_log(logs_for(views, _lumped(base))[0], _lumped(base)).omega
+    moved = _lumped({**base, "J": J, "tau_e": tau, "ke_share": share})
+    w = simulate_log(logs_for(views, moved)[0], moved).omega
+    assert np.max(np.abs(w - ref)) <= 1e-6 * np.ptp(ref)
+
+
+def test_same_response_refuses_what_no_pair_reaches():
+    """A lag too long for the mechanics (the discriminant negative): no (J, tau_e) pair."""
+    from pmdcid.model.lumped import same_response
+
+    assert same_response(1.0, 0.4, 1.0, 1.0, 0.0) is None

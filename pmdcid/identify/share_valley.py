@@ -1,0 +1,141 @@
+"""A lumped model's back-EMF share and what it moves: J and tau_e along the valley of equal
+linear response.
+
+Per volt, v -> omega is ``1 / (tau_e J s^2 + (J + tau_e (1 - ke_share) bv) s + bv)``: the share
+trades with J and tau_e along a valley of equal linear response
+(:func:`pmdcid.model.lumped.same_response`), only the friction and the dead zone (which acts on
+the lagged torque) telling its points apart. Along it the cost is a staircase too (the dead
+zone's events move by whole internal steps), and a local stage stops in any of its dips: there
+the Jacobian's curvature is the dip's, not the valley's. Measured on the paper's motor
+(ke_share 0.033, bench/pervolt_coverage.py): fits stopped at shares of 0.72-0.96 with standard
+errors of 0.01-0.07, J +7 % at 11-31 of its standard errors, while the cost along the whole
+valley varied by under 10 chi-square units.
+
+:func:`share_interval` reads the valley instead: the cost at shares :data:`SHARES` (each with
+the J and tau_e that keep the fit's linear response, the other parameters held), the fit's own
+point left out (one arbitrary point of a rough floor), the lower convex envelope of those
+costs (the staircase's upward steps dropped), and the interval of shares where that envelope
+stays within two standard errors' rise of its lowest (4 x the reduced chi-square x the
+correlated residual's inflation squared, as :mod:`.dead_zone`). Where the valley is clearly
+narrower than the grid (the envelope rises beyond the threshold at both of the fit's
+neighbouring grid shares) the local covariance stands and nothing changes. Else the share, J
+and tau_e are moved to the interval's middle share and their standard errors are at least a
+quarter of their ranges over it (the 2-standard-error interval's half-width, halved, as
+:mod:`.dead_zone` does for dz); a note says so.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pmdcid.fit.results import Estimate
+from pmdcid.model.lumped import same_response
+
+#: the shares the valley is read at: the whole range, 0 to 1
+SHARES = tuple(np.round(np.linspace(0.0, 1.0, 21), 3))
+#: the threshold in standard errors (chi-square rise 4 x the reduced chi-square)
+TWO_SE = 2.0
+NAMES = ("J", "tau_e", "ke_share")
+#: dead-zone values profiled at each valley point (:func:`_valley_cost`)
+DZ_N = 9
+
+
+def valley_points(point: dict[str, float], shares=SHARES) -> list[dict[str, float]]:
+    """``point`` moved along the valley to each share of ``shares`` (the others held); a share
+    no pair (J, tau_e) reaches is left out."""
+    out = []
+    for s in shares:
+        moved = same_response(point["J"], point["tau_e"], point["bv"], point["ke_share"], s)
+        if moved is not None:
+            out.append({**point, "ke_share": float(s), "J": moved[0], "tau_e": moved[1]})
+    return out
+
+
+def lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The lower convex envelope of the points (x ascending) evaluated at x."""
+    keep: list[int] = []
+    for k in range(len(x)):
+        while len(keep) >= 2:
+            a, b = keep[-2], keep[-1]
+            if (y[b] - y[a]) * (x[k] - x[a]) >= (y[k] - y[a]) * (x[b] - x[a]):
+                keep.pop()  # b lies on or above the chord a-k
+            else:
+                break
+        keep.append(k)
+    return np.interp(x, x[keep], y[keep])
+
+
+def _threshold(fit) -> float:
+    infl = fit.covariance.inflation if fit.covariance and fit.covariance.inflation > 1 else 1.0
+    return TWO_SE ** 2 * max(fit.stats.redchi, 1.0) * infl ** 2
+
+
+def _interval(shares, rise, thr, fitted) -> tuple[float, float] | None:
+    """(low, high) share where the envelope's ``rise`` (above its lowest) is within ``thr``,
+    between grid points linearly; None when it rises beyond ``thr`` at the grid shares on
+    both sides of ``fitted`` (the valley narrower than the grid: the local covariance
+    stands)."""
+    n_left, n_right = int(np.sum(shares < fitted)), int(np.sum(shares > fitted))
+    narrow_l = n_left == 0 or rise[n_left - 1] > thr
+    narrow_r = n_right == 0 or rise[len(shares) - n_right] > thr
+    if narrow_l and narrow_r:
+        return None
+    fine = np.linspace(0.0, 1.0, 1001)
+    ok = fine[np.interp(fine, shares, rise) <= thr]
+    return (float(ok.min()), float(ok.max())) if len(ok) else None
+
+
+def _valley_cost(cost, pts, point) -> np.ndarray:
+    """The cost at each valley point, the dead zone profiled (the lowest over :data:`DZ_N`
+    values from 0 to twice the larger of bc and dz, and the fit's own): where the dead zone
+    acts moves with the share, a dz held at the fit's would tilt the valley."""
+    if "dz" not in point:
+        return np.asarray(cost(pts), float)
+    top = 2.0 * max(point["dz"], point.get("bc", 0.0), 1e-12)
+    dzs = [point["dz"], *np.linspace(0.0, top, DZ_N)]
+    c = np.asarray(cost([{**p, "dz": d} for p in pts for d in dzs]), float)
+    return c.reshape(len(pts), len(dzs)).min(axis=1)
+
+
+def share_interval(cost, fit, est: dict[str, Estimate]) -> tuple[dict[str, Estimate], str]:
+    """(estimates to write in place of ``est``'s J, tau_e, ke_share, the words for the notes)
+    from the valley (module docstring); ({}, "") when the fit has no free share, J and tau_e,
+    or the local covariance stands. ``est``: the fit's estimates as they stand (a standard
+    error already widened kept when larger); ``cost(sets)``: the chi-square of each set."""
+    if not all(k in est for k in NAMES) or "bv" not in est:
+        return {}, ""
+    point = {k: e.value for k, e in est.items()}
+    pts = valley_points(point)
+    if len(pts) < 3:
+        return {}, ""
+    shares = np.array([p["ke_share"] for p in pts])
+    env = lower_hull(shares, _valley_cost(cost, pts, point))
+    found = _interval(shares, env - env.min(), _threshold(fit), point["ke_share"])
+    if found is None:
+        return {}, ""
+    return _moved(point, est, found)
+
+
+def _moved(point, est, found) -> tuple[dict[str, Estimate], str]:
+    """J, tau_e, ke_share at the middle of the share interval ``found``, their standard
+    errors the local ones and a share uniform over the interval combined."""
+    lo, hi = valley_points(point, found)[0], valley_points(point, found)[-1]
+    mid = valley_points(point, [0.5 * (found[0] + found[1])])[0]
+    out = {}
+    for k in NAMES:
+        e = est[k]
+        spread = abs(hi[k] - lo[k]) / math.sqrt(12.0)  # uniform over the interval
+        out[k] = Estimate(k, mid[k], math.hypot(e.stderr, spread), e.unit, caveat=e.caveat)
+    why = (f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's "
+           "share of bv trades with J and tau_e at equal linear response, only the friction "
+           "and the dead zone tell them apart): J, tau_e and ke_share at that interval's "
+           "middle, their standard errors the local fit's and a share uniform over the "
+           f"interval combined (the local fit gave J = {est['J'].value:.5g} ± "
+           f"{est['J'].stderr:.2g}, ke_share = {est['ke_share'].value:.3g} ± "
+           f"{est['ke_share'].stderr:.2g})")
+    return out, why
+
+
+__all__ = ["SHARES", "lower_hull", "share_interval", "valley_points"]

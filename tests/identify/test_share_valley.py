@@ -1,0 +1,121 @@
+"""A lumped model's back-EMF share read along its valley of equal linear response
+(pmdcid/identify/share_valley.py): a rough, nearly flat valley moves J, tau_e and ke_share to
+the interval's middle with standard errors covering it; a valley narrower than the grid leaves
+the local covariance as it is. The cost is a stated function of the share, so each case's
+answer is known."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from pmdcid.fit.results import Estimate
+from pmdcid.identify.share_valley import lower_hull, share_interval, valley_points
+
+POINT = {"J": 0.1578, "bv": 1.534, "bc": 0.23, "tau_e": 0.00697, "ke_share": 0.9}
+
+
+def _fit(se_share=0.006, se_J=4e-4, redchi=1.0):
+    ses = {"J": se_J, "bv": 1e-3, "bc": 6e-3, "tau_e": 3e-4, "ke_share": se_share}
+    est = {k: Estimate(k, v, ses[k], "") for k, v in POINT.items()}
+    stats = SimpleNamespace(redchi=redchi)
+    return SimpleNamespace(estimates=est, stats=stats, covariance=None), est
+
+
+def _cost(shape):
+    def cost(sets):
+        return [shape(s["ke_share"]) for s in sets]
+    return cost
+
+
+def test_lower_hull_drops_the_upward_steps():
+    x = np.linspace(0, 1, 6)
+    y = np.array([3.0, 1.0, 9.0, 1.5, 20.0, 2.0])
+    env = lower_hull(x, y)
+    assert np.all(env <= y + 1e-12)
+    assert env[2] == pytest.approx(1.0 + (1.5 - 1.0) * 0.5)  # the chord 0.2 -> 0.6
+
+
+def test_valley_points_keep_the_linear_coefficients():
+    for p in valley_points(POINT):
+        assert p["tau_e"] * p["J"] == pytest.approx(POINT["tau_e"] * POINT["J"], rel=1e-12)
+        assert p["bc"] == POINT["bc"]
+
+
+def test_rough_flat_valley_moves_to_the_middle_and_widens():
+    """Bumps of 20 on a floor within 2 units over the whole range (the paper's motor's
+    valley): the interval is [0, 1], J the valley's middle, its error the local one and a
+    share uniform over [0, 1] combined."""
+    rng = np.random.default_rng(3)
+    bumps = {round(s, 3): v for s, v in zip(np.linspace(0, 1, 21), rng.uniform(0, 20, 21),
+                                            strict=True)}
+    bumps.update({0.0: 1.0, 0.5: 2.0, 1.0: 1.5})  # the floor, touched at the ends and middle
+    fit, est = _fit()
+    out, why = share_interval(_cost(lambda s: bumps[round(s, 3)]), fit, est)
+    ends = valley_points(POINT, [0.0, 1.0])
+    assert out["ke_share"].value == pytest.approx(0.5, abs=1e-9)
+    spread = abs(ends[1]["J"] - ends[0]["J"]) / np.sqrt(12.0)
+    assert out["J"].stderr == pytest.approx(np.hypot(est["J"].stderr, spread), rel=1e-6)
+    assert min(ends[0]["J"], ends[1]["J"]) < out["J"].value < max(ends[0]["J"], ends[1]["J"])
+    assert out["tau_e"].stderr >= est["tau_e"].stderr  # never narrowed
+    assert "ke_share between 0 and 1" in why
+
+
+def test_sharp_valley_keeps_the_local_covariance():
+    """A parabola rising 1e4 per 0.1 of share about the fitted 0.9: the grid's neighbours rise
+    beyond the threshold on both sides, nothing changes."""
+    fit, est = _fit()
+    out, why = share_interval(_cost(lambda s: 1e6 * (s - 0.9) ** 2), fit, est)
+    assert out == {} and why == ""
+
+
+def test_never_narrower_than_the_local_errors():
+    """A valley flat over 0.85-0.95 only (threshold 4 x redchi): its spread adds little to
+    local standard errors that are already wide, which are never narrowed."""
+    fit, est = _fit(se_share=0.2, se_J=0.01)
+    out, _ = share_interval(_cost(lambda s: 0.0 if 0.849 <= s <= 0.951 else 1e3), fit, est)
+    for k in ("J", "tau_e", "ke_share"):
+        assert est[k].stderr <= out[k].stderr <= 1.05 * est[k].stderr, k
+    assert out["ke_share"].value == pytest.approx(0.9, abs=0.01)
+
+
+def _paper_step_logs(seed: int, noise: float):
+    """Three free-running step logs (0->6->0, 3->9->3, 0->12->0 V, 4 s at 1 kHz) of the paper's
+    motor with back-EMF ke = km (L/R = 7.5 ms, back-EMF share of the per-volt damping 0.033):
+    t, v, omega only; the truth simulated 64 substeps a sample (continuous time)."""
+    from ident_util import as_log
+
+    from pmdcid.simulate import neutral_values, simulate_values
+    from pmdcid.synth import PAPER
+
+    rng = np.random.default_rng(seed)
+    vals = {**neutral_values(), **PAPER, "ke": PAPER["km"]}
+    t = np.arange(0.0, 4.0, 1e-3)
+    out = []
+    for low, high in ((0.0, 6.0), (3.0, 9.0), (0.0, 12.0)):
+        v = np.where((t >= 1.0) & (t < 2.5), high, low)
+        w = simulate_values(t, v, vals, False, nsub=64).omega
+        out.append(as_log(f"step{high:g}", t, {"v": v, "omega": w + rng.normal(0, noise, t.size)}))
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_lumped_steps_J_does_not_take_the_lag(seed):
+    """identify on voltage + speed steps of a motor whose mechanical damping dominates (share
+    0.033), speed noise 0.02 rad/s of ~8: J' within 1.5 % of J R/km (came out +0.05 % and
+    +0.3 %, the estimates' spread ~0.1 %: no seed fails by chance). Before, the share's grid
+    started at 0.5 and the fit stayed near 1, J' taking tau_e (1 - share) bv (+7.6 % and
+    +8.6 % on seed 1 with steps and triangle, steps alone). Not asserted: J's standard error
+    (0.06 %) left seed 2 five of them off (docs/identification.md, "what is left")."""
+    from pmdcid.model import Model
+    from pmdcid.pipeline import identify
+    from pmdcid.synth import PAPER
+
+    m = identify(_paper_step_logs(seed, 0.02), Model(), run_diagnose=False).model
+    true_J = PAPER["J"] * PAPER["R"] / PAPER["km"]
+    J = m.parameters["J"]
+    assert m.has("tau_e")
+    assert J.value == pytest.approx(true_J, rel=0.015)
