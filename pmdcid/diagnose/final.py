@@ -108,7 +108,8 @@ def free_of(run, added: list[str]) -> list[str]:
     sets where the dead zone acts, and the joint fit found it without the effects (held, dz
     took up the difference: bench/pervolt_coverage.py --diagnose, docs/identification.md)."""
     lag = [p for p in LUMPED_ONLY if added and run.vals0.get("tau_e", 0.0) > 0]
-    return run.base_free + [p for e in added for p in effect_free(e)] + lag
+    free = run.base_free + [p for e in added for p in effect_free(e)] + lag
+    return list(dict.fromkeys(free))  # the lag may be free in the base already (lawlag.py)
 
 
 def inside(par, upper: float) -> bool:

@@ -396,8 +396,8 @@ class Problem:
             max_nfev: int = 40, typical_scale: dict[str, float] | None = None,
             limits: dict[str, tuple[float, float]] | None = None) -> FitOutcome:
         """Least squares (:func:`~pmdcid.fit.solver.solve`) of ``free`` by simulation error on
-        ``part``, from ``vals`` (:meth:`refit_parameters`)."""
-        free = list(free)
+        ``part``, from ``vals`` (:meth:`refit_parameters`); a name given twice is fitted once."""
+        free = list(dict.fromkeys(free))
         if not free:
             c = self.chi2(vals)
             stats = FitStats(self.count(part), 0, c[part], 1)
