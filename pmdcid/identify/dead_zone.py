@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from pmdcid.fit.results import Estimate
+from pmdcid.model.effects import bounds_of
 
 #: the scan along the profile line: half-width in the covariance's standard errors of dz (the
 #: logs' own part), and its points; a scan whose edge is still inside the interval is
@@ -97,10 +98,14 @@ def _prior_cost(fit, sets) -> np.ndarray:
 
 
 def _scan(cost, fit, free, x, d, j, span):
-    """Cost rise along the line at ``POINTS`` steps over +-``span`` (dz kept >= 0; the points
-    below it get an infinite cost) and the cost at the solution."""
+    """Cost rise along the line at ``POINTS`` steps over +-``span`` (every free parameter kept
+    within its bounds, dz >= 0 among them; the points beyond get an infinite cost: a follower
+    such as bv led below 0 made a model its own simulate refuses) and the cost at the
+    solution."""
     a = np.linspace(-span, span, POINTS)
-    ok = x[j] + a * d[j] >= 0
+    lo, hi = (np.array(b, float) for b in zip(*(bounds_of(n) for n in free), strict=True))
+    pts = x[None, :] + a[:, None] * d[None, :]
+    ok = np.all((pts >= lo) & (pts <= hi), axis=1) & (pts[:, j] >= 0)
     sets = [dict(zip(free, x, strict=True))] + [dict(zip(free, x + s * d, strict=True))
                                                for s in a[ok]]
     c = np.asarray(cost(sets), float) + _prior_cost(fit, sets)

@@ -63,6 +63,25 @@ def test_the_others_follow_dz_along_their_regression():
     assert moved["J"].value - 1.0 == pytest.approx(0.5 * shift, rel=1e-9)
 
 
+def test_a_follower_is_never_led_out_of_its_bounds():
+    """bv near its bound 0 and anti-correlated with dz: on the staircase floor the middle of dz's
+    interval would take bv below 0 (a model its own simulate refuses: bench/thinlogs.py
+    d:brush_drop, bv -1e-7); the scan keeps every follower within its bounds."""
+    bv0 = 0.5 * SE
+    est = {"bv": Estimate("bv", bv0, SE), "dz": Estimate("dz", 1.0, SE)}
+    fit = SimFitResult(est, FitStats(1000, 2, 998.0), {"bv": {"dz": -0.9}, "dz": {"bv": -0.9}})
+    fit.held_cov = np.zeros((2, 2))
+    fit.curvature = SE**2 * np.array([[1.0, -0.9], [-0.9, 1.0]])
+
+    def cost(sets):
+        return np.array([((s["bv"] - bv0) / SE) ** 2
+                         + (math.floor((s["dz"] - 0.996) / (5 * SE)) * 5) ** 2 for s in sets])
+
+    moved, _ = dead_zone_interval(cost, fit)
+    assert moved["dz"].value > 1.0  # it still moved up its floor
+    assert moved["bv"].value >= 0.0
+
+
 def test_a_prior_holds_the_others_on_the_line():
     """J correlated with dz (0.9) in the logs, but held by a prior 10 times narrower than its
     own error (an earlier stage's estimate): the profile line is the whole criterion's, so J
