@@ -266,13 +266,20 @@ def main(argv=None) -> int:
         return 0
     if args.out is None:
         ap.error("give --out DIR or --tally FILE")
+    return run_or_split(__file__, sweep, args)
+
+
+def run_or_split(script: str, sweep_fn, args) -> int:
+    """``--seed-list`` given: run ``sweep_fn(out, cases, seeds)`` here; else split seeds 1 ..
+    ``--seeds`` between ``--jobs`` processes of ``script``, each given its part (also used by
+    bench/torquerig.py)."""
     cases = args.cases.split(",")
     if args.seed_list:
-        sweep(args.out, cases, [int(s) for s in args.seed_list.split(",")])
+        sweep_fn(args.out, cases, [int(s) for s in args.seed_list.split(",")])
         return 0
     seeds = list(range(1, args.seeds + 1))
     parts = [seeds[j::args.jobs] for j in range(args.jobs)]
-    procs = [subprocess.Popen([sys.executable, __file__, "--out", str(args.out), "--cases",
+    procs = [subprocess.Popen([sys.executable, script, "--out", str(args.out), "--cases",
                                args.cases, "--seed-list", ",".join(map(str, p))])
              for p in parts if p]
     return max(p.wait() for p in procs)

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -182,16 +181,7 @@ def main(argv=None) -> int:
         return 0
     if args.out is None:
         ap.error("give --out DIR or --table FILE")
-    cases = args.cases.split(",")
-    if args.seed_list:
-        sweep(args.out, cases, [int(s) for s in args.seed_list.split(",")])
-        return 0
-    seeds = list(range(1, args.seeds + 1))
-    parts = [seeds[j::args.jobs] for j in range(args.jobs)]
-    procs = [subprocess.Popen([sys.executable, __file__, "--out", str(args.out), "--cases",
-                               args.cases, "--seed-list", ",".join(map(str, p))])
-             for p in parts if p]
-    return max(p.wait() for p in procs)
+    return thinlogs.run_or_split(__file__, sweep, args)
 
 
 if __name__ == "__main__":
