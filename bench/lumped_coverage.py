@@ -54,14 +54,15 @@ def truth_for(seed: int) -> dict:
     return {"si": si, "per_volt": per_volt, "rate": rate}
 
 
-def logs_for_seed(seed: int):
-    """(truth, logs): the seed's step and triangle logs, t/v/omega only."""
+def logs_for_seed(seed: int, si: dict | None = None):
+    """(truth, logs): the seed's step and triangle logs, t/v/omega only, simulated from the
+    truth's SI values or from ``si`` in their place (bench/pervolt_coverage.py adds a drag)."""
     from pmdcid.io import Log
     from pmdcid.simulate import neutral_values, simulate_values
     from pmdcid.synth import step, triangle
 
     tr = truth_for(seed)
-    vals = {**neutral_values(), **tr["si"]}
+    vals = {**neutral_values(), **(tr["si"] if si is None else si)}
     rng = np.random.default_rng(10_000 + seed)
     dt = 1.0 / tr["rate"]
     sims = []

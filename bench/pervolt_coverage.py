@@ -67,10 +67,7 @@ def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2):
     if case.startswith("lr-"):
         tr = truth_for(seed)
         si = {**tr["si"], "bq": bq}
-        if bq:
-            _, logs = _lr_logs_with(seed, si)
-        else:
-            _, logs = logs_for_seed(seed)
+        _, logs = logs_for_seed(seed, si if bq else None)
         if case == "lr-steps":
             logs = [lg for lg in logs if lg.path.startswith("step")]
         return _per_volt(si), logs
@@ -91,30 +88,6 @@ def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2):
         w = simulate_values(tt, u, vals, False, nsub=NSUB).omega
         logs.append(Log("triangle.csv", tt, {"v": u, "omega": w + rng.normal(0, noise, tt.size)}))
     return _per_volt(si), logs
-
-
-def _lr_logs_with(seed: int, si: dict):
-    """bench/lumped_coverage.py's logs of ``seed`` from the SI values ``si`` (a drag added)."""
-    from bench.lumped_coverage import NSUB, truth_for
-    from pmdcid.io import Log
-    from pmdcid.simulate import neutral_values, simulate_values
-    from pmdcid.synth import step, triangle
-
-    tr = truth_for(seed)
-    vals = {**neutral_values(), **si}
-    rng = np.random.default_rng(10_000 + seed)
-    dt = 1.0 / tr["rate"]
-    sims = []
-    t = np.arange(int(1.5 / dt)) * dt
-    for a in (2.0, 4.0, 6.0, 8.0):
-        u = step(t, a, 0.2)
-        sims.append((f"step_{a:g}V", t, u, simulate_values(t, u, vals, nsub=NSUB).omega))
-    tt = np.arange(int(8.0 / dt)) * dt
-    u = triangle(tt, 8.0, 4.0)
-    sims.append(("triangle", tt, u, simulate_values(tt, u, vals, nsub=NSUB).omega))
-    sigma = 0.003 * max(float(np.ptp(s[3])) for s in sims)
-    return tr, [Log(path=n, t=t_, data={"v": u_, "omega": w + rng.normal(0.0, sigma, w.size)},
-                    meta={}) for n, t_, u_, w in sims]
 
 
 def _entry(par, true: float) -> dict:

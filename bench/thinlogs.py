@@ -202,12 +202,15 @@ def run_case(out: Path, case: str, seed: int) -> dict:
     return row
 
 
-def sweep(out: Path, cases, seeds) -> None:
+def sweep(out: Path, cases, seeds, run=None) -> None:
+    """Each case and seed run by ``run(out, case, seed)`` (default :func:`run_case`), one JSON
+    row each appended to OUT/results.jsonl and printed (also used by bench/torquerig.py)."""
+    run = run or run_case
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "results.jsonl", "a") as f:
         for seed in seeds:
             for case in cases:
-                row = run_case(out, case, seed)
+                row = run(out, case, seed)
                 f.write(json.dumps(row) + "\n")
                 f.flush()
                 print(json.dumps(row), flush=True)

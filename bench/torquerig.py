@@ -103,14 +103,7 @@ def run_case(out: Path, case: str, seed: int) -> dict:
 
 
 def sweep(out: Path, cases, seeds) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / "results.jsonl", "a") as f:
-        for seed in seeds:
-            for case in cases:
-                row = run_case(out, case, seed)
-                f.write(json.dumps(row) + "\n")
-                f.flush()
-                print(json.dumps(row), flush=True)
+    thinlogs.sweep(out, cases, seeds, run_case)
 
 
 def _rel(m: dict, t: dict, n: str) -> str:
