@@ -71,6 +71,28 @@ def test_sharp_valley_keeps_the_local_covariance():
     assert out == {} and why == ""
 
 
+def test_a_minimum_between_grid_shares_keeps_the_local_covariance():
+    """The fit sits in a minimum the grid steps over (between 0.95 and 1, 66 chi-square units
+    below every grid share: bench/lawlag.py's motors, back-EMF 99.6 % of the damping, the
+    mechanical damping (1 - share) bv placing the dead zone's edge). The grid's floor is flat,
+    but the fit's own point lies far below it: nothing changes. Before, the fit's point was
+    left out, the valley read as flat over 0.78-1 and J moved 7 of its standard errors."""
+    fit, est = _fit()
+    est["ke_share"] = Estimate("ke_share", 0.997, 4e-4, "")
+    out, why = share_interval(_cost(lambda s: 0.0 if abs(s - 0.997) < 2e-3 else 66.0), fit, est)
+    assert out == {} and why == ""
+
+
+def test_a_dip_within_the_floors_roughness_still_moves():
+    """The same, the fit's dip only 2 units (under the threshold, 4 x redchi) below a flat
+    floor: a dip of a rough floor, read as the valley (moved to the middle, widened)."""
+    fit, est = _fit()
+    est["ke_share"] = Estimate("ke_share", 0.997, 4e-4, "")
+    out, _ = share_interval(_cost(lambda s: 0.0 if abs(s - 0.997) < 2e-3 else 2.0), fit, est)
+    assert out["ke_share"].value == pytest.approx(0.5, abs=1e-9)
+    assert out["J"].stderr > est["J"].stderr
+
+
 def test_never_narrower_than_the_local_errors():
     """A valley flat over 0.85-0.95 only (threshold 4 x redchi): its spread adds little to
     local standard errors that are already wide, which are never narrowed."""
