@@ -72,7 +72,7 @@ GRID_BV = 7
 TAU_E_FLOOR = 0.01
 #: grid of a lumped model's back-EMF share of bv (ke_share, pmdcid/model/lumped.py): its whole
 #: range, each point with the J and tau_e of the same linear response (:func:`share_points`)
-KE_SHARES = (0.0, 0.1, 0.25, 0.5, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0)
+KE_SHARES = (0.0, 0.1, 0.25, 0.5, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 1.0)
 #: relative finite-difference steps of the local stage: the switching parameters move events by
 #: whole internal steps, so their steps must span several (a torque ramp of ~1e-3 relative per
 #: internal step on a slow triangle)

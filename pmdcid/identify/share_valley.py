@@ -16,7 +16,13 @@ the J and tau_e that keep the fit's linear response, the other parameters held),
 point left out (one arbitrary point of a rough floor), the lower convex envelope of those
 costs (the staircase's upward steps dropped), and the interval of shares where that envelope
 stays within two standard errors' rise of its lowest (4 x the reduced chi-square x the
-correlated residual's inflation squared, as :mod:`.dead_zone`). Where the valley is clearly
+correlated residual's inflation squared, as :mod:`.dead_zone`). Where the fit's own point lies
+more than that threshold below the envelope's lowest, it is a minimum the grid steps over,
+not a dip of a rough floor, and the local covariance stands (the bench motors of
+bench/lawlag.py, back-EMF 99.6 % of the damping: the valley's minimum at shares 0.996-0.998,
+66 chi-square units below every grid share, the mechanical damping (1 - ke_share) bv fixing
+where the dead zone's edge lies; read as a flat valley from 0.78 to 1, J was moved 7 of its
+standard errors off and bc, bv 4). Where the valley is clearly
 narrower than the grid (the envelope rises beyond the threshold at both of the fit's
 neighbouring grid shares) the local covariance stands and nothing changes. Else the share, J
 and tau_e are moved to the interval's middle share and their standard errors are at least a
@@ -111,8 +117,12 @@ def share_interval(cost, fit, est: dict[str, Estimate]) -> tuple[dict[str, Estim
     if len(pts) < 3:
         return {}, ""
     shares = np.array([p["ke_share"] for p in pts])
-    env = lower_hull(shares, _valley_cost(cost, pts, point))
-    found = _interval(shares, env - env.min(), _threshold(fit), point["ke_share"])
+    c = _valley_cost(cost, [*pts, point], point)
+    env, own = lower_hull(shares, c[:-1]), float(c[-1])
+    thr = _threshold(fit)
+    if own < env.min() - thr:
+        return {}, ""  # a minimum the grid steps over, deeper than the floor's roughness
+    found = _interval(shares, env - env.min(), thr, point["ke_share"])
     if found is None:
         return {}, ""
     return _moved(point, est, found)
