@@ -207,7 +207,11 @@ def fit_mechanical(logs, model: Model, km: float | None = None, *,
     Torque step logs (``t``, ``tau``, ``omega``) need nothing from the model: :func:`torque_steps`.
     """
     if _drive_of(logs) == "tau":
-        return torque_steps(logs)
+        res = torque_steps(logs)
+        if km is not None:
+            res.warnings.append(f"km = {km:g} N m/A is not used: torque steps give J, bv, bc "
+                                "without it (and it is not written)")
+        return res
     res = _fit_mechanical(logs, model, km, joint)
     carry_inductance_error(res, model, lambda m: _fit_mechanical(logs, m, km, joint).estimates)
     return res

@@ -284,7 +284,8 @@ def test_torque_steps_round_trip(seed):
     vals = _torque_truth(rng)
     logs = [_torque_log(vals, rng, "up.csv", [(0.5, 0.05), (1.5, 0.12), (2.5, 0.08)], 3.5),
             _torque_log(vals, rng, "down.csv", [(0.5, -0.09)], 2.0)]
-    res = fit_mechanical(logs, Model())
+    res = fit_mechanical(logs, Model(), km=0.05 if seed == 51 else None)
+    assert any("km = 0.05 N m/A is not used" in w for w in res.warnings) == (seed == 51)
     for k, unit in (("J", "kg m^2"), ("bv", "N m s/rad"), ("bc", "N m")):
         e = res.estimates[k]
         assert e.value == pytest.approx(vals[k], rel=0.02), k
