@@ -11,9 +11,11 @@ AOT_SOURCES := pmdcid/simulate/_kernel.c setup.py
 
 .PHONY: install test test-fast lint bench realbench fleetbench demo fixtures clean aot
 
+# setuptools >= 77 in the venv too: $(AOT)'s `setup.py build_ext` reads pyproject.toml's SPDX
+# licence with the venv's own setuptools (a Python 3.11 venv starts with 65, which refuses it)
 $(STAMP): pyproject.toml
 	test -x $(PY) || python3 -m venv $(VENV)
-	$(PIP) install --quiet --upgrade pip
+	$(PIP) install --quiet --upgrade pip 'setuptools>=77'
 	$(PIP) install --quiet -e '.[test]'
 	touch $(STAMP)
 

@@ -142,7 +142,8 @@ def fit_electrical(logs, model=None, *, mapping=None, update: bool = False,
 def fit_mechanical(logs, model, *, km: float | None = None, mapping=None, update: bool = False,
                    force: bool = False):
     """b, bv, bc, J from free-speed step logs, as ``pmdcid fit-mechanical`` (per volt when the
-    logs carry no current and the model no R). ``km`` [N m/A]: datasheet torque constant.
+    logs carry no current and the model no R; in SI with no km from torque step logs, ``tau``).
+    ``km`` [N m/A]: datasheet torque constant.
     Returns a :class:`~pmdcid.identify.mechanical.MechanicalResult`."""
     from pmdcid.identify.runners import stage_mechanical
     from pmdcid.io.args import number_arg

@@ -427,7 +427,7 @@ def _mechanical(logs, model):
 
     if is_lumped(model):
         return lumped_mechanical(logs, model, fit_mechanical)
-    if not model.has("km"):
+    if not model.has("km") and any(lg.drive == "v" for lg in logs):  # torque steps need none
         raise FitError("fit-mechanical needs km: give --km (datasheet) or leave out the "
                        "current to identify a lumped model")
     return fit_mechanical(logs, model)

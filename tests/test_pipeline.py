@@ -111,6 +111,23 @@ def test_linear_start_recovers_a_torque_driven_rig():
         assert res.estimates[k].value == pytest.approx(vals[k], rel=0.01), k
 
 
+def test_identify_runs_fit_mechanical_on_torque_steps():
+    """Torque step logs start the mechanics from fit-mechanical (before: skipped, "needs km",
+    and the linear start took its place); J within 2 % of the truth after the joint fit."""
+    from pmdcid.pipeline import identify
+
+    rng = np.random.default_rng(7)
+    t = np.arange(3500) / 1000.0
+    tau = np.where(t < 0.5, 0.0, np.where(t < 1.5, 0.05, np.where(t < 2.5, 0.12, 0.08)))
+    vals = {**neutral_values(), "J": 4e-4, "bv": 2e-3, "bc": 0.02}
+    w = simulate_values(t, tau, vals, torque_driven=True).omega
+    log = Log("steps.csv", t, {"tau": tau, "omega": w + rng.normal(0.0, 0.2, len(t))})
+    res = identify([log], Model(), run_diagnose=False)
+    assert [name for name, _ in res.stages][0] == "fit-mechanical"
+    assert not any("needs km" in n for n in res.notes)
+    assert res.model.value("J") == pytest.approx(vals["J"], rel=0.02)
+
+
 def _fixture_steps():
 
     fix = FIXTURES / "paper"

@@ -62,7 +62,9 @@ def fit_electrical_cmd(logs, model_path, force, mapping):
 @FORCE
 @log_options
 def fit_mechanical_cmd(logs, model_path, km, force, mapping):
-    """Free-speed speed steps -> Kmot, tau_mot -> b, J (paper) and bv, bc (steady-speed line)."""
+    """Free-speed speed steps -> Kmot, tau_mot -> b, J (paper) and bv, bc (steady-speed line).
+
+    Voltage steps need R, L and km (MODEL or --km); torque steps (a tau column) need nothing."""
     from pmdcid import api
 
     _show(api.fit_mechanical(list(logs), model_path, km=km, mapping=mapping, update=True,

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.fit.problem import Problem
+from pmdcid.fit.problem import Problem, refit_range
 from pmdcid.model.effects import Effect
 from pmdcid.model.residual import ResidualContext
 from pmdcid.runtime.cpus import pmap
@@ -47,6 +47,23 @@ def _rss(x: np.ndarray | None, r: np.ndarray) -> tuple[float, np.ndarray]:
     coef, *_ = np.linalg.lstsq(x, r, rcond=None)
     e = r - x @ coef
     return float(e @ e), coef
+
+
+def feasible_step(vals: dict[str, float], target: dict[str, float]) -> dict[str, float]:
+    """The linearised joint step from ``vals`` to ``target`` (base parameters), shortened as a
+    whole to stay where the refit may start (:func:`~pmdcid.fit.problem.refit_range`): the
+    regression's step is a straight line through the sensitivities, and beyond that range it is
+    no longer a step the simulation can take (test_back_emf_found_on_logs_with_current: R
+    38 -> -290 ohm with L x33, a growing armature current, the residual overflowing 1e308).
+    A parameter already at its bound (bc = 0) is held there, not the whole step."""
+    frac = 1.0
+    ranges = {p: refit_range(p, vals[p]) for p in target}
+    for p, x in target.items():
+        v, (lo, hi) = vals[p], ranges[p]
+        if x < lo < v or x > hi > v:
+            frac = min(frac, ((lo if x < lo else hi) - v) / (x - v))
+    return {p: min(max(vals[p] + frac * (x - vals[p]), ranges[p][0]), ranges[p][1])
+            for p, x in target.items()}
 
 
 class Screener:
@@ -110,10 +127,11 @@ class Screener:
                 continue
             k = len(effect.params) - len(effect.held)
             dbic = self.n * math.log(max(rss, 1e-300) / max(rss_d, 1e-300)) + k * math.log(self.n)
-            base = {p: self.vals[p] + float(c) * self.base_step(p)
-                    for p, c in zip(names, coef[len(cols):], strict=True)}
+            base = feasible_step(self.vals, {
+                p: self.vals[p] + float(c) * self.base_step(p)
+                for p, c in zip(names, coef[len(cols):], strict=True)})
             best = Screen(effect.name, gain, probe.label, start, dbic, base)
         return best
 
 
-__all__ = ["Screen", "Screener"]
+__all__ = ["Screen", "Screener", "feasible_step"]

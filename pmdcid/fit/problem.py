@@ -37,7 +37,7 @@ from pmdcid.fit.parameters import Parameters
 from pmdcid.fit.results import Estimate, FitStats
 from pmdcid.fit.solver import solve
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
-from pmdcid.model.effects import unit_of
+from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import SimResult, blocked_rotor, param_vector, simulate_values
 from pmdcid.simulate.initial import initial_state, true_start
@@ -58,6 +58,15 @@ BASE_RANGE = 30.0
 SWITCHING = ("bc", "dz", "fs", "tau0")
 SWITCH_STEP = 1e-2
 PARTS = ("fit", "held", "all")
+
+
+def refit_range(name: str, value: float) -> tuple[float, float]:
+    """Where diagnose refits ``name`` from ``value``: its catalogue bounds, and a positive base
+    parameter (R, L, J, bv...) within :data:`BASE_RANGE` of ``value``."""
+    lo, hi = bounds_of(name)
+    if name in BASE_PARAMS and value > 0 and BASE_PARAMS[name].lower > 0:
+        lo, hi = max(lo, value / BASE_RANGE), min(hi, value * BASE_RANGE)
+    return lo, hi
 
 
 def noise_level(x: np.ndarray) -> float:
@@ -388,8 +397,7 @@ class Problem:
         for n, p in params.items():
             if limits and n in limits:
                 params.tighten(n, *limits[n])
-            if n in BASE_PARAMS and p.value > 0 and BASE_PARAMS[n].lower > 0:
-                params.tighten(n, p.value / BASE_RANGE, p.value * BASE_RANGE)
+            params.tighten(n, *refit_range(n, p.value))
         return params
 
     def fit(self, vals: dict[str, float], free: Sequence[str], part: str = "fit",
@@ -503,4 +511,4 @@ def _judged_channels(k: int, log, rows, fit) -> list[Channel]:
 
 
 __all__ = ["JUDGED", "Channel", "FitOutcome", "Problem", "Simulation",
-           "available_signals", "noise_level"]
+           "available_signals", "noise_level", "refit_range"]

@@ -5,8 +5,15 @@ simulation-error fits (:mod:`.simfit`: fit-mechanical's joint fit, fit-nonlinear
 dynamics' refinement) and every diagnose refit (:meth:`.problem.Problem.fit`) call
 :func:`solve`: scipy's trust-region reflective least squares on a scaled vector
 ``z = x / scale`` (each parameter of order one, so bounds, steps and tolerances mean the same
-for an inertia of 1e-6 kg m^2 and a resistance of 3 ohm), one BLAS thread, and a solver
-failure turned into a :class:`~pmdcid.errors.FitError`.
+for an inertia of 1e-6 kg m^2 and a resistance of 3 ohm), one BLAS thread, and a residual
+that is not finite at the start turned into a :class:`~pmdcid.errors.FitError`.
+
+What the engine catches: nothing but that documented condition. The model's own refusals
+(:class:`~pmdcid.errors.PmdcidError`: a work bound, a parameter out of range) pass through
+scipy unchanged to the stage that knows what to say; any other exception raised inside the
+residual or the Jacobian (a ValueError from names zipped against a shorter vector, an
+IndexError) is a bug and propagates with its traceback. (Before, every ValueError, scipy's
+and the residual's alike, became "... failed" and the callers skipped a stage silently.)
 Covariances (the textbook one and the correlated-residual sandwich) are :mod:`.covariance`'s.
 
 The residual convention is the caller's, but every caller in pmdcid uses ``(simulated -
@@ -68,7 +75,8 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     ``diff_step``: relative finite-difference step (one, or one per parameter; scipy's default
     when None). The cost of a simulation with stick-slip and a dead zone is only piecewise
     smooth: the callers pass steps large enough to cross the kernel's event quantisation.
-    ``what`` names the fit in the error raised when scipy refuses the problem. ``fills``:
+    ``what`` names the fit in the error raised when the residual is not finite at ``z0``
+    (:func:`finite_at_start`; the only error the engine makes of the solver's). ``fills``:
     ``fun_z(z, out=row)`` writes the residual into ``row`` (saves a copy per evaluation). The
     Jacobian is scipy's forward differences, computed into one preallocated matrix
     (:mod:`.fdjac`): the same numbers as ``jac="2-point"``. ``rows``: the residual's length
@@ -81,22 +89,40 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     from pmdcid.fit.tall import TALL_ROWS, Compressed
 
     z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
-    fd = ForwardJacobian(fun_z, diff_step, lo_z, hi_z, fills=fills, parallel=parallel)
+    fd = ForwardJacobian(finite_at_start(fun_z, what), diff_step, lo_z, hi_z, fills=fills,
+                         parallel=parallel)
     tall = (Compressed(fd) if rows is not None and rows >= TALL_ROWS and fd.jac is fd
             else None)
     fun, jac = (tall.fun, tall.jac) if tall else (fd.fun, fd.jac)
-    try:
-        with blas_single_thread():
-            sol = _least_squares(fun, z0, (lo_z, hi_z), diff_step, max_nfev, x_scale, jac)
-            if tall:  # the full residual and Jacobian at the solution (the Jacobian in place)
-                sol.fun, sol.jac = tall.full(sol.x)
-                sol.jac /= scale[None, :]
-    except ValueError as exc:
-        raise FitError(f"{what} failed: {exc}") from None
+    with blas_single_thread():
+        sol = _least_squares(fun, z0, (lo_z, hi_z), diff_step, max_nfev, x_scale, jac)
+        if tall:  # the full residual and Jacobian at the solution (the Jacobian in place)
+            sol.fun, sol.jac = tall.full(sol.x)
+            sol.jac /= scale[None, :]
     jac = sol.jac if tall else sol.jac / scale[None, :]
     fd._JT = fd._last = None  # scipy's wrappers keep fd in reference cycles: free its arrays now
     return Solution(sol.x, np.asarray(scale, float), sol.fun, jac, int(sol.nfev),
                     bool(sol.success), str(sol.message))
+
+
+def finite_at_start(fun_z, what: str):
+    """``fun_z`` whose first evaluation (scipy's, at the starting point) must be finite, else a
+    :class:`~pmdcid.errors.FitError` naming ``what``: scipy would refuse the problem with a
+    bare ValueError, indistinguishable from a bug in the residual. Later points may be
+    non-finite: the trust region rejects such a step and shrinks."""
+    first = [True]
+
+    def checked(z, *args, **kwargs):
+        f = fun_z(z, *args, **kwargs)
+        if first[0]:
+            first[0] = False
+            got = kwargs.get("out") if f is None else f
+            if got is not None and not np.all(np.isfinite(got)):
+                raise FitError(f"{what} failed: the residual is not finite at the starting "
+                               "values (the simulation diverged or a signal is not finite)")
+        return f
+
+    return checked
 
 
 def _least_squares(fun, z0, bounds, diff_step, max_nfev, x_scale, jac="2-point"):
@@ -106,4 +132,4 @@ def _least_squares(fun, z0, bounds, diff_step, max_nfev, x_scale, jac="2-point")
                          max_nfev=max_nfev, x_scale=x_scale)
 
 
-__all__ = ["Solution", "blas_single_thread", "scale_of", "solve"]
+__all__ = ["Solution", "blas_single_thread", "finite_at_start", "scale_of", "solve"]

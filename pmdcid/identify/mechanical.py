@@ -17,6 +17,12 @@ Across plateaus (every plateau where the rotor turns) the steady speed is affine
 J = tau_m bv. The joint exact refinement (:func:`speed_from_rest`) uses the steps from rest only.
 The paper's b lumps Coulomb friction into the viscous term (b > bv, and b depends on
 the amplitude): it is reported and written as ``b``, but fit-nonlinear starts from bv, bc, J.
+
+Torque steps (logs whose input is ``tau`` [N m], CONTRACT.md): ``tau = J omega' + bv omega +
+bc sign(omega)`` gives J, bv and bc from the same fits with no motor constant: the torque is
+the drive itself (km = R = 1, no electrical lag: :func:`torque_steps`). b, bv are then in
+N m s/rad, bc in N m, J in kg m^2 and Kmot in rad/s per N m; no breakaway time (no current
+rises) and no back-EMF. Voltage and torque logs are not mixed in one fit.
 """
 
 from __future__ import annotations
@@ -92,6 +98,13 @@ class MechanicalResult(ResultProtocol):
     warnings: list[str] = field(default_factory=list)
     joint: bool = False  # bv, bc, J from the joint exact fit of all steps (else from the line)
 
+    #: the steps' input column: ``'v'`` (voltage steps) or ``'tau'`` (torque steps)
+    drive: str = "v"
+
+    @property
+    def input_unit(self) -> str:
+        return INPUT_UNIT[self.drive]
+
     def apply(self, model: Model) -> None:
         """Write b, bv, bc, J (stage 'fit-mechanical'); km with stage 'datasheet' if given."""
         if self.km_from_option:
@@ -116,7 +129,8 @@ class MechanicalResult(ResultProtocol):
 
     def table(self) -> str:
         lines = ["fit-mechanical: free-speed steps", ""]
-        lines.append(f"{'log':<22} {'t0 s':>6} {'V':>5} {'from':>5} {'Kmot':>8} {'tau_mot':>8} "
+        lines.append(f"{'log':<22} {'t0 s':>6} {self.input_unit:>5} {'from':>5} {'Kmot':>8} "
+                     f"{'tau_mot':>8} "
                      f"{'b paper':>9} {'w_ss':>8} {'tau_m':>8} {'dead ms':>7}")
         for s in self.steps:
             name = s.path if len(s.path) <= 22 else "..." + s.path[-19:]
@@ -133,12 +147,15 @@ class MechanicalResult(ResultProtocol):
                          f"{1e3 * s.dead_time:7.3g}")
         lines.append("")
         lines.append("paper (first order, Coulomb lumped into b): b = km/(Kmot R), "
-                     "J = tau_mot b")
+                     "J = tau_mot b" if self.drive == "v" else
+                     "first order, Coulomb lumped into b: b = 1/Kmot, J = tau_mot b")
         lines += format_estimates([self.estimates[k] for k in ("Kmot", "tau_mot", "b",
                                                                 "J_paper")])[1:]
         lines.append("")
         lines.append("affine steady-state line w_ss = (km/(R bv)) V - bc/bv, "
-                     "second-order steps (tau_e held), J = tau_m bv:")
+                     "second-order steps (tau_e held), J = tau_m bv:" if self.drive == "v" else
+                     "affine steady-state line w_ss = tau/bv - bc/bv, first-order steps, "
+                     "J = tau_m bv:")
         sfx = "_line" if self.joint else ""
         lines += format_estimates([self.estimates[k + sfx] for k in ("bv", "bc", "J")])[1:]
         if self.joint:
@@ -146,7 +163,8 @@ class MechanicalResult(ResultProtocol):
             lines.append("joint exact fit of all steps (shared J, bv, bc, breakaway torque), "
                          "written to the model:")
             lines += format_estimates([self.estimates[k] for k in ("bv", "bc", "J")])[1:]
-        lines += format_estimates([self.estimates["T_break"]])[1:]
+        if math.isfinite(self.estimates["T_break"].value):  # none per volt or per N m
+            lines += format_estimates([self.estimates["T_break"]])[1:]
         if "delay" in self.estimates:  # latency: a dead time with no electrical lag
             lines += format_estimates([self.estimates["delay"]])[1:]
         return "\n".join(lines)
@@ -156,6 +174,10 @@ def _finite(x):
     return x if math.isfinite(x) else None
 
 
+#: the unit of each drive's input, as the tables and messages say it
+INPUT_UNIT = {"v": "V", "tau": "N m"}
+
+
 def _why_no_step(steps) -> str:
     """Why none of ``steps`` gave a speed response fit-mechanical can use, in the user's terms."""
     notes = {s.note for s in steps}
@@ -163,14 +185,14 @@ def _why_no_step(steps) -> str:
         return ("the input is not held long enough for the speed to settle (record longer "
                 "plateaus)")
     if not steps:
-        return ("the input holds no step (fit-mechanical needs voltage steps held until the "
-                "speed settles)")
+        return ("the input holds no step (fit-mechanical needs voltage or torque steps held "
+                "until the speed settles)")
     if notes == {"coasts to rest"}:
-        return ("every step lets the rotor coast to rest (a step to 0 V or into the dead zone): "
+        return ("every step lets the rotor coast to rest (a step to 0 or into the dead zone): "
                 "fit-mechanical needs steps that drive it to a steady speed; fit-nonlinear and "
                 "identify can use a coast-down log")
     return ("no step moves the rotor: fit-mechanical needs steps above the dead zone (larger "
-            "voltages)")
+            "inputs)")
 
 
 def fit_mechanical(logs, model: Model, km: float | None = None, *,
@@ -182,10 +204,50 @@ def fit_mechanical(logs, model: Model, km: float | None = None, *,
     Raises :class:`~pmdcid.errors.ModelError` when they are missing, :class:`FitError` when no
     step moves the rotor. When the model's L is poorly determined, the steps are fitted again at
     L minus and plus its standard error and half the spread of J, bv, bc enters their errors.
+    Torque step logs (``t``, ``tau``, ``omega``) need nothing from the model: :func:`torque_steps`.
     """
+    if _drive_of(logs) == "tau":
+        res = torque_steps(logs)
+        if km is not None:
+            res.warnings.append(f"km = {km:g} N m/A is not used: torque steps give J, bv, bc "
+                                "without it (and it is not written)")
+        return res
     res = _fit_mechanical(logs, model, km, joint)
     carry_inductance_error(res, model, lambda m: _fit_mechanical(logs, m, km, joint).estimates)
     return res
+
+
+def _drive_of(logs) -> str:
+    """The drive of every log (``'v'`` or ``'tau'``); a mix of both refused."""
+    drives = {lg.drive for lg in logs}
+    if len(drives) > 1:
+        raise FitError("fit-mechanical fits voltage steps or torque steps, not both at once: "
+                       "give the voltage logs and the torque logs to separate runs",
+                       ", ".join(lg.path for lg in logs))
+    return drives.pop() if drives else "v"
+
+
+def torque_steps(logs) -> MechanicalResult:
+    """fit-mechanical on torque step logs [N m]: the steps' fits with km = R = 1 and no
+    electrical lag (the torque is the drive), so b, bv [N m s/rad], bc [N m] and J [kg m^2]
+    come out in SI with no motor constant. No joint refinement and no breakaway torque: both
+    time the rotor's breakaway by the current's rise, which a torque drive does not have."""
+    work = Model()
+    work.set("R", 1.0)
+    work.set("L", TORQUE_LAG)
+    res = _fit_mechanical(logs, work, 1.0, joint=False)
+    res.km_from_option = False
+    res.drive = "tau"
+    del res.estimates["km"]
+    res.estimates["Kmot"].unit = "rad/s/(N m)"
+    tb = res.estimates["T_break"]
+    res.estimates["T_break"] = Estimate("T_break", math.nan, math.nan, tb.unit)
+    return res
+
+
+#: the electrical lag [s] the step fits hold for torque steps: none (1 ns keeps the
+#: second-order form's two time constants apart), as for a lumped model's per-volt steps
+TORQUE_LAG = 1e-9
 
 
 def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
@@ -205,7 +267,8 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
     data: list[tuple] = []  # steps from rest: (time from onset, speed, torque amplitude, noise)
     no_step: list[FitError] = []  # logs whose input holds no step
     for log in logs:
-        log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
+        what = "torque" if log.drive == "tau" else "voltage"
+        log.require("omega", purpose=f"fit-mechanical ({what} step and rotor speed)")
         w, bad = despike(log["omega"])
         if len(bad):
             k = int(bad[np.argmax(np.abs(np.asarray(log["omega"])[bad] - w[bad]))])
@@ -261,7 +324,8 @@ def _still_warnings(steps, warns) -> None:
                         "not move the rotor"),
                        ("coasts to rest", "the plateau is at rest after a decay (Coulomb "
                         "friction may end a decay early: not a first-order response)")):
-        where = [f"{s.path} at {s.t0:.4g} s ({s.level:.3g} V)" for s in steps if s.note == note]
+        where = [f"{s.path} at {s.t0:.4g} s ({s.level:.3g} {s.unit})" for s in steps
+                 if s.note == note]
         if where:
             warns.append(f"{what}: {'; '.join(where)}: reported, not fitted")
 
@@ -351,8 +415,8 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
     if len(np.unique(np.round(np.abs(v), 9))) >= 2:
         a, c, cov = steady_line(v, w, w_se)
         if a <= 0:
-            raise FitError("steady speed does not grow with voltage across the steps: check the "
-                           "sign and scale of the speed column")
+            raise FitError("steady speed does not grow with the input across the steps: check "
+                           "the sign and scale of the speed column")
         d_eff = km / (R * a)  # total damping: viscous plus back-EMF's km ke/R
         bv = d_eff - b_emf
         bv_se = d_eff * math.sqrt(cov[0, 0]) / a

@@ -37,7 +37,8 @@ def paper_mechanical(kmot: float, tau_mot: float, km: float, r: float) -> tuple[
 
 @dataclass
 class MechStep:
-    """One step: amplitude [V], moved?, first-order (paper) and second-order fits."""
+    """One step: amplitude [V, or N m for a torque step], moved?, first-order (paper) and
+    second-order fits."""
 
     path: str
     amplitude: float
@@ -60,6 +61,7 @@ class MechStep:
     note: str = ""  # why a step is not used
     chisqr: float = 0.0
     ndata: int = 0
+    unit: str = "V"  # the input's unit: "V" or "N m" (a torque step)
 
 
 def _second_order(t, w, step, tau_e, st, sigma, breakaway=True):
@@ -104,8 +106,9 @@ def fit_step(log, step, tau_e, km, R, sig, warns):
     """One step (from rest or from a moving start): first-order and second-order fits; returns
     (MechStep, (time from onset, speed change, torque, noise) for the joint fit or None)."""
     t, w, st_w = window(log, step)
-    where = f"{log.path} (step to {step.after:.3g} V at t = {step.t0:.4g} s)"
-    ms = MechStep(log.path, step.amplitude, False, level=step.after, t0=step.t0)
+    ms = MechStep(log.path, step.amplitude, False, level=step.after, t0=step.t0,
+                  unit="N m" if log.drive == "tau" else "V")
+    where = f"{log.path} (step to {step.after:.3g} {ms.unit} at t = {step.t0:.4g} s)"
     st = strejc(t, w, st_w)
     w0, w_end = st.initial, st.final
     # from rest: the rotor still and the input 0 before (within 2 % of the level, or 4 standard

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+from pmdcid.errors import ModelError
 from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.notes import Note
 from pmdcid.simulate import logs_for
@@ -78,9 +79,13 @@ def stage_electrical(logs, model):
 
 
 def stage_mechanical(logs, model, km=None):
-    """fit-mechanical as the command runs it: per volt for a lumped model, else with ``km``."""
+    """fit-mechanical as the command runs it: per volt for a lumped model, else with ``km``;
+    torque step logs in SI with no km (:func:`~pmdcid.identify.mechanical.torque_steps`)."""
     from pmdcid.identify.mechanical import fit_mechanical
 
+    if is_lumped(model) and any(lg.drive == "tau" for lg in logs):
+        raise ModelError("the model is lumped (per-volt parameters, from voltage logs): torque "
+                         "steps give J, bv, bc in SI; fit them into another model file")
     if is_lumped(model):
         return lumped_mechanical(logs, model, fit_mechanical)
     return fit_mechanical(logs, model, km=km)

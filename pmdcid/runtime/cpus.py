@@ -57,7 +57,7 @@ def workers() -> int:
     if env:
         try:
             n = min(n, max(1, int(env)))
-        except ValueError:
+        except ValueError:  # not an integer: the user's setting ignored, every usable CPU
             pass
     return max(1, n)
 

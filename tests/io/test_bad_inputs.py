@@ -533,9 +533,16 @@ CASES: list[Case] = [
     C("fm-rpm-as-rad-per-s-forced", combine(MODEL, _step_log("step.csv",
                                                              omega_scale=60 / (2 * np.pi))),
       FM + ["--force"], 0, r"^warning: step\.csv: .*rpm", changes=("model.json",)),
+    # a torque log is fitted (torque steps need no km: J, bv, bc in SI); a speed that never
+    # settles (a ramp) is said so, and a torque log beside a voltage log is refused
     C("fm-torque-driven-log", combine(MODEL, table("step.csv", {
         "t": T1K, "tau": np.where(T1K > 0.5, 0.02, 0.0), "omega": T1K})), FM, 1,
-      r"^error: step\.csv: needs column\(s\) v for fit-mechanical"),
+      r"^error: step\.csv: no usable step: the input is not held long enough"),
+    C("fm-torque-beside-voltage", combine(STEP, MODEL, table("torque.csv", {
+        "t": T1K, "tau": np.where(T1K > 0.5, 0.02, 0.0), "omega": T1K})),
+      ["fit-mechanical", "step.csv", "torque.csv", "-m", "model.json"], 1,
+      r"^error: step\.csv, torque\.csv: fit-mechanical fits voltage steps or torque steps, "
+      r"not both"),
     C("fm-km-not-positive", combine(STEP, MODEL), FM + ["--km", "-0.05"], 2, r"--km"),
     C("fm-bad-km", combine(STEP, MODEL), ["fit-mechanical", "step.csv", "-m", "model.json",
                                           "--km", "fast"], 2, r"'fast' is not a number"),
