@@ -34,10 +34,11 @@ from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-expo
     SETTLE_TAUS,
     MechStep,
     fit_step,
+    head_level,
     paper_mechanical,
     speed_noise,
 )
-from pmdcid.identify.steps import despike, find_steps, lsq
+from pmdcid.identify.steps import despike, find_steps, held_head, lsq
 from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
@@ -110,7 +111,8 @@ class MechanicalResult(ResultProtocol):
             "logs": list(dict.fromkeys(s.path for s in self.steps)),
             "Kmot": self.estimates["Kmot"].value, "tau_mot": self.estimates["tau_mot"].value,
             "breakaway_torque": _finite(self.estimates["T_break"].value),
-            "skipped": [f"{s.path} at {s.t0:.4g} s" for s in self.steps if not s.moved],
+            "skipped": [f"{s.path} at {s.t0:.4g} s" for s in self.steps
+                        if not s.moved and not s.head],
         }
         self._keep_lumped(model)
 
@@ -121,6 +123,10 @@ class MechanicalResult(ResultProtocol):
         for s in self.steps:
             name = s.path if len(s.path) <= 22 else "..." + s.path[-19:]
             name = f"{name:<22} {s.t0:6.4g}"
+            if s.head:
+                lines.append(f"{name} {s.level:5.3g} start (turning: the level held before "
+                             f"the first step) w_ss {s.omega_ss:.4g} +- {s.omega_ss_se:.2g}")
+                continue
             if not s.moved:
                 why = {"did not move": "did not move (below the dead zone / breakaway)",
                        "coasts to rest": "decays to rest",
@@ -204,6 +210,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
     steps: list[MechStep] = []
     data: list[tuple] = []  # steps from rest: (time from onset, speed, torque amplitude, noise)
     no_step: list[FitError] = []  # logs whose input holds no step
+    heads: list[tuple] = []  # logs that start turning at a held level: (log, step, w, sig)
     for log in logs:
         log.require("v", "omega", purpose="fit-mechanical (voltage step and rotor speed)")
         w, bad = despike(log["omega"])
@@ -224,6 +231,8 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
         except FitError as exc:  # used when another log holds steps: a warning then
             no_step.append(exc)
             continue
+        if not at_rest and held_head(log.u, found[0]):
+            heads.append((log, found[0], w, sig))
         for step in found:
             ms, d = fit_step(log, step, tau_e, km, R, sig, warns)
             steps.append(ms)
@@ -236,6 +245,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
     moving = [s for s in steps if s.moved]
     if not moving:
         raise FitError("no usable step: " + _why_no_step(steps), ", ".join(lg.path for lg in logs))
+    steps = _head_levels(heads, moving) + steps
     ndata = sum(s.ndata for s in moving)
     chisqr = sum(s.chisqr for s in moving)
     ke = model.value("ke") if "back_emf" in model.effects and model.has("ke") else 0.0
@@ -253,6 +263,19 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
                                 "N m s/rad: Coulomb friction is lumped into b (it varies with "
                                 "the step amplitude)")
     return res
+
+
+def _head_levels(heads, moving) -> list[MechStep]:
+    """The levels the logs that start turning hold before their first step
+    (:func:`~pmdcid.identify.mechsteps.head_level`), read with the steps' mechanical time
+    constant: a second point on the steady-speed line from a log with one step."""
+    if not heads or not moving:
+        return []
+    tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]),
+                         np.array([s.tau_m_se for s in moving]))
+    found = [head_level(log, step, w, sig, tm, tm_se) for log, step, w, sig in heads]
+    return [h for h in found if h is not None and math.isfinite(h.omega_ss)
+            and abs(h.omega_ss) > MOVE_SIGMAS * max(h.omega_ss_se, 0.0)]
 
 
 def _still_warnings(steps, warns) -> None:
@@ -340,9 +363,10 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
     jp, jp_se = _mean_se(np.array([s.J_paper for s in moving]))
     tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]), np.array([s.tau_m_se
                                                                          for s in moving]))
-    v = np.array([s.level for s in moving])
-    w = np.array([s.omega_ss for s in moving])
-    w_se = np.array([s.omega_ss_se for s in moving])
+    levels = moving + [s for s in steps if s.head]  # the logs' starting levels too
+    v = np.array([s.level for s in levels])
+    w = np.array([s.omega_ss for s in levels])
+    w_se = np.array([s.omega_ss_se for s in levels])
     est = {"km": Estimate("km", km, math.nan, "N m/A", vary=False),
            "Kmot": Estimate("Kmot", kmot, kmot_se, "rad/s/V"),
            "tau_mot": Estimate("tau_mot", tmot, tmot_se, "s"),
