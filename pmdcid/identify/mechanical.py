@@ -42,6 +42,8 @@ from pmdcid.identify.steps import despike, find_steps, held_head, lsq
 from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
+#: what a user can run on step logs fit-mechanical cannot use
+BY_SIMULATION = "fit-nonlinear fits them (by simulation error)"
 
 
 def speed_from_rest(s, torque, J, bv, bc, t_break, tau_e):
@@ -167,7 +169,7 @@ def _why_no_step(steps) -> str:
     notes = {s.note for s in steps}
     if "plateau too short" in notes:
         return ("the input is not held long enough for the speed to settle (record longer "
-                "plateaus)")
+                f"plateaus); {BY_SIMULATION}")
     if not steps:
         return ("the input holds no step (fit-mechanical needs voltage steps held until the "
                 "speed settles)")
@@ -239,7 +241,9 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
             if d is not None:
                 data.append(d)
     if no_step and not steps:
-        raise no_step[0]
+        raise FitError("no log holds a voltage step (an input held at a level; a measured voltage "
+                       f"that sags with the load is not): {BY_SIMULATION}",
+                       ", ".join(lg.path for lg in logs))
     warns += [f"{exc}: not used" for exc in no_step]
     _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
