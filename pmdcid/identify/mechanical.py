@@ -277,9 +277,15 @@ def _head_levels(heads, moving) -> list[MechStep]:
         return []
     tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]),
                          np.array([s.tau_m_se for s in moving]))
-    found = [head_level(log, step, w, sig, tm, tm_se) for log, step, w, sig in heads]
-    return [h for h in found if h is not None and math.isfinite(h.omega_ss)
-            and abs(h.omega_ss) > MOVE_SIGMAS * max(h.omega_ss_se, 0.0)]
+    out = []
+    for log, step, w, sig in heads:
+        h = head_level(log, step, w, sig, tm, tm_se)
+        # a level that drives the rotor (a coast at 0 V or inside the dead zone ends at rest,
+        # off the line): turning its way, its steady speed clear of the noise and of its error
+        if (h is not None and math.isfinite(h.omega_ss) and h.level * h.omega_ss > 0
+                and abs(h.omega_ss) > MOVE_SIGMAS * max(h.omega_ss_se, sig)):
+            out.append(h)
+    return out
 
 
 def _still_warnings(steps, warns) -> None:

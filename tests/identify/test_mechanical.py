@@ -282,3 +282,14 @@ def test_one_step_from_a_turning_level_gives_the_steady_line():
     assert abs(e["bv"].value - bv) < 3 * e["bv"].stderr
     assert abs(e["bc"].value - bc) < 3 * e["bc"].stderr and e["bc"].stderr < 0.1 * bc
     assert not [w for w in res.warnings if "same amplitude" in w]
+
+
+def test_a_coast_at_the_log_start_is_no_level(rng, paper_values):
+    """A log that starts while the rotor coasts at 0 V (Coulomb friction: it stops short of a
+    first-order approach) and then steps to 2 V: the 0 V start is off the steady-speed line
+    and not used as a level."""
+    t = np.arange(4000) / 1000.0
+    u = np.where(t < 1.0, 2.0, np.where(t < 1.3, 0.0, 2.0))
+    res = fit_mechanical([_log_from(paper_values, rng, t, u, first=1000)],
+                         _electrical(paper_values))
+    assert not [s for s in res.steps if s.head]
