@@ -166,16 +166,18 @@ def paper_sequence(rig: Rig, km=None):
         steps, rich = [], steps + rich
     if wants_lumped(steps + rich, model):
         mark_lumped(model)
-    if steps and not _stage_into(model, steps, _mechanical):
-        rich = rich + steps  # fit-mechanical refused them, saying fit-nonlinear fits them
+    if steps:  # the logs fit-mechanical does not use, it says fit-nonlinear fits
+        rich = rich + [lg for lg in steps if lg.path not in _stage_into(model, steps,
+                                                                        _mechanical)]
     if rich:
         _stage_into(model, rich, _nonlinear(True))
     return model
 
 
-def _stage_into(model, logs, stage) -> bool:
-    """Run one stage on ``logs`` and write its result into ``model``; False when fit-mechanical
-    refused every step with its message pointing to fit-nonlinear (a user runs that next)."""
+def _stage_into(model, logs, stage) -> set:
+    """Run one stage on ``logs``, write its result into ``model``; the paths of the logs it
+    used (fit-mechanical's with a step it fitted: none when it refused every step with its
+    message pointing to fit-nonlinear, which a user runs next)."""
     from pmdcid.errors import FitError
     from pmdcid.identify.mechanical import BY_SIMULATION
     from pmdcid.identify.runners import per_volt
@@ -186,11 +188,11 @@ def _stage_into(model, logs, stage) -> bool:
     except FitError as exc:
         if BY_SIMULATION not in str(exc):
             raise
-        return False
+        return set()
     if is_lumped(model):  # per-volt units in the table, as identify's stages
         per_volt(res)
     res.apply(model)
-    return True
+    return {s.path for s in getattr(res, "steps", [])} or {lg.path for lg in logs}
 
 
 def identify_rig(rig: Rig, diagnose: bool = True):

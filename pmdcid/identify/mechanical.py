@@ -43,7 +43,7 @@ from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
 #: what a user can run on step logs fit-mechanical cannot use
-BY_SIMULATION = "fit-nonlinear fits them (by simulation error)"
+BY_SIMULATION = "fit-nonlinear fits such logs by simulation error"
 
 
 def speed_from_rest(s, torque, J, bv, bc, t_break, tau_e):
@@ -244,7 +244,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
         raise FitError("no log holds a voltage step (an input held at a level; a measured voltage "
                        f"that sags with the load is not): {BY_SIMULATION}",
                        ", ".join(lg.path for lg in logs))
-    warns += [f"{exc}: not used" for exc in no_step]
+    warns += [f"{exc}: not used ({BY_SIMULATION})" for exc in no_step]
     _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:
