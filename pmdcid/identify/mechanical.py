@@ -419,5 +419,9 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
     est["T_break"] = Estimate("T_break", float(np.median(tb)) if tb else math.nan,
                               float(np.std(tb, ddof=1) / math.sqrt(len(tb)))
                               if len(tb) > 1 else math.nan, "N m")
+    if not tb:
+        warns.append("no step starts from rest: the breakaway and the dead zone are not seen by "
+                     "these steps (no T_break, no dz written); a step from rest or through zero "
+                     "shows them")
     stats = FitStats(ndata, 5 * len(moving), chisqr)
     return MechanicalResult(est, steps, stats, km_given, warns)

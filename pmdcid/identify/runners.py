@@ -180,7 +180,8 @@ def _step_latency(result, logs, model) -> None:
         result.estimates["J"] = Estimate("J", *found["J"], result.estimates["J"].unit)
         result.warnings.append(
             f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts: "
-            "kept as the lumped model's tau_e, not as a latency")
+            "kept as the lumped model's tau_e, not as a latency (a lag of the speed sensor, "
+            "e.g. a firmware's moving average, rounds them the same on voltage and speed alone)")
     elif "lag_and_latency" in found:
         lag, late = found["lag_and_latency"]
         result.warnings.append(

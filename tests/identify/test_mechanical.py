@@ -282,6 +282,8 @@ def test_one_step_from_a_turning_level_gives_the_steady_line():
     assert abs(e["bv"].value - bv) < 3 * e["bv"].stderr
     assert abs(e["bc"].value - bc) < 3 * e["bc"].stderr and e["bc"].stderr < 0.1 * bc
     assert not [w for w in res.warnings if "same amplitude" in w]
+    # what one step from a turning level cannot show, said
+    assert [w for w in res.warnings if "no step starts from rest" in w and "dz" in w]
 
 
 def test_a_coast_at_the_log_start_is_no_level(rng, paper_values):
