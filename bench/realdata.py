@@ -149,10 +149,12 @@ def predict(model, log) -> float:
 def paper_sequence(rig: Rig, km=None):
     """fit-mechanical on the steps, then fit-nonlinear on the rich logs (priors); first
     fit-electrical on the logs with current (free-running: R, L, ke), and torque steps to
-    fit-nonlinear (fit-mechanical reads voltage steps)."""
-    from pmdcid.identify.runners import per_volt, stage_electrical
+    fit-nonlinear (fit-mechanical reads voltage steps). Step logs fit-mechanical refuses with
+    its pointer to fit-nonlinear (no held step, plateaus too short) go to fit-nonlinear, as a
+    user following the message runs it."""
+    from pmdcid.identify.runners import stage_electrical
     from pmdcid.model import Model
-    from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
+    from pmdcid.model.lumped import mark_lumped, wants_lumped
     from pmdcid.pipeline import _mechanical, _nonlinear
 
     model = Model()
@@ -164,13 +166,33 @@ def paper_sequence(rig: Rig, km=None):
         steps, rich = [], steps + rich
     if wants_lumped(steps + rich, model):
         mark_lumped(model)
-    for logs, stage in ((steps, _mechanical), (rich, _nonlinear(True))):
-        if logs:
-            res = stage(logs, model)
-            if is_lumped(model):  # per-volt units in the table, as identify's stages
-                per_volt(res)
-            res.apply(model)
+    if steps:  # the logs fit-mechanical does not use, it says fit-nonlinear fits
+        rich = rich + [lg for lg in steps if lg.path not in _stage_into(model, steps,
+                                                                        _mechanical)]
+    if rich:
+        _stage_into(model, rich, _nonlinear(True))
     return model
+
+
+def _stage_into(model, logs, stage) -> set:
+    """Run one stage on ``logs``, write its result into ``model``; the paths of the logs it
+    used (fit-mechanical's with a step it fitted: none when it refused every step with its
+    message pointing to fit-nonlinear, which a user runs next)."""
+    from pmdcid.errors import FitError
+    from pmdcid.identify.mechanical import BY_SIMULATION
+    from pmdcid.identify.runners import per_volt
+    from pmdcid.model.lumped import is_lumped
+
+    try:
+        res = stage(logs, model)
+    except FitError as exc:
+        if BY_SIMULATION not in str(exc):
+            raise
+        return set()
+    if is_lumped(model):  # per-volt units in the table, as identify's stages
+        per_volt(res)
+    res.apply(model)
+    return {s.path for s in getattr(res, "steps", [])} or {lg.path for lg in logs}
 
 
 def identify_rig(rig: Rig, diagnose: bool = True):

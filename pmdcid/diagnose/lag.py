@@ -28,10 +28,13 @@ from pmdcid.diagnose.lawlag import (
     LAG_PARAMS,
     TAU_SAMPLES,
     lag_holds,
-    lag_start,
+    lag_starts,
 )
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.model.lumped import is_lumped
+
+#: local fits of the lag in a delay's place, from the grid's best back-EMF shares
+LAG_STARTS = 3
 
 
 def lag_applies(run, added: list[str], vals: dict[str, float]) -> bool:
@@ -50,10 +53,13 @@ def _lag_fit(run, final: FitOutcome, lag_free: list[str], start: dict[str, float
     """The final fit's parameters ``lag_free`` refitted on all data from ``start``, from the
     best of a grid over tau_e (``taus``), the back-EMF's share and the dead zone when the fit
     has no lag yet (lawlag.lag_start: from a share of 1 alone a local fit stopped at 3x the
-    delay's chi-square beside a friction curve); the final fit's other estimates carried."""
+    delay's chi-square beside a friction curve), from the :data:`LAG_STARTS` best shares of
+    that grid (lawlag.lag_starts), the lowest kept; the final fit's other estimates carried."""
+    starts = [start]
     if not final.values.get("tau_e", 0.0) > 0:
-        start = lag_start(run, start, lag_free, "all", [t for t in taus if t > 0])
-    fo = run.fit(start, lag_free, "all")
+        starts = lag_starts(run, start, "all", [t for t in taus if t > 0], LAG_STARTS)
+    fits = [run.fit(s, lag_free, "all") for s in starts]
+    fo = min(fits, key=lambda f: f.chi2["all"])
     for name, est in final.estimates.items():
         if name not in lag_free and name != DELAY:
             fo.estimates.setdefault(name, est)  # the settled dead zone's interval

@@ -43,8 +43,9 @@ def carry_inductance_error(res, model, refit) -> None:
         if e is None or not all(name in f for f in fits):
             continue
         half = 0.5 * abs(fits[1][name].value - fits[0][name].value)
-        res.estimates[name] = Estimate(name, e.value, math.hypot(e.stderr, half)
-                                       if math.isfinite(e.stderr) else half, e.unit, e.vary)
+        # an error the fit did not give (one step: no scatter) stays unknown, never L's part
+        res.estimates[name] = Estimate(name, e.value, math.hypot(e.stderr, half), e.unit,
+                                       e.vary)
         if name == "J":
             moved.append(f"J {fits[0][name].value:.4g} to {fits[1][name].value:.4g} {e.unit}")
     said = (f"L between {par.interval[0]:.3g} and {par.interval[1]:.3g} H is not identified"

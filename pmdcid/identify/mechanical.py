@@ -40,13 +40,16 @@ from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-expo
     SETTLE_TAUS,
     MechStep,
     fit_step,
+    head_level,
     paper_mechanical,
     speed_noise,
 )
-from pmdcid.identify.steps import despike, find_steps, lsq
+from pmdcid.identify.steps import despike, find_steps, held_head, lsq
 from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
+#: what a user can run on step logs fit-mechanical cannot use
+BY_SIMULATION = "fit-nonlinear fits such logs by simulation error"
 
 
 def speed_from_rest(s, torque, J, bv, bc, t_break, tau_e):
@@ -123,7 +126,8 @@ class MechanicalResult(ResultProtocol):
             "logs": list(dict.fromkeys(s.path for s in self.steps)),
             "Kmot": self.estimates["Kmot"].value, "tau_mot": self.estimates["tau_mot"].value,
             "breakaway_torque": _finite(self.estimates["T_break"].value),
-            "skipped": [f"{s.path} at {s.t0:.4g} s" for s in self.steps if not s.moved],
+            "skipped": [f"{s.path} at {s.t0:.4g} s" for s in self.steps
+                        if not s.moved and not s.head],
         }
         self._keep_lumped(model)
 
@@ -135,6 +139,10 @@ class MechanicalResult(ResultProtocol):
         for s in self.steps:
             name = s.path if len(s.path) <= 22 else "..." + s.path[-19:]
             name = f"{name:<22} {s.t0:6.4g}"
+            if s.head:
+                lines.append(f"{name} {s.level:5.3g} start (turning: the level held before "
+                             f"the first step) w_ss {s.omega_ss:.4g} +- {s.omega_ss_se:.2g}")
+                continue
             if not s.moved:
                 why = {"did not move": "did not move (below the dead zone / breakaway)",
                        "coasts to rest": "decays to rest",
@@ -183,7 +191,7 @@ def _why_no_step(steps) -> str:
     notes = {s.note for s in steps}
     if "plateau too short" in notes:
         return ("the input is not held long enough for the speed to settle (record longer "
-                "plateaus)")
+                f"plateaus); {BY_SIMULATION}")
     if not steps:
         return ("the input holds no step (fit-mechanical needs voltage or torque steps held "
                 "until the speed settles)")
@@ -266,6 +274,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
     steps: list[MechStep] = []
     data: list[tuple] = []  # steps from rest: (time from onset, speed, torque amplitude, noise)
     no_step: list[FitError] = []  # logs whose input holds no step
+    heads: list[tuple] = []  # logs that start turning at a held level: (log, step, w, sig)
     for log in logs:
         what = "torque" if log.drive == "tau" else "voltage"
         log.require("omega", purpose=f"fit-mechanical ({what} step and rotor speed)")
@@ -287,18 +296,23 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
         except FitError as exc:  # used when another log holds steps: a warning then
             no_step.append(exc)
             continue
+        if not at_rest and held_head(log.u, found[0]):
+            heads.append((log, found[0], w, sig))
         for step in found:
             ms, d = fit_step(log, step, tau_e, km, R, sig, warns)
             steps.append(ms)
             if d is not None:
                 data.append(d)
     if no_step and not steps:
-        raise no_step[0]
-    warns += [f"{exc}: not used" for exc in no_step]
+        raise FitError("no log holds a voltage step (an input held at a level; a measured voltage "
+                       f"that sags with the load is not): {BY_SIMULATION}",
+                       ", ".join(lg.path for lg in logs))
+    warns += [f"{exc}: not used ({BY_SIMULATION})" for exc in no_step]
     _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:
         raise FitError("no usable step: " + _why_no_step(steps), ", ".join(lg.path for lg in logs))
+    steps = _head_levels(heads, moving) + steps
     ndata = sum(s.ndata for s in moving)
     chisqr = sum(s.chisqr for s in moving)
     ke = model.value("ke") if "back_emf" in model.effects and model.has("ke") else 0.0
@@ -316,6 +330,25 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
                                 "N m s/rad: Coulomb friction is lumped into b (it varies with "
                                 "the step amplitude)")
     return res
+
+
+def _head_levels(heads, moving) -> list[MechStep]:
+    """The levels the logs that start turning hold before their first step
+    (:func:`~pmdcid.identify.mechsteps.head_level`), read with the steps' mechanical time
+    constant: a second point on the steady-speed line from a log with one step."""
+    if not heads or not moving:
+        return []
+    tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]),
+                         np.array([s.tau_m_se for s in moving]))
+    out = []
+    for log, step, w, sig in heads:
+        h = head_level(log, step, w, sig, tm, tm_se)
+        # a level that drives the rotor (a coast at 0 V or inside the dead zone ends at rest,
+        # off the line): turning its way, its steady speed clear of the noise and of its error
+        if (h is not None and math.isfinite(h.omega_ss) and h.level * h.omega_ss > 0
+                and abs(h.omega_ss) > MOVE_SIGMAS * max(h.omega_ss_se, sig)):
+            out.append(h)
+    return out
 
 
 def _still_warnings(steps, warns) -> None:
@@ -404,9 +437,10 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
     jp, jp_se = _mean_se(np.array([s.J_paper for s in moving]))
     tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]), np.array([s.tau_m_se
                                                                          for s in moving]))
-    v = np.array([s.level for s in moving])
-    w = np.array([s.omega_ss for s in moving])
-    w_se = np.array([s.omega_ss_se for s in moving])
+    levels = moving + [s for s in steps if s.head]  # the logs' starting levels too
+    v = np.array([s.level for s in levels])
+    w = np.array([s.omega_ss for s in levels])
+    w_se = np.array([s.omega_ss_se for s in levels])
     est = {"km": Estimate("km", km, math.nan, "N m/A", vary=False),
            "Kmot": Estimate("Kmot", kmot, kmot_se, "rad/s/V"),
            "tau_mot": Estimate("tau_mot", tmot, tmot_se, "s"),
@@ -449,5 +483,9 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
     est["T_break"] = Estimate("T_break", float(np.median(tb)) if tb else math.nan,
                               float(np.std(tb, ddof=1) / math.sqrt(len(tb)))
                               if len(tb) > 1 else math.nan, "N m")
+    if not tb:
+        warns.append("no step starts from rest: the breakaway and the dead zone are not seen by "
+                     "these steps (no T_break, no dz written); a step from rest or through zero "
+                     "shows them")
     stats = FitStats(ndata, 5 * len(moving), chisqr)
     return MechanicalResult(est, steps, stats, km_given, warns)

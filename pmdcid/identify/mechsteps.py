@@ -17,7 +17,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.identify.freerun import first_diff_noise_std
-from pmdcid.identify.steps import StepInfo, fit_first_order, lsq, strejc, two_lag
+from pmdcid.identify.steps import (
+    MIN_PLATEAU_SAMPLES,
+    StepInfo,
+    fit_first_order,
+    lsq,
+    strejc,
+    two_lag,
+)
 
 #: a step whose steady speed is within this many noise std of zero did not move the rotor
 MOVE_SIGMAS = 8.0
@@ -59,6 +66,9 @@ class MechStep:
     from_rest: bool = True
     omega0: float = math.nan  # speed at the step instant [rad/s]
     note: str = ""  # why a step is not used
+    #: a level read at the log's start (the rotor turning, the input held before the first
+    #: step: :func:`head_level`): no step, only its steady speed enters the line
+    head: bool = False
     chisqr: float = 0.0
     ndata: int = 0
     unit: str = "V"  # the input's unit: "V" or "N m" (a torque step)
@@ -140,3 +150,38 @@ def fit_step(log, step, tau_e, km, R, sig, warns):
     if not ms.from_rest:
         return ms, None
     return ms, (t - step.t0, w - cf2["y0"], km * step.after / R, sig)
+
+
+def head_level(log, step, w, sig, tau, tau_se) -> MechStep | None:
+    """The level a log that starts turning holds before its first ``step``: its steady speed
+    [rad/s] read from its approach ``omega(t) = omega_ss + (omega(0) - omega_ss) exp(-t/tau)``
+    with the steps' mechanical time constant ``tau`` [s] (one for every level of a linear
+    plant), a least-squares line in (omega_ss, omega(0) - omega_ss). Its standard error is the
+    fit's (scaled up by the residual's scatter beyond ``sig`` [rad/s]) and what ``tau_se`` [s]
+    moves it. A settled start gives its mean speed; a short one, a wide error. None when the
+    head is under :data:`~pmdcid.identify.steps.MIN_PLATEAU_SAMPLES` samples or the time
+    constant is unknown."""
+    n = step.onset
+    if n < MIN_PLATEAU_SAMPLES or not (math.isfinite(tau) and tau > 0):
+        return None
+    s = log.t[:n] - log.t[0]
+    y = np.asarray(w[:n], float)
+
+    def solve_at(tm):
+        X = np.column_stack([np.ones(n), np.exp(-s / tm)])
+        coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+        return X, coef
+
+    X, coef = solve_at(tau)
+    resid = y - X @ coef
+    s2 = max(float(resid @ resid) / max(n - 2, 1), sig**2)
+    cov = np.linalg.pinv(X.T @ X) * s2
+    se = math.sqrt(max(float(cov[0, 0]), 0.0))
+    if math.isfinite(tau_se) and tau_se > 0:
+        dt = min(tau_se, 0.5 * tau)
+        se = math.hypot(se, 0.5 * (solve_at(tau + dt)[1][0] - solve_at(tau - dt)[1][0])
+                        * tau_se / dt)
+    return MechStep(log.path, 0.0, False, omega_ss=float(coef[0]), omega_ss_se=se,
+                    tau_m=tau, level=step.before, t0=float(log.t[0]), from_rest=False,
+                    omega0=float(coef[0] + coef[1]), note="level at the log's start",
+                    head=True, ndata=n)

@@ -105,6 +105,7 @@ def stage_nonlinear(logs, model, controller=None, **opts):
     )
     from pmdcid.identify.nonlinear import fit_nonlinear
 
+    start = _linear_start_if_needed(logs, model)
     if is_lumped(model) and not opts.get("free"):
         opts["free"] = ["J", "bv", "bc", "dz"]
         if model.has("tau_e") and model.value("tau_e") > 0:  # its electrical lag, and the
@@ -112,12 +113,40 @@ def stage_nonlinear(logs, model, controller=None, **opts):
     seen = logs_for(logs, model)
     if controller is not None:
         opts.pop("dead_zone", None)
-        return fit_closed_loop(seen, model, controller, **opts)
-    opts.setdefault("noise_model", noise_model_for(seen))
-    res = fit_nonlinear(seen, model, **opts)
-    if closed_loop_logs(seen):
-        res.route = logged_output_route(seen, filters=res.fit.noise_filters)
+        res = fit_closed_loop(seen, model, controller, **opts)
+    else:
+        opts.setdefault("noise_model", noise_model_for(seen))
+        res = fit_nonlinear(seen, model, **opts)
+        if closed_loop_logs(seen):
+            res.route = logged_output_route(seen, filters=res.fit.noise_filters)
+    if start:
+        res.warnings.insert(0, Note(start, about=["J", "bv"], severity="note"))
     return res
+
+
+#: the start fit-nonlinear takes when MODEL holds no mechanics (said in a note)
+LINEAR_START_NOTE = ("MODEL has no J, bv (no fit-mechanical): started from a first-order "
+                     "least-squares fit of these logs (identify's start)")
+
+
+def _linear_start_if_needed(logs, model) -> str:
+    """A voltage-driven SI model without J or bv (fit-mechanical found no step it could use:
+    a measured voltage that is never held, plateaus too short to settle) starts fit-nonlinear
+    from the first-order least squares of its logs (:mod:`pmdcid.identify.linstart`), written
+    into ``model`` (the stage's working copy) with stage ``start``: identify's own start,
+    never a prior. Torque-driven logs and lumped models have theirs (inverse dynamics). Returns
+    the note to give, or ''."""
+    from pmdcid.errors import FitError
+    from pmdcid.identify.linstart import linear_start
+
+    if (is_lumped(model) or model.has("J") and (model.has("bv") or model.has("b"))
+            or not model.has("km") or all(lg.drive == "tau" for lg in logs)):
+        return ""
+    try:
+        linear_start(logs, model).apply(model)
+    except FitError:
+        return ""  # fit-nonlinear then says what the model lacks
+    return LINEAR_START_NOTE
 
 
 def lumped_mechanical(logs, model, fit):
@@ -156,7 +185,8 @@ def _step_latency(result, logs, model) -> None:
         result.estimates["J"] = Estimate("J", *found["J"], result.estimates["J"].unit)
         result.warnings.append(
             f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts: "
-            "kept as the lumped model's tau_e, not as a latency")
+            "kept as the lumped model's tau_e, not as a latency (a lag of the speed sensor, "
+            "e.g. a firmware's moving average, rounds them the same on voltage and speed alone)")
     elif "lag_and_latency" in found:
         lag, late = found["lag_and_latency"]
         result.warnings.append(

@@ -330,7 +330,8 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
     levels = [_level(u, s) for s in segs]
     steps = []
     a0, b0, e0 = segs[0]
-    if at_start and b0 == 0 and e0 >= MIN_PLATEAU_SAMPLES and abs(levels[0]) > thr:
+    if (at_start and b0 == 0 and e0 >= MIN_PLATEAU_SAMPLES and abs(levels[0]) > thr
+            and _flat(u, 0, e0, levels[0], det)):  # held, not a varying input never cut
         steps.append(StepInfo(0, float(t[0]), 0.0, levels[0], e0, 0))
     for j in range(1, len(segs)):
         a, b, e = segs[j]
@@ -349,6 +350,16 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
                        "never held after a change); the stage needs intervals of constant "
                        "input after a change")
     return steps
+
+
+def held_head(u: np.ndarray, step: StepInfo) -> bool:
+    """Whether the input holds the level of ``step``'s plateau before from the log's first
+    sample to the step (``step`` the first of :func:`find_steps`): one plateau, flat within
+    the input's noise (:func:`_flat`)."""
+    u = np.asarray(u, float)
+    if step.prev_start != 0 or step.onset < 2:
+        return False
+    return _flat(u, 0, step.onset, step.amplitude, _detector(u))
 
 
 def _level_se(det: _Detector, seg: tuple[int, int, int]) -> float:

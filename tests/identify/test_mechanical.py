@@ -152,8 +152,10 @@ def test_moving_start_and_a_step_that_ends_early(seed):
     assert log["omega"][0] > 0.3 * vals["km"] / (vals["R"] * vals["bv"])
     res = fit_mechanical([log], _electrical(vals))
     kmot, tau = vals["km"] / (vals["R"] * vals["bv"]), vals["J"] / vals["bv"]
-    up, down = res.steps
-    assert not up.from_rest and up.moved and not down.moved
+    head, up, down = res.steps
+    assert head.head and not up.from_rest and up.moved and not down.moved
+    # the 1 V level held from the log's start: its steady speed read from its approach
+    assert abs(head.omega_ss - kmot) < 3 * head.omega_ss_se, (head.omega_ss, kmot)
     assert res.estimates["Kmot"].value == pytest.approx(kmot, rel=0.02)
     assert res.estimates["tau_mot"].value == pytest.approx(tau, rel=0.02)
     assert up.tau_m == pytest.approx(tau, rel=0.02)
@@ -329,3 +331,49 @@ def test_torque_and_voltage_steps_are_not_mixed(rng, paper_values):
     torque = _torque_log(_torque_truth(rng), rng, "up.csv", [(0.5, 0.05)], 2.0)
     with pytest.raises(FitError, match="voltage steps or torque steps, not both"):
         fit_mechanical([*volt, torque], _electrical(paper_values))
+
+
+def test_one_step_from_a_turning_level_gives_the_steady_line():
+    """A bench motor (back-EMF 99 % of its damping, Coulomb friction) logged at 100 Hz on
+    voltage and speed only, from 3 time constants into a 5 V level (still rising) to one step
+    to 15 V: the 5 V level's steady speed, read from its approach, is the line's second point,
+    so bv and bc per volt come out (before: "all steps have the same amplitude", bc = 0 and bv
+    the 15 V plateau's v/omega, 1.5 % high)."""
+    from ident_util import as_log
+
+    from pmdcid.identify.runners import fit_stage, stage_mechanical
+    from pmdcid.model.lumped import mark_lumped
+    from pmdcid.simulate import neutral_values, simulate_values
+
+    rng = np.random.default_rng(7)
+    vals = {**neutral_values(), "R": 2.0, "L": 1e-3, "km": 0.02, "ke": 0.02, "J": 1.1e-4,
+            "bv": 4e-6, "bc": 2.2e-3, "dz": 1e-3}
+    t = np.arange(700) / 100.0
+    u = np.where(t < 4.0, 5.0, 15.0)
+    om = simulate_values(t, u, vals, False).omega
+    log = as_log("step5_15", t[300:], {"v": u[300:],
+                                        "omega": om[300:] + rng.normal(0, 0.3, 400)})
+    m = Model()
+    mark_lumped(m)
+    res = fit_stage(stage_mechanical, [log], m)
+    bv = vals["bv"] * vals["R"] / vals["km"] + vals["ke"]
+    bc = vals["bc"] * vals["R"] / vals["km"]
+    assert res.steps[0].head and res.steps[0].level == 5.0
+    e = res.estimates
+    assert e["bv"].value == pytest.approx(bv, rel=2e-3)
+    assert abs(e["bv"].value - bv) < 3 * e["bv"].stderr
+    assert abs(e["bc"].value - bc) < 3 * e["bc"].stderr and e["bc"].stderr < 0.1 * bc
+    assert not [w for w in res.warnings if "same amplitude" in w]
+    # what one step from a turning level cannot show, said
+    assert [w for w in res.warnings if "no step starts from rest" in w and "dz" in w]
+
+
+def test_a_coast_at_the_log_start_is_no_level(rng, paper_values):
+    """A log that starts while the rotor coasts at 0 V (Coulomb friction: it stops short of a
+    first-order approach) and then steps to 2 V: the 0 V start is off the steady-speed line
+    and not used as a level."""
+    t = np.arange(4000) / 1000.0
+    u = np.where(t < 1.0, 2.0, np.where(t < 1.3, 0.0, 2.0))
+    res = fit_mechanical([_log_from(paper_values, rng, t, u, first=1000)],
+                         _electrical(paper_values))
+    assert not [s for s in res.steps if s.head]

@@ -112,3 +112,27 @@ def test_a_slow_ripple_the_armature_follows_is_not_averaged_away():
         v = duty * (1 + 0.05 * np.sin(2 * np.pi * hz * t)) + rng.normal(0.0, 0.3, len(t))
         assert len(held_steps(t, v)) == 2
         assert (held_levels(t, v) is not None) == averaged, hz
+
+
+def test_at_start_needs_a_held_first_plateau():
+    """``at_start`` (the rotor at rest at the first sample): a first plateau is a step from 0
+    only where the input holds it. A measured voltage that sags and recovers with the load
+    current (0 -> 12 -> 0 V, no single jump the noise lets through at every scale) is no
+    plateau: before, the whole log was one "step" to its mean, 5 V, fitted with a dead time
+    of a second."""
+    rng = np.random.default_rng(3)
+    t = np.arange(7000) / 1000.0
+    cmd = np.where((t >= 1) & (t < 4), 12.0, 0.0)
+    sag = np.where(cmd > 0, 3.0 * np.exp(-(t - 1) / 0.5), 0.0)
+    u = cmd - sag + rng.normal(0, 0.3, t.size)
+    for s in _found_or_none(t, u):
+        assert abs(s.after - np.mean(u)) > 1.0  # never the whole log's mean
+    held = np.full(t.size, 6.0) + rng.normal(0, 0.3, t.size)
+    assert find_steps(t, held, at_start=True)[0].after == pytest.approx(6.0, abs=0.05)
+
+
+def _found_or_none(t, u):
+    try:
+        return find_steps(t, u, at_start=True)
+    except FitError:
+        return []
