@@ -178,16 +178,13 @@ def _stage_into(model, logs, stage) -> set:
     """Run one stage on ``logs``, write its result into ``model``; the paths of the logs it
     used (fit-mechanical's with a step it fitted: none when it refused every step with its
     message pointing to fit-nonlinear, which a user runs next)."""
-    from pmdcid.errors import FitError
-    from pmdcid.identify.mechanical import BY_SIMULATION
+    from pmdcid.errors import NoStepError
     from pmdcid.identify.runners import per_volt
     from pmdcid.model.lumped import is_lumped
 
     try:
         res = stage(logs, model)
-    except FitError as exc:
-        if BY_SIMULATION not in str(exc):
-            raise
+    except NoStepError:  # its message points to fit-nonlinear, the user's next stage
         return set()
     if is_lumped(model):  # per-volt units in the table, as identify's stages
         per_volt(res)

@@ -54,6 +54,11 @@ class FitError(PmdcidError):
     """An identification stage could not produce a trustworthy result from the data given."""
 
 
+class NoStepError(FitError):
+    """fit-mechanical found no held step the speed settles after: fit-nonlinear (simulation
+    error) is the stage for such logs, and the message says so."""
+
+
 class PmdcidWarning(UserWarning):
     """Suspicious but usable data: the tool says so and goes on."""
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from pmdcid.errors import FitError
+from pmdcid.errors import FitError, NoStepError
 from pmdcid.fit.results import Estimate, FitStats, ResultProtocol, format_estimates
 from pmdcid.identify.inductance import carry_inductance_error
 from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-exported
@@ -304,14 +304,16 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
             if d is not None:
                 data.append(d)
     if no_step and not steps:
-        raise FitError("no log holds a voltage step (an input held at a level; a measured voltage "
-                       f"that sags with the load is not): {BY_SIMULATION}",
-                       ", ".join(lg.path for lg in logs))
+        raise NoStepError("no log holds a voltage step (an input held at a level; a measured "
+                          f"voltage that sags with the load is not): {BY_SIMULATION}",
+                          ", ".join(lg.path for lg in logs))
     warns += [f"{exc}: not used ({BY_SIMULATION})" for exc in no_step]
     _still_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:
-        raise FitError("no usable step: " + _why_no_step(steps), ", ".join(lg.path for lg in logs))
+        why = _why_no_step(steps)
+        kind = NoStepError if BY_SIMULATION in why else FitError
+        raise kind("no usable step: " + why, ", ".join(lg.path for lg in logs))
     steps = _head_levels(heads, moving) + steps
     ndata = sum(s.ndata for s in moving)
     chisqr = sum(s.chisqr for s in moving)

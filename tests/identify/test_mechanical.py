@@ -377,3 +377,21 @@ def test_a_coast_at_the_log_start_is_no_level(rng, paper_values):
     res = fit_mechanical([_log_from(paper_values, rng, t, u, first=1000)],
                          _electrical(paper_values))
     assert not [s for s in res.steps if s.head]
+
+
+def test_a_sagging_measured_voltage_is_refused_towards_fit_nonlinear(rng, paper_values):
+    """A measured voltage that sags with the load current holds no step: fit-mechanical refuses
+    with NoStepError (a FitError), whose one line names the stage that fits such logs."""
+    from ident_util import as_log
+
+    from pmdcid.errors import FitError, NoStepError
+
+    t = np.arange(6000) / 1000.0
+    cmd = np.where((t >= 1) & (t < 4), 12.0, 0.0)
+    v = cmd - np.where(cmd > 0, 3.0 * np.exp(-(t - 1) / 0.5), 0.0)
+    log = _log_from(paper_values, rng, t, v)
+    sagged = as_log("sag.csv", t, {"v": v + rng.normal(0, 0.3, t.size), "omega": log["omega"],
+                                   "i": log["i"]})
+    with pytest.raises(NoStepError, match="fit-nonlinear") as info:
+        fit_mechanical([sagged], _electrical(paper_values))
+    assert isinstance(info.value, FitError)
