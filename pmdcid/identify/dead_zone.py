@@ -157,9 +157,38 @@ def dead_zone_interval(cost, fit, name: str = "dz") -> tuple[dict[str, Estimate]
     return out, why
 
 
+#: the refitted profile's reach and points (:func:`refit_profile`): dz from 0 to this many times
+#: the larger of bc and dz, the points evenly spaced
+REFIT_TOP = 3.0
+REFIT_POINTS = 9
+
+
+def refit_profile(refit, start: dict[str, float], top: float, n: int = REFIT_POINTS):
+    """The profile likelihood of dz along a line of ``n`` dead zones from 0 to ``top`` [N m]:
+    at each, the other free parameters re-minimised (``refit(dz, start)`` -> (chi-square,
+    values); None where that fit failed), each fit started from its neighbour's solution, the
+    walk starting at ``start`` (its own dz, the fit's solution) and stepping away from it on
+    both sides. A profile whose other parameters are held cannot follow the ridge along which
+    dz, the back-EMF share and bc trade; this one does. Returns (dz values, chi-square at
+    each, values at each): infinite chi-square where the fit failed."""
+    dzs = np.linspace(0.0, top, n)
+    cost = np.full(n, np.inf)
+    vals: list[dict | None] = [None] * n
+    k0 = int(np.argmin(np.abs(dzs - start.get("dz", 0.0))))
+    for order in (range(k0, n), range(k0 - 1, -1, -1)):
+        here = dict(start)
+        for k in order:
+            got = refit(float(dzs[k]), here)
+            if got is None:
+                continue
+            cost[k], vals[k] = got
+            here = {**here, **vals[k]}
+    return dzs, cost, vals
+
+
 def _held_var(fit, j: int) -> float:
     held = getattr(fit, "held_cov", None)
     return float(held[j, j]) if held is not None and held[j, j] > 0 else 0.0
 
 
-__all__ = ["dead_zone_interval", "profile_line"]
+__all__ = ["dead_zone_interval", "profile_line", "refit_profile"]
