@@ -157,33 +157,82 @@ def dead_zone_interval(cost, fit, name: str = "dz") -> tuple[dict[str, Estimate]
     return out, why
 
 
-#: the refitted profile's reach and points (:func:`refit_profile`): dz from 0 to this many times
-#: the larger of bc and dz, the points evenly spaced
+#: the refitted profile's reach and points where the held profile calls dz masked
+#: (:func:`refit_profile`): dz from 0 to this many times the larger of bc and dz, evenly spaced
 REFIT_TOP = 3.0
 REFIT_POINTS = 9
+#: the refitted profile's points across +-:data:`SPAN` standard errors (:func:`refit_interval`)
+REFIT_SCAN = 13
 
 
-def refit_profile(refit, start: dict[str, float], top: float, n: int = REFIT_POINTS):
-    """The profile likelihood of dz along a line of ``n`` dead zones from 0 to ``top`` [N m]:
-    at each, the other free parameters re-minimised (``refit(dz, start)`` -> (chi-square,
-    values); None where that fit failed), each fit started from its neighbour's solution, the
-    walk starting at ``start`` (its own dz, the fit's solution) and stepping away from it on
-    both sides. A profile whose other parameters are held cannot follow the ridge along which
-    dz, the back-EMF share and bc trade; this one does. Returns (dz values, chi-square at
-    each, values at each): infinite chi-square where the fit failed."""
-    dzs = np.linspace(0.0, top, n)
+def refit_profile(refit, start: dict[str, float], dzs: np.ndarray):
+    """The profile likelihood of dz at the dead zones ``dzs`` [N m] (ascending): at each, the
+    other free parameters re-minimised (``refit(dz, start)`` -> (chi-square, values); None where
+    that fit failed), each fit started from its neighbour's solution, the walk starting at
+    ``start`` (its own dz: the fit's solution) and stepping away from it on both sides. A
+    profile whose other parameters are held cannot follow the ridge along which dz, the
+    back-EMF share and bc trade; this one does. Returns (chi-square at each, values at each):
+    infinite chi-square where the fit failed or dz < 0."""
+    n = len(dzs)
     cost = np.full(n, np.inf)
     vals: list[dict | None] = [None] * n
     k0 = int(np.argmin(np.abs(dzs - start.get("dz", 0.0))))
     for order in (range(k0, n), range(k0 - 1, -1, -1)):
         here = dict(start)
         for k in order:
-            got = refit(float(dzs[k]), here)
+            got = refit(float(dzs[k]), here) if dzs[k] >= 0 else None
             if got is None:
                 continue
             cost[k], vals[k] = got
             here = {**here, **vals[k]}
-    return dzs, cost, vals
+    return cost, vals
+
+
+def refit_interval(refit, fit, name: str = "dz") -> tuple[dict[str, Estimate], str]:
+    """:func:`dead_zone_interval` on the profile likelihood itself: at :data:`REFIT_SCAN`
+    dead zones across +-:data:`SPAN` of dz's own standard errors (widened :data:`WIDEN` times
+    once when the interval reaches an edge) the other free parameters are re-minimised
+    (:func:`refit_profile`), where the line holds them on their linear regression: along the
+    ridge where dz, the back-EMF share and bc trade (a lumped model with its electrical lag
+    free) the line leaves the ridge and the local stage stops in one of the staircase's dips.
+    The estimates: every free parameter at the refitted point nearest the interval's middle,
+    their standard errors kept, dz's a quarter of the interval's width where wider than the
+    covariance's (the held parameters' part added); with the words for the notes, empty when
+    dz moved less than :data:`MOVED` of its standard errors and its error did not widen.
+    ({}, "") without a line or a finite profile."""
+    line = profile_line(fit, name)
+    if line is None:
+        return {}, ""
+    free, x, d, sd, thr = line
+    j = free.index(name)
+    start = dict(zip(free, x, strict=True))
+    span = SPAN
+    for _ in range(2):
+        a = np.linspace(-span, span, REFIT_SCAN)
+        cost, vals = refit_profile(refit, start, x[j] + a * sd)
+        if not np.isfinite(cost).any():
+            return {}, ""
+        inside = np.flatnonzero(cost - cost.min() <= thr)
+        if inside.min() > 0 and inside.max() < len(a) - 1:
+            break
+        span *= WIDEN
+    lo, hi = float(a[inside.min()]), float(a[inside.max()])
+    k = int(inside[np.argmin(np.abs(a[inside] - 0.5 * (lo + hi)))])
+    width = 0.25 * (hi - lo)  # the 2-standard-error interval's half-width, halved [sd]
+    est = fit.estimates[name]
+    se = math.sqrt(max(width, 1.0) ** 2 * sd ** 2 + _held_var(fit, j))
+    at = {**start, **vals[k], name: float(x[j] + a[k] * sd)}
+    out = {n: Estimate(n, float(at[n]), fit.estimates[n].stderr, fit.estimates[n].unit)
+           for n in free}
+    out[name] = Estimate(name, out[name].value, max(se, est.stderr), est.unit)
+    if width <= 1.0 and abs(a[k]) <= MOVED:
+        return out, ""
+    why = (f"{name} = {out[name].value:.5g} ± {out[name].stderr:.2g}: the middle of its "
+           "profile-likelihood interval (the other parameters refitted at each dead zone), ± a "
+           "quarter of its width (never narrower than the covariance's: the local fit gave "
+           f"{est.value:.5g} ± {est.stderr:.2g}); the cost is a staircase in {name}, flat "
+           "between the dead zone's events, which the simulation places per internal step")
+    return out, why
 
 
 def _held_var(fit, j: int) -> float:
@@ -191,4 +240,4 @@ def _held_var(fit, j: int) -> float:
     return float(held[j, j]) if held is not None and held[j, j] > 0 else 0.0
 
 
-__all__ = ["dead_zone_interval", "profile_line", "refit_profile"]
+__all__ = ["dead_zone_interval", "profile_line", "refit_interval", "refit_profile"]

@@ -41,7 +41,13 @@ from pmdcid.fit.results import (
 )
 from pmdcid.fit.simfit import FitOptions, fit_simulation
 from pmdcid.fit.solver import blas_single_thread
-from pmdcid.identify.dead_zone import REFIT_TOP, dead_zone_interval, refit_profile
+from pmdcid.identify.dead_zone import (
+    REFIT_POINTS,
+    REFIT_TOP,
+    dead_zone_interval,
+    refit_interval,
+    refit_profile,
+)
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
 from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re-exported
@@ -364,7 +370,8 @@ def _unmask(fit, point, thr, fits, held_profile):
     again from there, dz free: (that fit, False, the profile); else (``fit``, True, the
     profile: the interval is read on it)."""
     top = REFIT_TOP * max(point.get("bc", 0.0), point.get("dz", 0.0), 1e-12)
-    dzs, c, vals = refit_profile(fits[0], point, top)
+    dzs = np.linspace(0.0, top, REFIT_POINTS)
+    c, vals = refit_profile(fits[0], point, dzs)
     if not np.isfinite(c).any():
         return (fit, True, *held_profile)
     low = float(np.nanmin(c[np.isfinite(c)]))
@@ -564,28 +571,34 @@ def _share_valley(logs, base_vals, fit, signals, sigma, est, warns) -> None:
         warns.append(Note(why, about=("J", "tau_e", "ke_share"), severity="note"))
 
 
-def _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns) -> None:
+def _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns, refit) -> None:
     """A dead zone the logs see: its interval along the profile line
     (:func:`_profile_dead_zone`), then, on a quantised input, the levels around it
     (:func:`dz_between_levels`); ``est`` updated in place."""
-    _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns)
+    _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns, refit)
     if "dz" in est:
         est["dz"] = dz_between_levels(logs, {**base_vals[0], **held}, est["dz"])
 
 
-def _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns) -> None:
+def _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns, refit) -> None:
     """dz from its profile-likelihood interval (:mod:`.dead_zone`: the cost is a staircase in
-    dz): ``est`` updated in place, every free parameter moved to the interval's middle on the
-    profile line with its standard error kept (a wider one from :func:`secant_errors` too),
-    dz's the profile's; a note when that changed anything visibly. Not with a lumped model's
-    electrical lag free (tau_e, ke_share): the dead zone's events move with them by internal
-    steps too, the line (a regression on dz) is no profile there, and moved along it tau_e's
-    2-sigma interval held the truth in 14 of bench/lumped_coverage.py's 20 seeds (16 before);
-    :func:`secant_errors` checks those fits' errors instead."""
+    dz): ``est`` updated in place, every free parameter moved to the interval's middle with
+    its standard error kept (a wider one from :func:`secant_errors` too), dz's the profile's;
+    a note when that changed anything visibly. With a lumped model's electrical lag free
+    (tau_e, ke_share) the dead zone's events move with them by internal steps too and the
+    line (a regression on dz) is no profile there (moved along it, tau_e's 2-sigma interval
+    held the truth in 14 of bench/lumped_coverage.py's 20 seeds, 16 before): the profile is
+    refitted at each dead zone instead (:func:`.dead_zone.refit_interval`, ``refit``:
+    :func:`_refit_at`), J, tau_e and the share left where their valley put them
+    (:func:`_share_valley`) when it moved them."""
     if "tau_e" in fit.estimates:
-        return
-    moved, why = dead_zone_interval(lambda sets: _cost(logs, base_vals, sets, signals, sigma),
-                                    fit)
+        moved, why = refit_interval(refit, fit)
+        valley = {k for k in ("J", "tau_e", "ke_share")
+                  if k in est and est[k].value != fit.estimates[k].value}
+        moved = {k: e for k, e in moved.items() if k not in valley}
+    else:
+        moved, why = dead_zone_interval(
+            lambda sets: _cost(logs, base_vals, sets, signals, sigma), fit)
     for k, e in moved.items():
         se = max(e.stderr, est[k].stderr) if k == "dz" else est[k].stderr
         est[k] = Estimate(k, e.value, se, e.unit, caveat=est[k].caveat)
@@ -704,19 +717,19 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     fit = _scan_inertia(logs, work, ls_free, signals, fit, sigma, opts, bounds,
                         prior_terms(prior), held, base_vals)
     fit.noise_filters = fit.noise_filters or filters
+    fits = (partial(_refit_at, logs, work, free, signals, sigma, opts, bounds,
+                    prior_terms(prior), held),
+            lambda st: fit_simulation(logs, work, _parameters(free, st, bounds, DIFF_STEP,
+                                                              prior_terms(prior), held),
+                                      signals, sigma=sigma, options=opts))
     if "dz" in free and len(free) > 1:
-        fits = (partial(_refit_at, logs, work, free, signals, sigma, opts, bounds,
-                        prior_terms(prior), held),
-                lambda st: fit_simulation(logs, work, _parameters(free, st, bounds, DIFF_STEP,
-                                                                  prior_terms(prior), held),
-                                          signals, sigma=sigma, options=opts))
         fit, masked, dzs, c, thr, point = _check_dead_zone(logs, base_vals, best, fit, signals,
                                                            sigma, ndata, fits)
     est = dict(fit.estimates)
     est.update(secant_errors(logs, base_vals, fit, signals, sigma, warns))
     _share_valley(logs, base_vals, fit, signals, sigma, est, warns)
     if not masked:
-        _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns)
+        _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns, fits[0])
     if masked:
         upper = crossing_upper(dzs, c, thr)
         est["dz"] = bounded("dz", 0.0, upper, "N m", DZ_CAVEAT)

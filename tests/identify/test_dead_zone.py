@@ -164,8 +164,8 @@ def test_the_refitted_profile_walks_from_the_fit_each_point_from_its_neighbour()
             return None  # a failed fit
         return (dz - 0.5) ** 2, {"x": 2 * dz}
 
-    dzs, cost, vals = refit_profile(refit, {"x": 0.5, "dz": 0.25}, 1.0, n=5)
-    assert list(dzs) == [0.0, 0.25, 0.5, 0.75, 1.0]
+    dzs = np.linspace(0.0, 1.0, 5)
+    cost, vals = refit_profile(refit, {"x": 0.5, "dz": 0.25}, dzs)
     assert [d for d, _ in starts] == [0.25, 0.5, 0.75, 1.0, 0.0]
     assert [x for _, x in starts] == [0.5, 0.5, 1.0, 1.5, 0.5]  # down again from the fit's
     assert math.isinf(cost[0]) and vals[0] is None
