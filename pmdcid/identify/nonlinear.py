@@ -338,15 +338,19 @@ def _refit_at(logs, work, free, signals, sigma, opts, bounds, priors, held, dz, 
 
 
 def _check_dead_zone(logs, base_vals, best, fit, signals, sigma, ndata, fits):
-    """dz checked at the fitted point: (fit, masked, dz values, cost along them, threshold,
-    point). The grid's hint comes from its coarse bc, and a local stage may stop where dz = 0
-    (a bound) or in a side valley: if some dz on the profile (the others held) is clearly
-    better, the local stage again from there. Identified only if the dead zone improves the fit
-    clearly: by more than two standard errors AND 0.1 % of the chi-square (the kernel's event
-    quantisation leaves wiggles of a few units of chi-square at the edge of a flat valley).
-    A dead zone that profile calls masked is checked along its refitted profile
-    (:func:`_unmask`). ``fits``: (the local stage with dz held, :func:`_refit_at`; the local
-    stage from a start, dz free)."""
+    """dz checked at the fitted point: (fit, the masked interval's upper end [N m] or None when
+    the logs see the dead zone, point). The grid's hint comes from its coarse bc, and a local
+    stage may stop where dz = 0 (a bound) or in a side valley: if some dz on the profile (the
+    others held) is clearly better, the local stage again from there. Identified only if the
+    dead zone improves the fit clearly: by more than two standard errors AND 0.1 % of the
+    chi-square (the kernel's event quantisation leaves wiggles of a few units of chi-square at
+    the edge of a flat valley). With a lumped model's electrical lag free, a dead zone that
+    profile calls masked is checked along its refitted profile (:func:`_unmask`). Not without
+    the lag: the dead zone is then on the applied voltage, flat up to the smallest level
+    driven, and the refitted profile's wider interval only moved the point diagnose holds dz
+    at when it takes the lag later (bench/lawlag.py, 500 Hz, L/R 2 ms: J' -1.5 -> -36 of its
+    standard errors on seed 10). ``fits``: (the local stage with dz held, :func:`_refit_at`;
+    the local stage from a start, dz free)."""
     point = {**best, **fit.values()}
     dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
     if c.min() < cfit - thr:
@@ -354,35 +358,51 @@ def _check_dead_zone(logs, base_vals, best, fit, signals, sigma, ndata, fits):
         point = {**best, **fit.values()}
         dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
     masked = bool(c[0] - min(c.min(), cfit) <= max(thr, MASK_REL * min(c.min(), cfit)))
-    if masked:
-        fit, masked, dzs, c = _unmask(fit, point, thr, fits, (dzs, c))
-        point = {**best, **fit.values()}
-    return fit, masked, dzs, c, thr, point
+    if masked and "tau_e" in point:
+        again, upper = _unmask(point, thr, fits)
+        if again is not None:
+            return again, None, {**best, **again.values()}
+        if upper is not None:
+            return fit, upper, point
+    if not masked:
+        return fit, None, point
+    return fit, _held_upper(logs, base_vals, point, signals, sigma, dzs, c, thr), point
 
 
-def _unmask(fit, point, thr, fits, held_profile):
+def _held_upper(logs, base_vals, point, signals, sigma, dzs, c, thr) -> float:
+    """The masked interval's upper end [N m] on the held profile ``c`` along ``dzs``, its edge
+    refined inside the next interval (17 points)."""
+    upper = masked_upper(dzs, c, thr)
+    if upper < dzs[-1]:
+        fine = np.linspace(upper, upper + (dzs[1] - dzs[0]), 17)
+        cf = _cost(logs, base_vals, [{**point, "dz": d} for d in fine], signals, sigma)
+        upper = masked_upper(np.concatenate([[0.0], fine]), np.concatenate([[c[0]], cf]), thr)
+    return upper
+
+
+def _unmask(point, thr, fits):
     """A dead zone the held profile calls masked, checked along its profile likelihood (the
     other free parameters re-minimised at each dz, :func:`.dead_zone.refit_profile`, from 0 to
     :data:`.dead_zone.REFIT_TOP` x max(bc, dz)). The held profile cannot follow the ridge along
     which dz, the back-EMF share and bc trade: on bench/lawlag.py's motors (L/R 4 ms, 1 kHz,
     seed 3) it called dz masked while a dead zone 1.6 x bc fitted clearly better. When some dz
     fits better than dz = 0 by more than ``thr`` and 0.1 % of the chi-square, the local stage
-    again from there, dz free: (that fit, False, the profile); else (``fit``, True, the
-    profile: the interval is read on it)."""
+    again from there, dz free: (that fit, None); else (None, the masked interval's upper end
+    read on that profile, :func:`crossing_upper`); (None, None) when dz = 0 or no point of
+    the profile could be fitted (the held profile's reading stands)."""
     top = REFIT_TOP * max(point.get("bc", 0.0), point.get("dz", 0.0), 1e-12)
     dzs = np.linspace(0.0, top, REFIT_POINTS)
     c, vals = refit_profile(fits[0], point, dzs)
-    if not np.isfinite(c).any():
-        return (fit, True, *held_profile)
-    low = float(np.nanmin(c[np.isfinite(c)]))
+    low = float(c.min())
+    if not math.isfinite(c[0]) or not math.isfinite(low):
+        return None, None
     if c[0] - low <= max(thr, MASK_REL * low):
-        return fit, True, dzs, c
+        return None, crossing_upper(dzs, c, thr)
     k = int(np.argmin(c))
     try:
-        again = fits[1]({**point, **vals[k], "dz": float(dzs[k])})
+        return fits[1]({**point, **vals[k], "dz": float(dzs[k])}), None
     except FitError:
-        return fit, True, dzs, c
-    return again, False, dzs, c
+        return None, crossing_upper(dzs, c, thr)
 
 
 def _chisqr_and_J(logs, work, free, signals, start, sigma, max_nfev, bounds, prior,
@@ -723,15 +743,15 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
                                                               prior_terms(prior), held),
                                       signals, sigma=sigma, options=opts))
     if "dz" in free and len(free) > 1:
-        fit, masked, dzs, c, thr, point = _check_dead_zone(logs, base_vals, best, fit, signals,
-                                                           sigma, ndata, fits)
+        fit, upper, point = _check_dead_zone(logs, base_vals, best, fit, signals, sigma, ndata,
+                                             fits)
+        masked = upper is not None
     est = dict(fit.estimates)
     est.update(secant_errors(logs, base_vals, fit, signals, sigma, warns))
     _share_valley(logs, base_vals, fit, signals, sigma, est, warns)
     if not masked:
         _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns, fits[0])
     if masked:
-        upper = crossing_upper(dzs, c, thr)
         est["dz"] = bounded("dz", 0.0, upper, "N m", DZ_CAVEAT)
         warns.append(f"dz is not identifiable from these logs: any dead zone from 0 to "
                      f"{upper:.3g} N m fits equally (it is masked by the Coulomb friction bc = "
