@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from pmdcid.fit.results import Estimate
+from pmdcid.identify.share_valley import lower_hull
 from pmdcid.model.effects import bounds_of
 
 #: the scan along the profile line: half-width in the covariance's standard errors of dz (the
@@ -165,26 +166,31 @@ REFIT_POINTS = 9
 REFIT_SCAN = 13
 
 
-def refit_profile(refit, start: dict[str, float], dzs: np.ndarray):
+def refit_profile(refit, start: dict[str, float], dzs: np.ndarray,
+                  slope: dict[str, float] | None = None):
     """The profile likelihood of dz at the dead zones ``dzs`` [N m] (ascending): at each, the
     other free parameters re-minimised (``refit(dz, start)`` -> (chi-square, values); None where
     that fit failed), each fit started from its neighbour's solution, the walk starting at
     ``start`` (its own dz: the fit's solution) and stepping away from it on both sides. A
     profile whose other parameters are held cannot follow the ridge along which dz, the
-    back-EMF share and bc trade; this one does. Returns (chi-square at each, values at each):
+    back-EMF share and bc trade; this one does. ``slope``: how far each other parameter moves
+    per unit of dz (the profile line's), added to the neighbour's solution as the next start
+    (a predictor step); none when not given. Returns (chi-square at each, values at each):
     infinite chi-square where the fit failed or dz < 0."""
     n = len(dzs)
     cost = np.full(n, np.inf)
     vals: list[dict | None] = [None] * n
     k0 = int(np.argmin(np.abs(dzs - start.get("dz", 0.0))))
     for order in (range(k0, n), range(k0 - 1, -1, -1)):
-        here = dict(start)
+        here, at = dict(start), start.get("dz", 0.0)
         for k in order:
-            got = refit(float(dzs[k]), here) if dzs[k] >= 0 else None
+            step = float(dzs[k]) - at
+            guess = {n: v + (slope or {}).get(n, 0.0) * step for n, v in here.items()}
+            got = refit(float(dzs[k]), guess) if dzs[k] >= 0 else None
             if got is None:
                 continue
             cost[k], vals[k] = got
-            here = {**here, **vals[k]}
+            here, at = {**here, **vals[k]}, float(dzs[k])
     return cost, vals
 
 
@@ -206,18 +212,21 @@ def refit_interval(refit, fit, name: str = "dz") -> tuple[dict[str, Estimate], s
     free, x, d, sd, thr = line
     j = free.index(name)
     start = dict(zip(free, x, strict=True))
-    span = SPAN
-    for _ in range(2):
-        a = np.linspace(-span, span, REFIT_SCAN)
-        cost, vals = refit_profile(refit, start, x[j] + a * sd)
-        if not np.isfinite(cost).any():
+    slope = {n: d[i] / d[j] for i, n in enumerate(free) if i != j}
+    a, cost, vals = np.zeros(0), np.zeros(0), []
+    for span in (SPAN, SPAN * WIDEN):
+        more = np.linspace(-span, span, REFIT_SCAN)
+        more = more[np.min(np.abs(more[:, None] - a[None, :]), axis=1, initial=np.inf) > 1e-9]
+        c, v = refit_profile(refit, start, x[j] + more * sd, slope)
+        a, cost, vals = np.append(a, more), np.append(cost, c), vals + v
+        ok = np.flatnonzero(np.isfinite(cost))
+        if not len(ok):
             return {}, ""
-        inside = np.flatnonzero(cost - cost.min() <= thr)
-        if inside.min() > 0 and inside.max() < len(a) - 1:
+        o = ok[np.argsort(a[ok], kind="stable")]
+        lo, hi = band(a[o], lower_hull(a[o], cost[o]), thr)
+        if lo > -span and hi < span:
             break
-        span *= WIDEN
-    lo, hi = float(a[inside.min()]), float(a[inside.max()])
-    k = int(inside[np.argmin(np.abs(a[inside] - 0.5 * (lo + hi)))])
+    k = int(o[np.argmin(np.abs(a[o] - 0.5 * (lo + hi)))])
     width = 0.25 * (hi - lo)  # the 2-standard-error interval's half-width, halved [sd]
     est = fit.estimates[name]
     se = math.sqrt(max(width, 1.0) ** 2 * sd ** 2 + _held_var(fit, j))
@@ -233,6 +242,20 @@ def refit_interval(refit, fit, name: str = "dz") -> tuple[dict[str, Estimate], s
            f"{est.value:.5g} ± {est.stderr:.2g}); the cost is a staircase in {name}, flat "
            "between the dead zone's events, which the simulation places per internal step")
     return out, why
+
+
+def band(a: np.ndarray, env: np.ndarray, thr: float) -> tuple[float, float]:
+    """(low, high) ``a`` (ascending) where the convex ``env`` lies within ``thr`` of its lowest,
+    the edges read between the points linearly (the outermost points when it never leaves)."""
+    rise = env - env.min()
+    inside = np.flatnonzero(rise <= thr)
+    i, k = int(inside.min()), int(inside.max())
+    lo, hi = float(a[i]), float(a[k])
+    if i > 0:
+        lo -= (a[i] - a[i - 1]) * (thr - rise[i]) / max(rise[i - 1] - rise[i], 1e-300)
+    if k < len(a) - 1:
+        hi += (a[k + 1] - a[k]) * (thr - rise[k]) / max(rise[k + 1] - rise[k], 1e-300)
+    return lo, hi
 
 
 def _held_var(fit, j: int) -> float:
