@@ -9,7 +9,7 @@ import pytest
 from ident_util import perturbed_truth, step_logs, triangle_log
 
 from pmdcid.fit.results import Estimate, FitStats, SimFitResult
-from pmdcid.identify.dead_zone import dead_zone_interval, refit_profile
+from pmdcid.identify.dead_zone import band, dead_zone_interval, refit_profile
 from pmdcid.identify.nonlinear import crossing_upper, fit_nonlinear
 from pmdcid.model import Model
 
@@ -171,6 +171,29 @@ def test_the_refitted_profile_walks_from_the_fit_each_point_from_its_neighbour()
     assert math.isinf(cost[0]) and vals[0] is None
     assert cost[1:] == pytest.approx([(d - 0.5) ** 2 for d in dzs[1:]])
     assert vals[3] == {"x": 1.5}
+
+
+def test_the_predictor_step_follows_the_line_from_the_last_solution():
+    """With a slope (the profile line's: the others' move per unit of dz), each start is the
+    last solution moved by the slope times the step in dz; after a failed fit the step counts
+    from the last dz that was fitted."""
+    starts = []
+
+    def refit(dz, start):
+        starts.append((dz, round(start["x"], 12)))
+        return None if dz == 0.5 else (0.0, {"x": 10 * dz})
+
+    refit_profile(refit, {"x": 0.0, "dz": 0.0}, np.linspace(0.0, 1.0, 5), {"x": 2.0})
+    assert starts == [(0.0, 0.0), (0.25, 0.5), (0.5, 3.0), (0.75, 3.5)] + [(1.0, 8.0)]
+
+
+def test_the_band_reads_its_edges_between_the_points():
+    """A convex envelope 4, 1, 0, 2, 8 at -2..2 and a threshold 2: from halfway between -2 and
+    -1 ((2 - 1) / (4 - 1) of the way back) to 1 (exactly); a flat envelope spans every point."""
+    a = np.arange(-2.0, 3.0)
+    lo, hi = band(a, np.array([4.0, 1.0, 0.0, 2.0, 8.0]), 2.0)
+    assert lo == pytest.approx(-1.0 - 1.0 / 3.0) and hi == pytest.approx(1.0)
+    assert band(a, np.zeros(5), 2.0) == (-2.0, 2.0)
 
 
 def test_the_masked_interval_reads_its_edge_between_the_points():
