@@ -23,6 +23,13 @@ exceeds the covariance's logs' part, the held parameters' (R, L) part
 the interval is +-2 of the covariance's standard errors about the fit's point and nothing
 changes. Measured on those 200 seeds: the truth within 2 standard errors in 94 % (RMS of
 the ratio 1.14; bench/stderr_coverage.py, docs/identification.md's coverage table).
+
+With a lumped model's electrical lag free (tau_e, ke_share) the line is no profile: dz, the
+back-EMF share and bc trade along a curved ridge whose events move by internal steps.
+:func:`refit_profile` re-minimises the other free parameters at each dz (each fit started from
+its neighbour's solution), :func:`refit_interval` reads dz's interval on that profile (its
+lower convex hull: the refitted points are rough), and fit-nonlinear's masked check uses it
+(bench/lawlag.py: docs/identification.md, "Coverage on these motors").
 """
 
 from __future__ import annotations
