@@ -23,6 +23,13 @@ exceeds the covariance's logs' part, the held parameters' (R, L) part
 the interval is +-2 of the covariance's standard errors about the fit's point and nothing
 changes. Measured on those 200 seeds: the truth within 2 standard errors in 94 % (RMS of
 the ratio 1.14; bench/stderr_coverage.py, docs/identification.md's coverage table).
+
+With a lumped model's electrical lag free (tau_e, ke_share) the line is no profile: dz, the
+back-EMF share and bc trade along a curved ridge whose events move by internal steps.
+:func:`refit_profile` re-minimises the other free parameters at each dz (each fit started from
+its neighbour's solution), :func:`refit_interval` reads dz's interval on that profile (its
+lower convex hull: the refitted points are rough), and fit-nonlinear's masked check uses it
+(bench/lawlag.py: docs/identification.md, "Coverage on these motors").
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ import math
 import numpy as np
 
 from pmdcid.fit.results import Estimate
+from pmdcid.identify.share_valley import lower_hull
 from pmdcid.model.effects import bounds_of
 
 #: the scan along the profile line: half-width in the covariance's standard errors of dz (the
@@ -157,9 +165,109 @@ def dead_zone_interval(cost, fit, name: str = "dz") -> tuple[dict[str, Estimate]
     return out, why
 
 
+#: the refitted profile's reach and points where the held profile calls dz masked
+#: (:func:`refit_profile`): dz from 0 to this many times the larger of bc and dz, evenly spaced
+REFIT_TOP = 3.0
+REFIT_POINTS = 9
+#: the refitted profile's points across +-:data:`SPAN` standard errors (:func:`refit_interval`)
+REFIT_SCAN = 13
+
+
+def refit_profile(refit, start: dict[str, float], dzs: np.ndarray,
+                  slope: dict[str, float] | None = None):
+    """The profile likelihood of dz at the dead zones ``dzs`` [N m] (ascending): at each, the
+    other free parameters re-minimised (``refit(dz, start)`` -> (chi-square, values); None where
+    that fit failed), each fit started from its neighbour's solution, the walk starting at
+    ``start`` (its own dz: the fit's solution) and stepping away from it on both sides. A
+    profile whose other parameters are held cannot follow the ridge along which dz, the
+    back-EMF share and bc trade; this one does. ``slope``: how far each other parameter moves
+    per unit of dz (the profile line's), added to the neighbour's solution as the next start
+    (a predictor step); none when not given. Returns (chi-square at each, values at each):
+    infinite chi-square where the fit failed or dz < 0."""
+    n = len(dzs)
+    cost = np.full(n, np.inf)
+    vals: list[dict | None] = [None] * n
+    k0 = int(np.argmin(np.abs(dzs - start.get("dz", 0.0))))
+    for order in (range(k0, n), range(k0 - 1, -1, -1)):
+        here, at = dict(start), start.get("dz", 0.0)
+        for k in order:
+            step = float(dzs[k]) - at
+            guess = {n: v + (slope or {}).get(n, 0.0) * step for n, v in here.items()}
+            got = refit(float(dzs[k]), guess) if dzs[k] >= 0 else None
+            if got is None:
+                continue
+            cost[k], vals[k] = got
+            here, at = {**here, **vals[k]}, float(dzs[k])
+    return cost, vals
+
+
+def refit_interval(refit, fit, name: str = "dz") -> tuple[dict[str, Estimate], str]:
+    """:func:`dead_zone_interval` on the profile likelihood itself: at :data:`REFIT_SCAN`
+    dead zones across +-:data:`SPAN` of dz's own standard errors (widened :data:`WIDEN` times
+    once when the interval reaches an edge) the other free parameters are re-minimised
+    (:func:`refit_profile`), where the line holds them on their linear regression: along the
+    ridge where dz, the back-EMF share and bc trade (a lumped model with its electrical lag
+    free) the line leaves the ridge and the local stage stops in one of the staircase's dips.
+    The estimates: every free parameter at the refitted point nearest the interval's middle,
+    their standard errors kept, dz's a quarter of the interval's width where wider than the
+    covariance's (the held parameters' part added); with the words for the notes, empty when
+    dz moved less than :data:`MOVED` of its standard errors and its error did not widen.
+    ({}, "") without a line or a finite profile."""
+    line = profile_line(fit, name)
+    if line is None:
+        return {}, ""
+    free, x, d, sd, thr = line
+    j = free.index(name)
+    start = dict(zip(free, x, strict=True))
+    slope = {n: d[i] / d[j] for i, n in enumerate(free) if i != j}
+    a, cost, vals = np.zeros(0), np.zeros(0), []
+    for span in (SPAN, SPAN * WIDEN):
+        more = np.linspace(-span, span, REFIT_SCAN)
+        more = more[np.min(np.abs(more[:, None] - a[None, :]), axis=1, initial=np.inf) > 1e-9]
+        c, v = refit_profile(refit, start, x[j] + more * sd, slope)
+        a, cost, vals = np.append(a, more), np.append(cost, c), vals + v
+        ok = np.flatnonzero(np.isfinite(cost))
+        if not len(ok):
+            return {}, ""
+        o = ok[np.argsort(a[ok], kind="stable")]
+        lo, hi = band(a[o], lower_hull(a[o], cost[o]), thr)
+        if lo > -span and hi < span:
+            break
+    k = int(o[np.argmin(np.abs(a[o] - 0.5 * (lo + hi)))])
+    width = 0.25 * (hi - lo)  # the 2-standard-error interval's half-width, halved [sd]
+    est = fit.estimates[name]
+    se = math.sqrt(max(width, 1.0) ** 2 * sd ** 2 + _held_var(fit, j))
+    at = {**start, **vals[k], name: float(x[j] + a[k] * sd)}
+    out = {n: Estimate(n, float(at[n]), fit.estimates[n].stderr, fit.estimates[n].unit)
+           for n in free}
+    out[name] = Estimate(name, out[name].value, max(se, est.stderr), est.unit)
+    if width <= 1.0 and abs(a[k]) <= MOVED:
+        return out, ""
+    why = (f"{name} = {out[name].value:.5g} ± {out[name].stderr:.2g}: the middle of its "
+           "profile-likelihood interval (the other parameters refitted at each dead zone), ± a "
+           "quarter of its width (never narrower than the covariance's: the local fit gave "
+           f"{est.value:.5g} ± {est.stderr:.2g}); the cost is a staircase in {name}, flat "
+           "between the dead zone's events, which the simulation places per internal step")
+    return out, why
+
+
+def band(a: np.ndarray, env: np.ndarray, thr: float) -> tuple[float, float]:
+    """(low, high) ``a`` (ascending) where the convex ``env`` lies within ``thr`` of its lowest,
+    the edges read between the points linearly (the outermost points when it never leaves)."""
+    rise = env - env.min()
+    inside = np.flatnonzero(rise <= thr)
+    i, k = int(inside.min()), int(inside.max())
+    lo, hi = float(a[i]), float(a[k])
+    if i > 0:
+        lo -= (a[i] - a[i - 1]) * (thr - rise[i]) / max(rise[i - 1] - rise[i], 1e-300)
+    if k < len(a) - 1:
+        hi += (a[k + 1] - a[k]) * (thr - rise[k]) / max(rise[k + 1] - rise[k], 1e-300)
+    return lo, hi
+
+
 def _held_var(fit, j: int) -> float:
     held = getattr(fit, "held_cov", None)
     return float(held[j, j]) if held is not None and held[j, j] > 0 else 0.0
 
 
-__all__ = ["dead_zone_interval", "profile_line"]
+__all__ = ["dead_zone_interval", "profile_line", "refit_interval", "refit_profile"]

@@ -41,7 +41,13 @@ from pmdcid.fit.results import (
 )
 from pmdcid.fit.simfit import FitOptions, fit_simulation
 from pmdcid.fit.solver import blas_single_thread
-from pmdcid.identify.dead_zone import dead_zone_interval
+from pmdcid.identify.dead_zone import (
+    REFIT_POINTS,
+    REFIT_TOP,
+    dead_zone_interval,
+    refit_interval,
+    refit_profile,
+)
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.identifiability import fit_warnings, hold_warning, require_motion
 from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re-exported
@@ -299,6 +305,106 @@ def masked_upper(dzs, cost, thr) -> float:
     return float(dzs[max(j - 1, 0)])
 
 
+def crossing_upper(dzs, cost, thr) -> float:
+    """Largest dz [N m] up to which the cost stays within ``thr`` of its value at dz = 0, the
+    edge read between the profile's points by linear interpolation (the whole line when the
+    cost never leaves that band)."""
+    k = int(np.searchsorted(dzs, masked_upper(dzs, cost, thr), side="right"))
+    if k >= len(dzs) or not math.isfinite(cost[k]):
+        return float(dzs[min(k, len(dzs)) - 1])
+    a, b = cost[k - 1] - cost[0], cost[k] - cost[0]
+    return float(dzs[k - 1] + (dzs[k] - dzs[k - 1]) * (thr - a) / max(b - a, 1e-300))
+
+
+#: the refitted dz profile's local fits: their evaluations at most
+PROFILE_NFEV = 60
+#: their relative finite-difference steps at least (the cost is a staircase in bc as in dz)
+PROFILE_STEP = 3e-2
+
+
+def _refit_at(logs, work, free, signals, sigma, opts, bounds, priors, held, dz, start):
+    """The local stage with dz held at ``dz`` [N m], the other ``free`` parameters from
+    ``start``: (chi-square, values), None when it fails (:func:`.dead_zone.refit_profile`)."""
+    others = [k for k in free if k != "dz"]
+    try:
+        params = _parameters(others, start, bounds,
+                             {k: max(PROFILE_STEP, DIFF_STEP.get(k, 0.0)) for k in others},
+                             priors, {**held, "dz": dz})
+        f = fit_simulation(logs, work, params, signals, sigma=sigma,
+                           options=FitOptions(PROFILE_NFEV, noise_model=opts.noise_model))
+    except FitError:
+        return None
+    return f.stats.chisqr, f.values()
+
+
+def _check_dead_zone(logs, base_vals, best, fit, signals, sigma, ndata, fits):
+    """dz checked at the fitted point: (fit, the masked interval's upper end [N m] or None when
+    the logs see the dead zone, point). The grid's hint comes from its coarse bc, and a local
+    stage may stop where dz = 0 (a bound) or in a side valley: if some dz on the profile (the
+    others held) is clearly better, the local stage again from there. Identified only if the
+    dead zone improves the fit clearly: by more than two standard errors AND 0.1 % of the
+    chi-square (the kernel's event quantisation leaves wiggles of a few units of chi-square at
+    the edge of a flat valley). With a lumped model's electrical lag free, a dead zone that
+    profile calls masked is checked along its refitted profile (:func:`_unmask`). Not without
+    the lag: the dead zone is then on the applied voltage, flat up to the smallest level
+    driven, and the refitted profile's wider interval only moved the point diagnose holds dz
+    at when it takes the lag later (bench/lawlag.py, 500 Hz, L/R 2 ms: J' -1.5 -> -36 of its
+    standard errors on seed 10). ``fits``: (the local stage with dz held, :func:`_refit_at`;
+    the local stage from a start, dz free)."""
+    point = {**best, **fit.values()}
+    dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
+    if c.min() < cfit - thr:
+        fit = fits[1]({**point, "dz": float(dzs[int(np.argmin(c))])})
+        point = {**best, **fit.values()}
+        dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
+    masked = bool(c[0] - min(c.min(), cfit) <= max(thr, MASK_REL * min(c.min(), cfit)))
+    if masked and "tau_e" in point:
+        again, upper = _unmask(point, thr, fits)
+        if again is not None:
+            return again, None, {**best, **again.values()}
+        if upper is not None:
+            return fit, upper, point
+    if not masked:
+        return fit, None, point
+    return fit, _held_upper(logs, base_vals, point, signals, sigma, dzs, c, thr), point
+
+
+def _held_upper(logs, base_vals, point, signals, sigma, dzs, c, thr) -> float:
+    """The masked interval's upper end [N m] on the held profile ``c`` along ``dzs``, its edge
+    refined inside the next interval (17 points)."""
+    upper = masked_upper(dzs, c, thr)
+    if upper < dzs[-1]:
+        fine = np.linspace(upper, upper + (dzs[1] - dzs[0]), 17)
+        cf = _cost(logs, base_vals, [{**point, "dz": d} for d in fine], signals, sigma)
+        upper = masked_upper(np.concatenate([[0.0], fine]), np.concatenate([[c[0]], cf]), thr)
+    return upper
+
+
+def _unmask(point, thr, fits):
+    """A dead zone the held profile calls masked, checked along its profile likelihood (the
+    other free parameters re-minimised at each dz, :func:`.dead_zone.refit_profile`, from 0 to
+    :data:`.dead_zone.REFIT_TOP` x max(bc, dz)). The held profile cannot follow the ridge along
+    which dz, the back-EMF share and bc trade: on bench/lawlag.py's motors (L/R 4 ms, 1 kHz,
+    seed 3) it called dz masked while a dead zone 1.6 x bc fitted clearly better. When some dz
+    fits better than dz = 0 by more than ``thr`` and 0.1 % of the chi-square, the local stage
+    again from there, dz free: (that fit, None); else (None, the masked interval's upper end
+    read on that profile, :func:`crossing_upper`); (None, None) when dz = 0 or no point of
+    the profile could be fitted (the held profile's reading stands)."""
+    top = REFIT_TOP * max(point.get("bc", 0.0), point.get("dz", 0.0), 1e-12)
+    dzs = np.linspace(0.0, top, REFIT_POINTS)
+    c, vals = refit_profile(fits[0], point, dzs)
+    low = float(c.min())
+    if not math.isfinite(c[0]) or not math.isfinite(low):
+        return None, None
+    if c[0] - low <= max(thr, MASK_REL * low):
+        return None, crossing_upper(dzs, c, thr)
+    k = int(np.argmin(c))
+    try:
+        return fits[1]({**point, **vals[k], "dz": float(dzs[k])}), None
+    except FitError:
+        return None, crossing_upper(dzs, c, thr)
+
+
 def _chisqr_and_J(logs, work, free, signals, start, sigma, max_nfev, bounds, prior,
                   ramp: float) -> tuple[float, float]:
     """The local fit with the input read at ``ramp`` between samples: (chi-square, J)."""
@@ -485,28 +591,34 @@ def _share_valley(logs, base_vals, fit, signals, sigma, est, warns) -> None:
         warns.append(Note(why, about=("J", "tau_e", "ke_share"), severity="note"))
 
 
-def _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns) -> None:
+def _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns, refit) -> None:
     """A dead zone the logs see: its interval along the profile line
     (:func:`_profile_dead_zone`), then, on a quantised input, the levels around it
     (:func:`dz_between_levels`); ``est`` updated in place."""
-    _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns)
+    _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns, refit)
     if "dz" in est:
         est["dz"] = dz_between_levels(logs, {**base_vals[0], **held}, est["dz"])
 
 
-def _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns) -> None:
+def _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns, refit) -> None:
     """dz from its profile-likelihood interval (:mod:`.dead_zone`: the cost is a staircase in
-    dz): ``est`` updated in place, every free parameter moved to the interval's middle on the
-    profile line with its standard error kept (a wider one from :func:`secant_errors` too),
-    dz's the profile's; a note when that changed anything visibly. Not with a lumped model's
-    electrical lag free (tau_e, ke_share): the dead zone's events move with them by internal
-    steps too, the line (a regression on dz) is no profile there, and moved along it tau_e's
-    2-sigma interval held the truth in 14 of bench/lumped_coverage.py's 20 seeds (16 before);
-    :func:`secant_errors` checks those fits' errors instead."""
+    dz): ``est`` updated in place, every free parameter moved to the interval's middle with
+    its standard error kept (a wider one from :func:`secant_errors` too), dz's the profile's;
+    a note when that changed anything visibly. With a lumped model's electrical lag free
+    (tau_e, ke_share) the dead zone's events move with them by internal steps too and the
+    line (a regression on dz) is no profile there (moved along it, tau_e's 2-sigma interval
+    held the truth in 14 of bench/lumped_coverage.py's 20 seeds, 16 before): the profile is
+    refitted at each dead zone instead (:func:`.dead_zone.refit_interval`, ``refit``:
+    :func:`_refit_at`), J, tau_e and the share left where their valley put them
+    (:func:`_share_valley`) when it moved them."""
     if "tau_e" in fit.estimates:
-        return
-    moved, why = dead_zone_interval(lambda sets: _cost(logs, base_vals, sets, signals, sigma),
-                                    fit)
+        moved, why = refit_interval(refit, fit)
+        valley = {k for k in ("J", "tau_e", "ke_share")
+                  if k in est and est[k].value != fit.estimates[k].value}
+        moved = {k: e for k, e in moved.items() if k not in valley}
+    else:
+        moved, why = dead_zone_interval(
+            lambda sets: _cost(logs, base_vals, sets, signals, sigma), fit)
     for k, e in moved.items():
         se = max(e.stderr, est[k].stderr) if k == "dz" else est[k].stderr
         est[k] = Estimate(k, e.value, se, e.unit, caveat=est[k].caveat)
@@ -625,36 +737,21 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     fit = _scan_inertia(logs, work, ls_free, signals, fit, sigma, opts, bounds,
                         prior_terms(prior), held, base_vals)
     fit.noise_filters = fit.noise_filters or filters
+    fits = (partial(_refit_at, logs, work, free, signals, sigma, opts, bounds,
+                    prior_terms(prior), held),
+            lambda st: fit_simulation(logs, work, _parameters(free, st, bounds, DIFF_STEP,
+                                                              prior_terms(prior), held),
+                                      signals, sigma=sigma, options=opts))
     if "dz" in free and len(free) > 1:
-        # check dz at the fitted point: the grid's hint comes from its coarse bc, and a local
-        # stage may stop where dz = 0 (a bound) or in a side valley. If some dz on the profile
-        # is clearly better, fit again from there; if dz = 0 fits as well as the best, the dead
-        # zone is not identified.
-        point = {**best, **fit.values()}
-        dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
-        if c.min() < cfit - thr:
-            start2 = {**point, "dz": float(dzs[int(np.argmin(c))])}
-            fit = fit_simulation(logs, work, _parameters(free, start2, bounds, DIFF_STEP,
-                                                         prior_terms(prior), held),
-                                 signals, sigma=sigma, options=opts)
-            point = {**best, **fit.values()}
-            dzs, c, thr, cfit = dz_profile(logs, base_vals, point, signals, sigma, ndata)
-        # identified only if the dead zone improves the fit clearly: by more than two standard
-        # errors AND 0.1 % of the chi-square (the kernel's event quantisation leaves wiggles of
-        # a few units of chi-square at the edge of a flat valley)
-        masked = bool(c[0] - min(c.min(), cfit) <= max(thr, MASK_REL * min(c.min(), cfit)))
+        fit, upper, point = _check_dead_zone(logs, base_vals, best, fit, signals, sigma, ndata,
+                                             fits)
+        masked = upper is not None
     est = dict(fit.estimates)
     est.update(secant_errors(logs, base_vals, fit, signals, sigma, warns))
     _share_valley(logs, base_vals, fit, signals, sigma, est, warns)
     if not masked:
-        _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns)
+        _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns, fits[0])
     if masked:
-        upper = masked_upper(dzs, c, thr)
-        if upper < dzs[-1]:  # refine the edge inside the next interval
-            fine = np.linspace(upper, upper + (dzs[1] - dzs[0]), 17)
-            cf = _cost(logs, base_vals, [{**point, "dz": d} for d in fine], signals, sigma)
-            upper = masked_upper(np.concatenate([[0.0], fine]),
-                                 np.concatenate([[c[0]], cf]), thr)
         est["dz"] = bounded("dz", 0.0, upper, "N m", DZ_CAVEAT)
         warns.append(f"dz is not identifiable from these logs: any dead zone from 0 to "
                      f"{upper:.3g} N m fits equally (it is masked by the Coulomb friction bc = "
