@@ -11,10 +11,11 @@ there, or the model's own: fit-mechanical's latency, fitted without the speed la
 found) is tried once more in the final model: the same model with the delay off and the lag
 free in its place (from :func:`~pmdcid.diagnose.lawlag.lag_start`'s grid, refitted with every
 parameter the final fit frees, on all data); unless the delay fits decisively better
-(:func:`~pmdcid.diagnose.lawlag.lag_holds`), the lag is written (``tau_e``, ``ke_share``) and
-the delay is not; a note gives both chi-squares either way. The lag's fit frees what the final
-fit freed, the delay excepted: a dead zone the final fit settled at a point
-(:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there.
+(:func:`~pmdcid.diagnose.lawlag.lag_holds`) or the lag is not determined (tau_e under the rules'
+``min_z`` standard errors, :func:`~pmdcid.diagnose.lawlag.lag_resolved`), the lag is written
+(``tau_e``, ``ke_share``) and the delay is not; a note gives both chi-squares either way. The
+lag's fit frees what the final fit freed, the delay excepted: a dead zone the final fit settled
+at a point (:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there.
 """
 
 from __future__ import annotations

@@ -13,9 +13,10 @@ that would add either (:func:`decide`):
 - the round's choice is a **sensor delay**: the same refit with the delay off and the lag free in
   its place (:func:`with_lag`) is tried first; where it fits every sample (fit and held-out
   part) as well, or the delay is under two samples and does not fit decisively better
-  (:func:`lag_holds`: every motor has its L/R, a delay must earn its place), the lag is
-  taken instead (a base parameter of the lumped model from then on) and the delay is not
-  added;
+  (:func:`lag_holds`: every motor has its L/R, a delay must earn its place), and the lag's
+  tau_e is determined (:func:`lag_resolved`: the rules' ``min_z`` standard errors, the size the
+  delay had to reach), the lag is taken instead (a base parameter of the lumped model from then
+  on) and the delay is not added;
 - the round's choice is a **speed law**: every passing speed law is refitted with the lag free
   too, and the law is chosen on the pairs (lowest ΔBIC, a named law preferred to the curve
   unless the curve beats it by more than :data:`~pmdcid.diagnose.named.NAMED_MARGIN`); the lag
