@@ -146,11 +146,14 @@ def _found(use, model, both, dt, shift) -> dict:
         out["tau_e"] = (te.value, te.stderr)
     elif math.isfinite(te.stderr):  # not resolved: a bound, said in words
         out["tau_e_bound"] = te.value + 2.0 * te.stderr
-    if _z(d) > LAG_SIGMAS:
+    if d.value >= MIN_SAMPLES * dt or _z(d) > LAG_SIGMAS:
         out["delay"] = (d.value, d.stderr)
     if "tau_e" in out and "delay" in out:
         if _both_decisive(use, model, both):
             out["both"] = True
+            return out
+        if d.value < MIN_SAMPLES * dt:  # under 2 samples and not needed beside the lag
+            out.pop("delay")
             return out
         # a lag and a latency together that the steps do not tell apart: on voltage and speed
         # alone they trade off (both late onsets; the course-lab kit's 2 kHz steps gave 1.8 ms
