@@ -54,15 +54,16 @@ def lag_applies(run, added: list[str], vals: dict[str, float]) -> bool:
 
 
 def _lag_fit(run, final: FitOutcome, lag_free: list[str], start: dict[str, float],
-             taus) -> FitOutcome:
+             taus, move_dz: bool = False) -> FitOutcome:
     """The final fit's parameters ``lag_free`` refitted on all data from ``start``, from the
     best of a grid over tau_e (``taus``), the back-EMF's share and the dead zone when the fit
     has no lag yet (lawlag.lag_start: from a share of 1 alone a local fit stopped at 3x the
     delay's chi-square beside a friction curve), from the :data:`LAG_STARTS` best shares of
     that grid (lawlag.lag_starts), the lowest kept; the final fit's other estimates carried.
-    A dead zone the final fit settled at a point of an interval (:func:`_settled_dz`) moves
-    within that interval (:func:`_within`)."""
-    interval = _settled_dz(final, lag_free)
+    With ``move_dz`` (the lag in the delay's place), a dead zone the final fit settled at a
+    point of an interval (:func:`_settled_dz`) moves within that interval (:func:`_within`);
+    beside the delay it stays at the point settled with it."""
+    interval = _settled_dz(final, lag_free) if move_dz else None
     starts = [start]
     if not final.values.get("tau_e", 0.0) > 0:
         taus = [t for t in taus if t > 0]
@@ -125,7 +126,7 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
     # the final fit's free parameters (a dead zone it settled at a point stays there: refitted,
     # it drifts along the flat cost, once to 3.3 +- 17 V on the L298N rig) but the delay's
     lag_free = list(dict.fromkeys([p for p in free if p != DELAY] + list(LAG_PARAMS)))
-    lag = _lag_fit(run, final, lag_free, {**final.values, DELAY: 0.0}, taus)
+    lag = _lag_fit(run, final, lag_free, {**final.values, DELAY: 0.0}, taus, move_dz=True)
     min_z = run.settings.rules.min_z
     holds = lag_holds(n, lag.chi2["all"], final.chi2["all"], run.settings.rules.bic, delay / dt)
     if holds and lag_resolved(lag, min_z):
