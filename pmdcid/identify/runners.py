@@ -183,10 +183,7 @@ def _step_latency(result, logs, model) -> None:
         tau, se = found["tau_e"]
         result.estimates["tau_e"] = Estimate("tau_e", tau, se, "s")
         result.estimates["J"] = Estimate("J", *found["J"], result.estimates["J"].unit)
-        result.warnings.append(
-            f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts: "
-            "kept as the lumped model's tau_e, not as a latency (a lag of the speed sensor, "
-            "e.g. a firmware's moving average, rounds them the same on voltage and speed alone)")
+        result.warnings.append(_lag_words(tau, found))
     elif "lag_and_latency" in found:
         lag, late = found["lag_and_latency"]
         result.warnings.append(
@@ -202,6 +199,17 @@ def _step_latency(result, logs, model) -> None:
             "folded into J and the dead zone acts on the applied voltage")
     if "delay" in found:
         result.estimates["delay"] = Estimate("delay", *found["delay"], "s")
+
+
+def _lag_words(tau: float, found: dict) -> str:
+    if found.get("both"):
+        late, se = found["delay"]
+        return (f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts "
+                f"and a latency of {1e3 * late:.3g} +- {1e3 * se:.2g} ms moves them: the steps "
+                "need both (each dropped, the fit worse by more than 10 in BIC), both kept")
+    return (f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts: "
+            "kept as the lumped model's tau_e, not as a latency (a lag of the speed sensor, "
+            "e.g. a firmware's moving average, rounds them the same on voltage and speed alone)")
 
 
 def stage_inverse_dynamics(logs, model, km=None, as_published=False):
