@@ -206,7 +206,7 @@ def _lag_words(tau: float, found: dict) -> str:
         late, se = found["delay"]
         return (f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts "
                 f"and a latency of {1e3 * late:.3g} +- {1e3 * se:.2g} ms moves them: the steps "
-                "need both (each dropped, the fit worse by more than 10 in BIC), both kept")
+                "need both (with either dropped the fit is worse in BIC), both kept")
     return (f"an electrical lag tau_e = {1e3 * tau:.3g} ms (L/R) rounds the steps' starts: "
             "kept as the lumped model's tau_e, not as a latency (a lag of the speed sensor, "
             "e.g. a firmware's moving average, rounds them the same on voltage and speed alone)")
