@@ -36,6 +36,17 @@ def test_parameter_set_bounds_fixed_and_priors():
     assert full.free == ["J", "bv", "bc"] and len(full.start()) == 3
 
 
+def test_a_range_narrowed_to_nothing_is_a_fit_error_naming_the_parameter():
+    """Limits from the logs (a Stribeck speed within the logged speeds) outside the parameter's
+    physical bounds leave no room: a FitError naming it and the units to check, not scipy's
+    ValueError (the CLI's internal error on a log in the wrong unit)."""
+    ps = Parameters.of(["J", "ws"], {"J": 2e-3, "ws": 1.0})
+    lo, hi = bounds_of("ws")
+    ps.tighten("ws", 1e3 * hi, 1e6 * hi)  # never widens: lower now above upper
+    with pytest.raises(FitError, match=r"no room to fit ws: .*rad/s.*units and scale"):
+        ps.start()
+
+
 def test_residual_is_simulated_minus_measured_over_sigma():
     truth, log, model, _ = triangle_fit_problem()
     vals = param_values(model)

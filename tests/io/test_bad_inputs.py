@@ -647,6 +647,14 @@ CASES: list[Case] = [
     C("diag-rpm-as-rad-per-s", combine(MODEL, _step_log("step.csv", omega_scale=60 / (2 * np.pi))),
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
       r"^error: step\.csv: .*omega looks like rpm.*--force"),
+    # speeds no motor reaches (v, i, omega, theta all x 1e12, consistent with each other):
+    # refused (forced, diagnose's refit range for Stribeck's ws from such speeds lay beyond its
+    # physical bound: scipy's ValueError as an internal error; tests/fit/test_solver.py)
+    C("diag-speed-beyond-any-motor", combine(MODEL, _step_log("step.csv", v=1.5e12)),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json"], 1,
+      r"^error: step\.csv: omega reaches .* beyond any motor's speed.*--force", subprocess=True),
+    C("sim-speed-beyond-any-motor", combine(MODEL, _step_log("step.csv", v=1.5e12)), SIM, 0,
+      r"^warning: step\.csv: omega reaches .* beyond any motor's speed", changes=("out.csv",)),
     C("diag-rpm-as-rad-per-s-forced", combine(MODEL, _step_log("step.csv",
                                                                omega_scale=60 / (2 * np.pi))),
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--force"], 0,
