@@ -40,7 +40,12 @@ import numpy as np
 from pmdcid.errors import FitError, PmdcidError
 from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import closed_loop_logs
-from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau, typical_speed
+from pmdcid.identify.plausibility import (
+    MAX_TAU_MECHANICAL,
+    mechanical_tau,
+    stuck_issue,
+    typical_speed,
+)
 from pmdcid.identify.runners import (
     apply_stage,
     fit_stage,
@@ -359,6 +364,9 @@ def _diverged(model: Model, before: Model, logs) -> str | None:
     """Why a fitted model's mechanics cannot be what the logs determined (None: plausible)."""
     if model is before:
         return None
+    stuck = stuck_issue(model, logs)
+    if stuck:
+        return stuck.split(". ")[0]
     speed = typical_speed(logs)
     tau = mechanical_tau(model, speed)
     longest = max(float(lg.t[-1] - lg.t[0]) for lg in logs)

@@ -487,3 +487,63 @@ def test_an_aprbs_whose_levels_do_not_settle_is_fitted_as_rich_not_as_steps():
     w = np.asarray(held["omega"])
     err = np.sqrt(np.mean((simulate_for(held, res.model).omega - w) ** 2)) / np.std(w)
     assert err < 0.1  # the speed noise alone: 0.05
+
+
+def _paper_model(**over) -> Model:
+    m = Model()
+    for k in ("R", "L", "km", "J", "bv", "bc", "dz"):
+        m.set(k, over.get(k, PAPER[k]))
+    return m
+
+
+def _triangle(rng, amplitude=2.0, x0=None, u=None, seconds=10.0):
+    """A triangle of the paper's motor (10 ms samples), from rest unless ``x0`` (i, omega,
+    theta), or under the input ``u(t)``."""
+    from pmdcid.synth import triangle
+
+    t = np.arange(int(seconds * 100)) / 100.0
+    v = u(t) if u is not None else triangle(t, amplitude, seconds)
+    cols, _ = synth_log(t, v, {**neutral_values(), **PAPER}, PAPER_NOISE, rng, x0=x0)
+    return Log("triangle.csv", t, cols, meta={"kind": "triangle"})
+
+
+def test_a_model_that_never_moves_where_a_log_turns_from_rest_is_refused(rng):
+    """Coulomb friction beyond the stall torque km |v|/R of a log whose rotor turns from rest:
+    the model holds the rotor still there (the joint fit stuck in a never-moving solution wrote
+    bc = 50 N m for a 0.04 N m motor); refused naming the log, a warning with --force; a log
+    that starts turning and coasts under a small input does not trigger it."""
+    from pmdcid.identify.plausibility import gate_result
+
+    log = _triangle(rng)
+    with pytest.raises(LogError, match=r"bc = 50 N m is at or beyond .*triangle\.csv.* never "
+                                       r"moves"):
+        gate_result(_paper_model(bc=50.0), [log])
+    with pytest.warns(Warning, match="never moves"):
+        gate_result(_paper_model(bc=50.0), [log], force=True)
+    gate_result(_paper_model(), [log])
+    coast = _triangle(rng, x0=[0.0, 20.0, 0.0], u=lambda t: np.full(t.size, 0.01))
+    gate_result(_paper_model(bc=0.01), [coast])
+
+
+@pytest.mark.slow
+def test_a_speed_logged_as_exact_zeros_does_not_outweigh_a_log_that_moves():
+    """The demo's 1.5 V step with its speed and angle columns exact zeros (no noise to measure)
+    beside its blocked-rotor step and the triangle, which turns: before, the zeros' noise floor
+    (1e-12 rad/s) weighed the step 1e9 times the triangle and the joint fit wrote bc = 50.6 N m,
+    dz = 38 N m for a 0.04 N m motor (NRMSE 1.0 on the triangle: a model that never moves).
+    Now the zeros take the triangle's noise level: the model turns the rotor where it turns."""
+    import pmdcid.pipeline as pl
+
+    fix = FIXTURES / "hidden"
+    step_log, blocked, tri = read_logs([str(fix / n) for n in
+                                        ("step_1.5V.csv", "blocked_1.0V.csv", "triangle.csv")])
+    cols = {**step_log.data, "omega": np.zeros(step_log.n), "theta": np.zeros(step_log.n)}
+    still = Log("step.csv", step_log.t, cols, meta={"kind": "free-speed-step"})
+    keep = tri.t < 40.0  # one period at 100 Hz
+    tri = Log("triangle.csv", tri.t[keep][::10],
+              {c: np.asarray(x)[keep][::10] for c, x in tri.data.items()},
+              meta={"kind": "triangle"})
+    res = pl.identify([still, blocked, tri], Model(), km=PAPER["km"], run_diagnose=False)
+    stall = PAPER["km"] * 2.0 / PAPER["R"]  # the triangle's largest torque, 0.042 N m
+    assert res.model.value("bc") < stall
+    assert res.model.value("dz") < stall

@@ -230,6 +230,64 @@ def lumped_issues(model, logs) -> list[str]:
     return out
 
 
+#: a measured signal "moves" when it leaves its start by this many noise std (its rest at the
+#: start: its first samples within a fifth of that)
+MOVES_NOISE = 20.0
+
+
+def turns_from_rest(log) -> bool:
+    """The rotor is at rest at the log's start and turns later (measured speed, else angle):
+    then some input torque overcame the friction at rest."""
+    from pmdcid.io.derive import noise_std
+
+    sig = next((c for c in ("omega", "theta") if log.has(c) and c not in log.derived), None)
+    if sig is None:
+        return False
+    x = np.asarray(log[sig], float)
+    x = x[np.isfinite(x)]
+    head = max(5, x.size // 50)
+    if x.size < 2 * head:
+        return False
+    noise = noise_std(x)
+    start = np.median(x[:head])
+    rest = (abs(start) if sig == "omega" else float(np.ptp(x[:head]))) < MOVES_NOISE / 5 * noise
+    return bool(noise > 0 and rest and np.max(np.abs(x - (0.0 if sig == "omega" else start)))
+                > MOVES_NOISE * noise)
+
+
+def drive_torque(model, log) -> float:
+    """The largest torque ``log``'s input applies [N m] (per volt: [V] for a lumped model): |tau|,
+    or the stall torque km |v| / R; NaN when the model cannot say."""
+    u = np.asarray(log.u, float)
+    u = u[np.isfinite(u)]
+    top = float(np.max(np.abs(u))) if u.size else math.nan
+    if log.drive == "tau" or model.extra.get("lumped"):
+        return top
+    km, R = _val(model, "km"), _val(model, "R")
+    return km * top / R if km > 0 and R > 0 else math.nan
+
+
+def stuck_issue(model, logs) -> str | None:
+    """A model whose friction at rest (Coulomb bc, or the dead zone dz) is at or beyond the
+    largest torque a log's input applies, while that log's rotor turns from rest: the model
+    holds the rotor still where the log shows it turning (None: no such log)."""
+    unit = "V per volt" if model.extra.get("lumped") else "N m"
+    for log in logs:
+        if not turns_from_rest(log):
+            continue
+        top = drive_torque(model, log)
+        for name, what in (("bc", "Coulomb friction"), ("dz", "dead zone")):
+            x = _val(model, name)
+            if top > 0 and x >= top:
+                return (f"the fitted {what} {name} = {x:.3g} {unit} is at or beyond the largest "
+                        f"torque the input of {log.path} applies ({top:.3g} {unit}), yet its "
+                        "rotor turns from rest: the model never moves there. Check the units "
+                        "and scale of the input and the speed (and the speed's sign against the "
+                        "input), or give logs that agree (a log whose rotor stays still at an "
+                        "input that turns it in another)")
+    return None
+
+
 def gate_result(model, logs, force: bool = False) -> None:
     """The time-constant rules on a fitted model (before it is written), and for a lumped model
     the per-volt rules (:func:`lumped_issues`). A time constant beyond any motor's that the logs
@@ -241,6 +299,12 @@ def gate_result(model, logs, force: bool = False) -> None:
                 raise LogError(f"{msg} (or --force to write it anyway)",
                                logs[0].path if logs else None)
             warn(msg, logs[0].path if logs else None)
+    stuck = None if model.extra.get("lumped") else stuck_issue(model, logs)
+    if stuck:
+        if not force:
+            raise LogError(f"{stuck} (or --force to write it anyway)",
+                           logs[0].path if logs else None)
+        warn(stuck, logs[0].path if logs else None)
     msgs = _tau_messages(model, typical_speed(logs))
     if not msgs:
         return

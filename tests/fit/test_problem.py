@@ -112,3 +112,21 @@ def test_diagnose_refit_fits_a_name_given_twice_once():
     assert list(twice.estimates) == list(free)
     for k in free:
         assert twice.values[k] == pytest.approx(once.values[k], rel=1e-9)
+
+
+def test_a_signal_logged_exactly_constant_takes_another_logs_noise_level(rng):
+    """A speed of exact zeros has no noise to measure: noise_level's floor (1e-12) would weigh
+    it 1e9 times a log that moves. It takes the smallest level the same signal shows in another
+    log; a signal that varies keeps its own, and with no other log the floor stays."""
+    from pmdcid.fit.problem import noise_levels
+    from pmdcid.io import Log
+
+    t = np.arange(500) * 1e-3
+    moving = Log("a.csv", t, {"v": np.ones(t.size), "omega": 3 + 0.01 * rng.standard_normal(500)})
+    quiet = Log("b.csv", t, {"v": np.ones(t.size), "omega": 1 + 0.002 * rng.standard_normal(500)})
+    still = Log("c.csv", t, {"v": np.ones(t.size), "omega": np.zeros(500)})
+    levels = noise_levels([moving, quiet, still], ["omega"])
+    assert levels[0]["omega"] == pytest.approx(0.01, rel=0.2)
+    assert levels[1]["omega"] == pytest.approx(0.002, rel=0.2)
+    assert levels[2]["omega"] == levels[1]["omega"]
+    assert noise_levels([still], ["omega"])[0]["omega"] == pytest.approx(1e-12)
