@@ -547,3 +547,16 @@ def test_a_speed_logged_as_exact_zeros_does_not_outweigh_a_log_that_moves():
     stall = PAPER["km"] * 2.0 / PAPER["R"]  # the triangle's largest torque, 0.042 N m
     assert res.model.value("bc") < stall
     assert res.model.value("dz") < stall
+
+
+def test_a_fitted_value_outside_its_physical_bounds_is_refused_naming_the_logs(rng):
+    """A stage's result outside a parameter's bounds (a negative damping from a speed against
+    an offset input): before, the model file's writer refused it naming the model file, which
+    the user never wrote; now the gate names the logs and what to check, even with --force."""
+    from pmdcid.identify.plausibility import gate_result
+
+    log = _triangle(rng)
+    for force in (False, True):
+        with pytest.raises(LogError, match=r"^triangle\.csv: the fit gives parameter 'bv' = "
+                                           r"-0\.01 .*impossible.*signs and offsets"):
+            gate_result(_paper_model(bv=-0.01), [log], force=force)

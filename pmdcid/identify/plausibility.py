@@ -288,6 +288,26 @@ def stuck_issue(model, logs) -> str | None:
     return None
 
 
+def range_issue(model) -> str | None:
+    """The first parameter a fit left outside its physical bounds, or an effect torque beyond
+    the motor's (the checks the model file's writer applies), as a line about the logs (None:
+    all within)."""
+    from pmdcid.errors import ModelError
+    from pmdcid.model.effects.torque_limit import check_plausible
+    from pmdcid.model.params import check_bounds
+
+    try:
+        for name, par in model.parameters.items():
+            check_bounds(name, par.value, None)
+        check_plausible({k: p.value for k, p in model.parameters.items()}, None,
+                        model.extra.get("lumped") is True)
+    except ModelError as exc:
+        return (f"the fit gives {exc}: the logs do not behave as this motor model's (check the "
+                "units, signs and offsets of the input and speed columns, or the rotor was "
+                "blocked); the model was not written")
+    return None
+
+
 def gate_result(model, logs, force: bool = False) -> None:
     """The time-constant rules on a fitted model (before it is written), and for a lumped model
     the per-volt rules (:func:`lumped_issues`). A time constant beyond any motor's that the logs
@@ -299,6 +319,9 @@ def gate_result(model, logs, force: bool = False) -> None:
                 raise LogError(f"{msg} (or --force to write it anyway)",
                                logs[0].path if logs else None)
             warn(msg, logs[0].path if logs else None)
+    bad = range_issue(model)
+    if bad:
+        raise LogError(bad, ", ".join(dict.fromkeys(lg.path for lg in logs)) or None)
     stuck = None if model.extra.get("lumped") else stuck_issue(model, logs)
     if stuck:
         if not force:
