@@ -1,6 +1,7 @@
 """Red team: every command on odd real-world logs, through the real CLI in a subprocess.
 
-    python bench/fuzz_cli.py [--case NAME[,NAME]] [--cmd NAME[,NAME]] [--jobs 2] [--keep DIR]
+    python bench/fuzz_cli.py [--case NAME[,NAME]] [--cmd NAME[,NAME]] [--base paper,rig] [--models]
+                              [--jobs 2] [--keep DIR] [--json FILE] [--lib TREE]
 
 The base logs are the demo's (``fixtures/hidden``: a blocked-rotor step, a free-speed step, the
 first 40 s of the triangle at 100 Hz) and bench/newrigs.py's ``bench-step`` rig (ms, volts, rpm
@@ -422,8 +423,12 @@ def rig_base() -> Base:
     return Base({"step": df}, {"step": ""}, [])
 
 
+#: the pmdcid tree the commands run from (``--lib``: another checkout, e.g. main's, for "before")
+LIB = [ROOT]
+
+
 def cli(args, cwd: Path, timeout=TIMEOUT_S):
-    env = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(cwd),
+    env = {"PYTHONPATH": str(LIB[0]), "PATH": "/usr/bin:/bin", "HOME": str(cwd),
            "PMDCID_THREADS": "1"}
     try:
         return subprocess.run([sys.executable, "-c", CODE, *map(str, args)], cwd=cwd, env=env,
@@ -579,7 +584,10 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--keep", default="")
     ap.add_argument("--json", default="", help="write the rows here")
+    ap.add_argument("--lib", default="", help="run the commands from this pmdcid tree")
     a = ap.parse_args(argv)
+    if a.lib:
+        LIB[0] = Path(a.lib).resolve()
     work = Path(a.keep or tempfile.mkdtemp(prefix="fuzz-"))
     work.mkdir(parents=True, exist_ok=True)
     muts = [m for m in (a.case.split(",") if a.case else MUTATIONS) if m in MUTATIONS]
