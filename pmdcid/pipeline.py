@@ -43,6 +43,7 @@ from pmdcid.identify.nonlinear_setup import closed_loop_logs
 from pmdcid.identify.plausibility import (
     MAX_TAU_MECHANICAL,
     mechanical_tau,
+    out_of_bounds,
     stuck_issue,
     typical_speed,
 )
@@ -411,7 +412,8 @@ def _has_mech(model: Model) -> bool:
 
 
 def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
-    """Run one stage; a stage that cannot use its logs is noted, the others go on."""
+    """Run one stage; a stage that cannot use its logs, or whose result leaves a parameter
+    outside its physical bounds, is noted, the others go on."""
     try:
         out = fit_stage(fit, logs, res.model)
     except PmdcidError as exc:
@@ -419,6 +421,10 @@ def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
         return
     new = res.model.copy()
     apply_stage(out, new)
+    bad = out_of_bounds(new)
+    if bad is not None:  # never a start for the next stage (J at its floor: minutes per fit)
+        res.notes.append(f"{name}: skipped: the fit gives {bad}")
+        return
     res.model = new
     res.stages.append((name, out))
     res.warnings += [w.in_stage(name) for w in notes_of(out)]

@@ -560,3 +560,23 @@ def test_a_fitted_value_outside_its_physical_bounds_is_refused_naming_the_logs(r
         with pytest.raises(LogError, match=r"^triangle\.csv: the fit gives parameter 'bv' = "
                                            r"-0\.01 .*impossible.*signs and offsets"):
             gate_result(_paper_model(bv=-0.01), [log], force=force)
+
+
+class _Negative(_Diverged):
+    """A stage's result that writes a negative inertia (a speed against an offset input)."""
+
+    def apply(self, model):
+        model.set("J", -1e-3, 1e-4, stage="joint")
+
+
+def test_a_stage_result_outside_physical_bounds_is_never_the_next_stages_start(monkeypatch):
+    """fit-mechanical on a step against an offset input gave b < 0 and J < 0; identify took it
+    as the joint fit's start, J clipped to its floor 1e-12 kg m^2, every simulation at the
+    substep cap: minutes on a 3 s log (the red team's timeout). Such a result is skipped."""
+    import pmdcid.pipeline as pl
+
+    monkeypatch.setattr(pl, "_nonlinear", lambda priors, controller=None:
+                        lambda logs, model: _Negative())
+    res = pl.identify(_fixture_steps(), Model(), km=PAPER["km"], run_diagnose=False)
+    assert any("skipped: the fit gives parameter 'J' = -0.001" in n for n in res.notes), res.notes
+    assert res.model.value("J") == pytest.approx(PAPER["J"], rel=0.05)

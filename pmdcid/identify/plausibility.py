@@ -288,10 +288,9 @@ def stuck_issue(model, logs) -> str | None:
     return None
 
 
-def range_issue(model) -> str | None:
-    """The first parameter a fit left outside its physical bounds, or an effect torque beyond
-    the motor's (the checks the model file's writer applies), as a line about the logs (None:
-    all within)."""
+def out_of_bounds(model) -> str | None:
+    """The first parameter outside its physical bounds, or an effect torque beyond the motor's
+    (the checks the model file's writer applies), in words (None: all within)."""
     from pmdcid.errors import ModelError
     from pmdcid.model.effects.torque_limit import check_plausible
     from pmdcid.model.params import check_bounds
@@ -302,10 +301,18 @@ def range_issue(model) -> str | None:
         check_plausible({k: p.value for k, p in model.parameters.items()}, None,
                         model.extra.get("lumped") is True)
     except ModelError as exc:
-        return (f"the fit gives {exc}: the logs do not behave as this motor model's (check the "
-                "units, signs and offsets of the input and speed columns, or the rotor was "
-                "blocked); the model was not written")
+        return str(exc)
     return None
+
+
+def range_issue(model) -> str | None:
+    """:func:`out_of_bounds` of a fitted model, as a line about the logs (None: all within)."""
+    bad = out_of_bounds(model)
+    if bad is None:
+        return None
+    return (f"the fit gives {bad}: the logs do not behave as this motor model's (check the "
+            "units, signs and offsets of the input and speed columns, or the rotor was "
+            "blocked); the model was not written")
 
 
 def gate_result(model, logs, force: bool = False) -> None:
