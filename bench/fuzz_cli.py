@@ -507,7 +507,7 @@ def fill(args, model: str, log: str, others: list[str], maps: list[str]) -> list
 
 def run_log_case(work: Path, base: Base, base_model: Path, mut: str, cmd: str) -> dict:
     kind, others, args = COMMANDS[cmd]
-    if kind not in base.frames:
+    if any(k not in base.frames for k in (kind, *others)):
         return {}
     d = Path(tempfile.mkdtemp(prefix=f"{mut}-{cmd}-", dir=work))
     data, extra = MUTATIONS[mut](base.frames[kind], base.comments[kind])
