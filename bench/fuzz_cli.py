@@ -5,7 +5,8 @@
 
 The base logs are the demo's (``fixtures/hidden``: a blocked-rotor step, a free-speed step, the
 first 40 s of the triangle at 100 Hz) and bench/newrigs.py's ``bench-step`` rig (ms, volts, rpm
-at 100 Hz, turning at the first row, a few NaN cells). Each mutation (:data:`MUTATIONS`) edits
+at 100 Hz, turning at the first row, a few NaN cells; ``rigpi``: its PI speed loop, a controller
+in the loop). Each mutation (:data:`MUTATIONS`) edits
 the log a command reads (one at a time); each command runs in its own folder with a timeout.
 A base model is identified once from the unmutated logs. Flagged, per run:
 
@@ -55,11 +56,13 @@ def read_fixture(name: str, every: int = 1, seconds: float | None = None) -> pd.
     return df.iloc[::every].reset_index(drop=True)
 
 
-def rig_step() -> pd.DataFrame:
-    """newrigs' bench-step fit log: ms, volts, rpm (NaN cells), turning at the first row."""
+def rig_step(which: str = "step") -> pd.DataFrame:
+    """newrigs' bench-step log: ms, volts, rpm (NaN cells); the fit step turns at its first row,
+    ``pi`` is a held-out PI speed loop."""
     from bench.newrigs import bench_step
 
-    name, cols = bench_step(1).steps[0]
+    rig = bench_step(1)
+    name, cols = rig.steps[0] if which == "step" else rig.held["pi"][0]
     return pd.DataFrame(cols)
 
 
@@ -416,8 +419,10 @@ def paper_base() -> Base:
     return Base(frames, comments, [])
 
 
-def rig_base() -> Base:
-    df = rig_step().rename(columns={"ms": "t", "volts": "v", "rpm": "omega"})
+def rig_base(which: str = "step") -> Base:
+    """newrigs' bench-step rig in SI names: its fit step (``step``: turning at the first row), or
+    a held-out PI speed loop (``pi``: a controller in the loop), as the ``step`` log."""
+    df = rig_step(which).rename(columns={"ms": "t", "volts": "v", "rpm": "omega"})
     df["t"] = df["t"] / 1000
     df["omega"] = df["omega"] / RPM
     return Base({"step": df}, {"step": ""}, [])
@@ -559,7 +564,9 @@ def row(mut, cmd, res, flags, args) -> dict:
         lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
         last = lines[-1] if lines else ""
     return {"case": mut, "cmd": cmd, "exit": None if res is None else res.returncode,
-            "flags": flags, "last": last[:220], "args": " ".join(args)}
+            "flags": flags, "last": last[:220], "args": " ".join(args),
+            "stderr_lines": 0 if res is None else len([ln for ln in res.stderr.splitlines()
+                                                       if ln.strip()])}
 
 
 def base_model(work: Path, base: Base) -> Path:
@@ -579,7 +586,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", default="", help="mutations (comma list; default all)")
     ap.add_argument("--cmd", default="", help="commands (comma list; default all)")
-    ap.add_argument("--base", default="paper,rig", help="base logs: paper, rig")
+    ap.add_argument("--base", default="paper,rig", help="base logs: paper, rig, rigpi")
     ap.add_argument("--models", action="store_true", help="model mutations too")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--keep", default="")
@@ -593,7 +600,7 @@ def main(argv=None):
     muts = [m for m in (a.case.split(",") if a.case else MUTATIONS) if m in MUTATIONS]
     cmds = a.cmd.split(",") if a.cmd else list(COMMANDS)
     jobs = []
-    bases = {"paper": paper_base, "rig": rig_base}
+    bases = {"paper": paper_base, "rig": rig_base, "rigpi": lambda: rig_base("pi")}
     paper = paper_base()
     pmodel = base_model(work, paper)
     for bname in a.base.split(","):
