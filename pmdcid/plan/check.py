@@ -19,7 +19,13 @@ from pmdcid.errors import LogError, ModelError
 from pmdcid.model import Model
 from pmdcid.plan import fisher as fi
 from pmdcid.plan import profiles as pr
-from pmdcid.plan.design import Settings, candidates, parameter_scales
+from pmdcid.plan.design import (
+    DEFAULT_UMAX_BREAKAWAY,
+    Settings,
+    breakaway_input,
+    candidates,
+    parameter_scales,
+)
 
 #: relative standard error above which a parameter is poorly determined
 POOR = 0.25
@@ -71,7 +77,7 @@ class CheckResult:
             if fx.get("kind"):
                 done = ("" if fx["reaches"] else
                         f" (still {100 * fx['relative_after']:.2g} % within the budget)")
-                out.append(f"{n}: record {fx['seconds']:.0f} s of {fx['kind']} up to "
+                out.append(f"{n}: record {fx['seconds']:.3g} s of {fx['kind']} up to "
                            f"{fx['amplitude']:.3g} ({pr.PURPOSES[fx['kind']]}){done}")
             else:
                 out.append(f"{n}: no candidate profile helps: {fx.get('why', '')}")
@@ -156,9 +162,24 @@ def _judge_effects(res: CheckResult, logs, model: Model) -> None:
         res.effects_skipped = str(exc)
 
 
+def _logged_umax(logs, vals, drive) -> float:
+    """The fixes' input limit without --vmax/--taumax: the largest input the logs applied, or,
+    when they applied none (an input of zeros), plan's default: 3 x the model's breakaway
+    input; neither: one line asking for the limit."""
+    top = max(float(np.max(np.abs(lg.u))) for lg in logs)
+    if top > 0 and math.isfinite(top):
+        return top
+    umax = DEFAULT_UMAX_BREAKAWAY * breakaway_input(vals, drive)
+    if not umax > 0:
+        opt = "--taumax" if drive.column == "tau" else "--vmax"
+        raise LogError(f"the logs apply no input and the model has no friction to size one "
+                       f"from: give {opt}", ", ".join(str(lg.path) for lg in logs))
+    return umax
+
+
 def fixes(poor, F, logs, vals, names, drive, scales, noises, settings: Settings) -> dict:
     """For each poor parameter: the candidate profile (and seconds) that fixes it best."""
-    umax = settings.umax or max(float(np.max(np.abs(lg.u))) for lg in logs)
+    umax = settings.umax or _logged_umax(logs, vals, drive)
     rate = settings.rate or 1.0 / min(lg.dt for lg in logs)
     noise = {s: float(np.median([n[s] for n in noises if s in n]))
              for s in ("omega", "i") if any(s in n for n in noises)}
