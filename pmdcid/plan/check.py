@@ -21,6 +21,7 @@ from pmdcid.plan import fisher as fi
 from pmdcid.plan import profiles as pr
 from pmdcid.plan.design import (
     DEFAULT_UMAX_BREAKAWAY,
+    NOISE_FRACTION,
     Settings,
     breakaway_input,
     candidates,
@@ -185,11 +186,15 @@ def fixes(poor, F, logs, vals, names, drive, scales, noises, settings: Settings)
              for s in ("omega", "i") if any(s in n for n in noises)}
     if "omega" not in noise:
         noise["omega"] = 0.01 * max(abs(vals.get("bv", 1.0)), 1e-9)
+    if "i" not in noise and vals.get("R", 0) > 0:  # logs without current: plan's default
+        noise["i"] = settings.noise_i or NOISE_FRACTION * umax / vals["R"]
     cands = candidates(vals, drive, umax, settings.speed_max, rate, "R" in names)
     unit = []
     for kind, u, b in cands:
         t = np.arange(len(u)) / rate
         sigs = tuple(s for s in fi.signals_of(b, drive) if s in noise)
+        if not sigs:  # nothing this profile records has a known noise: it cannot be scored
+            continue
         sens = fi.sensitivities(t, u, vals, names, drive, b, scales, sigs)
         unit.append((kind, fi.information(sens, noise), len(u) / rate,
                      float(np.max(np.abs(u)))))

@@ -106,3 +106,23 @@ def test_check_sizes_its_fixes_from_the_model_when_the_logs_apply_no_input():
     amps = [fx["amplitude"] for fx in res.fixes.values() if fx.get("kind")]
     assert amps and top > 0
     assert max(amps) == pytest.approx(top, rel=1e-6)
+
+
+def test_check_of_logs_without_current_still_scores_a_blocked_rotor_fix():
+    """Voltage and speed logged, no current: R and L are poorly determined, and the blocked-rotor
+    profile that fixes them records the current, whose noise the logs cannot give. Before: an
+    internal error (a 0 x 0 information added to the 6 x 6); now plan's default current noise
+    (1 % of the stall current at the input limit, or --noise-i) scores it."""
+    import numpy as np
+
+    from pmdcid.io import Log
+    from pmdcid.plan.check import check_logs
+    from pmdcid.plan.design import Settings
+
+    rng = np.random.default_rng(8)
+    t = np.arange(1500) * 1e-3
+    v = np.where(t > 0.5, 1.5, 0.0)
+    log = Log("speed_only.csv", t, {"v": v, "omega": 4e-3 * rng.standard_normal(t.size)})
+    res = check_logs([log], truth_model(PAPER), Settings(budget=60))
+    assert {"R", "L"} <= set(res.poor())
+    assert res.fixes["R"]["kind"] == "blocked"
