@@ -200,6 +200,14 @@ def cells(name, value, k=3):
     return m
 
 
+def keep(*cols, rows=None):
+    """Only these columns (the others dropped), the first ``rows`` rows."""
+    def m(df, c):
+        d = df[[k for k in df.columns if k in cols]]
+        return to_csv(d if rows is None else d.iloc[:rows], c).encode(), []
+    return m
+
+
 def m_negate(df, c):
     d = df.copy()
     for n in ("v", "i", "omega", "theta"):
@@ -286,6 +294,11 @@ MUTATIONS = {
     "neg-inf-current": cells("i", "-inf"),
     "nan-input-cells": cells("v", "nan"),
     "empty-cells": cells("omega", ""),
+    "no-current": keep("t", "v", "omega", "theta"),
+    "speed-only": keep("t", "v", "omega"),
+    "angle-only": keep("t", "v", "theta"),
+    "angle-only-30-rows": keep("t", "v", "theta", rows=30),
+    "current-only": keep("t", "v", "i"),
     "negated": m_negate,
     "negative-only": m_neg_offset,
     "no-comments": m_no_comments,
