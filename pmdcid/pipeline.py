@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.errors import FitError, PmdcidError
+from pmdcid.errors import MAX_MESSAGE, FitError, PmdcidError
 from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import closed_loop_logs
 from pmdcid.identify.plausibility import (
@@ -386,7 +386,11 @@ def _require_mechanics(res: IdentifyResult, moving) -> None:
     half model, no guessed one)."""
     if _staged_mech(res):
         return
-    said = "; ".join(res.notes) or "no stage gave J"
+    # each stage's reason shortened alike: the one-line limit would otherwise keep the first
+    # note and the end of the last, and drop the reasons between
+    budget = max(40, (MAX_MESSAGE - 110) // max(len(res.notes), 1))
+    said = "; ".join(n if len(n) <= budget else n[:budget - 3].rstrip() + "..."
+                     for n in res.notes) or "no stage gave J"
     raise FitError("identify could not fit the mechanics (J, bv) from the moving logs: " + said,
                    ", ".join(lg.path for lg in moving))
 

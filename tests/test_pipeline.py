@@ -580,3 +580,20 @@ def test_a_stage_result_outside_physical_bounds_is_never_the_next_stages_start(m
     res = pl.identify(_fixture_steps(), Model(), km=PAPER["km"], run_diagnose=False)
     assert any("skipped: the fit gives parameter 'J' = -0.001" in n for n in res.notes), res.notes
     assert res.model.value("J") == pytest.approx(PAPER["J"], rel=0.05)
+
+
+def test_no_mechanics_says_every_stages_reason_within_one_line():
+    """identify without J names what each stage said. The one-line limit kept the first note
+    and the end of the last ("... ; join ... oves there)"): a reason between was lost. Each
+    note is now shortened alike, its head (stage and reason) kept."""
+    import pmdcid.pipeline as pl
+    from pmdcid.errors import MAX_MESSAGE, FitError
+
+    stages = ("fit-mechanical", "linear start", "joint fit", "fit-nonlinear")
+    notes = [f"{s}: skipped: step.csv: " + "a long reason that goes on " * 6 for s in stages]
+    res = pl.IdentifyResult(Model(), [], notes=notes)
+    with pytest.raises(FitError) as exc:
+        pl._require_mechanics(res, [Log("step.csv", np.arange(3.0), {"v": np.ones(3)})])
+    text = str(exc.value)
+    assert len(text) <= MAX_MESSAGE and " ... " not in text
+    assert all(f"{s}: skipped: step.csv: a long" in text for s in stages), text

@@ -316,38 +316,44 @@ def range_issue(model) -> str | None:
 
 
 def gate_result(model, logs, force: bool = False) -> None:
-    """The time-constant rules on a fitted model (before it is written), and for a lumped model
-    the per-volt rules (:func:`lumped_issues`). A time constant beyond any motor's that the logs
-    resolve (within a few log lengths) names the time unit; one far longer than every log was
-    not determined by them (a fit that diverged), and says so."""
+    """The rules on a fitted model before it is written: for a lumped model the per-volt rules
+    (:func:`lumped_issues`); the time constants (:func:`_tau_gate`: they name a time unit, so
+    they speak first); a value outside its physical bounds (:func:`range_issue`, never
+    forced: the model file cannot hold it); friction that holds the rotor still where a log
+    turns (:func:`stuck_issue`)."""
+    path = logs[0].path if logs else None
     if model.extra.get("lumped"):
         for msg in lumped_issues(model, logs):
-            if not force:
-                raise LogError(f"{msg} (or --force to write it anyway)",
-                               logs[0].path if logs else None)
-            warn(msg, logs[0].path if logs else None)
+            _refuse(msg, path, force)
+    _tau_gate(model, logs, force)
     bad = range_issue(model)
     if bad:
         raise LogError(bad, ", ".join(dict.fromkeys(lg.path for lg in logs)) or None)
     stuck = None if model.extra.get("lumped") else stuck_issue(model, logs)
     if stuck:
-        if not force:
-            raise LogError(f"{stuck} (or --force to write it anyway)",
-                           logs[0].path if logs else None)
-        warn(stuck, logs[0].path if logs else None)
+        _refuse(stuck, path, force)
+
+
+def _refuse(msg: str, path, force: bool) -> None:
+    if not force:
+        raise LogError(f"{msg} (or --force to write it anyway)", path)
+    warn(msg, path)
+
+
+def _tau_gate(model, logs, force: bool) -> None:
+    """A time constant beyond any motor's that the logs resolve (within a few log lengths)
+    names the time unit; one far longer than every log was not determined by them (a fit that
+    diverged), and says so."""
     msgs = _tau_messages(model, typical_speed(logs))
     if not msgs:
         return
     text, tau = msgs[0]
     dt = max(log.dt for log in logs)
     longest = max(float(log.t[-1] - log.t[0]) for log in logs) if logs else math.inf
-    path = logs[0].path if logs else None
     if tau > UNDETERMINED_DURATIONS * longest:
         msg = (f"{text}, and {tau / longest:.3g} times the longest log ({longest:.3g} s): the "
                "logs do not determine it (the fit diverged, or the speed never settles); "
                "record steps held until the speed settles")
     else:
         msg = f"{text}: is t in ms or us? (sample period {dt:g} s; map it with -c t=COLUMN*ms)"
-    if not force:
-        raise LogError(f"{msg} (or --force to write it anyway)", path)
-    warn(msg, path)
+    _refuse(msg, logs[0].path if logs else None, force)
