@@ -523,6 +523,10 @@ def test_a_model_that_never_moves_where_a_log_turns_from_rest_is_refused(rng):
     gate_result(_paper_model(), [log])
     coast = _triangle(rng, x0=[0.0, 20.0, 0.0], u=lambda t: np.full(t.size, 0.01))
     gate_result(_paper_model(bc=0.01), [coast])
+    loaded = _paper_model(bc=0.05)  # beyond the 0.042 N m stall torque, but a load helps it on
+    loaded.add_effect("torque_offset")
+    loaded.set("tau0", -0.02)
+    gate_result(loaded, [log])
 
 
 @pytest.mark.slow

@@ -257,14 +257,16 @@ def turns_from_rest(log) -> bool:
 
 def drive_torque(model, log) -> float:
     """The largest torque ``log``'s input applies [N m] (per volt: [V] for a lumped model): |tau|,
-    or the stall torque km |v| / R; NaN when the model cannot say."""
+    or the stall torque km |v| / R, plus the model's constant load torque |tau0| (gravity on an
+    axis can turn it too); NaN when the model cannot say."""
     u = np.asarray(log.u, float)
     u = u[np.isfinite(u)]
     top = float(np.max(np.abs(u))) if u.size else math.nan
-    if log.drive == "tau" or model.extra.get("lumped"):
-        return top
-    km, R = _val(model, "km"), _val(model, "R")
-    return km * top / R if km > 0 and R > 0 else math.nan
+    if log.drive != "tau" and not model.extra.get("lumped"):
+        km, R = _val(model, "km"), _val(model, "R")
+        top = km * top / R if km > 0 and R > 0 else math.nan
+    load = abs(_val(model, "tau0")) if "torque_offset" in model.effects else 0.0
+    return top + (load if math.isfinite(load) else 0.0)
 
 
 def stuck_issue(model, logs) -> str | None:
