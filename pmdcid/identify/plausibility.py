@@ -48,11 +48,14 @@ def _time_unit_hint(dt: float) -> str:
             f"-c t=COLUMN*{unit}")
 
 
+def time_unit_issue(log) -> str | None:
+    """The time-unit rule: a sample period of :data:`MAX_SAMPLE_PERIOD` or more (None: none)."""
+    return _time_unit_hint(log.dt) if log.dt >= MAX_SAMPLE_PERIOD else None
+
+
 def log_issues(log) -> list[str]:
     """What is implausible about one log, one message each (empty: nothing)."""
-    out = []
-    if log.dt >= MAX_SAMPLE_PERIOD:
-        out.append(_time_unit_hint(log.dt))
+    out = [m for m in (time_unit_issue(log),) if m]
     out += list(getattr(log, "issues", []))
     return out
 

@@ -117,8 +117,16 @@ def _log_signals(log, drive: fi.Drive, blocked: bool) -> tuple[str, ...]:
 
 
 def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
-    """Predicted standard errors from ``logs`` (their inputs, their noise) at ``model``."""
+    """Predicted standard errors from ``logs`` (their inputs, their noise) at ``model``. A log
+    whose sample period no motor log has (t in ms or us) is refused first, naming the mapping:
+    its simulations at the model's time constants would take minutes, and predict nothing."""
     from pmdcid.fit.problem import noise_level
+    from pmdcid.identify.plausibility import time_unit_issue
+
+    for lg in logs:
+        msg = time_unit_issue(lg)
+        if msg:
+            raise LogError(msg, lg.path)
 
     drive = _log_drive(logs, model)
     vals = fi.model_values(model, drive)

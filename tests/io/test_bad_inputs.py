@@ -702,6 +702,12 @@ CASES: list[Case] = [
       r"give -m MODEL, or --guess", subprocess=True),
     C("plan-guess-without-limit", lambda d: None, ["plan", "--guess", "-o", "out"], 2,
       r"--guess needs --vmax"),
+    # t in ms without a unit: before, simulated at a 10 s period (newrigs' PI loop: no answer in
+    # 120 s; the demo's step: a prediction from the wrong time base); now refused like a fit
+    C("plan-check-time-in-ms", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                     _map_column(0, lambda x: 1000 * x))),
+      ["plan", "--check", "step.csv", "-m", "model.json", "-o", "plan"], 1,
+      r"^error: step\.csv: t looks like milliseconds.*-c t=COLUMN\*ms"),
     C("plan-check-without-logs", MODEL, ["plan", "--check", "-m", "model.json"], 2,
       r"--check needs the LOGs"),
     C("plan-budget-too-large", MODEL, ["plan", "-m", "model.json", "--budget", "1e9", "-o",
