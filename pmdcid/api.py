@@ -338,11 +338,26 @@ def check_plan(logs, model, out_dir=None, *, vmax: float | None = None,
     settings = _plan_settings(vmax, taumax, speed_max, rate, budget, noise_omega, noise_i)
     if out_dir is not None:
         check_out_dir(out_dir)
-    res = check_logs(_logs(logs, mapping=mapping), _model(model), settings)
+    res = check_logs(_checked_logs(logs, mapping), _model(model), settings)
     if out_dir is not None:
         with output_folder(out_dir) as d:
             atomic_write_text(d / "check.json", json.dumps(res.as_dict(), indent=2) + "\n")
     return res
+
+
+def _checked_logs(logs, mapping) -> list:
+    """plan --check's logs: read with their findings deferred, then warned about, unless a log's
+    time unit is wrong (check_logs refuses it: one line, not the warnings it causes first)."""
+    from pmdcid.errors import warn
+    from pmdcid.files import logs_of
+    from pmdcid.identify.plausibility import time_unit_issue
+
+    read = logs_of(logs, "logs", mapping, defer=True)
+    if not any(time_unit_issue(lg) for lg in read):
+        for lg in read:
+            for msg in getattr(lg, "issues", []):
+                warn(msg, lg.path)
+    return read
 
 
 def export(model, to: str, output, *, force: bool = False, note=None) -> list[str]:

@@ -37,10 +37,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.errors import FitError, PmdcidError
+from pmdcid.errors import MAX_MESSAGE, FitError, PmdcidError
 from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import closed_loop_logs
-from pmdcid.identify.plausibility import MAX_TAU_MECHANICAL, mechanical_tau, typical_speed
+from pmdcid.identify.plausibility import (
+    MAX_TAU_MECHANICAL,
+    mechanical_tau,
+    out_of_bounds,
+    stuck_issue,
+    typical_speed,
+)
 from pmdcid.identify.runners import (
     apply_stage,
     fit_stage,
@@ -359,6 +365,9 @@ def _diverged(model: Model, before: Model, logs) -> str | None:
     """Why a fitted model's mechanics cannot be what the logs determined (None: plausible)."""
     if model is before:
         return None
+    stuck = stuck_issue(model, logs)
+    if stuck:
+        return stuck.split(". ")[0]
     speed = typical_speed(logs)
     tau = mechanical_tau(model, speed)
     longest = max(float(lg.t[-1] - lg.t[0]) for lg in logs)
@@ -377,7 +386,11 @@ def _require_mechanics(res: IdentifyResult, moving) -> None:
     half model, no guessed one)."""
     if _staged_mech(res):
         return
-    said = "; ".join(res.notes) or "no stage gave J"
+    # each stage's reason shortened alike: the one-line limit would otherwise keep the first
+    # note and the end of the last, and drop the reasons between
+    budget = max(40, (MAX_MESSAGE - 110) // max(len(res.notes), 1))
+    said = "; ".join(n if len(n) <= budget else n[:budget - 3].rstrip() + "..."
+                     for n in res.notes) or "no stage gave J"
     raise FitError("identify could not fit the mechanics (J, bv) from the moving logs: " + said,
                    ", ".join(lg.path for lg in moving))
 
@@ -403,7 +416,8 @@ def _has_mech(model: Model) -> bool:
 
 
 def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
-    """Run one stage; a stage that cannot use its logs is noted, the others go on."""
+    """Run one stage; a stage that cannot use its logs, or whose result leaves a parameter
+    outside its physical bounds, is noted, the others go on."""
     try:
         out = fit_stage(fit, logs, res.model)
     except PmdcidError as exc:
@@ -411,6 +425,10 @@ def _stage(res: IdentifyResult, name: str, logs, fit) -> None:
         return
     new = res.model.copy()
     apply_stage(out, new)
+    bad = out_of_bounds(new)
+    if bad is not None:  # never a start for the next stage (J at its floor: minutes per fit)
+        res.notes.append(f"{name}: skipped: the fit gives {bad}")
+        return
     res.model = new
     res.stages.append((name, out))
     res.warnings += [w.in_stage(name) for w in notes_of(out)]

@@ -487,3 +487,117 @@ def test_an_aprbs_whose_levels_do_not_settle_is_fitted_as_rich_not_as_steps():
     w = np.asarray(held["omega"])
     err = np.sqrt(np.mean((simulate_for(held, res.model).omega - w) ** 2)) / np.std(w)
     assert err < 0.1  # the speed noise alone: 0.05
+
+
+def _paper_model(**over) -> Model:
+    m = Model()
+    for k in ("R", "L", "km", "J", "bv", "bc", "dz"):
+        m.set(k, over.get(k, PAPER[k]))
+    return m
+
+
+def _triangle(rng, amplitude=2.0, x0=None, u=None, seconds=10.0):
+    """A triangle of the paper's motor (10 ms samples), from rest unless ``x0`` (i, omega,
+    theta), or under the input ``u(t)``."""
+    from pmdcid.synth import triangle
+
+    t = np.arange(int(seconds * 100)) / 100.0
+    v = u(t) if u is not None else triangle(t, amplitude, seconds)
+    cols, _ = synth_log(t, v, {**neutral_values(), **PAPER}, PAPER_NOISE, rng, x0=x0)
+    return Log("triangle.csv", t, cols, meta={"kind": "triangle"})
+
+
+def test_a_model_that_never_moves_where_a_log_turns_from_rest_is_refused(rng):
+    """Coulomb friction beyond the stall torque km |v|/R of a log whose rotor turns from rest:
+    the model holds the rotor still there (the joint fit stuck in a never-moving solution wrote
+    bc = 50 N m for a 0.04 N m motor); refused naming the log, a warning with --force; a log
+    that starts turning and coasts under a small input does not trigger it."""
+    from pmdcid.identify.plausibility import gate_result
+
+    log = _triangle(rng)
+    with pytest.raises(LogError, match=r"bc = 50 N m is at or beyond .*triangle\.csv.* never "
+                                       r"moves"):
+        gate_result(_paper_model(bc=50.0), [log])
+    with pytest.warns(Warning, match="never moves"):
+        gate_result(_paper_model(bc=50.0), [log], force=True)
+    gate_result(_paper_model(), [log])
+    coast = _triangle(rng, x0=[0.0, 20.0, 0.0], u=lambda t: np.full(t.size, 0.01))
+    gate_result(_paper_model(bc=0.01), [coast])
+    loaded = _paper_model(bc=0.05)  # beyond the 0.042 N m stall torque, but a load helps it on
+    loaded.add_effect("torque_offset")
+    loaded.set("tau0", -0.02)
+    gate_result(loaded, [log])
+
+
+@pytest.mark.slow
+def test_a_speed_logged_as_exact_zeros_does_not_outweigh_a_log_that_moves():
+    """The demo's 1.5 V step with its speed and angle columns exact zeros (no noise to measure)
+    beside its blocked-rotor step and the triangle, which turns: before, the zeros' noise floor
+    (1e-12 rad/s) weighed the step 1e9 times the triangle and the joint fit wrote bc = 50.6 N m,
+    dz = 38 N m for a 0.04 N m motor (NRMSE 1.0 on the triangle: a model that never moves).
+    Now the zeros take the triangle's noise level: the model turns the rotor where it turns."""
+    import pmdcid.pipeline as pl
+
+    fix = FIXTURES / "hidden"
+    step_log, blocked, tri = read_logs([str(fix / n) for n in
+                                        ("step_1.5V.csv", "blocked_1.0V.csv", "triangle.csv")])
+    cols = {**step_log.data, "omega": np.zeros(step_log.n), "theta": np.zeros(step_log.n)}
+    still = Log("step.csv", step_log.t, cols, meta={"kind": "free-speed-step"})
+    keep = tri.t < 40.0  # one period at 100 Hz
+    tri = Log("triangle.csv", tri.t[keep][::10],
+              {c: np.asarray(x)[keep][::10] for c, x in tri.data.items()},
+              meta={"kind": "triangle"})
+    res = pl.identify([still, blocked, tri], Model(), km=PAPER["km"], run_diagnose=False)
+    stall = PAPER["km"] * 2.0 / PAPER["R"]  # the triangle's largest torque, 0.042 N m
+    assert res.model.value("bc") < stall
+    assert res.model.value("dz") < stall
+
+
+def test_a_fitted_value_outside_its_physical_bounds_is_refused_naming_the_logs(rng):
+    """A stage's result outside a parameter's bounds (a negative damping from a speed against
+    an offset input): before, the model file's writer refused it naming the model file, which
+    the user never wrote; now the gate names the logs and what to check, even with --force."""
+    from pmdcid.identify.plausibility import gate_result
+
+    log = _triangle(rng)
+    for force in (False, True):
+        with pytest.raises(LogError, match=r"^triangle\.csv: the fit gives parameter 'bv' = "
+                                           r"-0\.01 .*impossible.*signs and offsets"):
+            gate_result(_paper_model(bv=-0.01), [log], force=force)
+
+
+class _Negative(_Diverged):
+    """A stage's result that writes a negative inertia (a speed against an offset input)."""
+
+    def apply(self, model):
+        model.set("J", -1e-3, 1e-4, stage="joint")
+
+
+def test_a_stage_result_outside_physical_bounds_is_never_the_next_stages_start(monkeypatch):
+    """fit-mechanical on a step against an offset input gave b < 0 and J < 0; identify took it
+    as the joint fit's start, J clipped to its floor 1e-12 kg m^2, every simulation at the
+    substep cap: minutes on a 3 s log (the red team's timeout). Such a result is skipped."""
+    import pmdcid.pipeline as pl
+
+    monkeypatch.setattr(pl, "_nonlinear", lambda priors, controller=None:
+                        lambda logs, model: _Negative())
+    res = pl.identify(_fixture_steps(), Model(), km=PAPER["km"], run_diagnose=False)
+    assert any("skipped: the fit gives parameter 'J' = -0.001" in n for n in res.notes), res.notes
+    assert res.model.value("J") == pytest.approx(PAPER["J"], rel=0.05)
+
+
+def test_no_mechanics_says_every_stages_reason_within_one_line():
+    """identify without J names what each stage said. The one-line limit kept the first note
+    and the end of the last ("... ; join ... oves there)"): a reason between was lost. Each
+    note is now shortened alike, its head (stage and reason) kept."""
+    import pmdcid.pipeline as pl
+    from pmdcid.errors import MAX_MESSAGE, FitError
+
+    stages = ("fit-mechanical", "linear start", "joint fit", "fit-nonlinear")
+    notes = [f"{s}: skipped: step.csv: " + "a long reason that goes on " * 6 for s in stages]
+    res = pl.IdentifyResult(Model(), [], notes=notes)
+    with pytest.raises(FitError) as exc:
+        pl._require_mechanics(res, [Log("step.csv", np.arange(3.0), {"v": np.ones(3)})])
+    text = str(exc.value)
+    assert len(text) <= MAX_MESSAGE and " ... " not in text
+    assert all(f"{s}: skipped: step.csv: a long" in text for s in stages), text

@@ -16,7 +16,7 @@ import numpy as np
 
 from pmdcid.errors import FitError
 from pmdcid.fit.solver import scale_of
-from pmdcid.model.effects import bounds_of
+from pmdcid.model.effects import bounds_of, unit_of
 
 #: relative finite-difference step of a parameter unless it says otherwise
 STEP = 1e-3
@@ -98,6 +98,13 @@ class Parameters(dict):
         bad = [p.name for p in ps if not math.isfinite(p.value)]
         if bad:
             raise FitError(f"no finite starting value for {', '.join(bad)}")
+        empty = [p for p in ps if not p.lower < p.upper]
+        if empty:
+            p = empty[0]
+            raise FitError(
+                f"no room to fit {p.name}: the range the logs allow, narrowed to its physical "
+                f"bounds, is empty ([{p.lower:.3g}, {p.upper:.3g}] {unit_of(p.name)}): check the "
+                "units and scale of the logs' columns")
         lo, hi = self.bounds()
         return np.clip(np.array([p.value for p in ps], float), lo, hi)
 

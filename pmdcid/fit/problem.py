@@ -211,6 +211,7 @@ class Problem:
             else:
                 self.channels += [_channel(k, log, s, rows, fit, given[k])
                                   for s in available_signals(log, signals)]
+        borrow_noise(self.channels, given)
         self._check(signals)
         self.blocked = [log.blocked for log in self.logs]
         self._needs: dict[str, list[int]] = {}
@@ -479,6 +480,45 @@ class Problem:
         return dict(zip(free, (float(e) for e in se), strict=True)), info, curv
 
 
+def _varies(x: np.ndarray) -> bool:
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    return x.size > 0 and float(np.ptp(x)) > 0
+
+
+def _floors(pairs) -> dict[str, float]:
+    """signal -> the smallest noise level among the ``(signal, varies, sigma)`` that vary."""
+    out: dict[str, float] = {}
+    for sig, varies, sigma in pairs:
+        if varies:
+            out[sig] = min(out.get(sig, math.inf), sigma)
+    return out
+
+
+def borrow_noise(channels: Sequence[Channel], given: Sequence[dict[str, float]]) -> None:
+    """A signal logged exactly constant (a speed of exact zeros: no noise to measure, and
+    :func:`noise_level`'s floor would weigh it 1e9 times the others) takes the smallest noise
+    level the same signal shows in another log, unless its sigma was given."""
+    flags = [_varies(ch.meas) for ch in channels]
+    floor = _floors((ch.signal, f, ch.sigma) for ch, f in zip(channels, flags, strict=True))
+    for ch, f in zip(channels, flags, strict=True):
+        if not f and ch.signal in floor and ch.signal not in given[ch.log]:
+            ch.sigma = max(ch.sigma, floor[ch.signal])
+
+
+def noise_levels(logs: Sequence, signals: Sequence[str]) -> list[dict[str, float]]:
+    """Each log's :func:`noise_level` per signal it has, a signal logged exactly constant
+    taking the smallest level the same signal shows in another log (:func:`borrow_noise`)."""
+    out = [{s: noise_level(lg[s]) for s in signals if lg.has(s)} for lg in logs]
+    flags = [{s: _varies(lg[s]) for s in sig} for lg, sig in zip(logs, out, strict=True)]
+    floor = _floors((s, f[s], sig[s]) for sig, f in zip(out, flags, strict=True) for s in sig)
+    for sig, f in zip(out, flags, strict=True):
+        for s in sig:
+            if not f[s] and s in floor:
+                sig[s] = max(sig[s], floor[s])
+    return out
+
+
 def _channel(k: int, log, s: str, rows, fit, given: dict[str, float]) -> Channel:
     """Signal ``s`` of log ``k`` weighted by ``given[s]``, else by its noise level."""
     x = np.asarray(log.u if s == "u" else log[s], float)
@@ -511,4 +551,4 @@ def _judged_channels(k: int, log, rows, fit) -> list[Channel]:
 
 
 __all__ = ["JUDGED", "Channel", "FitOutcome", "Problem", "Simulation",
-           "available_signals", "noise_level", "refit_range"]
+           "available_signals", "borrow_noise", "noise_level", "noise_levels", "refit_range"]

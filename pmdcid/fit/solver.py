@@ -8,7 +8,11 @@ dynamics' refinement) and every diagnose refit (:meth:`.problem.Problem.fit`) ca
 for an inertia of 1e-6 kg m^2 and a resistance of 3 ohm), one BLAS thread, and a residual
 that is not finite at the start turned into a :class:`~pmdcid.errors.FitError`.
 
-What the engine catches: nothing but that documented condition. The model's own refusals
+What the engine refuses itself, before scipy does with a bare ValueError: a parameter whose
+bounds leave no room (lower not below upper: :func:`check_bounds`, e.g. a range the logs' speed
+scale sets that lies outside the parameter's physical bounds; :meth:`.parameters.Parameters.start`
+names the parameter), as a :class:`~pmdcid.errors.FitError`. What the engine catches: nothing
+but the non-finite start. The model's own refusals
 (:class:`~pmdcid.errors.PmdcidError`: a work bound, a parameter out of range) pass through
 scipy unchanged to the stage that knows what to say; any other exception raised inside the
 residual or the Jacobian (a ValueError from names zipped against a shorter vector, an
@@ -88,6 +92,7 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     from pmdcid.fit.fdjac import ForwardJacobian
     from pmdcid.fit.tall import TALL_ROWS, Compressed
 
+    check_bounds(lo_z, hi_z, what)
     z0 = np.clip(np.asarray(z0, float), lo_z, hi_z)
     fd = ForwardJacobian(finite_at_start(fun_z, what), diff_step, lo_z, hi_z, fills=fills,
                          parallel=parallel)
@@ -103,6 +108,18 @@ def solve(fun_z, z0, lo_z, hi_z, *, scale, diff_step=None, max_nfev: int | None 
     fd._JT = fd._last = None  # scipy's wrappers keep fd in reference cycles: free its arrays now
     return Solution(sol.x, np.asarray(scale, float), sol.fun, jac, int(sol.nfev),
                     bool(sol.success), str(sol.message))
+
+
+def check_bounds(lo_z, hi_z, what: str) -> None:
+    """Every parameter's lower bound strictly below its upper one, else a
+    :class:`~pmdcid.errors.FitError` naming ``what`` (scipy would raise a bare ValueError)."""
+    lo, hi = np.broadcast_arrays(np.asarray(lo_z, float), np.asarray(hi_z, float))
+    bad = np.flatnonzero(~(lo < hi))
+    if bad.size:
+        k = int(bad[0])
+        raise FitError(f"{what} failed: parameter {k + 1} has no room between its bounds "
+                       f"[{lo[k]:.3g}, {hi[k]:.3g}] (scaled): check the units and scale of "
+                       "the logs' columns")
 
 
 def finite_at_start(fun_z, what: str):
@@ -132,4 +149,5 @@ def _least_squares(fun, z0, bounds, diff_step, max_nfev, x_scale, jac="2-point")
                          max_nfev=max_nfev, x_scale=x_scale)
 
 
-__all__ = ["Solution", "blas_single_thread", "finite_at_start", "scale_of", "solve"]
+__all__ = ["Solution", "blas_single_thread", "check_bounds", "finite_at_start", "scale_of",
+           "solve"]

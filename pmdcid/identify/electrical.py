@@ -240,7 +240,8 @@ def _joint(logs, steps, reps, warns) -> ElectricalResult:
     g, c, tau = cf["G"], cf["i0"], cf["tau"]
     if g <= 0:
         raise FitError("blocked-rotor fit gives a non-positive conductance: check the sign of the "
-                       "current column against the voltage (map it with -c i=SRC*-1)")
+                       "current column against the voltage (map it with -c i=SRC*-1)",
+                       ", ".join(dict.fromkeys(log.path for log in logs)))
     r = 1.0 / g
     r_se = cf.se("G") / g**2
     L = tau * r

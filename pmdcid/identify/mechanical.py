@@ -436,6 +436,12 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
     kmot, kmot_se = _mean_se(np.array([s.kmot for s in moving]))
     tmot, tmot_se = _mean_se(np.array([s.tau_mot for s in moving]))
     b, b_se = _mean_se(np.array([s.b for s in moving]))
+    if b < 0:  # km/Kmot - km^2/R: the speed per volt exceeds what the back-EMF allows
+        raise FitError(
+            f"the steps give a non-positive damping b = {b:.3g} N m s/rad: the speed does not "
+            "follow the input as a motor's does; check the speed's sign against the input "
+            "(-c omega=COLUMN*-1), the input's offset, and km",
+            ", ".join(dict.fromkeys(s.path for s in moving)))
     jp, jp_se = _mean_se(np.array([s.J_paper for s in moving]))
     tm, tm_se = _mean_se(np.array([s.tau_m for s in moving]), np.array([s.tau_m_se
                                                                          for s in moving]))

@@ -30,7 +30,7 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.fit.parameters import Parameters
 from pmdcid.fit.priors import prior_terms, stage_priors
-from pmdcid.fit.problem import noise_level
+from pmdcid.fit.problem import noise_levels
 from pmdcid.fit.results import (
     Estimate,
     ResultProtocol,
@@ -691,7 +691,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     work, start, guessed, nstarts = working_model(logs, model, free, warns, pick)
     base_vals = [param_values(work, lg.drive == "tau", {k: start[k] for k in free})
                  for lg in logs]
-    sigma = [{s: noise_level(lg[s]) for s in signals if lg.has(s)} for lg in logs]
+    sigma = noise_levels(logs, signals)
     if not any(sigma):
         raise FitError(f"no log carries {' or '.join(signals)} to fit")
     require_motion(logs, sigma)

@@ -48,11 +48,14 @@ def _time_unit_hint(dt: float) -> str:
             f"-c t=COLUMN*{unit}")
 
 
+def time_unit_issue(log) -> str | None:
+    """The time-unit rule: a sample period of :data:`MAX_SAMPLE_PERIOD` or more (None: none)."""
+    return _time_unit_hint(log.dt) if log.dt >= MAX_SAMPLE_PERIOD else None
+
+
 def log_issues(log) -> list[str]:
     """What is implausible about one log, one message each (empty: nothing)."""
-    out = []
-    if log.dt >= MAX_SAMPLE_PERIOD:
-        out.append(_time_unit_hint(log.dt))
+    out = [m for m in (time_unit_issue(log),) if m]
     out += list(getattr(log, "issues", []))
     return out
 
@@ -230,30 +233,132 @@ def lumped_issues(model, logs) -> list[str]:
     return out
 
 
+#: a measured signal "moves" when it leaves its start by this many noise std (its rest at the
+#: start: its first samples within a fifth of that)
+MOVES_NOISE = 20.0
+
+
+def turns_from_rest(log) -> bool:
+    """The rotor is at rest at the log's start and turns later (measured speed, else angle):
+    then some input torque overcame the friction at rest."""
+    from pmdcid.io.derive import noise_std
+
+    sig = next((c for c in ("omega", "theta") if log.has(c) and c not in log.derived), None)
+    if sig is None:
+        return False
+    x = np.asarray(log[sig], float)
+    x = x[np.isfinite(x)]
+    head = max(5, x.size // 50)
+    if x.size < 2 * head:
+        return False
+    noise = noise_std(x)
+    start = np.median(x[:head])
+    rest = (abs(start) if sig == "omega" else float(np.ptp(x[:head]))) < MOVES_NOISE / 5 * noise
+    return bool(noise > 0 and rest and np.max(np.abs(x - (0.0 if sig == "omega" else start)))
+                > MOVES_NOISE * noise)
+
+
+def drive_torque(model, log) -> float:
+    """The largest torque ``log``'s input applies [N m] (per volt: [V] for a lumped model): |tau|,
+    or the stall torque km |v| / R, plus the model's constant load torque |tau0| (gravity on an
+    axis can turn it too); NaN when the model cannot say."""
+    u = np.asarray(log.u, float)
+    u = u[np.isfinite(u)]
+    top = float(np.max(np.abs(u))) if u.size else math.nan
+    if log.drive != "tau" and not model.extra.get("lumped"):
+        km, R = _val(model, "km"), _val(model, "R")
+        top = km * top / R if km > 0 and R > 0 else math.nan
+    load = abs(_val(model, "tau0")) if "torque_offset" in model.effects else 0.0
+    return top + (load if math.isfinite(load) else 0.0)
+
+
+def stuck_issue(model, logs) -> str | None:
+    """A model whose friction at rest (Coulomb bc, or the dead zone dz) is at or beyond the
+    largest torque a log's input applies, while that log's rotor turns from rest: the model
+    holds the rotor still where the log shows it turning (None: no such log)."""
+    unit = "V per volt" if model.extra.get("lumped") else "N m"
+    for log in logs:
+        if not turns_from_rest(log):
+            continue
+        top = drive_torque(model, log)
+        for name, what in (("bc", "Coulomb friction"), ("dz", "dead zone")):
+            x = _val(model, name)
+            if top > 0 and x >= top:
+                return (f"the fitted {what} {name} = {x:.3g} {unit} is at or beyond the largest "
+                        f"torque the input of {log.path} applies ({top:.3g} {unit}), yet its "
+                        "rotor turns from rest: the model never moves there. Check the units "
+                        "and scale of the input and the speed (and the speed's sign against the "
+                        "input), or give logs that agree (a log whose rotor stays still at an "
+                        "input that turns it in another)")
+    return None
+
+
+def out_of_bounds(model) -> str | None:
+    """The first parameter outside its physical bounds, or an effect torque beyond the motor's
+    (the checks the model file's writer applies), in words (None: all within)."""
+    from pmdcid.errors import ModelError
+    from pmdcid.model.effects.torque_limit import check_plausible
+    from pmdcid.model.params import check_bounds
+
+    try:
+        for name, par in model.parameters.items():
+            check_bounds(name, par.value, None)
+        check_plausible({k: p.value for k, p in model.parameters.items()}, None,
+                        model.extra.get("lumped") is True)
+    except ModelError as exc:
+        return str(exc)
+    return None
+
+
+def range_issue(model) -> str | None:
+    """:func:`out_of_bounds` of a fitted model, as a line about the logs (None: all within)."""
+    bad = out_of_bounds(model)
+    if bad is None:
+        return None
+    return (f"the fit gives {bad}: the logs do not behave as this motor model's (check the "
+            "units, signs and offsets of the input and speed columns, or the rotor was "
+            "blocked); the model was not written")
+
+
 def gate_result(model, logs, force: bool = False) -> None:
-    """The time-constant rules on a fitted model (before it is written), and for a lumped model
-    the per-volt rules (:func:`lumped_issues`). A time constant beyond any motor's that the logs
-    resolve (within a few log lengths) names the time unit; one far longer than every log was
-    not determined by them (a fit that diverged), and says so."""
+    """The rules on a fitted model before it is written: for a lumped model the per-volt rules
+    (:func:`lumped_issues`); the time constants (:func:`_tau_gate`: they name a time unit, so
+    they speak first); a value outside its physical bounds (:func:`range_issue`, never
+    forced: the model file cannot hold it); friction that holds the rotor still where a log
+    turns (:func:`stuck_issue`)."""
+    path = logs[0].path if logs else None
     if model.extra.get("lumped"):
         for msg in lumped_issues(model, logs):
-            if not force:
-                raise LogError(f"{msg} (or --force to write it anyway)",
-                               logs[0].path if logs else None)
-            warn(msg, logs[0].path if logs else None)
+            _refuse(msg, path, force)
+    _tau_gate(model, logs, force)
+    bad = range_issue(model)
+    if bad:
+        raise LogError(bad, ", ".join(dict.fromkeys(lg.path for lg in logs)) or None)
+    stuck = None if model.extra.get("lumped") else stuck_issue(model, logs)
+    if stuck:
+        _refuse(stuck, path, force)
+
+
+def _refuse(msg: str, path, force: bool) -> None:
+    if not force:
+        raise LogError(f"{msg} (or --force to write it anyway)", path)
+    warn(msg, path)
+
+
+def _tau_gate(model, logs, force: bool) -> None:
+    """A time constant beyond any motor's that the logs resolve (within a few log lengths)
+    names the time unit; one far longer than every log was not determined by them (a fit that
+    diverged), and says so."""
     msgs = _tau_messages(model, typical_speed(logs))
     if not msgs:
         return
     text, tau = msgs[0]
     dt = max(log.dt for log in logs)
     longest = max(float(log.t[-1] - log.t[0]) for log in logs) if logs else math.inf
-    path = logs[0].path if logs else None
     if tau > UNDETERMINED_DURATIONS * longest:
         msg = (f"{text}, and {tau / longest:.3g} times the longest log ({longest:.3g} s): the "
                "logs do not determine it (the fit diverged, or the speed never settles); "
                "record steps held until the speed settles")
     else:
         msg = f"{text}: is t in ms or us? (sample period {dt:g} s; map it with -c t=COLUMN*ms)"
-    if not force:
-        raise LogError(f"{msg} (or --force to write it anyway)", path)
-    warn(msg, path)
+    _refuse(msg, logs[0].path if logs else None, force)

@@ -6,6 +6,8 @@
 - :func:`check_speed_units`: when a log measures both speed and angle, the speed must equal the
   angle's time derivative. A ratio near 60/(2 pi) says the speed is in rpm, near 180/pi that it is
   in deg/s, and so on: the warning names the likely unit and the mapping that fixes it.
+- :func:`check_speed_range`: a measured speed beyond :data:`MAX_SPEED` is no motor's (rad/s,
+  or m/s on a linear axis): a column in counts per second, or a scale applied twice.
 """
 
 from __future__ import annotations
@@ -22,6 +24,10 @@ SATURATION_COLUMNS = ("i", "omega")
 SATURATION_MIN_FRACTION = 0.005
 #: ... and at least this many times the count of any other single value
 SATURATION_PILEUP = 3.0
+
+#: fastest measured speed of any motor [rad/s] (or linear axis [m/s]): 1e6 rad/s is 9.5 million
+#: rpm, 20 times the fastest spindles built; the catalogue's speeds (Stribeck ws) end there too
+MAX_SPEED = 1e6
 
 #: speed/angle-derivative ratios that betray a unit, and the mapping that fixes them
 UNIT_RATIOS: tuple[tuple[float, str], ...] = (
@@ -53,11 +59,27 @@ def check_log(log) -> list[str]:
         for col in SATURATION_COLUMNS:
             if col in log.data and col not in log.derived:
                 check_saturation(log.data[col], col, log.path)
+        if "omega" in log.data and "omega" not in log.derived:
+            check_speed_range(log.data["omega"], log.path)
         if "omega" in log.data and "theta" in log.data and not log.derived & {"omega", "theta"}:
             check_speed_units(log.data["omega"], log.data["theta"], log.dt, log.path)
     prefix = f"{log.path}: "
     return [str(w.message).removeprefix(prefix) for w in caught
             if issubclass(w.category, PmdcidWarning)]
+
+
+def check_speed_range(omega: np.ndarray, path: str) -> bool:
+    """Warn when the measured speed exceeds :data:`MAX_SPEED` anywhere: no motor turns that
+    fast (True: warned)."""
+    w = np.abs(np.asarray(omega, float))
+    w = w[np.isfinite(w)]
+    top = float(w.max()) if w.size else 0.0
+    if top <= MAX_SPEED:
+        return False
+    warn(f"omega reaches {top:.3g} rad/s, beyond any motor's speed (< {MAX_SPEED:g} rad/s): "
+         "check its unit and scale (-c omega=COLUMN*FACTOR; encoder counts per second need "
+         "2*pi/COUNTS_PER_REV)", path)
+    return True
 
 
 def _rail(x: np.ndarray, value: float) -> tuple[int, float]:

@@ -19,7 +19,14 @@ from pmdcid.errors import LogError, ModelError
 from pmdcid.model import Model
 from pmdcid.plan import fisher as fi
 from pmdcid.plan import profiles as pr
-from pmdcid.plan.design import Settings, candidates, parameter_scales
+from pmdcid.plan.design import (
+    DEFAULT_UMAX_BREAKAWAY,
+    NOISE_FRACTION,
+    Settings,
+    breakaway_input,
+    candidates,
+    parameter_scales,
+)
 
 #: relative standard error above which a parameter is poorly determined
 POOR = 0.25
@@ -71,7 +78,7 @@ class CheckResult:
             if fx.get("kind"):
                 done = ("" if fx["reaches"] else
                         f" (still {100 * fx['relative_after']:.2g} % within the budget)")
-                out.append(f"{n}: record {fx['seconds']:.0f} s of {fx['kind']} up to "
+                out.append(f"{n}: record {fx['seconds']:.3g} s of {fx['kind']} up to "
                            f"{fx['amplitude']:.3g} ({pr.PURPOSES[fx['kind']]}){done}")
             else:
                 out.append(f"{n}: no candidate profile helps: {fx.get('why', '')}")
@@ -110,8 +117,16 @@ def _log_signals(log, drive: fi.Drive, blocked: bool) -> tuple[str, ...]:
 
 
 def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
-    """Predicted standard errors from ``logs`` (their inputs, their noise) at ``model``."""
+    """Predicted standard errors from ``logs`` (their inputs, their noise) at ``model``. A log
+    whose sample period no motor log has (t in ms or us) is refused first, naming the mapping:
+    its simulations at the model's time constants would take minutes, and predict nothing."""
     from pmdcid.fit.problem import noise_level
+    from pmdcid.identify.plausibility import time_unit_issue
+
+    for lg in logs:
+        msg = time_unit_issue(lg)
+        if msg:
+            raise LogError(msg, lg.path)
 
     drive = _log_drive(logs, model)
     vals = fi.model_values(model, drive)
@@ -156,19 +171,38 @@ def _judge_effects(res: CheckResult, logs, model: Model) -> None:
         res.effects_skipped = str(exc)
 
 
+def _logged_umax(logs, vals, drive) -> float:
+    """The fixes' input limit without --vmax/--taumax: the largest input the logs applied, or,
+    when they applied none (an input of zeros), plan's default: 3 x the model's breakaway
+    input; neither: one line asking for the limit."""
+    top = max(float(np.max(np.abs(lg.u))) for lg in logs)
+    if top > 0 and math.isfinite(top):
+        return top
+    umax = DEFAULT_UMAX_BREAKAWAY * breakaway_input(vals, drive)
+    if not umax > 0:
+        opt = "--taumax" if drive.column == "tau" else "--vmax"
+        raise LogError(f"the logs apply no input and the model has no friction to size one "
+                       f"from: give {opt}", ", ".join(str(lg.path) for lg in logs))
+    return umax
+
+
 def fixes(poor, F, logs, vals, names, drive, scales, noises, settings: Settings) -> dict:
     """For each poor parameter: the candidate profile (and seconds) that fixes it best."""
-    umax = settings.umax or max(float(np.max(np.abs(lg.u))) for lg in logs)
+    umax = settings.umax or _logged_umax(logs, vals, drive)
     rate = settings.rate or 1.0 / min(lg.dt for lg in logs)
     noise = {s: float(np.median([n[s] for n in noises if s in n]))
              for s in ("omega", "i") if any(s in n for n in noises)}
     if "omega" not in noise:
         noise["omega"] = 0.01 * max(abs(vals.get("bv", 1.0)), 1e-9)
+    if "i" not in noise and vals.get("R", 0) > 0:  # logs without current: plan's default
+        noise["i"] = settings.noise_i or NOISE_FRACTION * umax / vals["R"]
     cands = candidates(vals, drive, umax, settings.speed_max, rate, "R" in names)
     unit = []
     for kind, u, b in cands:
         t = np.arange(len(u)) / rate
         sigs = tuple(s for s in fi.signals_of(b, drive) if s in noise)
+        if not sigs:  # nothing this profile records has a known noise: it cannot be scored
+            continue
         sens = fi.sensitivities(t, u, vals, names, drive, b, scales, sigs)
         unit.append((kind, fi.information(sens, noise), len(u) / rate,
                      float(np.max(np.abs(u)))))

@@ -36,6 +36,17 @@ def test_parameter_set_bounds_fixed_and_priors():
     assert full.free == ["J", "bv", "bc"] and len(full.start()) == 3
 
 
+def test_a_range_narrowed_to_nothing_is_a_fit_error_naming_the_parameter():
+    """Limits from the logs (a Stribeck speed within the logged speeds) outside the parameter's
+    physical bounds leave no room: a FitError naming it and the units to check, not scipy's
+    ValueError (the CLI's internal error on a log in the wrong unit)."""
+    ps = Parameters.of(["J", "ws"], {"J": 2e-3, "ws": 1.0})
+    lo, hi = bounds_of("ws")
+    ps.tighten("ws", 1e3 * hi, 1e6 * hi)  # never widens: lower now above upper
+    with pytest.raises(FitError, match=r"no room to fit ws: .*rad/s.*units and scale"):
+        ps.start()
+
+
 def test_residual_is_simulated_minus_measured_over_sigma():
     truth, log, model, _ = triangle_fit_problem()
     vals = param_values(model)
@@ -101,3 +112,21 @@ def test_diagnose_refit_fits_a_name_given_twice_once():
     assert list(twice.estimates) == list(free)
     for k in free:
         assert twice.values[k] == pytest.approx(once.values[k], rel=1e-9)
+
+
+def test_a_signal_logged_exactly_constant_takes_another_logs_noise_level(rng):
+    """A speed of exact zeros has no noise to measure: noise_level's floor (1e-12) would weigh
+    it 1e9 times a log that moves. It takes the smallest level the same signal shows in another
+    log; a signal that varies keeps its own, and with no other log the floor stays."""
+    from pmdcid.fit.problem import noise_levels
+    from pmdcid.io import Log
+
+    t = np.arange(500) * 1e-3
+    moving = Log("a.csv", t, {"v": np.ones(t.size), "omega": 3 + 0.01 * rng.standard_normal(500)})
+    quiet = Log("b.csv", t, {"v": np.ones(t.size), "omega": 1 + 0.002 * rng.standard_normal(500)})
+    still = Log("c.csv", t, {"v": np.ones(t.size), "omega": np.zeros(500)})
+    levels = noise_levels([moving, quiet, still], ["omega"])
+    assert levels[0]["omega"] == pytest.approx(0.01, rel=0.2)
+    assert levels[1]["omega"] == pytest.approx(0.002, rel=0.2)
+    assert levels[2]["omega"] == levels[1]["omega"]
+    assert noise_levels([still], ["omega"])[0]["omega"] == pytest.approx(1e-12)

@@ -79,3 +79,15 @@ def test_a_residual_not_finite_later_only_shrinks_the_step():
     sol = _line_fit(resid)
     assert calls[0] > 4
     assert sol.x == pytest.approx([2.0, 1.0], abs=0.02)
+
+
+@pytest.mark.parametrize("lo, hi", [(np.array([-10.0, 2.0]), np.array([10.0, 1.0])),
+                                    (np.array([-10.0, 1.0]), np.array([10.0, 1.0]))])
+def test_bounds_that_leave_no_room_are_a_fit_error_not_scipys_value_error(lo, hi):
+    """scipy refuses lower >= upper with a bare ValueError, which reached the CLI edge as an
+    internal error (diagnose on a log whose speed scale put Stribeck's ws range beyond its
+    physical bound); the engine names the fit instead."""
+    t, y = _line_data(np.random.default_rng(4))
+    with pytest.raises(FitError, match="line fit failed: parameter 2 has no room"):
+        solve(lambda z: z[0] * t + z[1] - y, np.array([0.5, 0.5]), lo, hi, scale=np.ones(2),
+              what="line fit")

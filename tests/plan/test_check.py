@@ -82,3 +82,47 @@ def test_simulate_holds_a_blocked_rotor_profile_and_keeps_its_kind(tmp_path, tru
     assert "# kind: blocked-rotor" in text
     header = next(ln for ln in text.splitlines() if not ln.startswith("#"))
     assert header == "t,v,i"  # the rotor held: no speed to spin up
+
+
+def test_check_sizes_its_fixes_from_the_model_when_the_logs_apply_no_input():
+    """plan --check on a log whose input is zeros (the rotor never driven): before, the fixes
+    were profiles "up to 0" V, an experiment that excites nothing; now plan's own default input,
+    3 x the model's breakaway input, sizes them."""
+    import numpy as np
+
+    from pmdcid.io import Log
+    from pmdcid.plan import fisher as fi
+    from pmdcid.plan.check import check_logs
+    from pmdcid.plan.design import DEFAULT_UMAX_BREAKAWAY, Settings, breakaway_input
+
+    rng = np.random.default_rng(7)
+    t = np.arange(1000) * 1e-3
+    log = Log("idle.csv", t, {"v": np.zeros(t.size), "i": 4e-3 * rng.standard_normal(t.size),
+                              "omega": 4e-3 * rng.standard_normal(t.size)})
+    model = truth_model(PAPER)
+    res = check_logs([log], model, Settings(budget=60))
+    drive = fi.drive_of(model)
+    top = DEFAULT_UMAX_BREAKAWAY * breakaway_input(fi.model_values(model, drive), drive)
+    amps = [fx["amplitude"] for fx in res.fixes.values() if fx.get("kind")]
+    assert amps and top > 0
+    assert max(amps) == pytest.approx(top, rel=1e-6)
+
+
+def test_check_of_logs_without_current_still_scores_a_blocked_rotor_fix():
+    """Voltage and speed logged, no current: R and L are poorly determined, and the blocked-rotor
+    profile that fixes them records the current, whose noise the logs cannot give. Before: an
+    internal error (a 0 x 0 information added to the 6 x 6); now plan's default current noise
+    (1 % of the stall current at the input limit, or --noise-i) scores it."""
+    import numpy as np
+
+    from pmdcid.io import Log
+    from pmdcid.plan.check import check_logs
+    from pmdcid.plan.design import Settings
+
+    rng = np.random.default_rng(8)
+    t = np.arange(1500) * 1e-3
+    v = np.where(t > 0.5, 1.5, 0.0)
+    log = Log("speed_only.csv", t, {"v": v, "omega": 4e-3 * rng.standard_normal(t.size)})
+    res = check_logs([log], truth_model(PAPER), Settings(budget=60))
+    assert {"R", "L"} <= set(res.poor())
+    assert res.fixes["R"]["kind"] == "blocked"
