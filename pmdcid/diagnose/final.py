@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
+from pmdcid.diagnose.lagdz import lag_refits, refitted_line, seen_on_profile, widen
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.results import Estimate, bounded
@@ -125,7 +126,15 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
     problem = run.problem
     if "dz" not in free:
         return final, free
-    upper = dead_zone_range(problem, final)
+    lagged, spread = lag_refits(run, free), {}
+    if lagged:
+        # the model's dz was settled without the lag diagnose took: read on the refitted
+        # profile (lagdz.py), never held where the lag-less fit left it
+        again, upper, spread = seen_on_profile(run, final, free)
+        if again is not None:
+            return again, free
+    else:
+        upper = dead_zone_range(problem, final)
     if upper is not None:
         # its refit value and standard error would mean nothing: written as the interval, as
         # fit-nonlinear does, the others refitted at the point inside that the model keeps: the
@@ -134,16 +143,17 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
         # along the flat cost, and its interval's midpoint can be a dead zone no earlier fit
         # had), else the midpoint
         free = [p for p in free if p != "dz"]
-        kept = inside(run.model.parameters.get("dz"), upper)
+        kept = not lagged and inside(run.model.parameters.get("dz"), upper)
         point = run.vals0["dz"] if kept else 0.5 * upper
         final = run.fit({**final.values, "dz": point}, free, "all")
         unit = lumped_unit("N m") if is_lumped(run.model) else "N m"
         final.estimates["dz"] = bounded("dz", 0.0, upper, unit, DZ_CAVEAT, point)
+        widen(final.estimates, spread)  # the others move with dz across it (lagdz.py)
         notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
                      f"to {upper:.3g} {unit} fits equally (below the breakaway torque); "
                      + ("the model's dz lies inside and is kept" if kept else
                         "written as that interval, not as a value with a standard error"))
-    elif _fits_as_well(problem, final, {"dz": run.vals0["dz"]}):
+    elif not lagged and _fits_as_well(problem, final, {"dz": run.vals0["dz"]}):
         # the dead zone shows only at a few switching instants: when the model's own dz (from
         # fit-nonlinear's slow reversals) fits these logs as well, these logs do not move it
         free = [p for p in free if p != "dz"]
@@ -173,8 +183,18 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
     if info is not None and (info.inflation > 1.5 or info.lower_bound):
         notes.append(info.describe())
     if "dz" in free and curv is not None:
-        dead_zone_line(problem, final, [n for n in final.estimates if n in final.values], curv,
-                       notes)
+        names = [n for n in final.estimates if n in final.values]
+        if lag_refits(run, free):
+            refitted_line(run, final, free, line_fit(final, names, curv), notes)
+        else:
+            dead_zone_line(problem, final, names, curv, notes)
+
+
+def line_fit(final: FitOutcome, names: list[str], curv: np.ndarray) -> SimpleNamespace:
+    """The fit as the profile line reads it (:func:`pmdcid.identify.dead_zone.profile_line`):
+    the estimates ``names``, their envelope ``(J'J)^-1`` ``curv``, no held part, no priors."""
+    return SimpleNamespace(estimates={n: final.estimates[n] for n in names}, curvature=curv,
+                           held_cov=None, priors={}, prior_weight=1.0)
 
 
 def dead_zone_line(problem: Problem, final: FitOutcome, names: list[str], curv: np.ndarray,
@@ -186,8 +206,7 @@ def dead_zone_line(problem: Problem, final: FitOutcome, names: list[str], curv: 
     never narrower (``final`` updated in place, a note when it widened). The values stay the
     refit's: moved to the interval's middle with an added effect, the total friction could
     turn negative within the logged speeds (tests/system/test_diagnose.py's quadratic drag)."""
-    shim = SimpleNamespace(estimates={n: final.estimates[n] for n in names}, curvature=curv,
-                           held_cov=None, priors={}, prior_weight=1.0)
+    shim = line_fit(final, names, curv)
 
     def cost(sets):
         return pmap(lambda s: problem.chi2({**final.values, **s})["all"], sets)
