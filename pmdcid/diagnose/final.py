@@ -25,6 +25,7 @@ from pmdcid.identify.dead_zone import dead_zone_interval
 from pmdcid.identify.nonlinear import DZ_CAVEAT, masked_upper
 from pmdcid.model import EFFECTS
 from pmdcid.model.lumped import LUMPED_ONLY, is_lumped, lumped_unit
+from pmdcid.model.params import kept_within
 from pmdcid.runtime.cpus import pmap
 
 #: added effects that can lower the total friction (removed, the last added first, when the
@@ -143,7 +144,10 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
         # along the flat cost, and its interval's midpoint can be a dead zone no earlier fit
         # had), else the midpoint
         free = [p for p in free if p != "dz"]
-        kept = not lagged and inside(run.model.parameters.get("dz"), upper)
+        # with the lag diagnose took, a dz the lag-less fit only bounded is no point to keep;
+        # one other data determined is (the model file keeps it: Model.set_bounded)
+        par = run.model.parameters.get("dz")
+        kept = kept_within(par, 0.0, upper) if lagged else inside(par, upper)
         point = run.vals0["dz"] if kept else 0.5 * upper
         final = run.fit({**final.values, "dz": point}, free, "all")
         unit = lumped_unit("N m") if is_lumped(run.model) else "N m"
