@@ -45,14 +45,15 @@ def lag_refits(run, free: list[str]) -> bool:
     return bool(taken) and "dz" in free and "tau_e" in free
 
 
-def refitter(run, free: list[str]):
+def refitter(run, free: list[str], base: dict[str, float]):
     """``refit(dz, start)`` -> (chi-square of all data, values) with dz held at ``dz`` [N m]
-    and the other ``free`` parameters refitted from ``start``; None when the fit fails."""
+    and the other ``free`` parameters refitted from ``start`` (the free ones; the rest at
+    ``base``, the fit's values); None when the fit fails."""
     others = [p for p in free if p != "dz"]
 
     def refit(dz: float, start: dict[str, float]):
         try:
-            fo = run.fit({**start, "dz": dz}, others, "all", PROFILE_NFEV)
+            fo = run.fit({**base, **start, "dz": dz}, others, "all", PROFILE_NFEV)
         except PmdcidError:
             return None
         return fo.chi2["all"], fo.values
@@ -76,7 +77,7 @@ def seen_on_profile(run, final, free: list[str]):
     thr = threshold(run, final)
     top = REFIT_TOP * max(v.get("bc", 0.0), v.get("dz", 0.0), 1e-12)
     dzs = np.linspace(0.0, top, REFIT_POINTS)
-    cost, vals = refit_profile(refitter(run, free), v, dzs)
+    cost, vals = refit_profile(refitter(run, free, v), v, dzs)
     low = float(cost.min())
     if not (math.isfinite(cost[0]) and math.isfinite(low)):
         return None, None, {}
@@ -111,7 +112,7 @@ def refitted_line(run, final, free: list[str], shim, notes: list[str]) -> None:
     estimates, envelope curvature and held covariance as the profile line reads them):
     ``final`` updated in place (values and estimates) where the interval moved dz or widened
     its standard error, the others' errors widened by their spread along it."""
-    refit = refitter(run, free)
+    refit = refitter(run, free, dict(final.values))
     moved, why = refit_interval(refit, shim)
     if not moved:
         return
