@@ -17,7 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
-from pmdcid.diagnose.lagdz import lag_refits, refitted_line, seen_on_profile, widen
+from pmdcid.diagnose.lagdz import lag_refits, masked_on_profile, refitted_line, widen
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.results import Estimate, bounded
@@ -25,7 +25,6 @@ from pmdcid.identify.dead_zone import dead_zone_interval
 from pmdcid.identify.nonlinear import DZ_CAVEAT, masked_upper
 from pmdcid.model import EFFECTS
 from pmdcid.model.lumped import LUMPED_ONLY, is_lumped, lumped_unit
-from pmdcid.model.params import kept_within
 from pmdcid.runtime.cpus import pmap
 
 #: added effects that can lower the total friction (removed, the last added first, when the
@@ -127,14 +126,14 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
     problem = run.problem
     if "dz" not in free:
         return final, free
-    lagged, spread = lag_refits(run, free), {}
-    if lagged:
-        # the model's dz was settled without the lag diagnose took: read on the refitted
-        # profile (lagdz.py), never held where the lag-less fit left it
-        again, upper, spread = seen_on_profile(run, final, free)
-        if again is not None:
-            return again, free
-    else:
+    upper, spread = (masked_on_profile(run, final, free) if lag_refits(run, free)
+                     else (None, {}))
+    # with the lag diagnose took, the model's dz was settled without it: masked on the
+    # refitted profile (lagdz.py), the interval is read there; else as without the lag (a
+    # dz seen there and refitted from the profile's lowest point, or moved to the interval's
+    # middle, went to 3.4-5.1 V on the L298N rig, whose commands never fall below 6 V: a dead
+    # zone up to there only delays the onset; the model's 1.8 V fits as well)
+    if upper is None:
         upper = dead_zone_range(problem, final)
     if upper is not None:
         # its refit value and standard error would mean nothing: written as the interval, as
@@ -144,10 +143,7 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
         # along the flat cost, and its interval's midpoint can be a dead zone no earlier fit
         # had), else the midpoint
         free = [p for p in free if p != "dz"]
-        # with the lag diagnose took, a dz the lag-less fit only bounded is no point to keep;
-        # one other data determined is (the model file keeps it: Model.set_bounded)
-        par = run.model.parameters.get("dz")
-        kept = kept_within(par, 0.0, upper) if lagged else inside(par, upper)
+        kept = inside(run.model.parameters.get("dz"), upper)
         point = run.vals0["dz"] if kept else 0.5 * upper
         final = run.fit({**final.values, "dz": point}, free, "all")
         unit = lumped_unit("N m") if is_lumped(run.model) else "N m"
@@ -157,7 +153,7 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
                      f"to {upper:.3g} {unit} fits equally (below the breakaway torque); "
                      + ("the model's dz lies inside and is kept" if kept else
                         "written as that interval, not as a value with a standard error"))
-    elif not lagged and _fits_as_well(problem, final, {"dz": run.vals0["dz"]}):
+    elif _fits_as_well(problem, final, {"dz": run.vals0["dz"]}):
         # the dead zone shows only at a few switching instants: when the model's own dz (from
         # fit-nonlinear's slow reversals) fits these logs as well, these logs do not move it
         free = [p for p in free if p != "dz"]

@@ -11,13 +11,14 @@ fit-nonlinear reads it when the lag is free (:func:`pmdcid.identify.dead_zone.re
 :func:`~pmdcid.identify.dead_zone.refit_interval`): the other free parameters re-minimised at
 each dz.
 
-- :func:`seen_on_profile`: whether some dz fits better than none (by two standard errors and
-  0.1 % of the chi-square), the fit restarted from the best; else the masked interval read on
-  that profile.
-- :func:`refitted_line`: dz's profile-likelihood interval; every free parameter moved to the
-  refitted point in its middle, dz's standard error a quarter of the interval's width where
-  wider, and the others' widened by their spread along the interval (uniform over it), as
-  the share's valley does (:mod:`pmdcid.identify.share_valley`).
+- :func:`masked_on_profile`: whether some dz fits better than none (by two standard errors and
+  0.1 % of the chi-square); where none does, the masked interval read on that profile (its
+  middle the point, not the lag-less fit's dz) and the others' spread across it. A dead zone
+  the logs see is settled as without the lag (the model's where it fits as well).
+- :func:`refitted_line`: dz's profile-likelihood interval; the values kept, dz's standard
+  error a quarter of the interval's width where wider, and the others' widened by their
+  spread along the interval (uniform over it), as the share's valley does
+  (:mod:`pmdcid.identify.share_valley`).
 
 Measured: ``python bench/lawlag.py --truths none --rates 500 --lags 2 --seeds 20``
 (docs/identification.md, "Coverage on these motors").
@@ -67,12 +68,12 @@ def threshold(run, fo) -> float:
     return 4.0 * max(fo.chi2["all"] / n, 1.0)
 
 
-def seen_on_profile(run, final, free: list[str]):
-    """dz checked on its refitted profile from 0 to :data:`REFIT_TOP` x max(bc, dz): (the fit
-    restarted from the best dz, None, {}) when some dz fits better than none by more than two
-    standard errors and 0.1 % of the chi-square; (None, the masked interval's upper end [N m],
-    the others' spread across it, :func:`spread_within`) otherwise; (None, None, {}) when the
-    profile could not be fitted at dz = 0."""
+def masked_on_profile(run, final, free: list[str]) -> tuple[float | None, dict[str, float]]:
+    """dz checked on its refitted profile from 0 to :data:`REFIT_TOP` x max(bc, dz): (the
+    masked interval's upper end [N m], the others' spread across it, :func:`spread_within`)
+    where no dz fits better than none by more than two standard errors and 0.1 % of the
+    chi-square; (None, {}) where one does (the logs see the dead zone) or the profile could
+    not be fitted at dz = 0."""
     v = final.values
     thr = threshold(run, final)
     top = REFIT_TOP * max(v.get("bc", 0.0), v.get("dz", 0.0), 1e-12)
@@ -80,13 +81,12 @@ def seen_on_profile(run, final, free: list[str]):
     cost, vals = refit_profile(refitter(run, free, v), v, dzs)
     low = float(cost.min())
     if not (math.isfinite(cost[0]) and math.isfinite(low)):
-        return None, None, {}
-    if cost[0] - low <= max(thr, MASK_REL * low):
-        upper = crossing_upper(dzs, cost, thr)
-        return None, upper, spread_within([x for d, x in zip(dzs, vals, strict=True)
-                                           if x is not None and d <= upper], free)
-    k = int(np.argmin(cost))
-    return run.fit({**v, **vals[k], "dz": float(dzs[k])}, free, "all"), None, {}
+        return None, {}
+    if cost[0] - low > max(thr, MASK_REL * low):
+        return None, {}
+    upper = crossing_upper(dzs, cost, thr)
+    return upper, spread_within([x for d, x in zip(dzs, vals, strict=True)
+                                 if x is not None and d <= upper], free)
 
 
 def spread_within(points: list[dict[str, float]], free: list[str]) -> dict[str, float]:
@@ -110,8 +110,11 @@ def widen(estimates: dict, spread: dict[str, float]) -> None:
 def refitted_line(run, final, free: list[str], shim, notes: list[str]) -> None:
     """dz's interval on its refitted profile (:func:`refit_interval`; ``shim``: the fit's
     estimates, envelope curvature and held covariance as the profile line reads them):
-    ``final`` updated in place (values and estimates) where the interval moved dz or widened
-    its standard error, the others' errors widened by their spread along it."""
+    ``final``'s standard errors widened in place, dz's to a quarter of the interval's width,
+    the others' by their spread along it. The values stay the fit's, as
+    :func:`~pmdcid.diagnose.final.dead_zone_line` keeps them: moved to the interval's middle,
+    the L298N rig's dz went from 2.4 to 5.1 V (its commands never fall below 6 V: a dead zone
+    up to there only delays the onset), the drive's drop it warns of with it."""
     refit = refitter(run, free, dict(final.values))
     moved, why = refit_interval(refit, shim)
     if not moved:
@@ -120,8 +123,7 @@ def refitted_line(run, final, free: list[str], shim, notes: list[str]) -> None:
     for k, e in moved.items():
         old = final.estimates[k]
         se = e.stderr if k == "dz" else math.hypot(old.stderr, spread.get(k, 0.0))
-        final.estimates[k] = dataclasses.replace(old, value=e.value, stderr=max(se, old.stderr))
-        final.values[k] = e.value
+        final.estimates[k] = dataclasses.replace(old, stderr=max(se, old.stderr))
     if why:
         notes.append(why + "; the armature's lag taken by diagnose, dz read with it")
 
@@ -140,4 +142,4 @@ def _spread(refit, vals, moved, old, new) -> dict[str, float]:
             and k in lo and k in hi}
 
 
-__all__ = ["lag_refits", "refitted_line", "seen_on_profile", "spread_within", "widen"]
+__all__ = ["lag_refits", "masked_on_profile", "refitted_line", "spread_within", "widen"]
