@@ -13,8 +13,8 @@ each dz.
 
 - :func:`masked_on_profile`: whether some dz fits better than none (by two standard errors and
   0.1 % of the chi-square); where none does, the masked interval read on that profile (the
-  model's dz kept where it lies inside, else the middle) and the others' spread across it. A dead zone
-  the logs see is settled as without the lag (the model's where it fits as well).
+  model's dz kept where it lies inside, else the middle) and the others' spread across it.
+  A dead zone the logs see is settled as without the lag (the model's where it fits as well).
 - :func:`refitted_line`: dz's profile-likelihood interval; the values kept, dz's standard
   error a quarter of the interval's width where wider, and the others' widened by their
   spread along the interval (uniform over it), as the share's valley does
