@@ -11,11 +11,12 @@ there, or the model's own: fit-mechanical's latency, fitted without the speed la
 found) is tried once more in the final model: the same model with the delay off and the lag
 free in its place (from :func:`~pmdcid.diagnose.lawlag.lag_start`'s grid, refitted with every
 parameter the final fit frees, on all data); unless the delay fits decisively better
-(:func:`~pmdcid.diagnose.lawlag.lag_holds`), the lag is written (``tau_e``, ``ke_share``) and
-the delay is not; a note gives both chi-squares either way. The lag's fit frees what the final
-fit freed, the delay excepted: a dead zone the final fit settled at a point
-(:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there for that fit, and is settled
-again once the lag replaced the delay, on its profile refitted with the lag
+(:func:`~pmdcid.diagnose.lawlag.lag_holds`) or the lag is not determined (tau_e under the rules'
+``min_z`` standard errors, :func:`~pmdcid.diagnose.lawlag.lag_resolved`), the lag is written
+(``tau_e``, ``ke_share``) and the delay is not; a note gives both chi-squares either way. The
+lag's fit frees what the final fit freed, the delay excepted: a dead zone the final fit settled
+at a point (:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there for that fit, and is
+settled again once the lag replaced the delay, on its profile refitted with the lag
 (:mod:`pmdcid.diagnose.lagdz`).
 """
 
@@ -30,7 +31,9 @@ from pmdcid.diagnose.lawlag import (
     LAG_PARAMS,
     TAU_SAMPLES,
     lag_holds,
+    lag_resolved,
     lag_starts,
+    lag_z,
 )
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.model.lumped import is_lumped
@@ -83,7 +86,9 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
     # it drifts along the flat cost, once to 3.3 +- 17 V on the L298N rig) but the delay's
     lag_free = list(dict.fromkeys([p for p in free if p != DELAY] + list(LAG_PARAMS)))
     lag = _lag_fit(run, final, lag_free, {**final.values, DELAY: 0.0}, taus)
-    if lag_holds(n, lag.chi2["all"], final.chi2["all"], run.settings.rules.bic, delay / dt):
+    min_z = run.settings.rules.min_z
+    holds = lag_holds(n, lag.chi2["all"], final.chi2["all"], run.settings.rules.bic, delay / dt)
+    if holds and lag_resolved(lag, min_z):
         lag, lag_free = _replaced(run, final, lag, lag_free, added, notes)
         return lag, lag_free, "replaced"
     # a real latency: the lag beside it, where decisive (fit-mechanical's latency holds the
@@ -93,7 +98,7 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
                     [f * dt for f in TAU_SAMPLES if f * dt < delay])
     dbic = (n * math.log(max(both.chi2["all"], 1e-300) / max(final.chi2["all"], 1e-300))
             + len(LAG_PARAMS) * math.log(max(n, 2)))
-    if dbic < run.settings.rules.bic and both.values.get("tau_e", 0.0) > 0:
+    if dbic < run.settings.rules.bic and lag_resolved(both, min_z):
         honest_errors(run, both, both_free, notes)
         notes.append(
             f"{DELAY_EFFECT} kept ({1e3 * both.values[DELAY]:.3g} ms, {1e3 * delay:.3g} ms "
@@ -102,11 +107,14 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
             f"place fits worse (chi-square {lag.chi2['all']:.6g} against "
             f"{final.chi2['all']:.6g}), beside it better (ΔBIC {dbic:+.0f})")
         return both, both_free, "beside"
+    place = (f"fits as well but is not determined ({lag_z(lag):.2g} standard errors < "
+             f"{min_z:g})" if holds else "fits worse")
     notes.append(
         f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms) kept: the armature's electrical lag in its "
-        f"place (tau_e {1e3 * lag.values['tau_e']:.3g} ms, no delay) fits worse "
+        f"place (tau_e {1e3 * lag.values['tau_e']:.3g} ms, no delay) {place} "
         f"(chi-square {lag.chi2['all']:.6g} against {final.chi2['all']:.6g}), beside it not "
-        f"decisively better (ΔBIC {dbic:+.0f})")
+        f"decisively better and determined (ΔBIC {dbic:+.0f}, {lag_z(both):.2g} standard "
+        "errors)")
     return final, free, ""
 
 
