@@ -18,6 +18,7 @@ import numpy as np
 
 from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
 from pmdcid.diagnose.lagdz import lag_refits, masked_on_profile, refitted_line, widen
+from pmdcid.diagnose.lagvalley import valley_errors, valley_restart
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.results import Estimate, bounded
@@ -165,8 +166,9 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
 def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> None:
     """Standard errors the data support: the profile's for the switching parameters (the
     Jacobian sees nothing between events) and the correlated-residual (HAC) ones, whichever is
-    larger (``final.estimates`` updated in place); then dz's profile-likelihood interval
-    (:func:`dead_zone_line`)."""
+    larger (``final.estimates`` updated in place); a free lag's J, tau_e and share widened
+    along their valley (:func:`~pmdcid.diagnose.lagvalley.valley_errors`); then dz's
+    profile-likelihood interval (:func:`dead_zone_line`)."""
     problem = run.problem
     for name in ("bc", "dz"):
         est = final.estimates.get(name)
@@ -182,6 +184,7 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
             final.estimates[name] = Estimate(name, est.value, se, est.unit)
     if info is not None and (info.inflation > 1.5 or info.lower_bound):
         notes.append(info.describe())
+    valley_errors(run, final, free, info, notes)  # a free lag's share along its valley
     if "dz" in free and curv is not None:
         names = [n for n in final.estimates if n in final.values]
         if lag_refits(run, free):
@@ -223,10 +226,12 @@ def dead_zone_line(problem: Problem, final: FitOutcome, names: list[str], curv: 
 
 
 def finalise(run, cur: FitOutcome, added: list[str], notes: list[str], history):
-    """Refit the added effects on all data, prune, polish, and remove (then refit without) any
-    effect under ``min_z`` standard errors in the polished model, until all pass. Returns the
-    final fit and its free parameters (``added`` updated in place)."""
+    """Refit the added effects on all data (a free lag's fit restarted from its valley's other
+    dips, :func:`~pmdcid.diagnose.lagvalley.valley_restart`), prune, polish, and remove (then
+    refit without) any effect under ``min_z`` standard errors in the polished model, until all
+    pass. Returns the final fit and its free parameters (``added`` updated in place)."""
     final = run.robust_fit(cur.values, free_of(run, added), "all")
+    final = valley_restart(run, final, free_of(run, added), notes)  # a free lag's other dips
     while True:
         final = prune(run, final, added, notes, history)
         final, free = settle_dead_zone(run, final, free_of(run, added), notes)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 
 from pmdcid.diagnose.final import honest_errors, settle_dead_zone
+from pmdcid.diagnose.lagvalley import valley_restart
 from pmdcid.diagnose.lawlag import (
     DELAY,
     DELAY_EFFECT,
@@ -59,12 +60,14 @@ def _lag_fit(run, final: FitOutcome, lag_free: list[str], start: dict[str, float
     best of a grid over tau_e (``taus``), the back-EMF's share and the dead zone when the fit
     has no lag yet (lawlag.lag_start: from a share of 1 alone a local fit stopped at 3x the
     delay's chi-square beside a friction curve), from the :data:`LAG_STARTS` best shares of
-    that grid (lawlag.lag_starts), the lowest kept; the final fit's other estimates carried."""
+    that grid (lawlag.lag_starts), the lowest kept and refitted from its share's valley's other
+    dips (:func:`~pmdcid.diagnose.lagvalley.valley_restart`: the grid holds J, the valley moves
+    it with the share); the final fit's other estimates carried."""
     starts = [start]
     if not final.values.get("tau_e", 0.0) > 0:
         starts = lag_starts(run, start, "all", [t for t in taus if t > 0], LAG_STARTS)
     fits = [run.fit(s, lag_free, "all") for s in starts]
-    fo = min(fits, key=lambda f: f.chi2["all"])
+    fo = valley_restart(run, min(fits, key=lambda f: f.chi2["all"]), lag_free)
     for name, est in final.estimates.items():
         if name not in lag_free and name != DELAY:
             fo.estimates.setdefault(name, est)  # the settled dead zone's interval
@@ -145,7 +148,8 @@ def _dead_zone_with_lag(run, lag, lag_free, notes) -> tuple[FitOutcome, list[str
     if "dz" not in run.base_free or "dz" in lag_free:
         return lag, lag_free
     run.lag_late = True
-    return settle_dead_zone(run, lag, [*lag_free, "dz"], notes)
+    free = [*lag_free, "dz"]
+    return settle_dead_zone(run, valley_restart(run, lag, free, notes), free, notes)
 
 
 __all__ = ["LAG_PARAMS", "lag_for_delay"]
