@@ -73,7 +73,10 @@ def lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.interp(x, x[keep], y[keep])
 
 
-def _threshold(fit) -> float:
+def valley_threshold(fit) -> float:
+    """Two standard errors' rise of the chi-square: 4 x the reduced chi-square (at least 1) x
+    the correlated residual's inflation squared (``fit.stats.redchi``,
+    ``fit.covariance.inflation``)."""
     infl = fit.covariance.inflation if fit.covariance and fit.covariance.inflation > 1 else 1.0
     return TWO_SE ** 2 * max(fit.stats.redchi, 1.0) * infl ** 2
 
@@ -125,7 +128,7 @@ def share_range(cost, fit, est: dict[str, Estimate]) -> tuple[float, float] | No
     shares = np.array([p["ke_share"] for p in pts])
     c, _ = valley_floor(cost, [*pts, point], point)
     env, own = lower_hull(shares, c[:-1]), float(c[-1])
-    thr = _threshold(fit)
+    thr = valley_threshold(fit)
     if own < env.min() - thr:
         return None  # a minimum the grid steps over, deeper than the floor's roughness
     return _interval(shares, env - env.min(), thr, point["ke_share"])
@@ -164,4 +167,4 @@ def _moved(point, est, found) -> tuple[dict[str, Estimate], str]:
 
 
 __all__ = ["NAMES", "SHARES", "lower_hull", "share_interval", "share_range", "valley_floor",
-           "valley_points"]
+           "valley_points", "valley_threshold"]
