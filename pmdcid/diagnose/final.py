@@ -17,6 +17,8 @@ from types import SimpleNamespace
 import numpy as np
 
 from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
+from pmdcid.diagnose.lagdz import lag_refits, masked_on_profile, refitted_line, widen
+from pmdcid.diagnose.lagvalley import valley_errors, valley_restart
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.results import Estimate, bounded
@@ -125,7 +127,15 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
     problem = run.problem
     if "dz" not in free:
         return final, free
-    upper = dead_zone_range(problem, final)
+    upper, spread = (masked_on_profile(run, final, free) if lag_refits(run, free)
+                     else (None, {}))
+    # with the lag diagnose took, the model's dz was settled without it: masked on the
+    # refitted profile (lagdz.py), the interval is read there; else as without the lag (a
+    # dz seen there and refitted from the profile's lowest point, or moved to the interval's
+    # middle, went to 3.4-5.1 V on the L298N rig, whose commands never fall below 6 V: a dead
+    # zone up to there only delays the onset; the model's 1.8 V fits as well)
+    if upper is None:
+        upper = dead_zone_range(problem, final)
     if upper is not None:
         # its refit value and standard error would mean nothing: written as the interval, as
         # fit-nonlinear does, the others refitted at the point inside that the model keeps: the
@@ -139,6 +149,7 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
         final = run.fit({**final.values, "dz": point}, free, "all")
         unit = lumped_unit("N m") if is_lumped(run.model) else "N m"
         final.estimates["dz"] = bounded("dz", 0.0, upper, unit, DZ_CAVEAT, point)
+        widen(final.estimates, spread)  # the others move with dz across it (lagdz.py)
         notes.append(f"dz is not identifiable with the added effects: any dead zone from 0 "
                      f"to {upper:.3g} {unit} fits equally (below the breakaway torque); "
                      + ("the model's dz lies inside and is kept" if kept else
@@ -155,8 +166,9 @@ def settle_dead_zone(run, final: FitOutcome, free: list[str],
 def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> None:
     """Standard errors the data support: the profile's for the switching parameters (the
     Jacobian sees nothing between events) and the correlated-residual (HAC) ones, whichever is
-    larger (``final.estimates`` updated in place); then dz's profile-likelihood interval
-    (:func:`dead_zone_line`)."""
+    larger (``final.estimates`` updated in place); a free lag's J, tau_e and share widened
+    along their valley (:func:`~pmdcid.diagnose.lagvalley.valley_errors`); then dz's
+    profile-likelihood interval (:func:`dead_zone_line`)."""
     problem = run.problem
     for name in ("bc", "dz"):
         est = final.estimates.get(name)
@@ -172,9 +184,20 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
             final.estimates[name] = Estimate(name, est.value, se, est.unit)
     if info is not None and (info.inflation > 1.5 or info.lower_bound):
         notes.append(info.describe())
+    valley_errors(run, final, free, info, notes)  # a free lag's share along its valley
     if "dz" in free and curv is not None:
-        dead_zone_line(problem, final, [n for n in final.estimates if n in final.values], curv,
-                       notes)
+        names = [n for n in final.estimates if n in final.values]
+        if lag_refits(run, free):
+            refitted_line(run, final, free, line_fit(final, names, curv), notes)
+        else:
+            dead_zone_line(problem, final, names, curv, notes)
+
+
+def line_fit(final: FitOutcome, names: list[str], curv: np.ndarray) -> SimpleNamespace:
+    """The fit as the profile line reads it (:func:`pmdcid.identify.dead_zone.profile_line`):
+    the estimates ``names``, their envelope ``(J'J)^-1`` ``curv``, no held part, no priors."""
+    return SimpleNamespace(estimates={n: final.estimates[n] for n in names}, curvature=curv,
+                           held_cov=None, priors={}, prior_weight=1.0)
 
 
 def dead_zone_line(problem: Problem, final: FitOutcome, names: list[str], curv: np.ndarray,
@@ -186,8 +209,7 @@ def dead_zone_line(problem: Problem, final: FitOutcome, names: list[str], curv: 
     never narrower (``final`` updated in place, a note when it widened). The values stay the
     refit's: moved to the interval's middle with an added effect, the total friction could
     turn negative within the logged speeds (tests/system/test_diagnose.py's quadratic drag)."""
-    shim = SimpleNamespace(estimates={n: final.estimates[n] for n in names}, curvature=curv,
-                           held_cov=None, priors={}, prior_weight=1.0)
+    shim = line_fit(final, names, curv)
 
     def cost(sets):
         return pmap(lambda s: problem.chi2({**final.values, **s})["all"], sets)
@@ -204,10 +226,12 @@ def dead_zone_line(problem: Problem, final: FitOutcome, names: list[str], curv: 
 
 
 def finalise(run, cur: FitOutcome, added: list[str], notes: list[str], history):
-    """Refit the added effects on all data, prune, polish, and remove (then refit without) any
-    effect under ``min_z`` standard errors in the polished model, until all pass. Returns the
-    final fit and its free parameters (``added`` updated in place)."""
+    """Refit the added effects on all data (a free lag's fit restarted from its valley's other
+    dips, :func:`~pmdcid.diagnose.lagvalley.valley_restart`), prune, polish, and remove (then
+    refit without) any effect under ``min_z`` standard errors in the polished model, until all
+    pass. Returns the final fit and its free parameters (``added`` updated in place)."""
     final = run.robust_fit(cur.values, free_of(run, added), "all")
+    final = valley_restart(run, final, free_of(run, added), notes)  # a free lag's other dips
     while True:
         final = prune(run, final, added, notes, history)
         final, free = settle_dead_zone(run, final, free_of(run, added), notes)

@@ -15,14 +15,17 @@ parameter the final fit frees, on all data); unless the delay fits decisively be
 ``min_z`` standard errors, :func:`~pmdcid.diagnose.lawlag.lag_resolved`), the lag is written
 (``tau_e``, ``ke_share``) and the delay is not; a note gives both chi-squares either way. The
 lag's fit frees what the final fit freed, the delay excepted: a dead zone the final fit settled
-at a point (:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there.
+at a point (:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there for that fit, and is
+settled again once the lag replaced the delay, on its profile refitted with the lag
+(:mod:`pmdcid.diagnose.lagdz`).
 """
 
 from __future__ import annotations
 
 import math
 
-from pmdcid.diagnose.final import honest_errors
+from pmdcid.diagnose.final import honest_errors, settle_dead_zone
+from pmdcid.diagnose.lagvalley import valley_restart
 from pmdcid.diagnose.lawlag import (
     DELAY,
     DELAY_EFFECT,
@@ -59,7 +62,9 @@ def _lag_fit(run, final: FitOutcome, lag_free: list[str], start: dict[str, float
     best of a grid over tau_e (``taus``), the back-EMF's share and the dead zone when the fit
     has no lag yet (lawlag.lag_start: from a share of 1 alone a local fit stopped at 3x the
     delay's chi-square beside a friction curve), from the :data:`LAG_STARTS` best shares of
-    that grid (lawlag.lag_starts), the lowest kept; the final fit's other estimates carried.
+    that grid (lawlag.lag_starts), the lowest kept and refitted from its share's valley's other
+    dips (:func:`~pmdcid.diagnose.lagvalley.valley_restart`: the grid holds J, the valley moves
+    it with the share); the final fit's other estimates carried.
     With ``move_dz`` (the lag in the delay's place), a dead zone the final fit settled at a
     point of an interval (:func:`_settled_dz`) moves within that interval (:func:`_within`);
     beside the delay it stays at the point settled with it."""
@@ -73,7 +78,7 @@ def _lag_fit(run, final: FitOutcome, lag_free: list[str], start: dict[str, float
             starts += [lag_starts(run, {**start, "dz": lo + f * (hi - lo)}, "all", taus, 1)[0]
                        for f in DZ_POINTS]
     fits = [_within(run, s, lag_free, interval) for s in starts]
-    fo = min(fits, key=lambda f: f.chi2["all"])
+    fo = valley_restart(run, min(fits, key=lambda f: f.chi2["all"]), lag_free)
     for name, est in final.estimates.items():
         if name not in lag_free and name != DELAY:
             fo.estimates.setdefault(name, est)  # the settled dead zone's interval
@@ -130,7 +135,7 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
     min_z = run.settings.rules.min_z
     holds = lag_holds(n, lag.chi2["all"], final.chi2["all"], run.settings.rules.bic, delay / dt)
     if holds and lag_resolved(lag, min_z):
-        _replaced(run, final, lag, lag_free, added, notes)
+        lag, lag_free = _replaced(run, final, lag, lag_free, added, notes)
         return lag, lag_free, "replaced"
     # a real latency: the lag beside it, where decisive (fit-mechanical's latency holds the
     # lag too when its steps saw both: 6.2 ms for a 2 ms L/R and a 4 ms latency)
@@ -159,7 +164,7 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
     return final, free, ""
 
 
-def _replaced(run, final, lag, lag_free, added, notes) -> None:
+def _replaced(run, final, lag, lag_free, added, notes) -> tuple[FitOutcome, list[str]]:
     delay = final.values[DELAY]
     what = f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms)"
     if DELAY_EFFECT in added:
@@ -168,12 +173,26 @@ def _replaced(run, final, lag, lag_free, added, notes) -> None:
         what = (f"the model's {DELAY_EFFECT} (fit-mechanical's latency, "
                 f"{1e3 * run.vals0.get(DELAY, 0.0):.3g} ms; {1e3 * delay:.3g} ms with the effects "
                 "found here)")
+    lag, lag_free = _dead_zone_with_lag(run, lag, lag_free, notes)
     honest_errors(run, lag, lag_free, notes)
     notes.append(
         f"{what} replaced by the armature's electrical lag tau_e "
         f"= {1e3 * lag.values['tau_e']:.3g} ms (L/R, the lumped model's own): without any delay "
         f"the lag fits every log about as well or better (chi-square {lag.chi2['all']:.6g} against "
         f"{final.chi2['all']:.6g}); fit-mechanical's steps had not resolved it")
+    return lag, lag_free
+
+
+def _dead_zone_with_lag(run, lag, lag_free, notes) -> tuple[FitOutcome, list[str]]:
+    """The dead zone the final fit settled without the lag, settled again with it
+    (:func:`~pmdcid.diagnose.final.settle_dead_zone` on its refitted profile,
+    :mod:`pmdcid.diagnose.lagdz`): held where the lag-less fit left it, its interval was
+    the lag-less one (bench/lawlag.py, 500 Hz, L/R 2 ms, seed 6: [0, 4.81] V)."""
+    if "dz" not in run.base_free or "dz" in lag_free:
+        return lag, lag_free
+    run.lag_late = True
+    free = [*lag_free, "dz"]
+    return settle_dead_zone(run, valley_restart(run, lag, free, notes), free, notes)
 
 
 __all__ = ["LAG_PARAMS", "lag_for_delay"]

@@ -91,6 +91,8 @@ class Run:
         self.folds: Folds | None = None
         #: the armature's lag taken into the base parameters (:mod:`pmdcid.diagnose.lawlag`)
         self.lag_taken = False
+        #: the lag taken in a sensor delay's place after the final fit (:mod:`.lag`)
+        self.lag_late = False
 
     def refresh(self) -> None:
         """The start's residual context, typical scales and the effects' limits (again after

@@ -44,7 +44,7 @@ SHARES = tuple(np.round(np.linspace(0.0, 1.0, 21), 3))
 #: the threshold in standard errors (chi-square rise 4 x the reduced chi-square)
 TWO_SE = 2.0
 NAMES = ("J", "tau_e", "ke_share")
-#: dead-zone values profiled at each valley point (:func:`_valley_cost`)
+#: dead-zone values profiled at each valley point (:func:`valley_floor`)
 DZ_N = 9
 
 
@@ -73,7 +73,10 @@ def lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.interp(x, x[keep], y[keep])
 
 
-def _threshold(fit) -> float:
+def valley_threshold(fit) -> float:
+    """Two standard errors' rise of the chi-square: 4 x the reduced chi-square (at least 1) x
+    the correlated residual's inflation squared (``fit.stats.redchi``,
+    ``fit.covariance.inflation``)."""
     infl = fit.covariance.inflation if fit.covariance and fit.covariance.inflation > 1 else 1.0
     return TWO_SE ** 2 * max(fit.stats.redchi, 1.0) * infl ** 2
 
@@ -93,39 +96,54 @@ def _interval(shares, rise, thr, fitted) -> tuple[float, float] | None:
     return (float(ok.min()), float(ok.max())) if len(ok) else None
 
 
-def _valley_cost(cost, pts, point) -> np.ndarray:
-    """The cost at each valley point, the dead zone profiled (the lowest over :data:`DZ_N`
-    values from 0 to twice the larger of bc and dz, and the fit's own): where the dead zone
-    acts moves with the share, a dz held at the fit's would tilt the valley."""
+def valley_floor(cost, pts, point) -> tuple[np.ndarray, list[dict[str, float]]]:
+    """(the cost at each valley point of ``pts``, the points with the dead zone that gave it):
+    where ``point`` has a dead zone it is profiled (the lowest over :data:`DZ_N` values from 0
+    to twice the larger of bc and dz, and the point's own), since where the dead zone acts
+    moves with the share and a dz held at the fit's would tilt the valley; else each point's
+    cost as it is."""
     if "dz" not in point:
-        return np.asarray(cost(pts), float)
+        return np.asarray(cost(pts), float), list(pts)
     top = 2.0 * max(point["dz"], point.get("bc", 0.0), 1e-12)
     dzs = [point["dz"], *np.linspace(0.0, top, DZ_N)]
     c = np.asarray(cost([{**p, "dz": d} for p in pts for d in dzs]), float)
-    return c.reshape(len(pts), len(dzs)).min(axis=1)
+    c = c.reshape(len(pts), len(dzs))
+    best = np.argmin(c, axis=1)
+    return c.min(axis=1), [{**p, "dz": float(dzs[j])} for p, j in zip(pts, best, strict=True)]
+
+
+def share_range(cost, fit, est: dict[str, Estimate]) -> tuple[float, float] | None:
+    """The interval of back-EMF shares that fit as well as the fit's own (module docstring:
+    the valley's lower envelope within two standard errors' rise of its lowest); None when the
+    fit has no free share, J and tau_e, or the local covariance stands (a minimum the grid
+    steps over, or a valley narrower than the grid). ``est``: the fit's estimates;
+    ``cost(sets)``: the chi-square of each set; ``fit``: its ``stats.redchi`` and
+    ``covariance.inflation`` set the threshold."""
+    if not all(k in est for k in NAMES) or "bv" not in est:
+        return None
+    point = {k: e.value for k, e in est.items()}
+    pts = valley_points(point)
+    if len(pts) < 3:
+        return None
+    shares = np.array([p["ke_share"] for p in pts])
+    c, _ = valley_floor(cost, [*pts, point], point)
+    env, own = lower_hull(shares, c[:-1]), float(c[-1])
+    thr = valley_threshold(fit)
+    if own < env.min() - thr:
+        return None  # a minimum the grid steps over, deeper than the floor's roughness
+    return _interval(shares, env - env.min(), thr, point["ke_share"])
 
 
 def share_interval(cost, fit, est: dict[str, Estimate]) -> tuple[dict[str, Estimate], str]:
     """(estimates to write in place of ``est``'s J, tau_e, ke_share, the words for the notes)
-    from the valley (module docstring); ({}, "") when the fit has no free share, J and tau_e,
-    or the local covariance stands. ``est``: the fit's estimates as they stand (a standard
-    error already widened kept when larger); ``cost(sets)``: the chi-square of each set."""
-    if not all(k in est for k in NAMES) or "bv" not in est:
-        return {}, ""
-    point = {k: e.value for k, e in est.items()}
-    pts = valley_points(point)
-    if len(pts) < 3:
-        return {}, ""
-    shares = np.array([p["ke_share"] for p in pts])
-    c = _valley_cost(cost, [*pts, point], point)
-    env, own = lower_hull(shares, c[:-1]), float(c[-1])
-    thr = _threshold(fit)
-    if own < env.min() - thr:
-        return {}, ""  # a minimum the grid steps over, deeper than the floor's roughness
-    found = _interval(shares, env - env.min(), thr, point["ke_share"])
+    from the valley (module docstring, :func:`share_range`); ({}, "") when the fit has no free
+    share, J and tau_e, or the local covariance stands. ``est``: the fit's estimates as they
+    stand (a standard error already widened kept when larger); ``cost(sets)``: the chi-square
+    of each set."""
+    found = share_range(cost, fit, est)
     if found is None:
         return {}, ""
-    return _moved(point, est, found)
+    return _moved({k: e.value for k, e in est.items()}, est, found)
 
 
 def _moved(point, est, found) -> tuple[dict[str, Estimate], str]:
@@ -148,4 +166,5 @@ def _moved(point, est, found) -> tuple[dict[str, Estimate], str]:
     return out, why
 
 
-__all__ = ["SHARES", "lower_hull", "share_interval", "valley_points"]
+__all__ = ["NAMES", "SHARES", "lower_hull", "share_interval", "share_range", "valley_floor",
+           "valley_points", "valley_threshold"]

@@ -1,0 +1,142 @@
+"""The lumped lag's back-EMF share along its valley, in diagnose's final model (issue 24).
+
+Per volt, a lumped model with its electrical lag free (``tau_e``, ``ke_share``) answers the
+voltage along a valley of equal linear response: the share trades with J and tau_e, only the
+friction and the dead zone telling its points apart (:mod:`pmdcid.identify.share_valley`).
+fit-nonlinear reads that valley; diagnose's final refits, which free the lag once diagnose
+took it (:mod:`.lawlag`, :mod:`.lag`) or the model came with it, did not, and two things went
+wrong there (``python bench/lawlag.py --truths none --rates 500 --lags 2,4 --seeds 20``):
+
+- the local refit stops in a dip of the valley far from its floor, the friction and the dead
+  zone bent to suit: J' 4-6 of its standard errors off, bc' and bv' 4-6 too, the dead zone
+  read as masked. Seed 13 (L/R 2 ms): share 0.54 for 0.997, chi-square 198 above the refit
+  from the valley's other dip at share 1. :func:`valley_restart` refits the final model from
+  the valley's other dips (:data:`VALLEY_STARTS` of them, lowest first: the local minima of
+  the cost along :data:`~pmdcid.identify.share_valley.SHARES`, the dead zone profiled, but
+  the grid share nearest the fit's) and keeps the lowest chi-square where it is lower by more
+  than two standard errors' rise (the correlated residual allowed for);
+- where the valley's floor is flat, the local covariance understates how far J, tau_e and the
+  share may move along it. :func:`valley_errors` reads the interval of shares that fit as well
+  (:func:`~pmdcid.identify.share_valley.share_range`, fit-nonlinear's reading) and widens
+  their standard errors to the root mean square distance from the fit's value to a share
+  uniform over that interval (the local error, the interval's spread and the value's offset
+  from its middle combined). The values stay the fit's, as diagnose's dead-zone readings keep
+  them (:func:`~pmdcid.diagnose.final.dead_zone_line`, :mod:`.lagdz`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+from pmdcid.fit.problem import FitOutcome
+from pmdcid.identify.share_valley import (
+    NAMES,
+    share_range,
+    valley_floor,
+    valley_points,
+    valley_threshold,
+)
+from pmdcid.runtime.cpus import pmap
+
+#: refits from the valley's other dips, lowest first
+VALLEY_STARTS = 2
+
+
+def valley_free(free: list[str]) -> bool:
+    """Whether the refit frees the lag's valley: J, tau_e, the share and bv."""
+    return all(k in free for k in (*NAMES, "bv"))
+
+
+def _cost(run, vals: dict[str, float]):
+    problem = run.problem
+    return lambda sets: pmap(lambda s: problem.chi2({**vals, **s})["all"], sets)
+
+
+def dips(shares: np.ndarray, cost: np.ndarray, own: float) -> list[int]:
+    """Indices of the local minima of ``cost`` along ``shares`` (an end counts when below its
+    one neighbour), lowest first, but the share nearest ``own`` (the fit's: a dip there is the
+    fit's own)."""
+    n = len(cost)
+    near = int(np.argmin(np.abs(shares - own)))
+
+    def lower(j: int) -> bool:
+        return ((j == 0 or cost[j] < cost[j - 1]) and (j == n - 1 or cost[j] <= cost[j + 1]))
+
+    return sorted((j for j in range(n) if lower(j) and j != near), key=lambda j: cost[j])
+
+
+def valley_restart(run, fo: FitOutcome, free: list[str],
+                   notes: list[str] | None = None) -> FitOutcome:
+    """The fit ``fo`` of ``free`` (all data) refitted from the valley's other dips (module
+    docstring): the lowest chi-square kept where it is decisively lower (:func:`_decisive`);
+    a note in ``notes`` when a restart won."""
+    if not valley_free(free):
+        return fo
+    point = {k: fo.values[k] for k in free}
+    pts = valley_points(point)
+    if len(pts) < 3:
+        return fo
+    cost, starts = valley_floor(_cost(run, fo.values), pts, point)
+    shares = np.array([p["ke_share"] for p in pts])
+    best = fo
+    for j in dips(shares, cost, point["ke_share"])[:VALLEY_STARTS]:
+        refit = run.fit({**fo.values, **starts[j]}, free, "all")
+        if refit.chi2["all"] < best.chi2["all"]:
+            best = refit
+    if best is fo or not _decisive(run, fo, best, free):
+        return fo
+    if notes is not None:
+        notes.append(
+            f"the final fit restarted along the back-EMF share's valley (its share trades with "
+            f"J and tau_e at equal linear response): ke_share {fo.values['ke_share']:.3g} -> "
+            f"{best.values['ke_share']:.3g}, J {fo.values['J']:.5g} -> {best.values['J']:.5g}, "
+            f"chi-square {fo.chi2['all']:.6g} -> {best.chi2['all']:.6g}")
+    return best
+
+
+def _decisive(run, fo: FitOutcome, best: FitOutcome, free: list[str]) -> bool:
+    """Whether ``best`` fits all data better than ``fo`` by more than two standard errors' rise
+    (:func:`~pmdcid.identify.share_valley.valley_threshold` at ``fo``, its correlated
+    residual allowed for): a dip that fits only as well is no reason to move (LEGO-like rig,
+    tests/diagnose/test_lag_resolved.py: 16.8 lower against a threshold of about 90, the dead
+    zone at 1.4 V on the lagged voltage, every held-out sine's error doubled)."""
+    _, info, _ = run.problem.envelope_errors(fo.values, free)
+    shim = SimpleNamespace(covariance=info, stats=fo.stats)
+    return fo.chi2["all"] - best.chi2["all"] > valley_threshold(shim)
+
+
+def valley_errors(run, final: FitOutcome, free: list[str], info, notes: list[str]) -> None:
+    """J's, tau_e's and the share's standard errors in ``final`` widened in place where shares
+    across an interval fit as well (module docstring; ``info``: the covariance's, whose
+    inflation sets the threshold with the reduced chi-square); a note when they were."""
+    if not (valley_free(free) and all(k in final.estimates for k in (*NAMES, "bv"))):
+        return
+    shim = SimpleNamespace(covariance=info, stats=final.stats)
+    found = share_range(_cost(run, final.values), shim, final.estimates)
+    if found is None:
+        return
+    point = {k: e.value for k, e in final.estimates.items()}
+    ends = valley_points(point, found)
+    mid = valley_points(point, [0.5 * (found[0] + found[1])])
+    if len(ends) < 2 or not mid:
+        return
+    for k in NAMES:
+        e = final.estimates[k]
+        spread = abs(ends[-1][k] - ends[0][k]) / math.sqrt(12.0)  # uniform over the interval
+        se = math.hypot(e.stderr, spread, mid[0][k] - e.value)
+        if se > e.stderr:
+            final.estimates[k] = dataclasses.replace(e, stderr=se)
+    notes.append(
+        f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's share "
+        "of bv trades with J and tau_e at equal linear response, only the friction and the dead "
+        "zone tell them apart): J's, tau_e's and ke_share's standard errors are the root mean "
+        "square distance from the fit's values to a share uniform over that interval, the local "
+        f"fit's combined (J = {point['J']:.5g} ± {final.estimates['J'].stderr:.2g}, ke_share = "
+        f"{point['ke_share']:.3g} ± {final.estimates['ke_share'].stderr:.2g})")
+
+
+__all__ = ["VALLEY_STARTS", "dips", "valley_errors", "valley_free", "valley_restart"]
