@@ -1,8 +1,9 @@
 """The speed law and the electrical lag on voltage + speed logs: a red team over seeds (issue 24,
 "no delay effect added when there is none").
 
-    python bench/lawlag.py --out DIR [--seeds 10] [--jobs 2] [--rates 100,500,1000]
-                           [--lags 2,4] [--truths none,quadratic_drag,friction_curve,sensor_delay]
+    python bench/lawlag.py --out DIR [--seeds 10 | --seed-list 3,20] [--jobs 2]
+                           [--rates 100,500,1000] [--lags 2,4]
+                           [--truths none,quadratic_drag,friction_curve,sensor_delay]
     python bench/lawlag.py --tally DIR/results.jsonl
 
 A bench motor with back-EMF (tests/diagnose/test_testable.py's: R 1 ohm, km = ke 0.05, J 5e-4,
@@ -184,7 +185,9 @@ def run_case(seed: int, lag_ms: float, rate: float, eff: str) -> dict:
 
 
 def cases(args) -> list[tuple]:
-    return [(s, float(lag), float(rate), eff) for s in range(args.first, args.first + args.seeds)
+    seeds = ([int(s) for s in args.seed_list.split(",")] if args.seed_list
+             else range(args.first, args.first + args.seeds))
+    return [(s, float(lag), float(rate), eff) for s in seeds
             for lag in args.lags.split(",") for rate in args.rates.split(",")
             for eff in args.truths.split(",")]
 
@@ -308,6 +311,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, help="run the cases, rows into OUT/results.jsonl")
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--first", type=int, default=1)
+    ap.add_argument("--seed-list", help="comma-separated seeds (in place of --first, --seeds)")
     ap.add_argument("--jobs", type=int, default=1, help="processes (cases split between them)")
     ap.add_argument("--rates", default="100,500,1000")
     ap.add_argument("--lags", default="2,4", help="L/R [ms]")

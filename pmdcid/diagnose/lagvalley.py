@@ -30,20 +30,17 @@ import dataclasses
 import math
 from types import SimpleNamespace
 
-import numpy as np
-
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.identify.share_valley import (
     NAMES,
+    VALLEY_STARTS,
+    dips,
+    restart_from_dips,
     share_range,
-    valley_floor,
     valley_points,
     valley_threshold,
 )
 from pmdcid.runtime.cpus import pmap
-
-#: refits from the valley's other dips, lowest first
-VALLEY_STARTS = 2
 
 
 def valley_free(free: list[str]) -> bool:
@@ -56,19 +53,6 @@ def _cost(run, vals: dict[str, float]):
     return lambda sets: pmap(lambda s: problem.chi2({**vals, **s})["all"], sets)
 
 
-def dips(shares: np.ndarray, cost: np.ndarray, own: float) -> list[int]:
-    """Indices of the local minima of ``cost`` along ``shares`` (an end counts when below its
-    one neighbour), lowest first, but the share nearest ``own`` (the fit's: a dip there is the
-    fit's own)."""
-    n = len(cost)
-    near = int(np.argmin(np.abs(shares - own)))
-
-    def lower(j: int) -> bool:
-        return ((j == 0 or cost[j] < cost[j - 1]) and (j == n - 1 or cost[j] <= cost[j + 1]))
-
-    return sorted((j for j in range(n) if lower(j) and j != near), key=lambda j: cost[j])
-
-
 def valley_restart(run, fo: FitOutcome, free: list[str],
                    notes: list[str] | None = None) -> FitOutcome:
     """The fit ``fo`` of ``free`` (all data) refitted from the valley's other dips (module
@@ -77,17 +61,12 @@ def valley_restart(run, fo: FitOutcome, free: list[str],
     if not valley_free(free):
         return fo
     point = {k: fo.values[k] for k in free}
-    pts = valley_points(point)
-    if len(pts) < 3:
+    best = restart_from_dips(_cost(run, fo.values), point,
+                             lambda st: run.fit({**fo.values, **st}, free, "all"),
+                             lambda f: f.chi2["all"], fine=False)
+    if best is None or best.chi2["all"] >= fo.chi2["all"]:
         return fo
-    cost, starts = valley_floor(_cost(run, fo.values), pts, point)
-    shares = np.array([p["ke_share"] for p in pts])
-    best = fo
-    for j in dips(shares, cost, point["ke_share"])[:VALLEY_STARTS]:
-        refit = run.fit({**fo.values, **starts[j]}, free, "all")
-        if refit.chi2["all"] < best.chi2["all"]:
-            best = refit
-    if best is fo or not _decisive(run, fo, best, free):
+    if not _decisive(run, fo, best, free):
         return fo
     if notes is not None:
         notes.append(

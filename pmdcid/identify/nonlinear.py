@@ -63,7 +63,7 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     working_model,
 )
 from pmdcid.identify.ramp_profile import hold_profile
-from pmdcid.identify.share_valley import share_interval
+from pmdcid.identify.share_valley import restart_from_dips, share_interval, valley_threshold
 from pmdcid.model import Model
 from pmdcid.model.lumped import same_response
 from pmdcid.notes import Note
@@ -483,6 +483,32 @@ def _scan_inertia(logs, work, free, signals, fit, sigma, opts, bounds, priors, h
     return f if f.stats.chisqr < fit.stats.chisqr else fit
 
 
+def _valley_restart(logs, work, free, signals, fit, sigma, opts, bounds, priors, held,
+                    base_vals):
+    """A lumped model with its electrical lag free (J, tau_e, ke_share, bv; else ``fit`` as
+    it is): the local stage again from the back-EMF share's other dips along its valley of
+    equal linear response (:func:`.share_valley.restart_from_dips`), kept where its
+    chi-square is lower than ``fit``'s by more than two standard errors' rise
+    (:func:`.share_valley.valley_threshold`). The share trades with J and tau_e there, only
+    the friction and the dead zone telling its points apart, and the local stage stops in
+    any dip of that staircase (diagnose restarts its final fit the same way,
+    :mod:`pmdcid.diagnose.lagvalley`)."""
+    def refit(start):
+        try:
+            return fit_simulation(logs, work, _parameters(free, {**point, **start}, bounds,
+                                                          DIFF_STEP, priors, held),
+                                  signals, sigma=sigma, options=opts)
+        except FitError:
+            return None
+
+    point = {k: fit.estimates[k].value for k in free}
+    best = restart_from_dips(lambda sets: _cost(logs, base_vals, sets, signals, sigma), point,
+                             refit, lambda f: f.stats.chisqr)
+    if best is None or not fit.stats.chisqr - best.stats.chisqr > valley_threshold(fit):
+        return fit
+    return best
+
+
 #: the words beside a dead zone these logs only bound
 DZ_CAVEAT = ("not identifiable from these logs, masked by the Coulomb friction: record fast "
              "reversals or steps down through zero")
@@ -736,6 +762,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
                   prior_terms(prior), held)
     fit = _scan_inertia(logs, work, ls_free, signals, fit, sigma, opts, bounds,
                         prior_terms(prior), held, base_vals)
+    fit = _valley_restart(logs, work, ls_free, signals, fit, sigma, opts, bounds,
+                          prior_terms(prior), held, base_vals)
     fit.noise_filters = fit.noise_filters or filters
     fits = (partial(_refit_at, logs, work, free, signals, sigma, opts, bounds,
                     prior_terms(prior), held),

@@ -46,6 +46,10 @@ TWO_SE = 2.0
 NAMES = ("J", "tau_e", "ke_share")
 #: dead-zone values profiled at each valley point (:func:`valley_floor`)
 DZ_N = 9
+#: refits from the valley's other dips, lowest first (:func:`restart_from_dips`)
+VALLEY_STARTS = 2
+#: shares a dip is read again at, between its two grid neighbours (:func:`refined_dip`)
+FINE_N = 21
 
 
 def valley_points(point: dict[str, float], shares=SHARES) -> list[dict[str, float]]:
@@ -112,6 +116,60 @@ def valley_floor(cost, pts, point) -> tuple[np.ndarray, list[dict[str, float]]]:
     return c.min(axis=1), [{**p, "dz": float(dzs[j])} for p, j in zip(pts, best, strict=True)]
 
 
+def dips(shares: np.ndarray, cost: np.ndarray, own: float) -> list[int]:
+    """Indices of the local minima of ``cost`` along ``shares`` (an end counts when below its
+    one neighbour), lowest first, but the share nearest ``own`` (the fit's: a dip there is the
+    fit's own)."""
+    n = len(cost)
+    near = int(np.argmin(np.abs(shares - own)))
+
+    def lower(j: int) -> bool:
+        return ((j == 0 or cost[j] < cost[j - 1]) and (j == n - 1 or cost[j] <= cost[j + 1]))
+
+    return sorted((j for j in range(n) if lower(j) and j != near), key=lambda j: cost[j])
+
+
+def refined_dip(cost, point, shares, c, starts, j, n=FINE_N) -> dict[str, float]:
+    """The start at the grid's dip ``j`` read again at ``n`` shares between its neighbours
+    (``shares``, their floor ``c`` and points ``starts`` from :func:`valley_floor`): the
+    lowest of them where lower than the grid's. A minimum between grid shares is otherwise
+    started from one step off, on the bound where the dip is the grid's end (bench/lawlag.py
+    1 kHz seed 3, L/R 2 ms: the valley's minimum at share 0.994, the grid's dip at 1, the
+    local stage from share 1 stopping 40 chi-square above the one from 0.995)."""
+    lo, hi = shares[max(j - 1, 0)], shares[min(j + 1, len(shares) - 1)]
+    pts = valley_points(point, np.linspace(lo, hi, n))
+    if not pts:
+        return starts[j]
+    fc, fine = valley_floor(cost, pts, point)
+    k = int(np.argmin(fc))
+    return fine[k] if fc[k] < c[j] else starts[j]
+
+
+def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = True):
+    """The lowest of the refits from the valley's other dips (:data:`VALLEY_STARTS` of them,
+    lowest first: the local minima of the cost along :data:`SHARES`, the dead zone profiled
+    by :func:`valley_floor`, but the grid share nearest ``point``'s); None when ``point`` has
+    no free valley or no refit succeeded. ``cost(sets)``: the chi-square of each set;
+    ``point``: the fit's free values (J, tau_e, ke_share, bv; dz when free);
+    ``refit(start)``: a fit from the start (None when it failed); ``chi2(fit)``: its
+    chi-square; ``fine``: each dip read again between its grid neighbours
+    (:func:`refined_dip`). Whether the lowest is decisively lower than the fit is the
+    caller's to judge (:func:`valley_threshold`)."""
+    if not all(k in point for k in (*NAMES, "bv")):
+        return None
+    pts = valley_points(point)
+    if len(pts) < 3:
+        return None
+    c, starts = valley_floor(cost, pts, point)
+    shares = np.array([p["ke_share"] for p in pts])
+    best = None
+    for j in dips(shares, c, point["ke_share"])[:VALLEY_STARTS]:
+        f = refit(refined_dip(cost, point, shares, c, starts, j) if fine else starts[j])
+        if f is not None and (best is None or chi2(f) < chi2(best)):
+            best = f
+    return best
+
+
 def share_range(cost, fit, est: dict[str, Estimate]) -> tuple[float, float] | None:
     """The interval of back-EMF shares that fit as well as the fit's own (module docstring:
     the valley's lower envelope within two standard errors' rise of its lowest); None when the
@@ -166,5 +224,6 @@ def _moved(point, est, found) -> tuple[dict[str, Estimate], str]:
     return out, why
 
 
-__all__ = ["NAMES", "SHARES", "lower_hull", "share_interval", "share_range", "valley_floor",
-           "valley_points", "valley_threshold"]
+__all__ = ["FINE_N", "NAMES", "SHARES", "VALLEY_STARTS", "dips", "lower_hull", "refined_dip",
+           "restart_from_dips", "share_interval", "share_range", "valley_floor", "valley_points",
+           "valley_threshold"]

@@ -1,7 +1,7 @@
 """A free lag's back-EMF share read along its valley in diagnose's final model
 (diagnose/lagvalley.py).
 
-The dips and the errors on a cost that is a stated function of the share (each answer known);
+The errors on a cost that is a stated function of the share (each answer known);
 then round trips through ``identify`` (with diagnose) on ``bench/lawlag.py``'s rig: a bench
 motor with back-EMF (99.6 % of the damping) and an L/R of 2 ms at 500 Hz, every parameter moved
 up to 20 % by the seed, speed noise 0.5 rad/s from ``default_rng``. At the merge of main into
@@ -16,24 +16,15 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
 
 from bench.lawlag import per_volt, scenario
 from pmdcid.api import identify
-from pmdcid.diagnose.lagvalley import dips, valley_errors
+from pmdcid.diagnose.lagvalley import valley_errors
 from pmdcid.fit.results import Estimate, FitStats
 from pmdcid.identify.share_valley import valley_points
 
 POINT = {"J": 0.0111, "bv": 0.0461, "bc": 0.041, "tau_e": 0.002, "ke_share": 0.95}
-
-
-def test_dips_are_the_valleys_other_local_minima_lowest_first():
-    shares = np.linspace(0.0, 1.0, 11)
-    cost = np.array([9.0, 7.0, 8.0, 6.0, 5.0, 4.0, 4.5, 6.0, 7.0, 8.0, 3.0])
-    assert dips(shares, cost, 0.52) == [10, 1]  # the fit's own (0.5) left out
-    assert dips(shares, cost, 0.1) == [10, 5]
-    assert dips(shares, cost[::-1], 0.9) == [0, 5]  # an end counts below its one neighbour
 
 
 def _run_and_fit(shape, se=None):
