@@ -132,7 +132,8 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
 def _reading(vals: dict[str, float]) -> tuple[float, float | None] | None:
     """How a set reads the input between samples: (latency [s], ramp) or None (held, on
     time)."""
-    latency, ramp = float(vals.get("latency", 0.0)), vals.get("ramp")
+    latency = float(vals.get("latency", 0.0)) + float(vals.get("delay", 0.0))
+    ramp = vals.get("ramp")
     if latency > 0.0 or ramp is not None:
         return latency, (None if ramp is None else float(ramp))
     return None
