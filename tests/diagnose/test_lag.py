@@ -68,3 +68,17 @@ def test_a_latency_keeps_the_delay():
     res = diagnose_logs(_logs(0.0, LAG, seed=6), _model(), effects=["sensor_delay"])
     assert "sensor_delay" in res.model.effects and not res.model.has("tau_e")
     assert any("kept: the armature's electrical lag" in n for n in res.summary["notes"])
+
+
+@pytest.mark.slow
+def test_a_latency_beside_the_lag_keeps_both():
+    """A real latency (4 samples) and the armature's lag: diagnose keeps the delay beside the
+    lag, which the held-out part of every log bears out (diagnose/lag.py, ``_pair``). How the
+    late start splits between the two these logs do not pin down (0.9 ms of lag and 6.2 ms of
+    delay here, the same at the commit before the held-out test): their sum within 5 %."""
+    res = diagnose_logs(_logs(LAG, 4e-3, seed=7), _model(), effects=["sensor_delay"])
+    new = res.model
+    assert "sensor_delay" in new.effects and new.has("tau_e"), res.summary["notes"]
+    assert new.value("tau_e") + new.value("delay") == pytest.approx(LAG + 4e-3, rel=0.05)
+    assert any("beside the armature's electrical lag" in n and "held-out Δχ²" in n
+               for n in res.summary["notes"])
