@@ -132,3 +132,20 @@ def test_a_pair_decisive_on_all_data_is_refused_where_the_held_out_data_do_not_b
     # not decisive on all data: no held-out test, not taken
     close = _outcome(480950.0, delay=(4e-3, 1e-5), tau_e=(5e-5, 1e-6))
     assert _pair(better, ref, delay_free, close, both_free, min_z=3.0)[1] == 0.0
+
+
+def test_a_latency_of_whole_samples_yields_to_the_lag_only_where_it_fits_decisively_better():
+    """The 2025 kit's case (fra233-2025-pboon: an 11 ms USB latency, a lag fitting its fit logs
+    0.08 % better on a residual correlated over 236 samples; the held-out chirps rose 0.20 ->
+    0.22 when the lag replaced it): decisive by the rules' BIC on the residual's effective
+    samples, not on every sample."""
+    from types import SimpleNamespace
+
+    from pmdcid.diagnose.lag import _decisive_latency_free
+
+    final, lag = _outcome(4568590.0), _outcome(4564851.0)
+    for tau_int, decisive in ((236.0, False), (0.5, True)):
+        run = _Run({})
+        run.correlated_stderr = lambda vals, free, t=tau_int: ({}, SimpleNamespace(tau_int=t))
+        run.count = lambda part: 62000
+        assert _decisive_latency_free(run, final, ["J"], lag) is decisive
