@@ -68,3 +68,84 @@ def test_a_latency_keeps_the_delay():
     res = diagnose_logs(_logs(0.0, LAG, seed=6), _model(), effects=["sensor_delay"])
     assert "sensor_delay" in res.model.effects and not res.model.has("tau_e")
     assert any("kept: the armature's electrical lag" in n for n in res.summary["notes"])
+
+
+@pytest.mark.slow
+def test_a_latency_beside_the_lag_keeps_both():
+    """A real latency (4 samples) and the armature's lag: diagnose keeps the delay beside the
+    lag, which the held-out part of every log bears out (diagnose/lag.py, ``_pair``). How the
+    late start splits between the two these logs do not pin down (0.9 ms of lag and 6.2 ms of
+    delay here, the same at the commit before the held-out test): their sum within 5 %."""
+    res = diagnose_logs(_logs(LAG, 4e-3, seed=7), _model(), effects=["sensor_delay"])
+    new = res.model
+    assert "sensor_delay" in new.effects and new.has("tau_e"), res.summary["notes"]
+    assert new.value("tau_e") + new.value("delay") == pytest.approx(LAG + 4e-3, rel=0.05)
+    assert any("beside the armature's electrical lag" in n and "held-out Δχ²" in n
+               for n in res.summary["notes"])
+
+
+class _Run:
+    """A diagnose run reduced to what ``lag._pair`` reads: the rules, the sample counts, and
+    refits on the fitted part whose held-out chi-square is given per free-parameter set."""
+
+    def __init__(self, held: dict[frozenset, float]):
+        from pmdcid.diagnose.settings import Settings
+
+        self.settings, self.held = Settings(), held
+        self.problem = self
+
+    def count(self, part: str) -> int:
+        return {"all": 10000, "fit": 6000, "held": 4000}[part]
+
+    def fit(self, vals, free, part):
+        from pmdcid.fit.problem import FitOutcome
+        from pmdcid.fit.results import FitStats
+
+        return FitOutcome(dict(vals), {}, FitStats(6000, len(free), 1.0),
+                          {"held": self.held[frozenset(free)]})
+
+
+def _outcome(chi2: float, **est):
+    from pmdcid.fit.problem import FitOutcome
+    from pmdcid.fit.results import Estimate, FitStats
+
+    return FitOutcome({"delay": 4e-3, **{k: v for k, (v, _) in est.items()}},
+                      {k: Estimate(k, v, se, "s") for k, (v, se) in est.items()},
+                      FitStats(10000, 5, chi2), {"all": chi2})
+
+
+def test_a_pair_decisive_on_all_data_is_refused_where_the_held_out_data_do_not_bear_it():
+    """The course-lab kit's case (fra233-g04: a lag of a tenth of a sample beside its 4 ms
+    latency at ΔBIC -1022 on a residual correlated over 135 samples, its held-out runs 0.029 ->
+    0.037): the lag beside the delay is decisive by BIC on all data; taken only where the
+    held-out part, both models refitted on the fitted part, is lower with it."""
+    from pmdcid.diagnose.lag import _pair
+
+    delay_free, both_free = ["J", "bv", "delay"], ["J", "bv", "delay", "tau_e", "ke_share"]
+    ref = _outcome(480957.0, delay=(4e-3, 1e-5))
+    both = _outcome(470000.0, delay=(4e-3, 1e-5), tau_e=(5e-5, 1e-6))
+    worse = _Run({frozenset(delay_free): 100.0, frozenset(both_free): 147.0})
+    dbic, held = _pair(worse, ref, delay_free, both, both_free, min_z=3.0)
+    assert dbic < -10 and held == pytest.approx(47.0)  # decisive, refused: held > 0
+    better = _Run({frozenset(delay_free): 100.0, frozenset(both_free): 60.0})
+    assert _pair(better, ref, delay_free, both, both_free, min_z=3.0)[1] == pytest.approx(-40.0)
+    # not decisive on all data: no held-out test, not taken
+    close = _outcome(480950.0, delay=(4e-3, 1e-5), tau_e=(5e-5, 1e-6))
+    assert _pair(better, ref, delay_free, close, both_free, min_z=3.0)[1] == 0.0
+
+
+def test_a_latency_of_whole_samples_yields_to_the_lag_only_where_it_fits_decisively_better():
+    """The 2025 kit's case (fra233-2025-pboon: an 11 ms USB latency, a lag fitting its fit logs
+    0.08 % better on a residual correlated over 236 samples; the held-out chirps rose 0.20 ->
+    0.22 when the lag replaced it): decisive by the rules' BIC on the residual's effective
+    samples, not on every sample."""
+    from types import SimpleNamespace
+
+    from pmdcid.diagnose.lag import _decisive_latency_free
+
+    final, lag = _outcome(4568590.0), _outcome(4564851.0)
+    for tau_int, decisive in ((236.0, False), (0.5, True)):
+        run = _Run({})
+        run.correlated_stderr = lambda vals, free, t=tau_int: ({}, SimpleNamespace(tau_int=t))
+        run.count = lambda part: 62000
+        assert _decisive_latency_free(run, final, ["J"], lag) is decisive

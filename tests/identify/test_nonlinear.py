@@ -251,3 +251,20 @@ def test_a_local_stage_stopped_off_the_inertias_minimum_is_restarted(rng, paper_
                          {}, {}, {}, base)
     assert back.stats.chisqr < chi_off - 4.0
     assert abs(back.estimates["J"].value - J.value) < J.stderr
+
+
+def test_batch_grid_reads_a_sensor_delay(rng, paper_values):
+    """A model with a sensor delay: fit-nonlinear's checks after its local stage (the dead
+    zone's profile, the share's valley, the secant errors) read the grid's cost at the fit's
+    point. The grid reads the delay as the input applied that late (the same response but for
+    the log's first delay seconds): without it those checks profiled another model than the
+    fit's (bench/lawlag.py, 1 kHz, L/R 4 ms, seed 2: its chi-square twice the fit's, and dz
+    written as 2.7e-5 ± 8e-13 against a true 0.064)."""
+    log = triangle_log(paper_values, rng, periods=1, period=10.0)
+    delayed = {**paper_values, "delay": 2.5e-3}
+    sim = simulate_values(log.t, log.u, delayed)
+    ref = np.sum(((sim.omega - log["omega"]) / 4e-3) ** 2)
+    undelayed = float(batch_cost(log, [paper_values], {"omega": 4e-3})[0])
+    cost = float(batch_cost(log, [delayed], {"omega": 4e-3})[0])
+    assert abs(cost - ref) < 0.02 * abs(undelayed - ref)
+    assert cost == pytest.approx(ref, rel=0.02)
