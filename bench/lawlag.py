@@ -4,6 +4,7 @@
     python bench/lawlag.py --out DIR [--seeds 10 | --seed-list 3,20] [--jobs 2]
                            [--rates 100,500,1000] [--lags 2,4]
                            [--truths none,quadratic_drag,friction_curve,sensor_delay]
+                           [--family lawlag,share03,share06,hobby,large,paper,sines]
     python bench/lawlag.py --tally DIR/results.jsonl
 
 A bench motor with back-EMF (tests/diagnose/test_testable.py's: R 1 ohm, km = ke 0.05, J 5e-4,
@@ -25,6 +26,19 @@ runs whose error diagnose raised > 5 %; J', bv', bc', dz' within +-2 standard er
 written as an interval: the truth inside it). Then a table per truth and rate of J', bv', bc',
 dz' and tau_e, identify's model before diagnose and the final one: covered / runs, median |z|,
 median relative standard error (issue 24's target: each covered in at least 85 % of 20 seeds).
+
+``--family`` (default ``lawlag``: the above, unchanged) measures the same on motors and log
+designs the lumped path was not built on (truth ``none``; every parameter still moved by up to
+20 % per seed): ``share03`` and ``share06`` the lawlag motor with bv raised so that the back-EMF
+is about 0.3 and 0.6 of the per-volt damping bv'; ``hobby`` a small motor (R 5 ohm, km = ke
+0.01, J 2e-6, 6 V supply: every voltage of the design times 1/4), ``large`` a larger one (R 0.3
+ohm, km = ke 0.1, J 5e-3, 24 V), both with Coulomb friction 2 % and the dead zone 3 % of the
+stall torque at the supply and viscous friction 0.4 % of it at the no-load speed (as the
+lawlag motor's bv); ``paper`` the lawlag motor logged as the paper's protocol (steps from rest
+at 6, 12 and 20 V, 2 s each, and a +-20 V triangle of period 8 s through zero); ``sines`` the
+lawlag motor driven by sines (15 V at 0.25 Hz through zero for 8 s; 10 V + 8 V at 0.7 Hz +
+4 V at 2.3 Hz for 4 s). The held-out runs are the lawlag ones (voltages scaled with the
+supply).
 Not a test: nothing here asserts.
 """
 
@@ -42,6 +56,27 @@ from pathlib import Path
 import numpy as np
 
 MOTOR = {"R": 1.0, "km": 0.05, "J": 5e-4, "bv": 1e-5, "bc": 2e-3, "dz": 3e-3}
+
+
+def _share_motor(share: float) -> dict:
+    """The lawlag motor with bv so that ke/bv' = ``share`` (bv' = bv R/km + ke)."""
+    return {**MOTOR, "bv": MOTOR["km"] ** 2 / MOTOR["R"] * (1.0 / share - 1.0)}
+
+
+def _sized_motor(R: float, k: float, J: float, supply: float) -> dict:
+    """A motor of R, km = ke = k, J with friction a fixed share of its stall torque at
+    ``supply``: Coulomb 2 %, the dead zone 3 %, viscous 0.4 % at the no-load speed."""
+    stall = k * supply / R
+    return {"R": R, "km": k, "J": J, "bv": 0.004 * stall / (supply / k), "bc": 0.02 * stall,
+            "dz": 0.03 * stall}
+
+
+#: family -> (SI motor, voltage scale of the design, fit-log design)
+FAMILIES = {"lawlag": (MOTOR, 1.0, "lawlag"), "share03": (_share_motor(0.3), 1.0, "lawlag"),
+            "share06": (_share_motor(0.6), 1.0, "lawlag"),
+            "hobby": (_sized_motor(5.0, 0.01, 2e-6, 6.0), 0.25, "lawlag"),
+            "large": (_sized_motor(0.3, 0.1, 5e-3, 24.0), 1.0, "lawlag"),
+            "paper": (MOTOR, 1.0, "paper"), "sines": (MOTOR, 1.0, "sines")}
 #: the truths' effects at a size that matters on this motor (SI; the delay in samples)
 DRAG = {"bq": 1e-6}
 #: a friction curve with no named law: up to ~0.05 N m by half the top speed, back to 0 at it
@@ -54,12 +89,13 @@ NOISE = 0.5  # rad/s
 NSUB = 64  # the truth's internal steps per sample at 100 Hz (finer than any fit)
 
 
-def truth(seed: int, lag_ms: float, rate: float, eff: str) -> dict:
+def truth(seed: int, lag_ms: float, rate: float, eff: str, family: str = "lawlag") -> dict:
     """SI values of the seed's motor with its L/R and the effect of the truth."""
     from pmdcid.simulate import neutral_values
 
     rng = np.random.default_rng(seed)
-    vals = {**neutral_values(), **{k: x * rng.uniform(0.8, 1.2) for k, x in MOTOR.items()}}
+    motor = FAMILIES[family][0]
+    vals = {**neutral_values(), **{k: x * rng.uniform(0.8, 1.2) for k, x in motor.items()}}
     vals["ke"] = vals["km"]
     vals["L"] = vals["R"] * lag_ms * 1e-3
     if eff == "quadratic_drag":
@@ -102,18 +138,40 @@ def make_log(name, t, u, vals, rng, start=None):
     return Log.from_arrays(t, v=u, omega=w, theta=s.theta, name=name)
 
 
-def scenario(seed: int, lag_ms: float, rate: float, eff: str):
+def scenario(seed: int, lag_ms: float, rate: float, eff: str, family: str = "lawlag"):
     """(fit logs, held-out logs, SI truth)."""
-    vals = truth(seed, lag_ms, rate, eff)
+    vals = truth(seed, lag_ms, rate, eff, family)
     rng = np.random.default_rng(1000 + seed)
+    _, k, design = FAMILIES[family]
     t4, t8 = np.arange(int(4 * rate)) / rate, np.arange(int(8 * rate)) / rate
-    stair = np.array([8.0, 18.0, 12.0, 24.0, 6.0, 16.0, 22.0, 10.0])
-    fit = [make_log("step_5_15V", t4, levels(t4, [(0, 5.0), (1.0, 15.0)]), vals, rng, 5.0),
-           make_log("staircase", t8, stair[np.minimum((t8 // 1).astype(int), 7)], vals, rng)]
-    held = [make_log("held_up10", t4, levels(t4, [(0.5, 10.0)]), vals, rng),
-            make_log("held_down", t4, levels(t4, [(0, 12.0), (1.0, 3.0)]), vals, rng, 12.0),
-            make_log("held_neg", t4, levels(t4, [(0, -6.0), (1.0, -12.0)]), vals, rng, -6.0)]
+    if design == "lawlag":
+        stair = k * np.array([8.0, 18.0, 12.0, 24.0, 6.0, 16.0, 22.0, 10.0])
+        fit = [make_log("step_5_15V", t4, levels(t4, [(0, k * 5.0), (1.0, k * 15.0)]), vals,
+                        rng, k * 5.0),
+               make_log("staircase", t8, stair[np.minimum((t8 // 1).astype(int), 7)], vals,
+                        rng)]
+    else:
+        fit = _fit_logs(design, rate, vals, rng)
+    held = [make_log("held_up10", t4, levels(t4, [(0.5, k * 10.0)]), vals, rng),
+            make_log("held_down", t4, levels(t4, [(0, k * 12.0), (1.0, k * 3.0)]), vals, rng,
+                     k * 12.0),
+            make_log("held_neg", t4, levels(t4, [(0, -k * 6.0), (1.0, -k * 12.0)]), vals, rng,
+                     -k * 6.0)]
     return fit, held, vals
+
+
+def _fit_logs(design: str, rate: float, vals: dict, rng) -> list:
+    """The fit logs of the ``paper`` and ``sines`` designs (the lawlag motor's voltages)."""
+    from pmdcid.synth import triangle
+
+    t2, t4, t8 = (np.arange(int(s * rate)) / rate for s in (2, 4, 8))
+    if design == "paper":
+        return [*(make_log(f"step_{a:g}V", t2, levels(t2, [(0.2, a)]), vals, rng)
+                  for a in (6.0, 12.0, 20.0)),
+                make_log("triangle", t8, triangle(t8, 20.0, 8.0), vals, rng)]
+    return [make_log("sine_slow", t8, 15.0 * np.sin(2 * np.pi * 0.25 * t8), vals, rng),
+            make_log("sine_mix", t4, 10.0 + 8.0 * np.sin(2 * np.pi * 0.7 * t4)
+                     + 4.0 * np.sin(2 * np.pi * 2.3 * t4), vals, rng, 10.0)]
 
 
 def predict(model, log) -> float:
@@ -152,13 +210,15 @@ def _z(model, name, true) -> float | None:
     return None if e is None else e["z"]
 
 
-def run_case(seed: int, lag_ms: float, rate: float, eff: str) -> dict:
+def run_case(seed: int, lag_ms: float, rate: float, eff: str, family: str = "lawlag") -> dict:
     from pmdcid.model import Model
     from pmdcid.pipeline import _diagnose, identify
 
-    fit, held, vals = scenario(seed, lag_ms, rate, eff)
+    fit, held, vals = scenario(seed, lag_ms, rate, eff, family)
     t0 = time.time()
     row = {"seed": seed, "lag_ms": lag_ms, "rate": rate, "truth": eff}
+    if family != "lawlag":
+        row["family"] = family
     try:
         res = identify(fit, Model(), run_diagnose=False)
         before = res.model.copy()
@@ -187,9 +247,9 @@ def run_case(seed: int, lag_ms: float, rate: float, eff: str) -> dict:
 def cases(args) -> list[tuple]:
     seeds = ([int(s) for s in args.seed_list.split(",")] if args.seed_list
              else range(args.first, args.first + args.seeds))
-    return [(s, float(lag), float(rate), eff) for s in seeds
+    return [(s, float(lag), float(rate), eff, fam) for s in seeds
             for lag in args.lags.split(",") for rate in args.rates.split(",")
-            for eff in args.truths.split(",")]
+            for eff in args.truths.split(",") for fam in args.family.split(",")]
 
 
 def sweep(out: Path, todo) -> None:
@@ -233,12 +293,22 @@ def classify(r: dict) -> dict[str, list[str]]:
     return out
 
 
+def _label(r: dict) -> str:
+    """A row's truth, after its family where that is not the default."""
+    return f"{r['family']}:{r['truth']}" if "family" in r else r["truth"]
+
+
+def _order(key: tuple) -> tuple:
+    fam, _, eff = key[0].rpartition(":")
+    return (list(FAMILIES).index(fam or "lawlag"), TRUTHS.index(eff), key[1])
+
+
 def tally(path: Path) -> None:
     rows = [json.loads(line) for line in open(path)]
     counts: dict = collections.defaultdict(collections.Counter)
     n = collections.Counter()
     for r in rows:
-        key = (r["truth"], r["rate"])
+        key = (_label(r), r["rate"])
         n[key] += 1
         if "error" in r:
             counts[key]["error"] += 1
@@ -246,7 +316,7 @@ def tally(path: Path) -> None:
             continue
         for cat, what in classify(r).items():
             counts[key][cat] += 1
-            print(f"{cat}: {r['truth']} {r['rate']:g} Hz L/R {r['lag_ms']:g} ms seed {r['seed']}:"
+            print(f"{cat}: {_label(r)} {r['rate']:g} Hz L/R {r['lag_ms']:g} ms seed {r['seed']}:"
                   f" {what}; identify {r['before_effects']} tau_e {r['tau_e_before']}, final "
                   f"{r['after_effects']} tau_e {r['tau_e']}; held-out {r['held_before']} -> "
                   f"{r['held_after']}")
@@ -255,7 +325,7 @@ def tally(path: Path) -> None:
             "J outside 2 se", "bv outside 2 se", "bc outside 2 se", "dz outside 2 se", "error"]
     print("\n| truth | rate | runs | " + " | ".join(cats) + " |")
     print("|---" * (len(cats) + 3) + "|")
-    for key in sorted(n, key=lambda k: (TRUTHS.index(k[0]), k[1])):
+    for key in sorted(n, key=_order):
         print(f"| {key[0]} | {key[1]:g} Hz | {n[key]} | "
               + " | ".join(str(counts[key][c]) for c in cats) + " |")
     tot = collections.Counter()
@@ -282,9 +352,9 @@ def coverage(rows: list[dict]) -> None:
     rows = [r for r in rows if "est" in r]
     print("\n| truth | rate | model | " + " | ".join(CHECKED) + " |")
     print("|---" * (len(CHECKED) + 3) + "|")
-    keys = sorted({(r["truth"], r["rate"]) for r in rows}, key=lambda k: (TRUTHS.index(k[0]), k[1]))
+    keys = sorted({(_label(r), r["rate"]) for r in rows}, key=_order)
     for key in keys:
-        rs = [r for r in rows if (r["truth"], r["rate"]) == key]
+        rs = [r for r in rows if (_label(r), r["rate"]) == key]
         for label, field in (("identify", "est_before"), ("final", "est")):
             cells = [_cell([r[field].get(k) for r in rs]) for k in CHECKED]
             print(f"| {key[0]} | {key[1]:g} Hz | {label} | " + " | ".join(cells) + " |")
@@ -316,6 +386,8 @@ def main(argv=None) -> int:
     ap.add_argument("--rates", default="100,500,1000")
     ap.add_argument("--lags", default="2,4", help="L/R [ms]")
     ap.add_argument("--truths", default=",".join(TRUTHS))
+    ap.add_argument("--family", default="lawlag",
+                    help="comma-separated: " + ",".join(FAMILIES) + " (docstring)")
     ap.add_argument("--part", help=argparse.SUPPRESS)
     ap.add_argument("--tally", type=Path, help="count a results.jsonl")
     args = ap.parse_args(argv)
