@@ -672,6 +672,11 @@ CASES: list[Case] = [
                                                                omega_scale=60 / (2 * np.pi))),
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--force"], 0,
       r"^warning: step\.csv: .*rpm", changes=("new.json",)),
+    # a command that fails prints its one error line, not the warnings it gave on the way (a NaN
+    # filled in the speed, then no step in a constant input)
+    C("fm-warning-then-refusal-one-line", combine(MODEL, edited(
+        "paper/step_1.5V.csv", "step.csv", lambda ls: _map_column(1, lambda x: 0.0)(
+            _replace_data_row(100, 3, "nan")(ls)))), FM, 1, r"^error: step\.csv: "),
     # ---- demo ------------------------------------------------------------------------------
     C("demo-out-under-regular-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt/d"], 1,
       r"^error: notes\.txt\b"),
