@@ -134,6 +134,12 @@ def _clip_column(col: int, level: float):
     return _map_column(col, lambda x: min(x, level))
 
 
+def _scale_columns(lines, cols, factor):
+    for c in cols:
+        lines = _map_column(c, lambda x: x * factor)(lines)
+    return lines
+
+
 def _drop_column(col: int):
     def fn(lines):
         return [ln if ln.startswith("#") else ",".join(c for j, c in enumerate(ln.split(","))
@@ -672,6 +678,11 @@ CASES: list[Case] = [
                                                                omega_scale=60 / (2 * np.pi))),
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--force"], 0,
       r"^warning: step\.csv: .*rpm", changes=("new.json",)),
+    # forced past the speed gate: the fit's refusal (no room for ws) names the log
+    C("diag-no-room-names-the-log", combine(MODEL, edited(
+        "paper/step_1.5V.csv", "step.csv", lambda ls: _scale_columns(ls, (1, 2, 3, 4), 1e12))),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--force"], 1,
+      r"^error: step\.csv: no room to fit ws"),
     # a command that fails prints its one error line, not the warnings it gave on the way (a NaN
     # filled in the speed, then no step in a constant input)
     C("fm-warning-then-refusal-one-line", combine(MODEL, edited(
