@@ -683,6 +683,17 @@ CASES: list[Case] = [
         "paper/step_1.5V.csv", "step.csv", lambda ls: _scale_columns(ls, (1, 2, 3, 4), 1e12))),
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--force"], 1,
       r"^error: step\.csv: no room to fit ws"),
+    # voltages and currents no DC motor reaches: the same gate as the speed's, naming the column
+    C("fm-voltage-beyond-any-motor", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                           _map_column(1, lambda x: x * 1e12))),
+      FM, 1, r"^error: step\.csv: v reaches 1\.5e\+12 V, beyond any DC motor's voltage.*--force",
+      subprocess=True),
+    C("fe-current-beyond-any-motor", combine(MODEL, edited("paper/blocked_1.5V.csv", "blocked.csv",
+                                                           _map_column(2, lambda x: x * 1e12))),
+      FE, 1, r"^error: blocked\.csv: i reaches .* A, beyond any DC motor's current"),
+    C("sim-voltage-beyond-any-motor", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                            _map_column(1, lambda x: x * 1e12))),
+      SIM, 0, r"^warning: step\.csv: v reaches 1\.5e\+12 V", changes=("out.csv",)),
     # a command that fails prints its one error line, not the warnings it gave on the way (a NaN
     # filled in the speed, then no step in a constant input)
     C("fm-warning-then-refusal-one-line", combine(MODEL, edited(
