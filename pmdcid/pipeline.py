@@ -39,7 +39,7 @@ import numpy as np
 
 from pmdcid.errors import MAX_MESSAGE, FitError, PmdcidError
 from pmdcid.fit.results import ResultProtocol, notes_of
-from pmdcid.identify.nonlinear_setup import closed_loop_logs
+from pmdcid.identify.nonlinear_setup import MIN_SAMPLES, closed_loop_logs
 from pmdcid.identify.plausibility import (
     MAX_TAU_MECHANICAL,
     mechanical_tau,
@@ -54,7 +54,7 @@ from pmdcid.identify.runners import (
     stage_electrical,
     stage_nonlinear,
 )
-from pmdcid.identify.steps import held_steps
+from pmdcid.identify.steps import MIN_PLATEAU_SAMPLES, held_steps
 from pmdcid.io.kinds import canonical, describe, stage_class
 from pmdcid.model import Model
 from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
@@ -175,6 +175,10 @@ def _measures_nothing(log) -> str:
 
 def classify(log) -> LogPlan:
     """The class of one log (module docstring) and the reason, in words."""
+    if log.n < MIN_PLATEAU_SAMPLES:  # said as such, not as "no step" or "nothing moves"
+        return LogPlan(log.path, "unused", f"only {log.n} samples: too short for any stage (a "
+                                           f"step needs {MIN_PLATEAU_SAMPLES}, a simulation-"
+                                           f"error fit {MIN_SAMPLES})")
     cls = stage_class(log.kind)
     if cls is not None:
         return LogPlan(log.path, cls, f"'# kind: {log.kind}' in the file "

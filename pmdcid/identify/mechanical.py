@@ -44,7 +44,7 @@ from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-expo
     paper_mechanical,
     speed_noise,
 )
-from pmdcid.identify.steps import despike, find_steps, held_head, lsq
+from pmdcid.identify.steps import MIN_PLATEAU_SAMPLES, despike, find_steps, held_head, lsq
 from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
@@ -304,6 +304,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
             if d is not None:
                 data.append(d)
     if no_step and not steps:
+        _refuse_short(logs)
         raise NoStepError("no log holds a voltage step (an input held at a level; a measured "
                           f"voltage that sags with the load is not): {BY_SIMULATION}",
                           ", ".join(lg.path for lg in logs))
@@ -351,6 +352,16 @@ def _head_levels(heads, moving) -> list[MechStep]:
                 and abs(h.omega_ss) > MOVE_SIGMAS * max(h.omega_ss_se, sig)):
             out.append(h)
     return out
+
+
+def _refuse_short(logs) -> None:
+    """Every log too short to hold a step: said as such (not as "no step", whose hint,
+    fit-nonlinear, needs longer logs still)."""
+    if all(lg.n < MIN_PLATEAU_SAMPLES for lg in logs):
+        n = max(lg.n for lg in logs)
+        raise FitError(f"too short ({n} samples) to hold a step response (at least "
+                       f"{MIN_PLATEAU_SAMPLES}: a step and the speed settling after it)",
+                       ", ".join(lg.path for lg in logs))
 
 
 def _still_warnings(steps, warns) -> None:

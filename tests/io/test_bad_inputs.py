@@ -140,6 +140,14 @@ def _scale_columns(lines, cols, factor):
     return lines
 
 
+def _head(k: int):
+    """Keep the comments, the header and the first ``k`` data rows of a fixture's lines."""
+    def fn(lines):
+        h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+        return lines[:h + 1 + k]
+    return fn
+
+
 def _drop_column(col: int):
     def fn(lines):
         return [ln if ln.startswith("#") else ",".join(c for j, c in enumerate(ln.split(","))
@@ -699,6 +707,12 @@ CASES: list[Case] = [
     C("fm-warning-then-refusal-one-line", combine(MODEL, edited(
         "paper/step_1.5V.csv", "step.csv", lambda ls: _map_column(1, lambda x: 0.0)(
             _replace_data_row(100, 3, "nan")(ls)))), FM, 1, r"^error: step\.csv: "),
+    # 3 rows: said as too short, not as "no step" (whose hint, fit-nonlinear, needs 50)
+    C("fm-three-rows", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv", _head(3))), FM, 1,
+      r"^error: step\.csv: too short \(3 samples\) to hold a step response"),
+    C("identify-three-rows", edited("paper/step_1.5V.csv", "step.csv", _head(3)),
+      ["identify", "step.csv", "-m", "model.json", "--no-diagnose"], 1,
+      r"^error: no log identifies anything: step\.csv: only 3 samples: too short for any stage"),
     # ---- demo ------------------------------------------------------------------------------
     C("demo-out-under-regular-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt/d"], 1,
       r"^error: notes\.txt\b"),
