@@ -713,6 +713,14 @@ CASES: list[Case] = [
     C("identify-three-rows", edited("paper/step_1.5V.csv", "step.csv", _head(3)),
       ["identify", "step.csv", "-m", "model.json", "--no-diagnose"], 1,
       r"^error: no log identifies anything: step\.csv: only 3 samples: too short for any stage"),
+    # a time column that wraps (a 16-bit ms counter) or drops to 0 (a logger that stopped)
+    C("log-time-wraps", combine(MODEL, table("step.csv", {
+        "t [ms]": (np.arange(3000) + 64000) % 65536, "v": np.ones(3000)})), SIM, 1,
+      r"^error: step\.csv: time goes back .* 16-bit millisecond counter"),
+    C("log-time-zeros-at-the-end", combine(MODEL, table("step.csv", {
+        "t": np.where(np.arange(3000) < 2950, T1K, 0.0), "v": np.ones(3000)})), SIM, 1,
+      r"^error: step\.csv: time goes back at data row 2951 .* every stamp from there to the end "
+      r"\(50 rows\) is 0.*cut the log after data row 2950"),
     # ---- demo ------------------------------------------------------------------------------
     C("demo-out-under-regular-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt/d"], 1,
       r"^error: notes\.txt\b"),
