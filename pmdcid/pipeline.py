@@ -222,6 +222,7 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
     Returns an :class:`IdentifyResult` (the model given is not modified).
     """
     say = progress or (lambda msg: None)
+    _check_controller(logs, controller)
     work = model.copy()
     if km is not None:
         work.set("km", km, stage="datasheet")
@@ -263,6 +264,22 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         say("diagnose")
         _diagnose(res, moving, say)
     return res
+
+
+def _check_controller(logs, controller) -> None:
+    """A controller whose reference column no log carries is refused before any stage runs
+    (each closed-loop fit would otherwise be skipped in turn, and a model fitted as if no loop
+    ran be written)."""
+    if controller is None or any(controller.reference in lg.data or
+                                 controller.reference in lg.extra for lg in logs):
+        return
+    from pmdcid.errors import LogError, short_list
+
+    have = short_list(dict.fromkeys(c for lg in logs for c in (*lg.data, *lg.extra)), 8)
+    raise LogError(f"the controller's reference column '{controller.reference}' is in none of "
+                   f"the logs (they have {have}): name the set-point column with the spec's "
+                   "reference=COLUMN (or map it, -c omega_ref=COLUMN), or leave out --controller "
+                   "for open-loop logs", ", ".join(lg.path for lg in logs))
 
 
 def _mechanical_start(res: IdentifyResult, groups, say) -> None:

@@ -721,6 +721,12 @@ CASES: list[Case] = [
         "t": np.where(np.arange(3000) < 2950, T1K, 0.0), "v": np.ones(3000)})), SIM, 1,
       r"^error: step\.csv: time goes back at data row 2951 .* every stamp from there to the end "
       r"\(50 rows\) is 0.*cut the log after data row 2950"),
+    # a controller whose reference column no log carries: refused before any stage (was: each
+    # closed-loop fit skipped, exit 0 with fit-mechanical's open-loop model)
+    C("identify-controller-reference-absent", STEP,
+      ["identify", "step.csv", "-m", "model.json", "--no-diagnose", "--controller",
+       "type=PI,kp=0.05,ki=2,reference=nosuch"], 1,
+      r"^error: step\.csv: the controller's reference column 'nosuch' is in none of the logs"),
     # ---- demo ------------------------------------------------------------------------------
     C("demo-out-under-regular-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt/d"], 1,
       r"^error: notes\.txt\b"),
