@@ -7,7 +7,9 @@ The base logs are the demo's (``fixtures/hidden``: a blocked-rotor step, a free-
 first 40 s of the triangle at 100 Hz) and bench/newrigs.py's ``bench-step`` rig (ms, volts, rpm
 at 100 Hz, turning at the first row, a few NaN cells; ``rigpi``: its PI speed loop, a controller
 in the loop). Each mutation (:data:`MUTATIONS`) edits
-the log a command reads (one at a time); each command runs in its own folder with a timeout.
+the log a command reads (one at a time), or adds files and options beside it (a ``--map`` file
+naming absent columns, a ``rep/`` folder the user wrote, ``--controller`` specs with bad fields);
+each command runs in its own folder with a timeout. Files a mutation writes are inputs too.
 A base model is identified once from the unmutated logs. Flagged, per run:
 
 - ``traceback`` / ``internal``: a Python traceback or the edge's "internal error" line;
@@ -241,6 +243,55 @@ def m_quoted(df, c):
     return (head + hdr + body).encode(), []
 
 
+def m_nan_burst(df, c):
+    """50 rows mid-log with every column but t NaN (a logger hiccup)."""
+    d = df.copy()
+    k = len(d) // 2
+    for n in d.columns:
+        if n != "t":
+            d[n] = d[n].astype(float)
+            d.loc[k:k + 49, n] = np.nan
+    return to_csv(d, c).encode(), []
+
+
+def m_t_wrap(df, c):
+    """t as a uint16 millisecond counter that wraps (65535 -> 0) mid-log."""
+    d = df.copy()
+    ms = np.round(d["t"].to_numpy(float) * 1000).astype(np.int64)
+    ms = (ms + 65536 - ms[len(ms) // 2]) % 65536
+    d["t"] = ms
+    d = d.rename(columns={"t": "t [ms]"})
+    return to_csv(d, c).encode(), []
+
+
+def m_trailing_zeros(df, c):
+    """The last 50 rows all zeros, t too (the logger stopped and padded its buffer)."""
+    d = df.copy()
+    d.iloc[-50:] = 0
+    return to_csv(d, c).encode(), []
+
+
+def m_string_cells(df, c):
+    """'N/A' and '--' cells in the speed column."""
+    d = df.copy()
+    if "omega" in d:
+        d["omega"] = d["omega"].astype(object)
+        for j, s in enumerate(("N/A", "--", "N/A")):
+            d.loc[len(d) // 3 + 17 * j, "omega"] = s
+    return to_csv(d, c).encode(), []
+
+
+def with_files(files: dict, args=()):
+    """The log unchanged, files written beside it (inputs too: never modified), ``args`` added."""
+    def m(df, c):
+        return to_csv(df, c).encode(), list(args), {k: v.encode() for k, v in files.items()}
+    return m
+
+
+def controller(spec: str):
+    return lambda df, c: (to_csv(df, c).encode(), ["--controller", spec])
+
+
 MUTATIONS = {
     "none": m_none,
     "rows3": rows(3),
@@ -302,6 +353,21 @@ MUTATIONS = {
     "negated": m_negate,
     "negative-only": m_neg_offset,
     "no-comments": m_no_comments,
+    "nan-burst-50": m_nan_burst,
+    "t-wrap-uint16-ms": m_t_wrap,
+    "trailing-zeros": m_trailing_zeros,
+    "string-cells": m_string_cells,
+    "map-missing-column": with_files({"rig.map": "omega=speed_rpm*rpm\n"}, ["--map", "rig.map"]),
+    "map-partly-missing": with_files({"rig.map": "v=v*(2*dir-1)\n"}, ["--map", "rig.map"]),
+    "c-missing-column": lambda df, c: (to_csv(df, c).encode(), ["-c", "omega=nosuch*rpm"]),
+    "report-dir-exists": with_files({"rep/mine.txt": "my notes\n", "rep/report.html": "<p>mine"}),
+    "controller-bad-number": controller("type=PI,kp=abc,ki=2"),
+    "controller-bad-type": controller("type=PIX,kp=1"),
+    "controller-unknown-key": controller("type=PI,kp=0.05,gain=3"),
+    "controller-no-reference": controller("type=PI,kp=0.05,ki=2,reference=nosuch"),
+    "controller-neg-period": controller("type=PI,kp=0.05,ki=2,period=-1"),
+    "controller-bad-file": lambda df, c: (to_csv(df, c).encode(), ["--controller", "pi.json"],
+                                          {"pi.json": b'{"type": "PI", "kp": "x"'}),
 }
 
 
@@ -368,7 +434,23 @@ def model_tiny_J(obj):
     return obj
 
 
+def model_effects_no_params(obj):
+    obj["effects"] = ["stribeck", "cogging", "sensor_delay"]
+    return obj
+
+
+def model_not_json(obj):
+    return "R = 2.37\nL = 0.0178\n"
+
+
+def model_truncated(obj):
+    return json.dumps(obj)[:200]
+
+
 MODEL_MUTATIONS = {
+    "model-effects-no-params": model_effects_no_params,
+    "model-not-json": model_not_json,
+    "model-truncated": model_truncated,
     "model-at-bound": model_at_bound,
     "model-unknown-key": model_unknown_key,
     "model-unknown-param": model_unknown_param,
@@ -528,9 +610,13 @@ def run_log_case(work: Path, base: Base, base_model: Path, mut: str, cmd: str) -
     if any(k not in base.frames for k in (kind, *others)):
         return {}
     d = Path(tempfile.mkdtemp(prefix=f"{mut}-{cmd}-", dir=work))
-    data, extra = MUTATIONS[mut](base.frames[kind], base.comments[kind])
+    data, extra, *files = MUTATIONS[mut](base.frames[kind], base.comments[kind])
     log = f"{kind}.csv"
     (d / log).write_bytes(data)
+    files = files[0] if files else {}
+    for name, content in files.items():
+        (d / name).parent.mkdir(parents=True, exist_ok=True)
+        (d / name).write_bytes(content)
     other_paths = []
     for o in others:
         (d / f"{o}.csv").write_text(to_csv(base.frames[o], base.comments[o]))
@@ -549,7 +635,8 @@ def run_log_case(work: Path, base: Base, base_model: Path, mut: str, cmd: str) -
     res = cli(full, d)
     written = {"diagnose": ["new.json"], "fit-electrical": []}.get(
         cmd, [model] if {"EMPTY", "RL"} & set(args) or cmd == "fit-nonlinear" else [])
-    inputs = [log, *other_paths] + ([model] if model in before and model not in written else [])
+    inputs = [log, *other_paths, *files] + (
+        [model] if model in before and model not in written else [])
     flags = judge(res, d, before, inputs, written)
     return row(mut, cmd, res, flags, full)
 
@@ -560,7 +647,7 @@ def run_model_case(work: Path, base: Base, base_model: Path, mut: str, cmd: str)
         (d / f"{k}.csv").write_text(to_csv(f, base.comments[k]))
     (d / "probe.csv").write_text(to_csv(base.frames["step"][["t", "v"]].iloc[:500]))
     obj = MODEL_MUTATIONS[mut](json.loads(base_model.read_text()))
-    (d / "model.json").write_text(json.dumps(obj, indent=1))
+    (d / "model.json").write_text(obj if isinstance(obj, str) else json.dumps(obj, indent=1))
     before = snapshot(d)
     full = fill(MODEL_COMMANDS[cmd], "model.json", "", [], [])
     res = cli(full, d)
