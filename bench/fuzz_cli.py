@@ -14,7 +14,7 @@ A base model is identified once from the unmutated logs. Flagged, per run:
 
 - ``traceback`` / ``internal``: a Python traceback or the edge's "internal error" line;
 - ``exit N``: an exit status outside the contract (0, 1, 2);
-- ``lines``: exit 1 with more or fewer than one ``error:`` line on stderr;
+- ``lines``: exit 1 with anything but one ``error:`` line on stderr (a warning before it too);
 - ``hang``: no answer in :data:`TIMEOUT_S`;
 - ``modified``: an input file changed;
 - ``nan-model``: a written model holds NaN or inf;
@@ -563,8 +563,8 @@ def judge(res, d: Path, before: dict, inputs: list[str], written: list[str]) -> 
     if res.returncode not in (0, 1, 2):
         flags.append(f"exit {res.returncode}")
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    if res.returncode == 1 and (len([ln for ln in lines if ln.startswith("error:")]) != 1):
-        flags.append("lines")
+    if res.returncode == 1 and (len(lines) != 1 or not lines[0].startswith("error:")):
+        flags.append("lines")  # the one error line, no warning before it
     after = snapshot(d)
     flags += [f"modified {n}" for n in inputs if after.get(n) != before.get(n)]
     if res.returncode == 0:
