@@ -44,6 +44,7 @@ from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-expo
     paper_mechanical,
     speed_noise,
 )
+from pmdcid.identify.nonlinear_setup import MIN_SAMPLES
 from pmdcid.identify.steps import MIN_PLATEAU_SAMPLES, despike, find_steps, held_head, lsq
 from pmdcid.model import Model
 
@@ -355,13 +356,17 @@ def _head_levels(heads, moving) -> list[MechStep]:
 
 
 def _refuse_short(logs) -> None:
-    """Every log too short to hold a step: said as such (not as "no step", whose hint,
-    fit-nonlinear, needs longer logs still)."""
-    if all(lg.n < MIN_PLATEAU_SAMPLES for lg in logs):
-        n = max(lg.n for lg in logs)
+    """Every log too short to hold a step, or too short for fit-nonlinear (the stage "no step"
+    points to): said as such."""
+    n = max(lg.n for lg in logs)
+    paths = ", ".join(lg.path for lg in logs)
+    if n < MIN_PLATEAU_SAMPLES:
         raise FitError(f"too short ({n} samples) to hold a step response (at least "
-                       f"{MIN_PLATEAU_SAMPLES}: a step and the speed settling after it)",
-                       ", ".join(lg.path for lg in logs))
+                       f"{MIN_PLATEAU_SAMPLES}: a step and the speed settling after it)", paths)
+    if n < MIN_SAMPLES:
+        raise FitError(f"no log holds a voltage step, and at {n} samples the logs are too short "
+                       f"for fit-nonlinear too (at least {MIN_SAMPLES}): record longer logs",
+                       paths)
 
 
 def _still_warnings(steps, warns) -> None:

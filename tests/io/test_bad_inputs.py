@@ -710,6 +710,9 @@ CASES: list[Case] = [
     # 3 rows: said as too short, not as "no step" (whose hint, fit-nonlinear, needs 50)
     C("fm-three-rows", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv", _head(3))), FM, 1,
       r"^error: step\.csv: too short \(3 samples\) to hold a step response"),
+    C("fm-twelve-rows", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv", _head(12))), FM,
+      1, r"^error: step\.csv: no log holds a voltage step, and at 12 samples the logs are too "
+         r"short for fit-nonlinear too"),
     C("identify-three-rows", edited("paper/step_1.5V.csv", "step.csv", _head(3)),
       ["identify", "step.csv", "-m", "model.json", "--no-diagnose"], 1,
       r"^error: no log identifies anything: step\.csv: only 3 samples: too short for any stage"),
