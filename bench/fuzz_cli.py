@@ -129,8 +129,8 @@ def m_integers(df, c):
     d = df.copy()
     d["t"] = np.round(d["t"] * 1000).astype(int)
     for n in ("v", "i", "omega", "theta"):
-        if n in d:
-            d[n] = np.round(d[n] * (1000 if n == "i" else 1)).astype(int)
+        if n in d:  # Int64: a NaN cell (the rig's) stays an empty cell
+            d[n] = np.round(d[n] * (1000 if n == "i" else 1)).astype("Int64")
     d = d.rename(columns={"t": "t [ms]", "i": "i [mA]"}) if "i" in d else d.rename(
         columns={"t": "t [ms]"})
     return to_csv(d, c).encode(), []
@@ -605,6 +605,18 @@ def fill(args, model: str, log: str, others: list[str], maps: list[str]) -> list
     return out + (maps if args[0] != "channels" else [])
 
 
+def guarded(fn):
+    """A job whose own mutation fails (a bench bug) is a row flagged ``bench-error``, not the end
+    of the run."""
+    def run(work, base, base_model, mut, cmd):
+        try:
+            return fn(work, base, base_model, mut, cmd)
+        except Exception as exc:  # noqa: BLE001 - reported as a row
+            return {"case": mut, "cmd": cmd, "exit": None, "flags": ["bench-error"],
+                    "last": f"{type(exc).__name__}: {exc}"[:220], "args": "", "stderr_lines": 0}
+    return run
+
+
 def run_log_case(work: Path, base: Base, base_model: Path, mut: str, cmd: str) -> dict:
     kind, others, args = COMMANDS[cmd]
     if any(k not in base.frames for k in (kind, *others)):
@@ -712,7 +724,7 @@ def main(argv=None):
                  if not a.cmd or c in cmds]
     rows = []
     with ThreadPoolExecutor(a.jobs) as ex:
-        futs = [(bn, ex.submit(fn, work, b, pmodel, m, c)) for fn, b, m, c, bn in jobs]
+        futs = [(bn, ex.submit(guarded(fn), work, b, pmodel, m, c)) for fn, b, m, c, bn in jobs]
         for bn, f in futs:
             r = f.result()
             if not r:
