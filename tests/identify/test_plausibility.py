@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pmdcid.io import Log
 from pmdcid.identify.plausibility import stuck_issue, turns_from_rest
+from pmdcid.io import Log
 from pmdcid.simulate import neutral_values, simulate_values
-from pmdcid.synth import truth_model, triangle
+from pmdcid.synth import triangle, truth_model
 
 RPM = 60 / (2 * np.pi)
 #: a geared motor seen at its output: friction near its stall torque km |v| / R (0.0953 N m at
