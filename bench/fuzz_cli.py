@@ -7,12 +7,14 @@ The base logs are the demo's (``fixtures/hidden``: a blocked-rotor step, a free-
 first 40 s of the triangle at 100 Hz) and bench/newrigs.py's ``bench-step`` rig (ms, volts, rpm
 at 100 Hz, turning at the first row, a few NaN cells; ``rigpi``: its PI speed loop, a controller
 in the loop). Each mutation (:data:`MUTATIONS`) edits
-the log a command reads (one at a time); each command runs in its own folder with a timeout.
+the log a command reads (one at a time), or adds files and options beside it (a ``--map`` file
+naming absent columns, a ``rep/`` folder the user wrote, ``--controller`` specs with bad fields);
+each command runs in its own folder with a timeout. Files a mutation writes are inputs too.
 A base model is identified once from the unmutated logs. Flagged, per run:
 
 - ``traceback`` / ``internal``: a Python traceback or the edge's "internal error" line;
 - ``exit N``: an exit status outside the contract (0, 1, 2);
-- ``lines``: exit 1 with more or fewer than one ``error:`` line on stderr;
+- ``lines``: exit 1 with anything but one ``error:`` line on stderr (a warning before it too);
 - ``hang``: no answer in :data:`TIMEOUT_S`;
 - ``modified``: an input file changed;
 - ``nan-model``: a written model holds NaN or inf;
@@ -127,8 +129,8 @@ def m_integers(df, c):
     d = df.copy()
     d["t"] = np.round(d["t"] * 1000).astype(int)
     for n in ("v", "i", "omega", "theta"):
-        if n in d:
-            d[n] = np.round(d[n] * (1000 if n == "i" else 1)).astype(int)
+        if n in d:  # Int64: a NaN cell (the rig's) stays an empty cell
+            d[n] = np.round(d[n] * (1000 if n == "i" else 1)).astype("Int64")
     d = d.rename(columns={"t": "t [ms]", "i": "i [mA]"}) if "i" in d else d.rename(
         columns={"t": "t [ms]"})
     return to_csv(d, c).encode(), []
@@ -241,6 +243,55 @@ def m_quoted(df, c):
     return (head + hdr + body).encode(), []
 
 
+def m_nan_burst(df, c):
+    """50 rows mid-log with every column but t NaN (a logger hiccup)."""
+    d = df.copy()
+    k = len(d) // 2
+    for n in d.columns:
+        if n != "t":
+            d[n] = d[n].astype(float)
+            d.loc[k:k + 49, n] = np.nan
+    return to_csv(d, c).encode(), []
+
+
+def m_t_wrap(df, c):
+    """t as a uint16 millisecond counter that wraps (65535 -> 0) mid-log."""
+    d = df.copy()
+    ms = np.round(d["t"].to_numpy(float) * 1000).astype(np.int64)
+    ms = (ms + 65536 - ms[len(ms) // 2]) % 65536
+    d["t"] = ms
+    d = d.rename(columns={"t": "t [ms]"})
+    return to_csv(d, c).encode(), []
+
+
+def m_trailing_zeros(df, c):
+    """The last 50 rows all zeros, t too (the logger stopped and padded its buffer)."""
+    d = df.copy()
+    d.iloc[-50:] = 0
+    return to_csv(d, c).encode(), []
+
+
+def m_string_cells(df, c):
+    """'N/A' and '--' cells in the speed column."""
+    d = df.copy()
+    if "omega" in d:
+        d["omega"] = d["omega"].astype(object)
+        for j, s in enumerate(("N/A", "--", "N/A")):
+            d.loc[len(d) // 3 + 17 * j, "omega"] = s
+    return to_csv(d, c).encode(), []
+
+
+def with_files(files: dict, args=()):
+    """The log unchanged, files written beside it (inputs too: never modified), ``args`` added."""
+    def m(df, c):
+        return to_csv(df, c).encode(), list(args), {k: v.encode() for k, v in files.items()}
+    return m
+
+
+def controller(spec: str):
+    return lambda df, c: (to_csv(df, c).encode(), ["--controller", spec])
+
+
 MUTATIONS = {
     "none": m_none,
     "rows3": rows(3),
@@ -302,6 +353,21 @@ MUTATIONS = {
     "negated": m_negate,
     "negative-only": m_neg_offset,
     "no-comments": m_no_comments,
+    "nan-burst-50": m_nan_burst,
+    "t-wrap-uint16-ms": m_t_wrap,
+    "trailing-zeros": m_trailing_zeros,
+    "string-cells": m_string_cells,
+    "map-missing-column": with_files({"rig.map": "omega=speed_rpm*rpm\n"}, ["--map", "rig.map"]),
+    "map-partly-missing": with_files({"rig.map": "v=v*(2*dir-1)\n"}, ["--map", "rig.map"]),
+    "c-missing-column": lambda df, c: (to_csv(df, c).encode(), ["-c", "omega=nosuch*rpm"]),
+    "report-dir-exists": with_files({"rep/mine.txt": "my notes\n", "rep/report.html": "<p>mine"}),
+    "controller-bad-number": controller("type=PI,kp=abc,ki=2"),
+    "controller-bad-type": controller("type=PIX,kp=1"),
+    "controller-unknown-key": controller("type=PI,kp=0.05,gain=3"),
+    "controller-no-reference": controller("type=PI,kp=0.05,ki=2,reference=nosuch"),
+    "controller-neg-period": controller("type=PI,kp=0.05,ki=2,period=-1"),
+    "controller-bad-file": lambda df, c: (to_csv(df, c).encode(), ["--controller", "pi.json"],
+                                          {"pi.json": b'{"type": "PI", "kp": "x"'}),
 }
 
 
@@ -368,7 +434,23 @@ def model_tiny_J(obj):
     return obj
 
 
+def model_effects_no_params(obj):
+    obj["effects"] = ["stribeck", "cogging", "sensor_delay"]
+    return obj
+
+
+def model_not_json(obj):
+    return "R = 2.37\nL = 0.0178\n"
+
+
+def model_truncated(obj):
+    return json.dumps(obj)[:200]
+
+
 MODEL_MUTATIONS = {
+    "model-effects-no-params": model_effects_no_params,
+    "model-not-json": model_not_json,
+    "model-truncated": model_truncated,
     "model-at-bound": model_at_bound,
     "model-unknown-key": model_unknown_key,
     "model-unknown-param": model_unknown_param,
@@ -481,8 +563,8 @@ def judge(res, d: Path, before: dict, inputs: list[str], written: list[str]) -> 
     if res.returncode not in (0, 1, 2):
         flags.append(f"exit {res.returncode}")
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    if res.returncode == 1 and (len([ln for ln in lines if ln.startswith("error:")]) != 1):
-        flags.append("lines")
+    if res.returncode == 1 and (len(lines) != 1 or not lines[0].startswith("error:")):
+        flags.append("lines")  # the one error line, no warning before it
     after = snapshot(d)
     flags += [f"modified {n}" for n in inputs if after.get(n) != before.get(n)]
     if res.returncode == 0:
@@ -523,14 +605,30 @@ def fill(args, model: str, log: str, others: list[str], maps: list[str]) -> list
     return out + (maps if args[0] != "channels" else [])
 
 
+def guarded(fn):
+    """A job whose own mutation fails (a bench bug) is a row flagged ``bench-error``, not the end
+    of the run."""
+    def run(work, base, base_model, mut, cmd):
+        try:
+            return fn(work, base, base_model, mut, cmd)
+        except Exception as exc:  # noqa: BLE001 - reported as a row
+            return {"case": mut, "cmd": cmd, "exit": None, "flags": ["bench-error"],
+                    "last": f"{type(exc).__name__}: {exc}"[:220], "args": "", "stderr_lines": 0}
+    return run
+
+
 def run_log_case(work: Path, base: Base, base_model: Path, mut: str, cmd: str) -> dict:
     kind, others, args = COMMANDS[cmd]
     if any(k not in base.frames for k in (kind, *others)):
         return {}
     d = Path(tempfile.mkdtemp(prefix=f"{mut}-{cmd}-", dir=work))
-    data, extra = MUTATIONS[mut](base.frames[kind], base.comments[kind])
+    data, extra, *files = MUTATIONS[mut](base.frames[kind], base.comments[kind])
     log = f"{kind}.csv"
     (d / log).write_bytes(data)
+    files = files[0] if files else {}
+    for name, content in files.items():
+        (d / name).parent.mkdir(parents=True, exist_ok=True)
+        (d / name).write_bytes(content)
     other_paths = []
     for o in others:
         (d / f"{o}.csv").write_text(to_csv(base.frames[o], base.comments[o]))
@@ -549,7 +647,8 @@ def run_log_case(work: Path, base: Base, base_model: Path, mut: str, cmd: str) -
     res = cli(full, d)
     written = {"diagnose": ["new.json"], "fit-electrical": []}.get(
         cmd, [model] if {"EMPTY", "RL"} & set(args) or cmd == "fit-nonlinear" else [])
-    inputs = [log, *other_paths] + ([model] if model in before and model not in written else [])
+    inputs = [log, *other_paths, *files] + (
+        [model] if model in before and model not in written else [])
     flags = judge(res, d, before, inputs, written)
     return row(mut, cmd, res, flags, full)
 
@@ -560,7 +659,7 @@ def run_model_case(work: Path, base: Base, base_model: Path, mut: str, cmd: str)
         (d / f"{k}.csv").write_text(to_csv(f, base.comments[k]))
     (d / "probe.csv").write_text(to_csv(base.frames["step"][["t", "v"]].iloc[:500]))
     obj = MODEL_MUTATIONS[mut](json.loads(base_model.read_text()))
-    (d / "model.json").write_text(json.dumps(obj, indent=1))
+    (d / "model.json").write_text(obj if isinstance(obj, str) else json.dumps(obj, indent=1))
     before = snapshot(d)
     full = fill(MODEL_COMMANDS[cmd], "model.json", "", [], [])
     res = cli(full, d)
@@ -625,7 +724,7 @@ def main(argv=None):
                  if not a.cmd or c in cmds]
     rows = []
     with ThreadPoolExecutor(a.jobs) as ex:
-        futs = [(bn, ex.submit(fn, work, b, pmodel, m, c)) for fn, b, m, c, bn in jobs]
+        futs = [(bn, ex.submit(guarded(fn), work, b, pmodel, m, c)) for fn, b, m, c, bn in jobs]
         for bn, f in futs:
             r = f.result()
             if not r:

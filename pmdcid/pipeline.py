@@ -39,7 +39,7 @@ import numpy as np
 
 from pmdcid.errors import MAX_MESSAGE, FitError, PmdcidError
 from pmdcid.fit.results import ResultProtocol, notes_of
-from pmdcid.identify.nonlinear_setup import closed_loop_logs
+from pmdcid.identify.nonlinear_setup import MIN_SAMPLES, closed_loop_logs
 from pmdcid.identify.plausibility import (
     MAX_TAU_MECHANICAL,
     mechanical_tau,
@@ -54,7 +54,7 @@ from pmdcid.identify.runners import (
     stage_electrical,
     stage_nonlinear,
 )
-from pmdcid.identify.steps import held_steps
+from pmdcid.identify.steps import MIN_PLATEAU_SAMPLES, held_steps
 from pmdcid.io.kinds import canonical, describe, stage_class
 from pmdcid.model import Model
 from pmdcid.model.lumped import is_lumped, mark_lumped, wants_lumped
@@ -175,6 +175,10 @@ def _measures_nothing(log) -> str:
 
 def classify(log) -> LogPlan:
     """The class of one log (module docstring) and the reason, in words."""
+    if log.n < MIN_PLATEAU_SAMPLES:  # said as such, not as "no step" or "nothing moves"
+        return LogPlan(log.path, "unused", f"only {log.n} samples: too short for any stage (a "
+                                           f"step needs {MIN_PLATEAU_SAMPLES}, a simulation-"
+                                           f"error fit {MIN_SAMPLES})")
     cls = stage_class(log.kind)
     if cls is not None:
         return LogPlan(log.path, cls, f"'# kind: {log.kind}' in the file "
@@ -218,6 +222,7 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
     Returns an :class:`IdentifyResult` (the model given is not modified).
     """
     say = progress or (lambda msg: None)
+    _check_controller(logs, controller)
     work = model.copy()
     if km is not None:
         work.set("km", km, stage="datasheet")
@@ -259,6 +264,22 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         say("diagnose")
         _diagnose(res, moving, say)
     return res
+
+
+def _check_controller(logs, controller) -> None:
+    """A controller whose reference column no log carries is refused before any stage runs
+    (each closed-loop fit would otherwise be skipped in turn, and a model fitted as if no loop
+    ran be written)."""
+    if controller is None or any(controller.reference in lg.data or
+                                 controller.reference in lg.extra for lg in logs):
+        return
+    from pmdcid.errors import LogError, short_list
+
+    have = short_list(dict.fromkeys(c for lg in logs for c in (*lg.data, *lg.extra)), 8)
+    raise LogError(f"the controller's reference column '{controller.reference}' is in none of "
+                   f"the logs (they have {have}): name the set-point column with the spec's "
+                   "reference=COLUMN (or map it, -c omega_ref=COLUMN), or leave out --controller "
+                   "for open-loop logs", ", ".join(lg.path for lg in logs))
 
 
 def _mechanical_start(res: IdentifyResult, groups, say) -> None:

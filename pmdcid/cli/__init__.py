@@ -25,8 +25,38 @@ import click
 from pmdcid import __version__
 
 
+class _Warnings:
+    """A command's warnings (:class:`~pmdcid.errors.PmdcidWarning`), each once, printed when it
+    succeeds and dropped when it fails: its one ``error:`` line says what to fix, and a warning
+    on the way (a NaN filled, a resampled clock) would stand before it as a second, unrelated
+    line. ``PMDCID_DEBUG=1`` prints every warning at once, other categories too."""
+
+    def __init__(self, one_line):
+        self.one_line = one_line
+        self.debug = bool(os.environ.get("PMDCID_DEBUG"))
+        self.pending: list[str] = []
+
+    def show(self, message, category, filename, lineno, file=None, line=None) -> None:
+        from pmdcid.errors import PmdcidWarning
+
+        if issubclass(category, PmdcidWarning):
+            text = f"warning: {self.one_line(message)}"
+            if self.debug:
+                echo(text, err=True)
+            elif text not in self.pending:
+                self.pending.append(text)
+        elif self.debug:
+            echo(f"warning: {category.__name__}: {message}", err=True)
+
+    def flush(self, show: bool = True) -> None:
+        for text in self.pending if show else ():
+            echo(text, err=True)
+        self.pending.clear()
+
+
 class _Group(click.Group):
-    """Turns the library's exception family into one line on stderr and exit status 1."""
+    """Turns the library's exception family into one line on stderr and exit status 1 (the
+    command's warnings printed only when it succeeds: :class:`_Warnings`)."""
 
     def invoke(self, ctx):
         from pmdcid.errors import PmdcidError, PmdcidWarning
@@ -36,12 +66,6 @@ class _Group(click.Group):
         def one_line(text) -> str:  # shown safely first, then at most MAX_MESSAGE characters
             return _one_line(terminal(str(text)))
 
-        def _show(message, category, filename, lineno, file=None, line=None):
-            if issubclass(category, PmdcidWarning):
-                echo(f"warning: {one_line(message)}", err=True)
-            elif os.environ.get("PMDCID_DEBUG"):
-                echo(f"warning: {category.__name__}: {message}", err=True)
-
         from pmdcid.runtime.malloc import tune_malloc
         from pmdcid.runtime.outputs import transaction
         from pmdcid.runtime.signals import Terminated, install_sigterm
@@ -49,20 +73,26 @@ class _Group(click.Group):
         with warnings.catch_warnings():  # click 8.2 deprecates protected_args (9: in args)
             warnings.simplefilter("ignore", DeprecationWarning)
             raw = [*getattr(ctx, "protected_args", []), *ctx.args]  # the command's own words
-        warnings.showwarning = _show
+        shown = _Warnings(one_line)
+        warnings.showwarning = shown.show
         warnings.simplefilter("always", PmdcidWarning)
         install_sigterm()
         tune_malloc()
         try:
             with transaction():  # a failing command leaves nothing new behind
-                return super().invoke(ctx)
+                out = super().invoke(ctx)
+            shown.flush()
+            return out
+        except click.exceptions.Exit as exc:
+            shown.flush(exc.exit_code == 0)
+            raise
         except Terminated as exc:
             click.echo(f"error: terminated ({exc.name}): nothing was written", err=True)
             sys.exit(128 + exc.signum)
         except PmdcidError as exc:
             echo("error: " + one_line(str(exc)), err=True)  # always one short line
             sys.exit(1)
-        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+        except (click.exceptions.Abort, click.ClickException):
             raise
         except KeyboardInterrupt:
             click.echo("error: interrupted", err=True)

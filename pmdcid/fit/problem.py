@@ -387,6 +387,17 @@ class Problem:
         return any(ch.signal == signal and (moving is None or moving != self.blocked[ch.log])
                    for ch in self.channels)
 
+    def start(self, params) -> np.ndarray:
+        """``params.start()``, its refusal (no room, no finite start) naming these logs: the
+        range that left no room came from them."""
+        try:
+            return params.start()
+        except FitError as exc:
+            if exc.path is not None:
+                raise
+            paths = ", ".join(dict.fromkeys(str(lg.path) for lg in self.logs if lg.path))
+            raise FitError(str(exc), paths or None) from None
+
     def refit_parameters(self, vals: dict[str, float], free: Sequence[str],
                          typical_scale: dict[str, float] | None = None,
                          limits: dict[str, tuple[float, float]] | None = None) -> Parameters:
@@ -412,7 +423,7 @@ class Problem:
             stats = FitStats(self.count(part), 0, c[part], 1)
             return FitOutcome(dict(vals), {}, stats, c, {p: self.count(p) for p in c})
         params = self.refit_parameters(vals, free, typical_scale, limits)
-        x0 = params.start()
+        x0 = self.start(params)
         scale = params.scales(x0)
         lo, hi = params.bounds()
 

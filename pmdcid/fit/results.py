@@ -270,10 +270,23 @@ def format_estimates(estimates, width: int = 10) -> list[str]:
 
 
 def nrmse(sim: np.ndarray, meas: np.ndarray) -> float:
-    """RMS error divided by the standard deviation of the measurement (docs/report.md)."""
+    """RMS error divided by the standard deviation of the measurement (docs/report.md); NaN
+    where it is undefined: a measurement that never changes (std 0), fewer than 2 samples."""
     ok = np.isfinite(sim) & np.isfinite(meas)
     if ok.sum() < 2:
         return math.nan
     sd = float(np.std(meas[ok]))
     err = float(np.sqrt(np.mean((sim[ok] - meas[ok]) ** 2)))
-    return err / sd if sd > 0 else math.inf
+    return err / sd if sd > 0 else math.nan
+
+
+#: what a table says for an NRMSE that is undefined (:func:`nrmse`: NaN)
+NRMSE_UNDEFINED = "undefined (the measurement never changes)"
+
+
+def nrmse_text(value: float | None, digits: int = 4) -> str:
+    """An NRMSE as a table prints it: ``digits`` decimals, or :data:`NRMSE_UNDEFINED` in words
+    (never ``inf`` or ``nan``)."""
+    if value is None or not math.isfinite(value):
+        return NRMSE_UNDEFINED
+    return f"{value:.{digits}f}"

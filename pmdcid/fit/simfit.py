@@ -105,7 +105,7 @@ class _Fit:
         lo, hi = params.bounds()
         self.lo = np.concatenate([lo, np.full(len(speeds), -np.inf)])
         self.hi = np.concatenate([hi, np.full(len(speeds), np.inf)])
-        start = params.start()
+        start = problem.start(params)
         self.x0 = np.concatenate([start, speeds])
         self.scale = np.concatenate([params.scales(start), scale_of(np.array(speeds, float))])
         self.steps = np.concatenate([params.steps(), np.full(len(speeds), STEP)])

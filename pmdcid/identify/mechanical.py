@@ -44,7 +44,8 @@ from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-expo
     paper_mechanical,
     speed_noise,
 )
-from pmdcid.identify.steps import despike, find_steps, held_head, lsq
+from pmdcid.identify.nonlinear_setup import MIN_SAMPLES
+from pmdcid.identify.steps import MIN_PLATEAU_SAMPLES, despike, find_steps, held_head, lsq
 from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
@@ -304,6 +305,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
             if d is not None:
                 data.append(d)
     if no_step and not steps:
+        _refuse_short(logs)
         raise NoStepError("no log holds a voltage step (an input held at a level; a measured "
                           f"voltage that sags with the load is not): {BY_SIMULATION}",
                           ", ".join(lg.path for lg in logs))
@@ -351,6 +353,20 @@ def _head_levels(heads, moving) -> list[MechStep]:
                 and abs(h.omega_ss) > MOVE_SIGMAS * max(h.omega_ss_se, sig)):
             out.append(h)
     return out
+
+
+def _refuse_short(logs) -> None:
+    """Every log too short to hold a step, or too short for fit-nonlinear (the stage "no step"
+    points to): said as such."""
+    n = max(lg.n for lg in logs)
+    paths = ", ".join(lg.path for lg in logs)
+    if n < MIN_PLATEAU_SAMPLES:
+        raise FitError(f"too short ({n} samples) to hold a step response (at least "
+                       f"{MIN_PLATEAU_SAMPLES}: a step and the speed settling after it)", paths)
+    if n < MIN_SAMPLES:
+        raise FitError(f"no log holds a voltage step, and at {n} samples the logs are too short "
+                       f"for fit-nonlinear too (at least {MIN_SAMPLES}): record longer logs",
+                       paths)
 
 
 def _still_warnings(steps, warns) -> None:

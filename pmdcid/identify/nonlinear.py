@@ -37,6 +37,7 @@ from pmdcid.fit.results import (
     SimFitResult,
     bounded,
     format_estimates,
+    nrmse_text,
     write_estimate,
 )
 from pmdcid.fit.simfit import FitOptions, fit_simulation
@@ -179,7 +180,7 @@ class NonlinearResult(ResultProtocol):
             if name in self.estimates and math.isfinite(c) and abs(c) > 0.5:
                 lines.append(f"correlation J-{name} {c:+.3f}")
         for p, e in zip(self.paths, self.nrmse, strict=True):
-            errs = ", ".join(f"{k} {v:.4f}" for k, v in e.items())
+            errs = ", ".join(f"{k} {nrmse_text(v)}" for k, v in e.items())
             lines.append(f"NRMSE {p}: {errs}")
         s = self.stats
         lines.append(f"reduced chi-square {s.redchi:.3g} ({s.ndata} samples, {s.nfev} "

@@ -55,7 +55,7 @@ def find_step(t: np.ndarray, u: np.ndarray, path: str | None = None) -> StepInfo
     """
     u = np.asarray(u, float)
     n = len(u)
-    if n < 10:
+    if n < MIN_PLATEAU_SAMPLES:
         raise FitError(f"{path}: too short ({n} samples) to hold a step response")
     tail = max(3, n // 10)
     after = float(np.median(u[-tail:]))
@@ -322,7 +322,7 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
     """
     u = np.asarray(u, float)
     n = len(u)
-    if n < 10:
+    if n < MIN_PLATEAU_SAMPLES:
         raise FitError(f"{path}: too short ({n} samples) to hold a step response")
     det = _detector(u)
     thr = max(det.thr(det.coarsest), 5 * det.sig / math.sqrt(det.coarsest))

@@ -8,6 +8,9 @@
   in deg/s, and so on: the warning names the likely unit and the mapping that fixes it.
 - :func:`check_speed_range`: a measured speed beyond :data:`MAX_SPEED` is no motor's (rad/s,
   or m/s on a linear axis): a column in counts per second, or a scale applied twice.
+- :func:`check_input_range`: the same gate on the input and the current: a voltage beyond
+  :data:`MAX_VOLTAGE`, a torque (force) beyond :data:`MAX_TORQUE`, a current beyond
+  :data:`MAX_CURRENT` is no DC motor's: a raw ADC or PWM column, or a scale applied twice.
 """
 
 from __future__ import annotations
@@ -28,6 +31,16 @@ SATURATION_PILEUP = 3.0
 #: fastest measured speed of any motor [rad/s] (or linear axis [m/s]): 1e6 rad/s is 9.5 million
 #: rpm, 20 times the fastest spindles built; the catalogue's speeds (Stribeck ws) end there too
 MAX_SPEED = 1e6
+
+#: the largest armature voltage [V], current [A] and torque [N m] (force [N] on a linear axis)
+#: of any DC motor, each far beyond the largest built (traction and mill motors: ~3 kV, ~20 kA,
+#: ~1e6 N m): only a unit or scale mistake reaches them
+MAX_VOLTAGE = 1e5
+MAX_CURRENT = 1e5
+MAX_TORQUE = 1e7
+#: column -> (its largest plausible magnitude, its SI unit, what it is)
+INPUT_LIMITS = {"v": (MAX_VOLTAGE, "V", "voltage"), "i": (MAX_CURRENT, "A", "current"),
+                "tau": (MAX_TORQUE, "N m", "torque")}
 
 #: speed/angle-derivative ratios that betray a unit, and the mapping that fixes them
 UNIT_RATIOS: tuple[tuple[float, str], ...] = (
@@ -61,6 +74,9 @@ def check_log(log) -> list[str]:
                 check_saturation(log.data[col], col, log.path)
         if "omega" in log.data and "omega" not in log.derived:
             check_speed_range(log.data["omega"], log.path)
+        for col in INPUT_LIMITS:
+            if col in log.data and col not in log.derived:
+                check_input_range(log.data[col], col, log.path)
         if "omega" in log.data and "theta" in log.data and not log.derived & {"omega", "theta"}:
             check_speed_units(log.data["omega"], log.data["theta"], log.dt, log.path)
     prefix = f"{log.path}: "
@@ -79,6 +95,21 @@ def check_speed_range(omega: np.ndarray, path: str) -> bool:
     warn(f"omega reaches {top:.3g} rad/s, beyond any motor's speed (< {MAX_SPEED:g} rad/s): "
          "check its unit and scale (-c omega=COLUMN*FACTOR; encoder counts per second need "
          "2*pi/COUNTS_PER_REV)", path)
+    return True
+
+
+def check_input_range(x: np.ndarray, name: str, path: str) -> bool:
+    """Warn when column ``name`` (``v``, ``i`` or ``tau``) exceeds its :data:`INPUT_LIMITS`
+    anywhere: no DC motor's voltage, current or torque is that large (True: warned)."""
+    limit, unit, what = INPUT_LIMITS[name]
+    a = np.abs(np.asarray(x, float))
+    a = a[np.isfinite(a)]
+    top = float(a.max()) if a.size else 0.0
+    if top <= limit:
+        return False
+    warn(f"{name} reaches {top:.3g} {unit}, beyond any DC motor's {what} (< {limit:g} {unit}): "
+         f"check its unit and scale (-c {name}=COLUMN*FACTOR; raw ADC or PWM counts need the "
+         "full scale's value over the counts)", path)
     return True
 
 

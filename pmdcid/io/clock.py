@@ -90,6 +90,31 @@ def _dt_text(x: float) -> str:
     return f"{x * 1e3:.3g} ms" if x < 1.0 else f"{x:.3g} s"
 
 
+#: counters whose wrap a time column may show: bits, and the units a count may stand for [s]
+COUNTER_BITS = (8, 16, 24, 32)
+COUNTER_UNITS = ((1e-6, "microsecond"), (1e-3, "millisecond"), (1.0, "second"))
+
+
+def _why_back(t: np.ndarray, row: int) -> str:
+    """What a step back of the time after data row ``row + 1`` most likely is, and what to do:
+    a logger that stopped (every later stamp 0), a counter that wraps (the step back is a
+    power-of-two count of a time unit), or just a time that must increase."""
+    after = t[row + 1:]
+    if len(after) > 1 and not after.any():
+        return (f": every stamp from there to the end ({len(after)} rows) is 0, a logger that "
+                f"stopped and padded its buffer; cut the log after data row {row + 1}")
+    dtv = np.diff(t[: row + 1])
+    period = float(np.median(dtv)) if len(dtv) else 0.0
+    span = float(t[row] - t[row + 1]) + period  # the counter's range, one period added back
+    for bits in COUNTER_BITS:
+        for unit, name in COUNTER_UNITS:
+            if period > 0 and abs(span - 2.0**bits * unit) <= 2 * period:
+                return (f": the time wraps from {t[row]:g} s to {t[row + 1]:g} s, a {bits}-bit "
+                        f"{name} counter that overflows; unwrap it (add {2**bits} counts after "
+                        "each wrap) or cut the log at the wrap")
+    return ": time must increase"
+
+
 def _finite_increasing(t: np.ndarray, path: str) -> np.ndarray:
     if not np.isfinite(t).all():
         row = int(np.flatnonzero(~np.isfinite(t))[0])
@@ -100,8 +125,8 @@ def _finite_increasing(t: np.ndarray, path: str) -> np.ndarray:
     dtv = np.diff(t)
     if (dtv < 0).any():
         row = int(np.flatnonzero(dtv < 0)[0])
-        raise LogError(f"time goes back at data row {row + 2} (t={t[row + 1]:g} s): time must "
-                       "increase", path)
+        raise LogError(f"time goes back at data row {row + 2} (t={t[row + 1]:g} s)"
+                       f"{_why_back(t, row)}", path)
     if not (dtv > 0).any():
         raise LogError("time stands still: every row has the same time stamp", path)
     return dtv

@@ -149,6 +149,14 @@ def _notes(p: Page) -> None:
     p.add("</ul></section>")
 
 
+def _nrmse_cells(p: Page, b: str, sm: dict) -> str:
+    """The NRMSE and fit cells of one signal, in words where undefined (a constant
+    measurement)."""
+    if sm.get("nrmse_undefined"):
+        return f'<td colspan="2">{_esc(sm["nrmse_undefined"])}</td>'
+    return f"{p.num(b + '.nrmse')}{p.num(b + '.fit_percent')}"
+
+
 def _errors(p: Page, figs: dict[str, bytes]) -> None:
     m = p.m
     p.add('<section id="errors"><h2>Errors per log and signal</h2>')
@@ -175,7 +183,7 @@ def _errors(p: Page, figs: dict[str, bytes]) -> None:
             rms = p.num(b + ".rms", after=own)
             p.add(f"<tr><td>{_esc(lg['name'])}</td><td>{_esc(s)}{derived}<br><small>"
                   f"[{_esc(sm['unit'])}]</small></td>"
-                  f"{p.num(b + '.nrmse')}{p.num(b + '.fit_percent')}{rms}"
+                  f"{_nrmse_cells(p, b, sm)}{rms}"
                   f"{p.num(b + '.max_abs')}{reg}"
                   f"{p.num(b + '.resid.auto.outside')}{p.num(b + '.resid.cross.outside')}</tr>")
     p.add("</table></div>")

@@ -3,7 +3,8 @@
 Definitions (every one is reported in ``metrics.json``):
 
 - ``nrmse`` = RMS(sim - meas) / std(meas) (docs/report.md; the same as MATLAB ``compare``'s
-  NRMSE cost) and ``fit_percent`` = 100 (1 - nrmse), MATLAB ``compare``'s fit.
+  NRMSE cost) and ``fit_percent`` = 100 (1 - nrmse), MATLAB ``compare``'s fit; both null,
+  and ``nrmse_undefined`` says why in words, for a measurement that never changes (std 0).
 - ``rms``, ``max_abs`` [unit of the signal]: RMS and largest absolute error.
 - Regimes: ``low_speed`` holds the samples where |omega_meas| < ``omega_threshold``
   = :data:`LOW_SPEED_FRACTION` x max |omega_meas| (near zero speed, where stick-slip and the dead
@@ -138,6 +139,9 @@ def signal_metrics(sim: np.ndarray, meas: np.ndarray, u: np.ndarray, low: np.nda
         "max_abs": _f(np.max(np.abs(err))),
         "meas_std": _f(sd),
     }
+    if not sd > 0:  # JSON has no inf: null, and why in words
+        out["nrmse_undefined"] = ("the measurement never changes (std 0): NRMSE and fit are "
+                                  "undefined; rms and max_abs give the error")
     if low is not None:
         for name, mask in (("low_speed", low), ("high_speed", ~low)):
             st = error_stats(err[mask], sd)

@@ -134,6 +134,20 @@ def _clip_column(col: int, level: float):
     return _map_column(col, lambda x: min(x, level))
 
 
+def _scale_columns(lines, cols, factor):
+    for c in cols:
+        lines = _map_column(c, lambda x: x * factor)(lines)
+    return lines
+
+
+def _head(k: int):
+    """Keep the comments, the header and the first ``k`` data rows of a fixture's lines."""
+    def fn(lines):
+        h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+        return lines[:h + 1 + k]
+    return fn
+
+
 def _drop_column(col: int):
     def fn(lines):
         return [ln if ln.startswith("#") else ",".join(c for j, c in enumerate(ln.split(","))
@@ -672,6 +686,50 @@ CASES: list[Case] = [
                                                                omega_scale=60 / (2 * np.pi))),
       ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--force"], 0,
       r"^warning: step\.csv: .*rpm", changes=("new.json",)),
+    # forced past the speed gate: the fit's refusal (no room for ws) names the log
+    C("diag-no-room-names-the-log", combine(MODEL, edited(
+        "paper/step_1.5V.csv", "step.csv", lambda ls: _scale_columns(ls, (1, 2, 3, 4), 1e12))),
+      ["diagnose", "step.csv", "-m", "model.json", "-o", "new.json", "--force"], 1,
+      r"^error: step\.csv: no room to fit ws"),
+    # voltages and currents no DC motor reaches: the same gate as the speed's, naming the column
+    C("fm-voltage-beyond-any-motor", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                           _map_column(1, lambda x: x * 1e12))),
+      FM, 1, r"^error: step\.csv: v reaches 1\.5e\+12 V, beyond any DC motor's voltage.*--force",
+      subprocess=True),
+    C("fe-current-beyond-any-motor", combine(MODEL, edited("paper/blocked_1.5V.csv", "blocked.csv",
+                                                           _map_column(2, lambda x: x * 1e12))),
+      FE, 1, r"^error: blocked\.csv: i reaches .* A, beyond any DC motor's current"),
+    C("sim-voltage-beyond-any-motor", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv",
+                                                            _map_column(1, lambda x: x * 1e12))),
+      SIM, 0, r"^warning: step\.csv: v reaches 1\.5e\+12 V", changes=("out.csv",)),
+    # a command that fails prints its one error line, not the warnings it gave on the way (a NaN
+    # filled in the speed, then no step in a constant input)
+    C("fm-warning-then-refusal-one-line", combine(MODEL, edited(
+        "paper/step_1.5V.csv", "step.csv", lambda ls: _map_column(1, lambda x: 0.0)(
+            _replace_data_row(100, 3, "nan")(ls)))), FM, 1, r"^error: step\.csv: "),
+    # 3 rows: said as too short, not as "no step" (whose hint, fit-nonlinear, needs 50)
+    C("fm-three-rows", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv", _head(3))), FM, 1,
+      r"^error: step\.csv: too short \(3 samples\) to hold a step response"),
+    C("fm-twelve-rows", combine(MODEL, edited("paper/step_1.5V.csv", "step.csv", _head(12))), FM,
+      1, r"^error: step\.csv: no log holds a voltage step, and at 12 samples the logs are too "
+         r"short for fit-nonlinear too"),
+    C("identify-three-rows", edited("paper/step_1.5V.csv", "step.csv", _head(3)),
+      ["identify", "step.csv", "-m", "model.json", "--no-diagnose"], 1,
+      r"^error: no log identifies anything: step\.csv: only 3 samples: too short for any stage"),
+    # a time column that wraps (a 16-bit ms counter) or drops to 0 (a logger that stopped)
+    C("log-time-wraps", combine(MODEL, table("step.csv", {
+        "t [ms]": (np.arange(3000) + 64000) % 65536, "v": np.ones(3000)})), SIM, 1,
+      r"^error: step\.csv: time goes back .* 16-bit millisecond counter"),
+    C("log-time-zeros-at-the-end", combine(MODEL, table("step.csv", {
+        "t": np.where(np.arange(3000) < 2950, T1K, 0.0), "v": np.ones(3000)})), SIM, 1,
+      r"^error: step\.csv: time goes back at data row 2951 .* every stamp from there to the end "
+      r"\(50 rows\) is 0.*cut the log after data row 2950"),
+    # a controller whose reference column no log carries: refused before any stage (was: each
+    # closed-loop fit skipped, exit 0 with fit-mechanical's open-loop model)
+    C("identify-controller-reference-absent", STEP,
+      ["identify", "step.csv", "-m", "model.json", "--no-diagnose", "--controller",
+       "type=PI,kp=0.05,ki=2,reference=nosuch"], 1,
+      r"^error: step\.csv: the controller's reference column 'nosuch' is in none of the logs"),
     # ---- demo ------------------------------------------------------------------------------
     C("demo-out-under-regular-file", regular_file("notes.txt"), ["demo", "-o", "notes.txt/d"], 1,
       r"^error: notes\.txt\b"),

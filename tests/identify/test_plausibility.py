@@ -1,0 +1,67 @@
+"""identify/plausibility.py: the stuck-rotor rule never refuses a real slow motor.
+
+The rule (:func:`stuck_issue`) refuses a model whose Coulomb friction or dead zone is at or
+beyond the largest torque a log's input applies while that log's rotor visibly turns from rest.
+A real motor that turns has its friction below its drive, so the rule sits at the physics'
+boundary: a slow geared motor whose friction is just below its stall torque, logged with a speed
+noise half its speed, or a low speed logged in whole rpm, is never refused by its true model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pmdcid.identify.plausibility import stuck_issue, turns_from_rest
+from pmdcid.io import Log
+from pmdcid.simulate import neutral_values, simulate_values
+from pmdcid.synth import triangle, truth_model
+
+RPM = 60 / (2 * np.pi)
+#: a geared motor seen at its output: friction near its stall torque km |v| / R (0.0953 N m at
+#: the 4.5 V peak), so the output turns slowly (about 1 rad/s at most)
+GEARED = {"R": 2.37, "L": 0.0178, "km": 0.0502, "J": 0.05, "bv": 0.05, "bc": 0.04,
+          "dz": 0.045}
+STALL = GEARED["km"] * 4.5 / GEARED["R"]
+
+
+def _geared_log(rng, noise: float) -> Log:
+    t = np.arange(40000) * 1e-3
+    u = triangle(t, 4.5, 20.0)
+    sim = simulate_values(t, u, {**neutral_values(), **GEARED})
+    om = sim.omega + rng.normal(0.0, noise, t.size)
+    return Log.from_arrays(t, v=u, omega=om, name="geared.csv")
+
+
+def test_slow_geared_motor_is_not_refused_by_its_true_model(rng):
+    log = _geared_log(rng, noise=0.01)
+    assert turns_from_rest(log)  # the rule applies: the output visibly turns from rest
+    assert stuck_issue(truth_model(GEARED), [log]) is None
+    close = truth_model({**GEARED, "bc": 0.97 * STALL, "dz": 0.98 * STALL})
+    assert stuck_issue(close, [log]) is None  # no margin below the drive that a fit could cross
+    beyond = truth_model({**GEARED, "bc": 1.02 * STALL})
+    assert "geared.csv" in stuck_issue(beyond, [log])
+
+
+@pytest.mark.parametrize("noise", [0.5, 0.05])
+def test_noisy_slow_motor_is_not_refused(rng, noise):
+    """1 rad/s at most, a speed noise of 0.5 rad/s (or 0.05): the true model and one whose
+    friction is just under the stall torque pass."""
+    log = _geared_log(rng, noise)
+    for vals in (GEARED, {**GEARED, "bc": 0.97 * STALL, "dz": 0.98 * STALL}):
+        assert stuck_issue(truth_model(vals), [log]) is None
+
+
+def test_low_speed_logged_in_whole_rpm_is_not_refused(rng):
+    """The paper's motor at 0.6 V (2.3 rpm at most), its speed logged in whole rpm and mapped
+    to rad/s: the quantised speed does not make the rule refuse the true model."""
+    vals = {"R": 2.3724, "L": 17.7933e-3, "km": 50.2e-3, "J": 3.10442e-3, "bv": 0.0314,
+            "bc": 0.005, "dz": 6.35e-3}
+    t = np.arange(40000) * 1e-3
+    u = triangle(t, 0.6, 20.0)
+    sim = simulate_values(t, u, {**neutral_values(), **vals})
+    om = np.round((sim.omega + rng.normal(0.0, 0.01, t.size)) * RPM) / RPM
+    log = Log.from_arrays(t, v=u, omega=om, name="rpm.csv")
+    assert stuck_issue(truth_model(vals), [log]) is None
+    stall = vals["km"] * 0.6 / vals["R"]
+    assert stuck_issue(truth_model({**vals, "bc": 0.97 * stall}), [log]) is None
