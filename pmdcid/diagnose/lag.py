@@ -137,11 +137,20 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
     if holds and lag_resolved(lag, min_z):
         lag, lag_free = _replaced(run, final, lag, lag_free, added, notes)
         return lag, lag_free, "replaced"
+    place = (f"fits as well but is not determined ({lag_z(lag):.2g} standard errors < "
+             f"{min_z:g})" if holds else "fits worse")
+    kept = (f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms) kept: the armature's electrical lag in its "
+            f"place (tau_e {1e3 * lag.values['tau_e']:.3g} ms, no delay) {place} "
+            f"(chi-square {lag.chi2['all']:.6g} against {final.chi2['all']:.6g})")
+    shorter = [f * dt for f in TAU_SAMPLES if f * dt < delay]
+    if not shorter:  # refitted to under a tenth of a sample (the model's own delay standing
+        # in for an effect found here): no lag shorter than it to try beside it
+        notes.append(f"{kept}; no lag shorter than it tried beside it")
+        return final, free, ""
     # a real latency: the lag beside it, where decisive (fit-mechanical's latency holds the
     # lag too when its steps saw both: 6.2 ms for a 2 ms L/R and a 4 ms latency)
     both_free = list(dict.fromkeys([*free, DELAY, *LAG_PARAMS]))
-    both = _lag_fit(run, final, both_free, final.values,
-                    [f * dt for f in TAU_SAMPLES if f * dt < delay])
+    both = _lag_fit(run, final, both_free, final.values, shorter)
     dbic = (n * math.log(max(both.chi2["all"], 1e-300) / max(final.chi2["all"], 1e-300))
             + len(LAG_PARAMS) * math.log(max(n, 2)))
     if dbic < run.settings.rules.bic and lag_resolved(both, min_z):
@@ -153,14 +162,9 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
             f"place fits worse (chi-square {lag.chi2['all']:.6g} against "
             f"{final.chi2['all']:.6g}), beside it better (ΔBIC {dbic:+.0f})")
         return both, both_free, "beside"
-    place = (f"fits as well but is not determined ({lag_z(lag):.2g} standard errors < "
-             f"{min_z:g})" if holds else "fits worse")
     notes.append(
-        f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms) kept: the armature's electrical lag in its "
-        f"place (tau_e {1e3 * lag.values['tau_e']:.3g} ms, no delay) {place} "
-        f"(chi-square {lag.chi2['all']:.6g} against {final.chi2['all']:.6g}), beside it not "
-        f"decisively better and determined (ΔBIC {dbic:+.0f}, {lag_z(both):.2g} standard "
-        "errors)")
+        f"{kept}, beside it not decisively better and determined (ΔBIC {dbic:+.0f}, "
+        f"{lag_z(both):.2g} standard errors)")
     return final, free, ""
 
 

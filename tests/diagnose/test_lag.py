@@ -15,8 +15,11 @@ import numpy as np
 import pytest
 from ident_util import LUMPED, as_log
 
+from bench.thinlogs import scenario, write
+from pmdcid.api import identify
 from pmdcid.diagnose.entry import diagnose_logs
 from pmdcid.fit.problem import Problem
+from pmdcid.io.mapping import parse_mapping
 from pmdcid.model import Model
 from pmdcid.model.lumped import mark_lumped
 from pmdcid.simulate import lumped_view, neutral_values, param_values, simulate_values
@@ -68,3 +71,17 @@ def test_a_latency_keeps_the_delay():
     res = diagnose_logs(_logs(0.0, LAG, seed=6), _model(), effects=["sensor_delay"])
     assert "sensor_delay" in res.model.effects and not res.model.has("tau_e")
     assert any("kept: the armature's electrical lag" in n for n in res.summary["notes"])
+
+
+
+@pytest.mark.slow
+def test_a_model_delay_refitted_to_nothing_ends_with_a_note(tmp_path):
+    """fit-mechanical's latency standing in for a speed sensor's bias (bench/thinlogs.py
+    b2:speed_offset seed 14: 20 ms, no delay in the truth), refitted by diagnose to under a
+    tenth of a sample beside the bias it found: no lag shorter than it to try beside it. At
+    main 471418b: "internal error ValueError: min() arg is an empty sequence"."""
+    fit, _, _, _, _ = scenario("b2:speed_offset", 14)
+    paths = [write(tmp_path, *x) for x in fit]
+    res = identify(paths, diagnose=True, progress=False,
+                   mapping=parse_mapping(["omega=speed_rpm*rpm"]))
+    assert "speed_offset" in res.model.effects
