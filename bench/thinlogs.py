@@ -31,8 +31,10 @@ The tally counts false adds (an effect in the final model the truth lacks, by id
 or by diagnose; back-EMF is real on every voltage rig), true effects added from one log (b1),
 the friction curve standing in for a named law, misses (the truth's effect absent though leaving
 it out of the truth moves a held-out run by more than 2 % NRMSE) and held-out runs whose error
-diagnose raised by more than 5 %.
-Not a test: nothing here asserts. About 15 minutes for 10 seeds on 2 free cores.
+diagnose raised by more than 5 %, and with ``--build2`` the runs whose simulate or report figure
+is off the summary's (or that failed).
+Not a test: nothing here asserts. About 15 minutes for 10 seeds on 2 free cores (``--build2``
+about twice that; 1 kHz about ten times).
 """
 
 from __future__ import annotations
