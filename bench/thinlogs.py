@@ -34,7 +34,7 @@ it out of the truth moves a held-out run by more than 2 % NRMSE) and held-out ru
 diagnose raised by more than 5 %, and with ``--build2`` the runs whose simulate or report figure
 is off the summary's (or that failed).
 Not a test: nothing here asserts. About 15 minutes for 10 seeds on 2 free cores (``--build2``
-about twice that; 1 kHz about ten times).
+about twice that; 1 kHz several times longer).
 """
 
 from __future__ import annotations
