@@ -1,6 +1,7 @@
 """diagnose on thin logs (issue #24): a red team through the command line, over seeds.
 
-    python bench/thinlogs.py --out DIR [--seeds 10] [--jobs 2] [--cases a,b2:stribeck,...]
+    python bench/thinlogs.py --out DIR [--seeds 10] [--first 1] [--jobs 2]
+                             [--cases a,b2:stribeck,...] [--rate 1000] [--build2]
     python bench/thinlogs.py --tally DIR/results.jsonl
 
 A motor (R 2 ohm, km 0.02, J 1e-4 on a flywheel: a 0.5 s time constant; back-EMF; every
@@ -15,14 +16,25 @@ a PI-controlled run with a reversal) from their measured first samples, as ``pmd
   a -8 V step from rest (another operating point, not a repeat);
 - ``b1:EFFECT``: the one log with a true effect; ``b2:EFFECT``: the two logs with it;
 - ``c``, ``c2``, ``c2:EFFECT``: a torque-driven rig (``tau`` column), one or two logs;
-- ``d``, ``d:brush_drop``: the two logs with the current logged, a real brush drop or none.
+- ``d``, ``d:brush_drop``, ``d:input_delay``: the two logs with the current logged, a real
+  brush drop, a real 20 ms input latency or none (the latency's case holds no PI run: a late
+  input is not simulated in closed loop).
+
+``--rate 1000``: every log at 1 kHz instead of 100 Hz (the same motor, noise per sample).
+``--build2`` (issue 24's Build 2): also ``pmdcid diagnose FIT -m BEFORE -o M2 --summary S``
+from identify's model before diagnose, then ``simulate LOG -m M2 --x0 measured`` and ``report
+FIT -m M2`` on each fit log; their speed NRMSE should equal the summary's "after" figure for
+that log (the tally counts a relative difference beyond 1e-3 as a mismatch). The fit logs
+start while turning (``stepA``), so a model with a delay is checked from a moving start.
 
 The tally counts false adds (an effect in the final model the truth lacks, by identify's stages
 or by diagnose; back-EMF is real on every voltage rig), true effects added from one log (b1),
 the friction curve standing in for a named law, misses (the truth's effect absent though leaving
 it out of the truth moves a held-out run by more than 2 % NRMSE) and held-out runs whose error
-diagnose raised by more than 5 %.
-Not a test: nothing here asserts. About 15 minutes for 10 seeds on 2 free cores.
+diagnose raised by more than 5 %, and with ``--build2`` the runs whose simulate or report figure
+is off the summary's (or that failed).
+Not a test: nothing here asserts. About 15 minutes for 10 seeds on 2 free cores (``--build2``
+about twice that; 1 kHz several times longer).
 """
 
 from __future__ import annotations
@@ -45,11 +57,13 @@ TORQUE_RIG = {"J": 2e-3, "bv": 2e-3, "bc": 0.02, "dz": 0.01}
 #: true effects at a size that matters on these rigs (SI)
 EFFECT = {"stribeck": {"fs": 0.01, "ws": 100.0}, "sensor_delay": {"delay": 0.02},
           "speed_offset": {"omega0": 15.0}, "viscous_asymmetry": {"dbv": 3e-5},
-          "quadratic_drag": {"bq": 5e-8}, "brush_drop": {"vb": 0.6}}
+          "quadratic_drag": {"bq": 5e-8}, "brush_drop": {"vb": 0.6},
+          "input_delay": {"latency": 0.02}}
 EFFECT_T = {"stribeck": {"fs": 0.03, "ws": 3.0}, "quadratic_drag": {"bq": 1e-5}}
 EFFECTS = ("stribeck", "sensor_delay", "speed_offset", "viscous_asymmetry", "quadratic_drag")
 CASES = (["a", "a2"] + [f"b1:{e}" for e in EFFECTS] + [f"b2:{e}" for e in EFFECTS]
-         + ["c", "c2", "c2:stribeck", "c2:quadratic_drag", "d", "d:brush_drop"])
+         + ["c", "c2", "c2:stribeck", "c2:quadratic_drag", "d", "d:brush_drop",
+            "d:input_delay"])
 #: the friction curve may stand in for these named laws (counted apart, not as a false add)
 STANDS_IN = {"quadratic_drag", "stribeck"}
 
@@ -125,8 +139,9 @@ def scenario(case: str, seed: int):
             step_log(vals, "held_down", [(0.0, 12 * k), (1.0, 3 * k)], rng, torque, current,
                      12 * k),
             step_log(vals, "held_neg", [(0.0, -6 * k), (1.0, -12 * k)], rng, torque, current,
-                     -6 * k),
-            pi_log(vals, rng, torque, 40.0 if torque else 500.0, 20 * k)]
+                     -6 * k)]
+    if eff != "input_delay":  # a late input is not simulated in closed loop
+        held.append(pi_log(vals, rng, torque, 40.0 if torque else 500.0, 20 * k))
     return fit, held, vals, eff or None, matters(vals, eff, held, torque)
 
 
@@ -185,7 +200,7 @@ def run_case(out: Path, case: str, seed: int) -> dict:
     t0 = time.time()
     runs = [pmdcid("identify", *fp, "-m", before, "--no-diagnose", "-c", "omega=speed_rpm*rpm"),
             pmdcid("identify", *fp, "-m", after, "-c", "omega=speed_rpm*rpm")]
-    row = {"case": case, "seed": seed, "truth": eff, "matters": mat,
+    row = {"case": case, "seed": seed, "truth": eff, "matters": mat, "rate": RATE,
            "secs": round(time.time() - t0, 1)}
     if any(r.returncode for r in runs):
         row["error"] = " ".join(r.stderr.strip() for r in runs)[-300:]
@@ -199,7 +214,58 @@ def run_case(out: Path, case: str, seed: int) -> dict:
                                                 strict=True))
     if "R" in ma.parameters:
         row["R"], row["R_true"] = ma.value("R"), vals["R"]
+    if BUILD2[0]:
+        row["build2"] = build2(folder, fp, before)
     return row
+
+
+#: the largest relative difference of simulate's and report's NRMSE from the summary's
+BUILD2_TOL = 1e-3
+#: ``--build2``: run :func:`build2` on every case
+BUILD2 = [False]
+MAP = ("-c", "omega=speed_rpm*rpm")
+
+
+def build2(folder: Path, fp: list[str], model: str) -> dict:
+    """Issue 24's Build 2: ``diagnose FIT -m MODEL -o M2 --summary S``, then ``simulate LOG -m
+    M2 --x0 measured`` and ``report FIT -m M2`` on each fit log: their speed NRMSE against the
+    summary's "after" figure for that log (``err``: the largest relative difference)."""
+    m2, summ, rep = folder / "diagnosed.json", folder / "summary.json", folder / "report2"
+    run = pmdcid("diagnose", *fp, "-m", model, "-o", str(m2), "--summary", str(summ), *MAP)
+    if run.returncode:
+        return {"error": run.stderr.strip()[-300:]}
+    s = json.loads(summ.read_text())
+    out = {"effects": list(s["added"]), "model_effects": list(load_effects(m2)), "logs": []}
+    rp = pmdcid("report", *fp, "-m", str(m2), "-o", str(rep), *MAP)
+    metrics = json.loads((rep / "metrics.json").read_text())["logs"] if not rp.returncode else []
+    for k, p in enumerate(fp):
+        sim = folder / f"sim2_{Path(p).name}"
+        r2 = pmdcid("simulate", p, "-m", str(m2), "--x0", "measured", "-o", str(sim), *MAP)
+        row = {"summary": s["logs"][k]["after"].get("omega"),
+               "simulate": None if r2.returncode else sim_nrmse(p, sim),
+               "report": metrics[k]["signals"]["omega"]["nrmse"] if metrics else None}
+        out["logs"].append(row)
+    errs = [abs(x / r["summary"] - 1) if x is not None else float("inf")
+            for r in out["logs"] for x in (r["simulate"], r["report"])]
+    out["err"] = max(errs)
+    out["fail"] = [x.stderr.strip()[-200:] for x in (rp,) if x.returncode]
+    return out
+
+
+def load_effects(path) -> list[str]:
+    return json.loads(Path(path).read_text()).get("effects", [])
+
+
+def sim_nrmse(csv: str, sim: Path) -> float:
+    """Speed NRMSE of ``simulate``'s output ``sim`` against the log ``csv`` as read."""
+    import pandas as pd
+
+    from pmdcid.io import read_log
+    from pmdcid.io.mapping import parse_mapping
+
+    w = np.asarray(read_log(csv, mapping=parse_mapping([MAP[1]]))["omega"], float)
+    s = pd.read_csv(sim, comment="#")["omega"].to_numpy(float)
+    return float(np.sqrt(np.mean((s - w) ** 2)) / np.std(w))
 
 
 def sweep(out: Path, cases, seeds, run=None) -> None:
@@ -236,6 +302,11 @@ def classify(r: dict) -> dict[str, list[str]]:
             out["missed"].append(truth_eff)
     if r["rise"] > 0.05:
         out["held-out rise"].append(f"{r['rise']:+.0%}")
+    b2 = r.get("build2")
+    if b2 and ("error" in b2 or b2["fail"]):
+        out["build2 error"].append(b2.get("error") or b2["fail"][0])
+    elif b2 and b2["err"] > BUILD2_TOL:
+        out["build2 mismatch"].append(f"{b2['err']:.1e} {b2['model_effects']}")
     return out
 
 
@@ -258,18 +329,40 @@ def tally(path: Path) -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, help="run the cases, rows into OUT/results.jsonl")
-    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--seeds", type=int, default=10, help="how many seeds")
+    ap.add_argument("--first", type=int, default=1, help="the first seed")
     ap.add_argument("--jobs", type=int, default=1, help="processes (seeds split between them)")
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--seed-list", help=argparse.SUPPRESS)
     ap.add_argument("--tally", type=Path, help="count a results.jsonl")
+    ap.add_argument("--rate", type=float, default=RATE, help="the logs' sample rate [Hz]")
+    ap.add_argument("--build2", action="store_true",
+                    help="also diagnose, simulate --x0 measured and report each case's fit logs")
     args = ap.parse_args(argv)
+    set_options(args)
     if args.tally:
         tally(args.tally)
         return 0
     if args.out is None:
         ap.error("give --out DIR or --tally FILE")
     return run_or_split(__file__, sweep, args)
+
+
+def set_options(args) -> None:
+    """``--rate`` and ``--build2`` for this process's cases."""
+    global RATE
+    RATE = args.rate
+    BUILD2[0] = args.build2
+
+
+def forwarded(args) -> list[str]:
+    """The options a split's processes are given beyond their seeds."""
+    out = []
+    if getattr(args, "rate", None) not in (None, 100.0):
+        out += ["--rate", f"{args.rate:g}"]
+    if getattr(args, "build2", False):
+        out.append("--build2")
+    return out
 
 
 def run_or_split(script: str, sweep_fn, args) -> int:
@@ -280,10 +373,12 @@ def run_or_split(script: str, sweep_fn, args) -> int:
     if args.seed_list:
         sweep_fn(args.out, cases, [int(s) for s in args.seed_list.split(",")])
         return 0
-    seeds = list(range(1, args.seeds + 1))
+    first = getattr(args, "first", 1)
+    seeds = list(range(first, first + args.seeds))
     parts = [seeds[j::args.jobs] for j in range(args.jobs)]
     procs = [subprocess.Popen([sys.executable, script, "--out", str(args.out), "--cases",
-                               args.cases, "--seed-list", ",".join(map(str, p))])
+                               args.cases, "--seed-list", ",".join(map(str, p)),
+                               *forwarded(args)])
              for p in parts if p]
     return max(p.wait() for p in procs)
 

@@ -15,8 +15,11 @@ import numpy as np
 import pytest
 from ident_util import LUMPED, as_log
 
+from bench.thinlogs import scenario, write
+from pmdcid.api import identify
 from pmdcid.diagnose.entry import diagnose_logs
 from pmdcid.fit.problem import Problem
+from pmdcid.io.mapping import parse_mapping
 from pmdcid.model import Model
 from pmdcid.model.lumped import mark_lumped
 from pmdcid.simulate import lumped_view, neutral_values, param_values, simulate_values
@@ -149,3 +152,16 @@ def test_a_latency_of_whole_samples_yields_to_the_lag_only_where_it_fits_decisiv
         run.correlated_stderr = lambda vals, free, t=tau_int: ({}, SimpleNamespace(tau_int=t))
         run.count = lambda part: 62000
         assert _decisive_latency_free(run, final, ["J"], lag) is decisive
+
+
+@pytest.mark.slow
+def test_a_model_delay_refitted_to_nothing_ends_with_a_note(tmp_path):
+    """fit-mechanical's latency standing in for a speed sensor's bias (bench/thinlogs.py
+    b2:speed_offset seed 14: 20 ms, no delay in the truth), refitted by diagnose to under a
+    tenth of a sample beside the bias it found: no lag shorter than it to try beside it. At
+    main 471418b: "internal error ValueError: min() arg is an empty sequence"."""
+    fit, _, _, _, _ = scenario("b2:speed_offset", 14)
+    paths = [write(tmp_path, *x) for x in fit]
+    res = identify(paths, diagnose=True, progress=False,
+                   mapping=parse_mapping(["omega=speed_rpm*rpm"]))
+    assert "speed_offset" in res.model.effects

@@ -22,13 +22,19 @@ COGGING_ORDERS = 3
 
 
 def angle_spectrum(ctx: ResidualContext) -> np.ndarray:
-    """Power of the speed residual's harmonics in rotor angle, index n = periods per revolution.
+    """Power of the speed residual's harmonics in rotor angle over its noise floor, index n =
+    periods per revolution (n = 0 .. ANGLE_BINS/2).
 
-    The residual of every moving sample is binned by measured angle modulo 2 pi; the mean per bin
-    (empty bins 0) is Fourier-transformed. Returns |c_n|^2 for n = 0 .. ANGLE_BINS/2.
+    The residual of every moving sample is binned by measured angle modulo 2 pi; the mean per
+    bin (empty bins 0) is Fourier-transformed. An order is read only from the samples that
+    resolve it: between two samples the rotor turns |omega| dt, and n periods per revolution
+    are sampled above their Nyquist rate only where n |omega| dt < pi (faster, a speed measured
+    over a sample averages the ripple out and the samples alias it; so does the kernel's step).
+    Each octave of orders is read from the samples resolving its top order, its |c_n|^2 over
+    the power white noise would give there (sum over bins of variance / count), so that
+    octaves read from fewer samples are not favoured.
     """
-    sums = np.zeros(ANGLE_BINS)
-    counts = np.zeros(ANGLE_BINS)
+    bins, resid, reach = [], [], []
     for lg, mov in ctx.moving():
         r = lg.resid.get("omega")
         if r is None:
@@ -36,13 +42,33 @@ def angle_spectrum(ctx: ResidualContext) -> np.ndarray:
         ok = mov & np.isfinite(r)
         if ok.sum() < 10:
             continue
-        rr = r[ok] - np.mean(r[ok])
-        k = (np.mod(lg.theta[ok], 2 * math.pi) / (2 * math.pi) * ANGLE_BINS).astype(int)
-        k = np.clip(k, 0, ANGLE_BINS - 1)
-        sums += np.bincount(k, rr, ANGLE_BINS)
-        counts += np.bincount(k, None, ANGLE_BINS)
-    mean = np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
-    return np.abs(np.fft.rfft(mean)) ** 2
+        bins.append((np.mod(lg.theta[ok], 2 * math.pi) / (2 * math.pi) * ANGLE_BINS)
+                    .astype(int).clip(0, ANGLE_BINS - 1))
+        resid.append(r[ok] - np.mean(r[ok]))
+        step = np.abs(lg.omega_sim[ok]) * lg.dt  # rad turned per sample
+        reach.append(math.pi / np.maximum(step, 1e-300))
+    out = np.zeros(ANGLE_BINS // 2 + 1)
+    if not bins:
+        return out
+    k, rr, top = np.concatenate(bins), np.concatenate(resid), np.concatenate(reach)
+    lo = 1
+    while lo <= ANGLE_BINS // 2:
+        hi = min(2 * lo, ANGLE_BINS // 2 + 1)
+        sel = top > hi - 1
+        out[lo:hi] = _whitened_power(k[sel], rr[sel])[lo:hi]
+        lo = hi
+    return out
+
+
+def _whitened_power(k: np.ndarray, rr: np.ndarray) -> np.ndarray:
+    """|c_n|^2 of the per-bin mean residual over white noise's expectation (0 with too few
+    samples)."""
+    if k.size < 10:
+        return np.zeros(ANGLE_BINS // 2 + 1)
+    counts = np.bincount(k, None, ANGLE_BINS)
+    mean = np.where(counts > 0, np.bincount(k, rr, ANGLE_BINS) / np.maximum(counts, 1), 0.0)
+    floor = float(np.var(rr)) * float(np.sum(1.0 / counts[counts > 0]))
+    return np.abs(np.fft.rfft(mean)) ** 2 / max(floor, 1e-300)
 
 
 def signature(ctx: ResidualContext) -> list[Probe]:
