@@ -87,9 +87,7 @@ def check_log(log) -> list[str]:
 def check_speed_range(omega: np.ndarray, path: str) -> bool:
     """Warn when the measured speed exceeds :data:`MAX_SPEED` anywhere: no motor turns that
     fast (True: warned)."""
-    w = np.abs(np.asarray(omega, float))
-    w = w[np.isfinite(w)]
-    top = float(w.max()) if w.size else 0.0
+    top = _largest(omega)
     if top <= MAX_SPEED:
         return False
     warn(f"omega reaches {top:.3g} rad/s, beyond any motor's speed (< {MAX_SPEED:g} rad/s): "
@@ -98,13 +96,18 @@ def check_speed_range(omega: np.ndarray, path: str) -> bool:
     return True
 
 
+def _largest(x: np.ndarray) -> float:
+    """The largest finite magnitude in ``x`` (0 when it holds none)."""
+    a = np.abs(np.asarray(x, float))
+    a = a[np.isfinite(a)]
+    return float(a.max()) if a.size else 0.0
+
+
 def check_input_range(x: np.ndarray, name: str, path: str) -> bool:
     """Warn when column ``name`` (``v``, ``i`` or ``tau``) exceeds its :data:`INPUT_LIMITS`
     anywhere: no DC motor's voltage, current or torque is that large (True: warned)."""
     limit, unit, what = INPUT_LIMITS[name]
-    a = np.abs(np.asarray(x, float))
-    a = a[np.isfinite(a)]
-    top = float(a.max()) if a.size else 0.0
+    top = _largest(x)
     if top <= limit:
         return False
     warn(f"{name} reaches {top:.3g} {unit}, beyond any DC motor's {what} (< {limit:g} {unit}): "
