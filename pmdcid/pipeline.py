@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.errors import MAX_MESSAGE, FitError, PmdcidError
+from pmdcid.errors import MAX_MESSAGE, FitError, LogError, PmdcidError, short_list
 from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import MIN_SAMPLES, closed_loop_logs
 from pmdcid.identify.plausibility import (
@@ -164,8 +164,6 @@ def _still(log) -> bool:
 
 def _measures_nothing(log) -> str:
     """Why a log with an input and no measurement identifies nothing, and what to map."""
-    from pmdcid.errors import short_list
-
     hint = (f"unmapped: {short_list(list(log.extra), 4)}; map one, e.g. "
             f"-c omega={next(iter(log.extra))}*SCALE" if log.extra
             else "map one with -c omega=SOURCE*SCALE")
@@ -273,8 +271,6 @@ def _check_controller(logs, controller) -> None:
     if controller is None or any(controller.reference in lg.data or
                                  controller.reference in lg.extra for lg in logs):
         return
-    from pmdcid.errors import LogError, short_list
-
     have = short_list(dict.fromkeys(c for lg in logs for c in (*lg.data, *lg.extra)), 8)
     raise LogError(f"the controller's reference column '{controller.reference}' is in none of "
                    f"the logs (they have {have}): name the set-point column with the spec's "

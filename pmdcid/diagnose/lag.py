@@ -31,6 +31,7 @@ from pmdcid.diagnose.lawlag import (
     DELAY_EFFECT,
     LAG_PARAMS,
     TAU_SAMPLES,
+    delta_bic,
     lag_holds,
     lag_resolved,
     lag_starts,
@@ -181,10 +182,8 @@ def _pair(run, ref: FitOutcome, ref_free: list[str], both: FitOutcome, both_free
     """The lag beside the delay against the delay alone (``ref``): (ΔBIC on all data, the
     held-out part's Δχ² (:func:`_held_gain`) where the pair is decisive and its lag determined
     (``min_z`` standard errors), else 0: the pair is taken where it is negative)."""
-    n = run.problem.count("all")
-    extra = len(set(both_free) - set(ref_free))
-    dbic = (n * math.log(max(both.chi2["all"], 1e-300) / max(ref.chi2["all"], 1e-300))
-            + extra * math.log(max(n, 2)))
+    dbic = delta_bic(run, both.chi2["all"], ref.chi2["all"], len(set(both_free) - set(ref_free)),
+                     "all")
     if not (dbic < run.settings.rules.bic and lag_resolved(both, min_z)):
         return dbic, 0.0
     return dbic, _held_gain(run, ref, ref_free, both, both_free)

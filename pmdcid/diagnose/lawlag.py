@@ -141,8 +141,10 @@ def lag_resolved(fo: FitOutcome, min_z: float) -> bool:
     return lag_z(fo) >= min_z
 
 
-def _dbic(run, chi2: float, ref: float, k: int) -> float:
-    n = run.problem.count("fit")
+def delta_bic(run, chi2: float, ref: float, k: int, part: str = "fit") -> float:
+    """BIC of a fit with chi-square ``chi2`` and ``k`` more parameters than one with ``ref``,
+    less that one's, on ``part``'s samples."""
+    n = run.problem.count(part)
     return n * math.log(max(chi2, 1e-300) / max(ref, 1e-300)) + k * math.log(max(n, 2))
 
 
@@ -161,7 +163,7 @@ def decide(run, best, passing: list, cur: FitOutcome, free: list[str], effect_fr
     pairs = {c.effect: with_lag(run, c.outcome.values, free + effect_free(c.effect))
              for c in laws}
     k_lag = len(LAG_PARAMS)
-    score = {c.effect: _dbic(run, pairs[c.effect].chi2["fit"], cur.chi2["fit"],
+    score = {c.effect: delta_bic(run, pairs[c.effect].chi2["fit"], cur.chi2["fit"],
                              len(effect_free(c.effect)) + k_lag) for c in laws}
     chosen = min(laws, key=lambda c: score[c.effect])
     named = [c for c in laws if c.effect in NAMED_LAWS]
@@ -170,7 +172,7 @@ def decide(run, best, passing: list, cur: FitOutcome, free: list[str], effect_fr
         if not score[CURVE] < score[law.effect] - NAMED_MARGIN:
             chosen = law
     pair = pairs[chosen.effect]
-    gain = _dbic(run, pair.chi2["fit"], chosen.outcome.chi2["fit"], k_lag)
+    gain = delta_bic(run, pair.chi2["fit"], chosen.outcome.chi2["fit"], k_lag)
     if not gain < run.settings.rules.bic:
         return best, None  # the lag is not decisive beside the law: the round's choice stands
     if chosen is not best:
