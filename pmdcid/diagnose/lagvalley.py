@@ -12,7 +12,7 @@ wrong there (``python bench/lawlag.py --truths none --rates 500 --lags 2,4 --see
   read as masked. Seed 13 (L/R 2 ms): share 0.54 for 0.997, chi-square 198 above the refit
   from the valley's other dip at share 1. :func:`valley_restart` refits the final model from
   the valley's other dips (:data:`VALLEY_STARTS` of them, lowest first: the local minima of
-  the cost along :data:`~pmdcid.identify.share_valley.SHARES`, the dead zone profiled, but
+  the cost along :data:`~pmdcid.identify.share_valley.DIP_SHARES`, the dead zone profiled, but
   the grid share nearest the fit's) and keeps the lowest chi-square where it is lower by more
   than two standard errors' rise (the correlated residual allowed for);
 - where the valley's floor is flat, the local covariance understates how far J, tau_e and the

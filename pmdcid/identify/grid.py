@@ -30,6 +30,7 @@ import numpy as np
 
 from pmdcid.model.lumped import kernel_values, lag_substeps
 from pmdcid.simulate import compiled, param_vector
+from pmdcid.simulate.initial import settled_start
 from pmdcid.simulate.input_grid import late_input, parts_for, ramp_input
 from pmdcid.simulate.kernel import _run_into, discretize
 from pmdcid.simulate.layout import (
@@ -55,7 +56,7 @@ def _batch_cost(u, P, Phis, Gams, nsub, torque_driven, w_meas, th_meas, sw, sth,
     for j0 in range(0, m, nb):  # nb sets at a time, each into its own buffer (reused)
         for jj in prange(min(nb, m - j0)):
             j = j0 + jj
-            out = _run_into(u, P[j], Phis[j], Gams[j], nsub, torque_driven, x0, bufs[jj])
+            out = _run_into(u, P[j], Phis[j], Gams[j], nsub, torque_driven, x0[j], bufs[jj])
             cost[j] = _set_cost(out, w_meas, th_meas, sw, sth, omega0)
     return cost
 
@@ -85,7 +86,9 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     ``vals_list``: parameter dicts as :func:`pmdcid.simulate.param_values` gives;
     ``sigma``: noise std per signal used (``omega`` [rad/s], ``theta`` [rad]); a signal absent
     from ``sigma`` is not used. ``x0``: the state (i, omega, theta) every set starts from
-    (default rest). Returns one cost per set (dimensionless chi-square).
+    (default rest), an unmeasured current (NaN) settled for each set's own values
+    (:func:`pmdcid.simulate.initial.settled_start`). Returns one cost per set (dimensionless
+    chi-square).
     """
     torque = log.drive == "tau"
     mapped = [kernel_values(v, torque) for v in vals_list]  # a lumped model's electrical lag
@@ -129,9 +132,10 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
     ahead = compiled.load()  # the C build (one thread) when current, else numba's JIT
     fn = ahead.batch_cost if ahead is not None else _batch_cost
     bufs = np.empty((min(_threads(ahead), len(P)), len(u), NSTATE))  # one simulation per thread
+    starts = np.array([state_vector(settled_start(x0, float(u[0]), p, torque)) for p in P])
     return fn(np.ascontiguousarray(u, float), P, Phi, Gam, int(nsub), bool(torque), w, th,
               float(sigma.get("omega", 0.0)), float(sigma.get("theta", 0.0)), omega0,
-              state_vector(x0), bufs)
+              starts, bufs)
 
 
 def _reading(vals: dict[str, float]) -> tuple[float, float | None] | None:

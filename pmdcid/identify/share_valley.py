@@ -41,6 +41,16 @@ from pmdcid.model.lumped import same_response
 
 #: the shares the valley is read at: the whole range, 0 to 1
 SHARES = tuple(np.round(np.linspace(0.0, 1.0, 21), 3))
+#: the shares its dips are looked for at (:func:`restart_from_dips`): :data:`SHARES` and
+#: 1 - share from 1e-2 to 1e-3 (as fit-nonlinear's grid,
+#: :data:`pmdcid.identify.nonlinear.KE_SHARES`): the mechanical damping (1 - share) bv spans
+#: decades near 1, where a motor whose back-EMF is nearly all of its damping has its minimum,
+#: a dip narrower than the grid's 0.05 (bench/lawlag.py, share 0.996, seed 3, 1 kHz, L/R 2 ms:
+#: the dip at 0.995 37 chi-square units below a valley otherwise flat within 1, the dead zone
+#: profiled, once a moving start's current is its settled one, pmdcid/simulate/initial.py).
+#: The interval a fit's share is read in keeps :data:`SHARES`: its lower convex envelope
+#: would draw a chord from share 0 to such a dip and call a stretch of 0.06 flat
+DIP_SHARES = tuple(sorted({*SHARES, 0.98, 0.99, 0.995, 0.998, 0.999}))
 #: the threshold in standard errors (chi-square rise 4 x the reduced chi-square)
 TWO_SE = 2.0
 NAMES = ("J", "tau_e", "ke_share")
@@ -147,7 +157,7 @@ def refined_dip(cost, point, shares, c, starts, j, n=FINE_N) -> dict[str, float]
 
 def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = True):
     """The lowest of the refits from the valley's other dips (:data:`VALLEY_STARTS` of them,
-    lowest first: the local minima of the cost along :data:`SHARES`, the dead zone profiled
+    lowest first: the local minima of the cost along :data:`DIP_SHARES`, the dead zone profiled
     by :func:`valley_floor`, but the grid share nearest ``point``'s); None when ``point`` has
     no free valley or no refit succeeded. ``cost(sets)``: the chi-square of each set;
     ``point``: the fit's free values (J, tau_e, ke_share, bv; dz when free);
@@ -157,7 +167,7 @@ def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = T
     caller's to judge (:func:`valley_threshold`)."""
     if not all(k in point for k in (*NAMES, "bv")):
         return None
-    pts = valley_points(point)
+    pts = valley_points(point, DIP_SHARES)
     if len(pts) < 3:
         return None
     c, starts = valley_floor(cost, pts, point)
@@ -201,29 +211,46 @@ def share_interval(cost, fit, est: dict[str, Estimate]) -> tuple[dict[str, Estim
     found = share_range(cost, fit, est)
     if found is None:
         return {}, ""
-    return _moved({k: e.value for k, e in est.items()}, est, found)
+    corr = getattr(fit, "correlation", None)  # a fit's local correlations, where it has them
+    rho = {k: corr(k, "ke_share") if corr else math.nan for k in NAMES}
+    return _moved({k: e.value for k, e in est.items()}, est, found, rho)
 
 
-def _moved(point, est, found) -> tuple[dict[str, Estimate], str]:
+def at_share(se: float, rho: float) -> float:
+    """A standard error with the share held: ``se sqrt(1 - rho^2)``, ``rho`` the local
+    correlation with the share (``se`` itself where that is not a number)."""
+    return se * math.sqrt(max(1.0 - rho * rho, 0.0)) if math.isfinite(rho) else se
+
+
+def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
     """J, tau_e, ke_share at the middle of the share interval ``found``, their standard
-    errors the local ones and a share uniform over the interval combined."""
+    errors the local ones with the share held (:func:`at_share`; ``rho``: each one's local
+    correlation with the share) and a share uniform over the interval combined.
+
+    The local covariance's own part along the valley is the linearisation of a cost that is
+    flat there and bounded by the share's range, 0 to 1: where the share is poorly determined
+    it claims more than the whole valley spans (``bench/lawlag.py --family share03``, the
+    dead zone masked, shares 0-0.95 fitting as well: J' ± 0.032 V s^2/rad, 430 %, where the
+    valley's J' spans 0.0068-0.0077). The valley's reading replaces that part, the rest (the
+    error with the share held) kept."""
     lo, hi = valley_points(point, found)[0], valley_points(point, found)[-1]
     mid = valley_points(point, [0.5 * (found[0] + found[1])])[0]
     out = {}
     for k in NAMES:
         e = est[k]
         spread = abs(hi[k] - lo[k]) / math.sqrt(12.0)  # uniform over the interval
-        out[k] = Estimate(k, mid[k], math.hypot(e.stderr, spread), e.unit, caveat=e.caveat)
+        local = at_share(e.stderr, rho.get(k, math.nan))
+        out[k] = Estimate(k, mid[k], math.hypot(local, spread), e.unit, caveat=e.caveat)
     why = (f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's "
            "share of bv trades with J and tau_e at equal linear response, only the friction "
            "and the dead zone tell them apart): J, tau_e and ke_share at that interval's "
-           "middle, their standard errors the local fit's and a share uniform over the "
-           f"interval combined (the local fit gave J = {est['J'].value:.5g} ± "
+           "middle, their standard errors the local fit's with the share held and a share "
+           f"uniform over the interval combined (the local fit gave J = {est['J'].value:.5g} ± "
            f"{est['J'].stderr:.2g}, ke_share = {est['ke_share'].value:.3g} ± "
            f"{est['ke_share'].stderr:.2g})")
     return out, why
 
 
-__all__ = ["FINE_N", "NAMES", "SHARES", "VALLEY_STARTS", "dips", "lower_hull", "refined_dip",
-           "restart_from_dips", "share_interval", "share_range", "valley_floor", "valley_points",
-           "valley_threshold"]
+__all__ = ["DIP_SHARES", "FINE_N", "NAMES", "SHARES", "VALLEY_STARTS", "at_share", "dips",
+           "lower_hull", "refined_dip", "restart_from_dips", "share_interval", "share_range",
+           "valley_floor", "valley_points", "valley_threshold"]

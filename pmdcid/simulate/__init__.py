@@ -52,6 +52,7 @@ def check_layout() -> None:
 
 check_layout()
 
+from pmdcid.simulate.initial import settled_start  # noqa: E402
 from pmdcid.simulate.input_grid import late_input, parts_for, ramp_input  # noqa: E402
 from pmdcid.simulate.kernel import run_kernel  # noqa: E402
 from pmdcid.simulate.layout import (  # noqa: E402
@@ -193,6 +194,7 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     if torque_driven != (not measured_current):  # mapped: steps that resolve the lag
         nsub = max(choose_substeps(dt, p) if nsub is None else nsub,
                    lag_substeps(dt, vals["L"]))
+    x0 = settled_start(x0, float(u[0]) if len(u) else 0.0, p, torque_driven)
     latency = float(vals.get("latency", 0.0))
     # the input read between samples (drive.ramp_input): when a fit reads it, every value
     # (0 included) runs on the fine grid, so the cost is continuous in it

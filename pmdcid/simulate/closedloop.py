@@ -23,6 +23,7 @@ import numpy as np
 from pmdcid.errors import LogError, ModelError
 from pmdcid.simulate import SimResult, param_vector
 from pmdcid.simulate.controller import ControllerSpec, ControllerState
+from pmdcid.simulate.initial import settled_start
 from pmdcid.simulate.kernel import _compiled, discretize_cached
 from pmdcid.simulate.layout import I_STATE, NSTATE, OMEGA_STATE, THETA_STATE, state_vector
 from pmdcid.simulate.sensors import apply_sensors
@@ -110,7 +111,8 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
                          "loop; simulate without --controller")
     p = param_vector(vals)
     x = np.empty((len(t), NSTATE))
-    x[0] = state_vector(x0)
+    u0 = float(logged_u[0]) if logged_u is not None and len(logged_u) else 0.0  # plant input
+    x[0] = state_vector(settled_start(x0, u0, p, torque_driven))
     ff = np.zeros(len(t)) if feedforward is None else np.asarray(feedforward, float)
     ctrl = ControllerState(spec, mean_quantum)
     if on_samples(t, spec):

@@ -107,7 +107,7 @@ def _functions(lib) -> SimpleNamespace:
         cost = np.empty(len(P))
         out = bufs[0]
         for j in range(len(P)):
-            run_into(u, P[j], Phis[j], Gams[j], nsub, torque_driven, x0, out)
+            run_into(u, P[j], Phis[j], Gams[j], nsub, torque_driven, x0[j], out)
             cost[j] = lib.set_cost(_ptr(out), len(out), _ptr(w_meas, (len(out),)),
                                    _ptr(th_meas, (len(out),)), sw, sth, omega0)
         return cost

@@ -6,7 +6,15 @@ fit then credits the start to friction, dead time or a "speed offset". The state
 sample, x0 = (i [A], omega [rad/s], theta [rad]), is taken from the measured first samples:
 
 - theta: the first measured angle (an encoder's zero is arbitrary);
-- i: the first measured current (voltage-driven logs with a current sensor), else 0;
+- i: the first measured current (voltage-driven logs with a current sensor); without one, 0
+  at rest, and on a start clearly turning the current at which the armature's lag has
+  settled, ``L di/dt = 0``: ``(v - ke omega)/R`` for the first input and speed and each
+  parameter set's own R and ke (:func:`settled_start`; :func:`initial_state` marks it NaN).
+  A rotor turning at its first sample has been driven for a while, and the electrical lag
+  settles in a few L/R, a mechanical time constant's fraction; a start at i = 0 would drop
+  the torque for L/R (measured on ``bench/lawlag.py --family share03``, back-EMF 30 % of the
+  per-volt damping, L/R 4 ms: the true parameters 306 chi-square units above the fit's on
+  the 5 -> 15 V step that starts turning, J' +5.8 % at 12.8 standard errors);
 - omega: the mean of the first few measured speeds; a start within noise of zero, or under 10 %
   of the log's speed range, is exactly at rest (the kernel's stick-slip test needs omega = 0
   exactly), and so is a constant reading while nothing drives the rotor (a sensor bias: an
@@ -19,6 +27,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from pmdcid.simulate.layout import KE, VB, VMAX, R
 
 #: samples averaged for the starting speed
 HEAD = 5
@@ -76,8 +86,11 @@ def _undriven_and_flat(log, w: np.ndarray, sd: float) -> bool:
 
 
 def initial_state(log, sigma_omega: float | None = None) -> np.ndarray:
-    """x0 = (i [A], omega [rad/s], theta [rad]) at the log's first sample (module docstring)."""
-    i0 = 0.0
+    """x0 = (i [A], omega [rad/s], theta [rad]) at the log's first sample (module docstring):
+    i is NaN where no current is logged and the rotor turns, the current its lag settled at,
+    which depends on the model (:func:`settled_start`, applied by every simulation)."""
+    w0 = start_speed(log, sigma_omega)
+    i0 = math.nan if w0 != 0.0 else 0.0
     if log.has("i") and log.drive == "v":
         head = _head(log["i"])
         i0 = float(head[0]) if head.size else 0.0
@@ -85,7 +98,33 @@ def initial_state(log, sigma_omega: float | None = None) -> np.ndarray:
     if log.has("theta"):
         head = _head(log["theta"])
         th0 = float(head[0]) if head.size else 0.0
-    return np.array([i0, start_speed(log, sigma_omega), th0])
+    return np.array([i0, w0, th0])
+
+
+def settled_current(p: np.ndarray, u0: float, omega: float) -> float:
+    """The armature current [A] at which its lag has settled (``L di/dt = 0``) under the input
+    ``u0`` [V] at speed ``omega`` [rad/s]: ``(v - drop - ke omega)/R``, v the drive's voltage
+    (clipped to +-vmax) and drop the brushes' (``brush_drop``), as :mod:`.terms` applies them;
+    ``p``: the kernel's parameter vector (:data:`pmdcid.simulate.layout.NAMES`). 0 where R is
+    not a positive number."""
+    v = min(max(float(u0), -p[VMAX]), p[VMAX])
+    drive = v - p[KE] * omega
+    drop = min(max(drive, -p[VB]), p[VB]) if p[VB] > 0.0 else 0.0
+    i = (drive - drop) / p[R] if p[R] > 0.0 else 0.0
+    return float(i) if math.isfinite(i) else 0.0
+
+
+def settled_start(x0, u0: float, p: np.ndarray, torque_driven: bool):
+    """``x0`` with an unmeasured current (NaN, :func:`initial_state`) replaced: 0 where the
+    kernel is driven by torque (its current plays no part), else :func:`settled_current` at
+    the start's speed for the parameter vector ``p``; anything else returned as it is."""
+    if x0 is None:
+        return x0
+    x = np.array(x0, dtype=float).ravel()
+    if x.size == 0 or math.isfinite(x[0]):
+        return x0
+    x[0] = 0.0 if torque_driven else settled_current(p, u0, float(x[1]))
+    return x
 
 
 def true_start(x0: np.ndarray, vals: dict[str, float]) -> np.ndarray:
@@ -107,4 +146,5 @@ def moving_start(x0: np.ndarray) -> bool:
     return x0[1] != 0.0
 
 
-__all__ = ["initial_state", "moving_start", "start_speed", "true_start"]
+__all__ = ["initial_state", "moving_start", "settled_current", "settled_start", "start_speed",
+           "true_start"]

@@ -70,7 +70,7 @@ def test_kernel_discretisation_and_batch_match_the_jit(torque, effects):
     w = rng.standard_normal(len(t))
     th = rng.standard_normal(len(t))
     args = (u, np.array(P), np.array(Phis), np.array(Gams), 3, torque, w, th, 0.01, 0.02, 0.001,
-            rng.standard_normal(4) * [1.0, 1.0, 1.0, 1e-4])
+            rng.standard_normal((2, 4)) * [1.0, 1.0, 1.0, 1e-4])  # each set's own start
     one, two = np.empty((1, len(t), NSTATE)), np.empty((2, len(t), NSTATE))  # sets at once
     assert close(FAST.batch_cost(*args, one), real(grid._batch_cost)(*args, two))
 
