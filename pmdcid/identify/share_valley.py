@@ -110,6 +110,18 @@ def _interval(shares, rise, thr, fitted) -> tuple[float, float] | None:
     return (float(ok.min()), float(ok.max())) if len(ok) else None
 
 
+def dead_zones(point: dict[str, float]) -> list[float]:
+    """The dead zones :func:`valley_floor` profiles: the point's own, :data:`DZ_N` from 0 to
+    twice the larger of bc and dz, and, where the fit's dz is over twice its bc, :data:`DZ_N`
+    more from 0 to twice bc."""
+    bc = max(point.get("bc", 0.0), 1e-12)
+    top = 2.0 * max(point["dz"], bc)
+    out = [point["dz"], *np.linspace(0.0, top, DZ_N)]
+    if point["dz"] > 2.0 * bc:
+        out += list(np.linspace(0.0, 2.0 * bc, DZ_N)[1:])
+    return [float(d) for d in out]
+
+
 def valley_floor(cost, pts, point) -> tuple[np.ndarray, list[dict[str, float]]]:
     """(the cost at each valley point of ``pts``, the points with the dead zone that gave it):
     where ``point`` has a dead zone it is profiled (the lowest over :data:`DZ_N` values from 0
@@ -118,8 +130,7 @@ def valley_floor(cost, pts, point) -> tuple[np.ndarray, list[dict[str, float]]]:
     cost as it is."""
     if "dz" not in point:
         return np.asarray(cost(pts), float), list(pts)
-    top = 2.0 * max(point["dz"], point.get("bc", 0.0), 1e-12)
-    dzs = [point["dz"], *np.linspace(0.0, top, DZ_N)]
+    dzs = dead_zones(point)
     c = np.asarray(cost([{**p, "dz": d} for p in pts for d in dzs]), float)
     c = c.reshape(len(pts), len(dzs))
     best = np.argmin(c, axis=1)

@@ -116,6 +116,31 @@ def test_restart_reads_a_dip_between_grid_shares_again():
     assert all(abs(t - 0.9) > 0.02 for t in tried)  # never the fit's own dip
 
 
+def test_restart_finds_a_dip_at_the_friction_scale_of_a_masked_dead_zone():
+    """A fit at share 0 whose dead zone sat on a flat cost far above the friction (dz 20 x bc;
+    bench/lawlag.py seed 6, 500 Hz, L/R 2 ms: 1.23 V for bc 0.053, the truth 0.068): the
+    valley's dip near share 1 needs the dead zone within 0.01 of 1.2 bc. Profiled only on
+    the fit's scale (steps of 5 bc) the floor is flat and nothing restarts; profiled on bc's
+    scale too, the restart starts from the dip."""
+    bc = POINT["bc"]
+
+    def shape(s, dz):
+        return 10.0 if not (s > 0.99 and abs(dz / bc - 1.2) < 0.06) else 0.0
+
+    def cost(sets):
+        return [shape(p["ke_share"], p["dz"]) for p in sets]
+
+    tried = []
+
+    def refit(start):
+        tried.append((start["ke_share"], start["dz"]))
+        return start
+
+    best = restart_from_dips(cost, {**POINT, "ke_share": 0.0, "dz": 20.0 * bc}, refit,
+                             lambda f: shape(f["ke_share"], f["dz"]))
+    assert best is not None and shape(best["ke_share"], best["dz"]) == 0.0, tried
+
+
 def test_restart_takes_the_lowest_of_the_other_dips():
     """Two other dips (0.2, deeper, and 0.6) besides the fit's own (0.9): both refitted, the
     lowest returned."""
