@@ -48,25 +48,26 @@ def valley_free(free: list[str]) -> bool:
     return all(k in free for k in (*NAMES, "bv"))
 
 
-def _cost(run, vals: dict[str, float]):
+def _cost(run, vals: dict[str, float], part: str = "all"):
     problem = run.problem
-    return lambda sets: pmap(lambda s: problem.chi2({**vals, **s})["all"], sets)
+    return lambda sets: pmap(lambda s: problem.chi2({**vals, **s})[part], sets)
 
 
-def valley_restart(run, fo: FitOutcome, free: list[str],
-                   notes: list[str] | None = None) -> FitOutcome:
-    """The fit ``fo`` of ``free`` (all data) refitted from the valley's other dips (module
+def valley_restart(run, fo: FitOutcome, free: list[str], notes: list[str] | None = None,
+                   part: str = "all") -> FitOutcome:
+    """The fit ``fo`` of ``free`` (on ``part``: all data, or the fitted part where diagnose
+    takes the lag in a round, :mod:`.lawlag`) refitted from the valley's other dips (module
     docstring): the lowest chi-square kept where it is decisively lower (:func:`_decisive`);
     a note in ``notes`` when a restart won."""
     if not valley_free(free):
         return fo
     point = {k: fo.values[k] for k in free}
-    best = restart_from_dips(_cost(run, fo.values), point,
-                             lambda st: run.fit({**fo.values, **st}, free, "all"),
-                             lambda f: f.chi2["all"], fine=False)
-    if best is None or best.chi2["all"] >= fo.chi2["all"]:
+    best = restart_from_dips(_cost(run, fo.values, part), point,
+                             lambda st: run.fit({**fo.values, **st}, free, part),
+                             lambda f: f.chi2[part], fine=False)
+    if best is None or best.chi2[part] >= fo.chi2[part]:
         return fo
-    if not _decisive(run, fo, best, free):
+    if not _decisive(run, fo, best, free, part):
         return fo
     if notes is not None:
         notes.append(
@@ -77,15 +78,16 @@ def valley_restart(run, fo: FitOutcome, free: list[str],
     return best
 
 
-def _decisive(run, fo: FitOutcome, best: FitOutcome, free: list[str]) -> bool:
-    """Whether ``best`` fits all data better than ``fo`` by more than two standard errors' rise
+def _decisive(run, fo: FitOutcome, best: FitOutcome, free: list[str],
+              part: str = "all") -> bool:
+    """Whether ``best`` fits ``part`` better than ``fo`` by more than two standard errors' rise
     (:func:`~pmdcid.identify.share_valley.valley_threshold` at ``fo``, its correlated
     residual allowed for): a dip that fits only as well is no reason to move (LEGO-like rig,
     tests/diagnose/test_lag_resolved.py: 16.8 lower against a threshold of about 90, the dead
     zone at 1.4 V on the lagged voltage, every held-out sine's error doubled)."""
     _, info, _ = run.problem.envelope_errors(fo.values, free)
     shim = SimpleNamespace(covariance=info, stats=fo.stats)
-    return fo.chi2["all"] - best.chi2["all"] > valley_threshold(shim)
+    return fo.chi2[part] - best.chi2[part] > valley_threshold(shim)
 
 
 def valley_errors(run, final: FitOutcome, free: list[str], info, notes: list[str]) -> None:
