@@ -18,7 +18,7 @@ import numpy as np
 
 from pmdcid.diagnose.candidates import effect_free, effect_z, unphysical
 from pmdcid.diagnose.lagdz import lag_refits, masked_on_profile, refitted_line, widen
-from pmdcid.diagnose.lagvalley import valley_errors, valley_restart
+from pmdcid.diagnose.lagvalley import share_correlations, valley_errors, valley_restart
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.results import Estimate, bounded
@@ -184,9 +184,9 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
             final.estimates[name] = Estimate(name, est.value, se, est.unit)
     if info is not None and (info.inflation > 1.5 or info.lower_bound):
         notes.append(info.describe())
-    valley_errors(run, final, free, info, notes)  # a free lag's share along its valley
+    names = [n for n in final.estimates if n in final.values]  # curv's order
+    valley_errors(run, final, free, info, notes, share_correlations(names, curv))
     if "dz" in free and curv is not None:
-        names = [n for n in final.estimates if n in final.values]
         if lag_refits(run, free):
             refitted_line(run, final, free, line_fit(final, names, curv), notes)
         else:

@@ -12,7 +12,10 @@ found) is tried once more in the final model: the same model with the delay off 
 free in its place (from :func:`~pmdcid.diagnose.lawlag.lag_start`'s grid, refitted with every
 parameter the final fit frees, on all data); unless the delay fits decisively better
 (:func:`~pmdcid.diagnose.lawlag.lag_holds`) or the lag is not determined (tau_e under the rules'
-``min_z`` standard errors, :func:`~pmdcid.diagnose.lawlag.lag_resolved`), the lag is written
+``min_z`` standard errors, :func:`~pmdcid.diagnose.lawlag.lag_resolved`; its error with the
+back-EMF share held, :func:`~pmdcid.diagnose.lawlag.share_rho`: along the share's valley tau_e
+trades with J and stays positive, and a share the logs do not tell inflates its marginal
+error, not the lag's), the lag is written
 (``tau_e``, ``ke_share``) and the delay is not; a note gives both chi-squares either way. The
 lag's fit frees what the final fit freed, the delay excepted: a dead zone the final fit settled
 at a point (:func:`~pmdcid.diagnose.final.settle_dead_zone`) stays there for that fit, and is
@@ -36,6 +39,7 @@ from pmdcid.diagnose.lawlag import (
     lag_resolved,
     lag_starts,
     lag_z,
+    share_rho,
 )
 from pmdcid.diagnose.starts import staged_fit
 from pmdcid.fit.problem import FitOutcome
@@ -139,12 +143,13 @@ def lag_for_delay(run, final: FitOutcome, free: list[str], added: list[str],
     holds = lag_holds(n, lag.chi2["all"], final.chi2["all"], run.settings.rules.bic, delay / dt)
     tie = holds and delay / dt >= MIN_SAMPLES and not _decisive_latency_free(run, final, free,
                                                                                lag)
-    if holds and not tie and lag_resolved(lag, min_z):
+    rho = share_rho(run, lag, lag_free)  # tau_e's error with the back-EMF share held
+    if holds and not tie and lag_resolved(lag, min_z, rho):
         lag, lag_free = _replaced(run, final, lag, lag_free, added, notes)
         return lag, lag_free, "replaced"
     place = ("fits worse" if not holds else "fits about as well, not decisively better on the "
              "residual's effective samples (the latency, of whole samples, may be real)" if tie
-             else f"fits as well but is not determined ({lag_z(lag):.2g} standard errors < "
+             else f"fits as well but is not determined ({lag_z(lag, rho):.2g} standard errors < "
              f"{min_z:g})")
     kept = (f"{DELAY_EFFECT} ({1e3 * delay:.3g} ms) kept: the armature's electrical lag in its "
             f"place (tau_e {1e3 * lag.values['tau_e']:.3g} ms, no delay) {place} "

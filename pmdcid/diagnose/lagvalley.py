@@ -34,6 +34,7 @@ from pmdcid.fit.problem import FitOutcome
 from pmdcid.identify.share_valley import (
     NAMES,
     VALLEY_STARTS,
+    at_share,
     dips,
     restart_from_dips,
     share_range,
@@ -90,10 +91,16 @@ def _decisive(run, fo: FitOutcome, best: FitOutcome, free: list[str],
     return fo.chi2[part] - best.chi2[part] > valley_threshold(shim)
 
 
-def valley_errors(run, final: FitOutcome, free: list[str], info, notes: list[str]) -> None:
-    """J's, tau_e's and the share's standard errors in ``final`` widened in place where shares
-    across an interval fit as well (module docstring; ``info``: the covariance's, whose
-    inflation sets the threshold with the reduced chi-square); a note when they were."""
+def valley_errors(run, final: FitOutcome, free: list[str], info, notes: list[str],
+                  rho: dict[str, float] | None = None) -> None:
+    """J's, tau_e's and the share's standard errors in ``final`` read on their valley where
+    shares across an interval fit as well (module docstring; ``info``: the covariance's,
+    whose inflation sets the threshold with the reduced chi-square); a note when they were.
+    ``rho``: each one's local correlation with the share, where known: the local error then
+    enters with the share held (:func:`~pmdcid.identify.share_valley.at_share`, as
+    fit-nonlinear reads it), since its part along the valley is the linearisation of a cost
+    flat there (bench/lawlag.py --family share03, 500 Hz, L/R 2 ms, seed 2: ke_share ± 40 and
+    J' ± 110 % where the whole valley, shares 0 to 1, spans J' 0.0073-0.011)."""
     if not (valley_free(free) and all(k in final.estimates for k in (*NAMES, "bv"))):
         return
     shim = SimpleNamespace(covariance=info, stats=final.stats)
@@ -108,16 +115,35 @@ def valley_errors(run, final: FitOutcome, free: list[str], info, notes: list[str
     for k in NAMES:
         e = final.estimates[k]
         spread = abs(ends[-1][k] - ends[0][k]) / math.sqrt(12.0)  # uniform over the interval
-        se = math.hypot(e.stderr, spread, mid[0][k] - e.value)
-        if se > e.stderr:
+        local = at_share(e.stderr, (rho or {}).get(k, math.nan))
+        se = math.hypot(local, spread, mid[0][k] - e.value)
+        if se > local:
             final.estimates[k] = dataclasses.replace(e, stderr=se)
     notes.append(
         f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's share "
         "of bv trades with J and tau_e at equal linear response, only the friction and the dead "
         "zone tell them apart): J's, tau_e's and ke_share's standard errors are the root mean "
         "square distance from the fit's values to a share uniform over that interval, the local "
-        f"fit's combined (J = {point['J']:.5g} ± {final.estimates['J'].stderr:.2g}, ke_share = "
-        f"{point['ke_share']:.3g} ± {final.estimates['ke_share'].stderr:.2g})")
+        f"fit's {'with the share held ' if rho else ''}combined (J = {point['J']:.5g} ± "
+        f"{final.estimates['J'].stderr:.2g}, ke_share = {point['ke_share']:.3g} ± "
+        f"{final.estimates['ke_share'].stderr:.2g})")
 
 
-__all__ = ["VALLEY_STARTS", "dips", "valley_errors", "valley_free", "valley_restart"]
+def share_correlations(names: list[str], curv) -> dict[str, float]:
+    """Each of J's, tau_e's and the share's local correlation with the share from the envelope
+    Jacobian's ``(J'J)^-1`` ``curv`` over ``names`` (empty where it is missing)."""
+    if curv is None or "ke_share" not in names:
+        return {}
+    b = names.index("ke_share")
+    out = {}
+    for k in NAMES:
+        if k in names:
+            a = names.index(k)
+            den = math.sqrt(max(curv[a, a] * curv[b, b], 0.0))
+            if den > 0 and math.isfinite(den):
+                out[k] = float(curv[a, b] / den)
+    return out
+
+
+__all__ = ["VALLEY_STARTS", "dips", "share_correlations", "valley_errors", "valley_free",
+           "valley_restart"]

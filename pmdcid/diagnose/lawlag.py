@@ -40,12 +40,13 @@ from __future__ import annotations
 
 import math
 
-from pmdcid.diagnose.lagvalley import valley_restart
+from pmdcid.diagnose.lagvalley import share_correlations, valley_restart
 from pmdcid.diagnose.named import CURVE, NAMED_LAWS, NAMED_MARGIN
 from pmdcid.diagnose.starts import lowest_trial
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.identify.latency import MIN_SAMPLES
 from pmdcid.identify.nonlinear import KE_SHARES
+from pmdcid.identify.share_valley import at_share
 from pmdcid.model.lumped import is_lumped
 from pmdcid.runtime.cpus import pmap
 
@@ -130,24 +131,41 @@ def lag_holds(n: int, chi2_lag: float, chi2_delay: float, bic: float,
     return n * math.log(max(chi2_lag, 1e-300) / max(chi2_delay, 1e-300)) <= -bic
 
 
-def lag_z(fo: FitOutcome) -> float:
+def lag_z(fo: FitOutcome, rho: float = math.nan) -> float:
     """tau_e's size in the fit ``fo`` in standard errors (0 where it has none or no finite
-    error: a lag the fit cannot bound away from zero)."""
+    error: a lag the fit cannot bound away from zero); with ``rho``, tau_e's local correlation
+    with the back-EMF share, its error with the share held
+    (:func:`~pmdcid.identify.share_valley.at_share`)."""
     est = fo.estimates.get("tau_e")
     if est is None or not (est.stderr > 0 and math.isfinite(est.stderr)):
         return 0.0
-    return abs(est.value) / est.stderr
+    return abs(est.value) / at_share(est.stderr, rho)
 
 
-def lag_resolved(fo: FitOutcome, min_z: float) -> bool:
+def lag_resolved(fo: FitOutcome, min_z: float, rho: float = math.nan) -> bool:
     """Whether the fit ``fo`` determines its lag: tau_e at least ``min_z`` standard errors
-    (the rules' size an effect must reach). A lag taken in a delay's place stands in for an
-    effect that passed that rule and the held-out test; one the logs do not determine only
-    moves what they did (issue 24, LEGO-like rig on an 11 ms loop-timed grid: tau_e 4.6 +-
-    4.6 ms for an L/R of 0.75 ms, the back-EMF's share 0.04 +- 9 for 0.98, and the dead zone,
-    masked below 0.8 V, moved to 1.38 V on the lagged voltage to make the delay's late start:
-    the held-out sines' error 0.023 -> 0.031)."""
-    return lag_z(fo) >= min_z
+    (the rules' size an effect must reach; ``rho`` as :func:`lag_z`). A lag taken in a delay's
+    place stands in for an effect that passed that rule and the held-out test; one the logs do
+    not determine only moves what they did (issue 24, LEGO-like rig on an 11 ms loop-timed
+    grid: tau_e 4.6 +- 4.6 ms for an L/R of 0.75 ms, the back-EMF's share 0.04 +- 9 for 0.98,
+    and the dead zone, masked below 0.8 V, moved to 1.38 V on the lagged voltage to make the
+    delay's late start: the held-out sines' error 0.023 -> 0.031)."""
+    return lag_z(fo, rho) >= min_z
+
+
+def share_rho(run, fo: FitOutcome, free: list[str]) -> float:
+    """tau_e's local correlation with the back-EMF share in the fit ``fo`` of ``free`` (from
+    the envelope Jacobian's ``(J'J)^-1``), NaN where either is not free or it cannot be read.
+    Along the share's valley J and tau_e trade with the share at equal linear response
+    (:mod:`pmdcid.identify.share_valley`), and tau_e stays positive at every share of it: where
+    the logs do not tell the share, tau_e's marginal error is the valley's, not the lag's
+    (bench/lawlag.py --family share03, 500 Hz, L/R 2 ms, seed 2: the lag in a delay's place
+    fitting 32 chi-square units better, tau_e 2.05 ms at 0.73 standard errors)."""
+    names = [n for n in free if n in fo.values]
+    if "tau_e" not in names or "ke_share" not in names:
+        return math.nan
+    _, _, curv = run.problem.envelope_errors(fo.values, names)
+    return share_correlations(names, curv).get("tau_e", math.nan)
 
 
 def delta_bic(run, chi2: float, ref: float, k: int, part: str = "fit") -> float:
@@ -242,5 +260,5 @@ def lag_note(vals: dict[str, float]) -> str:
 
 
 __all__ = ["LAG_PARAMS", "SPEED_LAWS", "decide", "lag_folded", "lag_holds", "lag_resolved",
-           "lag_start", "lag_starts", "lag_z",
+           "lag_start", "lag_starts", "lag_z", "share_rho",
            "with_lag"]

@@ -53,3 +53,14 @@ def test_diagnose_raises_no_held_out_sine_on_a_loop_timed_lego_rig(tmp_path):
     if after.has("tau_e"):  # a lag diagnose writes is one the logs determine
         par = after.parameters["tau_e"]
         assert par.value >= 5.0 * par.stderr, (par.value, par.stderr)
+
+
+def test_a_lag_along_an_untold_share_is_judged_with_the_share_held():
+    """tau_e 2.05 +- 2.8 ms (0.73 standard errors: bench/lawlag.py share03, seed 2) whose
+    error is almost all along the share's valley (local correlation 0.999): with the share
+    held, sqrt(1 - 0.999^2) of it, the lag is determined; without a correlation, it is not."""
+    fo = _outcome(2.05e-3, 2.8e-3)
+    assert not lag_resolved(fo, 5.0)
+    assert lag_z(fo, 0.999) == pytest.approx(2.05 / (2.8 * math.sqrt(1 - 0.999 ** 2)))
+    assert lag_resolved(fo, 5.0, 0.999)
+    assert not lag_resolved(fo, 5.0, 0.5)
