@@ -19,9 +19,11 @@ wrong there (``python bench/lawlag.py --truths none --rates 500 --lags 2,4 --see
   share may move along it. :func:`valley_errors` reads the interval of shares that fit as well
   (:func:`~pmdcid.identify.share_valley.share_range`, fit-nonlinear's reading) and widens
   their standard errors to the root mean square distance from the fit's value to a share
-  uniform over that interval (the local error, the interval's spread and the value's offset
-  from its middle combined). The values stay the fit's, as diagnose's dead-zone readings keep
-  them (:func:`~pmdcid.diagnose.final.dead_zone_line`, :mod:`.lagdz`).
+  uniform over that interval (the local error with the share held, the interval's spread and
+  the value's offset from its middle combined: the local error's own part along the valley is
+  the linearisation of a cost flat there, ke_share ± 40 where the valley spans 0 to 1).
+  The values stay the fit's, as diagnose's dead-zone readings keep them
+  (:func:`~pmdcid.diagnose.final.dead_zone_line`, :mod:`.lagdz`).
 """
 
 from __future__ import annotations
