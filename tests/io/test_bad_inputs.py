@@ -452,7 +452,7 @@ CASES: list[Case] = [
       r"^error: model\.json: parameter 'R' is not finite"),
     C("model-5000-digit-integer", combine(STEP, text(
         "model.json", '{"parameters": {"R": {"value": 1' + "0" * 5000 + "}}}")), SIM, 1,
-      r"^error: model\.json: model file is not usable JSON"),
+      r"^error: model\.json: parameter 'R' is not finite"),
     C("model-deeply-nested", combine(STEP, text("model.json", "[" * 100000 + "]" * 100000)),
       SIM, 1, r"^error: model\.json: model file is not usable JSON"),
     C("model-string-value", combine(STEP, model(L="17.8 mH")), SIM, 1,
