@@ -39,6 +39,7 @@ EDGE_PERIODS = 5.0
 #: rows at speeds below this fraction of the log's (99th percentile) speed are left out
 REST_FRACTION = 0.02
 
+
 def _units() -> dict[str, str]:
     from pmdcid.model.effects import effect_param_specs
 

@@ -683,7 +683,7 @@ def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool =
 
 def offset_shown(e: Estimate | None, ndata: int) -> bool:
     """True when there is no fitted tau0 to judge, or it passes the rule an added effect meets
-    (:func:`.nonlinear_setup.offset_evident`; an undetermined one, its standard error not
+    (:func:`.offset.offset_evident`; an undetermined one, its standard error not
     finite, does not)."""
     if e is None or not e.vary:
         return True
