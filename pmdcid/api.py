@@ -12,7 +12,10 @@ Files out, as the commands write them, go through :mod:`pmdcid.files` (read -> c
 lock and atomic write): the fits and ``identify`` with ``update=True`` write their result into
 the model file given as ``model``; ``diagnose`` with ``output`` (and ``summary``);
 :func:`simulate_to` writes simulated logs; ``report``, ``plan`` and ``export`` write their
-files always. ``mapping`` (a :class:`~pmdcid.io.ColumnMap`) applies to the logs given as paths.
+files always. ``mapping`` applies to the logs given as paths, in any form the command line
+takes: a :class:`~pmdcid.io.ColumnMap`, a ``"omega=speed_rpm*rpm"`` string (one ``-c``), a list
+of them, a dict ``{"omega": "speed_rpm*rpm"}``, or a mapping file's path (``--map``); anything
+else is one :class:`~pmdcid.errors.LogError` line naming the forms.
 
 Results follow one protocol (:class:`~pmdcid.fit.results.ResultProtocol`): ``str()`` is
 the table, ``_repr_html_()``, ``to_dict()``, ``to_pandas()``, ``apply(model)``.
@@ -26,10 +29,18 @@ from __future__ import annotations
 import os
 
 
+def _mapping(mapping):
+    """``mapping=`` in any form the command line takes (:func:`pmdcid.io.mapping.as_mapping`):
+    a ColumnMap, a ``"CANON=SRC*K+OFF"`` string, a list of them, a dict, a mapping file's path."""
+    from pmdcid.io.mapping import as_mapping
+
+    return as_mapping(mapping)
+
+
 def _logs(logs, name: str = "logs", mapping=None) -> list:
     from pmdcid.files import logs_of
 
-    return logs_of(logs, name, mapping)
+    return logs_of(logs, name, _mapping(mapping))
 
 
 def _model(model, name: str = "model"):
@@ -107,7 +118,8 @@ def identify(logs, model=None, *, km: float | None = None, diagnose: bool = True
     if update:
         from pmdcid.files import run_identify
 
-        return run_identify(logs, _file(model), out_dir, mapping, force=force, **opts)
+        return run_identify(logs, _file(model), out_dir, _mapping(mapping), force=force,
+                            **opts)
     if out_dir is not None:
         raise TypeError("out_dir: identify writes its report with update=True (the model file "
                         "first)")
@@ -122,7 +134,7 @@ def _fit(stage: str, fit, logs, model, mapping, update: bool, force: bool, **opt
     if update:
         from pmdcid.files import run_fit
 
-        return run_fit(stage, logs, _file(model), mapping, force, **opts)
+        return run_fit(stage, logs, _file(model), _mapping(mapping), force, **opts)
     from pmdcid.identify.runners import fit_stage
 
     logs = _logs(logs, mapping=mapping)
@@ -211,7 +223,7 @@ def diagnose(logs, model, *, effects=None, progress=None, mapping=None, output=N
         from pmdcid.io.args import path_arg
 
         return run_diagnose(logs, path_arg(model, "model (with output)"),
-                            path_arg(output, "output"), summary, mapping, effects, force,
+                            path_arg(output, "output"), summary, _mapping(mapping), effects, force,
                             progress=resolve(progress))
     if summary is not None:
         raise TypeError("summary: written with output (the new model's file)")
@@ -251,8 +263,9 @@ def simulate_to(inputs, model, output, *, x0=None, noise_i: float = 0.0,
 
     paths = inputs if isinstance(inputs, (list, tuple)) else [inputs]
     paths = [path_arg(p, "inputs") for p in paths]
-    opts = dict(mapping=mapping, noise=NoiseSpec(noise_i, noise_omega, encoder), seed=seed,
-                blocked=blocked, force=force, x0=_x0(x0), controller=_controller(controller))
+    opts = dict(mapping=_mapping(mapping), noise=NoiseSpec(noise_i, noise_omega, encoder),
+                seed=seed, blocked=blocked, force=force, x0=_x0(x0),
+                controller=_controller(controller))
     model, output = path_arg(model, "model"), path_arg(output, "output")
     if len(paths) == 1:
         return [simulate_file(paths[0], model, output, **opts)]
@@ -273,7 +286,8 @@ def report(logs, model, out_dir, *, summary=None, before=None, progress=None, ma
     if summary is not None and not isinstance(summary, (dict, str, os.PathLike)):
         raise TypeError(f"summary must be a diagnose summary (a dict or its file's path) or "
                         f"None, not {type(summary).__name__}")
-    return run_report(logs, model, out_dir, summary, before, mapping, resolve(progress), force)
+    return run_report(logs, model, out_dir, summary, before, _mapping(mapping), resolve(progress),
+                      force)
 
 
 def plan(model=None, out_dir=None, *, vmax: float | None = None, taumax: float | None = None,
@@ -352,7 +366,7 @@ def _checked_logs(logs, mapping) -> list:
     from pmdcid.files import logs_of
     from pmdcid.identify.plausibility import time_unit_issue
 
-    read = logs_of(logs, "logs", mapping, defer=True)
+    read = logs_of(logs, "logs", _mapping(mapping), defer=True)
     if not any(time_unit_issue(lg) for lg in read):
         for lg in read:
             for msg in getattr(lg, "issues", []):

@@ -51,3 +51,46 @@ def test_wrong_argument_types_name_the_argument(arg, call, tmp_path, monkeypatch
         call()
     assert str(info.value).startswith(arg), str(info.value)
     assert not list(tmp_path.iterdir())  # refused before any work
+
+
+def _rpm_log(tmp_path) -> str:
+    """The paper's step log with its speed as ``speed_rpm`` (rpm) instead of omega."""
+    import pandas as pd
+
+    df = pd.read_csv(STEP, comment="#")
+    df["speed_rpm"] = df.pop("omega") * 60 / (2 * math.pi)
+    path = tmp_path / "rpm.csv"
+    df.to_csv(path, index=False)
+    return str(path)
+
+
+@pytest.mark.parametrize("form", ["str", "list", "tuple", "dict", "file", "path", "columnmap"])
+def test_mapping_in_every_form_the_cli_takes(tmp_path, form):
+    """``mapping=`` as -c takes it (one string, several), a dict, a --map file (str or Path) or a
+    ColumnMap: the same omega, in rad/s, as the CLI's parse_mapping gives."""
+    from pathlib import Path
+
+    from pmdcid.api import _logs
+    from pmdcid.io import parse_mapping
+
+    csv = _rpm_log(tmp_path)
+    item = "omega=speed_rpm*rpm"
+    (tmp_path / "map.txt").write_text(item + "\n")
+    given = {"str": item, "list": [item], "tuple": (item,), "dict": {"omega": "speed_rpm*rpm"},
+             "file": str(tmp_path / "map.txt"), "path": Path(tmp_path / "map.txt"),
+             "columnmap": parse_mapping([item])}[form]
+    want = _logs(csv, mapping=parse_mapping([item]))[0]["omega"]
+    got = _logs(csv, mapping=given)[0]["omega"]
+    assert np.array_equal(got, want)
+    assert np.allclose(got, _logs(STEP)[0]["omega"], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("bad", [5, ["omega=speed_rpm*rpm", 3], {"omega": None}, b"omega=x",
+                                 {"omega": ["speed_rpm"]}])
+def test_mapping_of_another_type_is_one_line(bad):
+    """Anything else: one PmdcidError line naming the accepted forms, before any work."""
+    from pmdcid.errors import PmdcidError
+
+    with pytest.raises(PmdcidError, match="mapping takes") as exc:
+        pmdcid.identify(STEP, mapping=bad, diagnose=False)
+    assert "\n" not in str(exc.value)

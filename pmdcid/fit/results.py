@@ -214,6 +214,49 @@ class FitStats:
         return n * math.log(max(self.chisqr, 1e-300) / n) + math.log(n) * self.nvarys
 
 
+#: a correlation this far beyond +-1 is no rounding: the covariance is not positive semidefinite
+CORR_ROUNDING = 1e-9
+
+
+def correlations(cov) -> np.ndarray:
+    """The correlation matrix of a covariance ``cov`` (n x n, the parameters' units), every
+    entry in [-1, 1] or NaN. A parameter whose variance is not finite and positive (a degenerate
+    column: the data do not determine it) has a NaN row and column; where the covariance is not
+    positive semidefinite (a degenerate column's rounding, a sum with a propagated part), the
+    parameter in the most pairs beyond +-1 is taken as degenerate and its row set to NaN, until
+    none remains; values within :data:`CORR_ROUNDING` of +-1 are rounding and clipped. The
+    diagonal is 1 (NaN for a degenerate parameter)."""
+    cov = np.asarray(cov, float)
+    var = np.diag(cov).copy()
+    bad = ~(np.isfinite(var) & (var > 0))
+    sd = np.sqrt(np.where(bad, 1.0, var))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = cov / np.outer(sd, sd)
+    while True:
+        r[bad, :] = math.nan
+        r[:, bad] = math.nan
+        over = np.abs(r) > 1.0 + CORR_ROUNDING
+        over |= ~np.isfinite(r) & ~(bad[:, None] | bad[None, :])
+        if not over.any():
+            break
+        count = over.sum(axis=1)
+        bad[int(np.argmax(count))] = True
+    return np.clip(r, -1.0, 1.0)
+
+
+def _bounded(correl: dict) -> dict:
+    """``correl`` (name -> name -> correlation) with every value outside [-1, 1] beyond
+    rounding, or not finite, as NaN (undetermined), rounding clipped."""
+    out = {}
+    for a, row in correl.items():
+        out[a] = {}
+        for b, v in row.items():
+            v = float(v)
+            ok = math.isfinite(v) and abs(v) <= 1.0 + CORR_ROUNDING
+            out[a][b] = max(-1.0, min(1.0, v)) if ok else math.nan
+    return out
+
+
 @dataclass
 class SimFitResult:
     """Result of a simulation-error fit: estimates, correlations, statistics, per-log errors."""
@@ -243,10 +286,17 @@ class SimFitResult:
     #: ``curvature[:, j] / curvature[j, j]`` per unit of parameter j; None: not formed)
     curvature: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        # a correlation is a cosine: never outside [-1, 1]; a pair beyond it (a covariance that
+        # is not positive semidefinite) is undetermined, NaN (:func:`correlations`)
+        self.correl = _bounded(self.correl)
+
     def values(self) -> dict[str, float]:
         return {k: e.value for k, e in self.estimates.items()}
 
     def correlation(self, a: str, b: str) -> float:
+        """The correlation of ``a`` and ``b`` in [-1, 1]; NaN where either is degenerate (the
+        logs do not determine it) or unknown."""
         return self.correl.get(a, {}).get(b, math.nan)
 
 

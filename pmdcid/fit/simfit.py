@@ -30,7 +30,7 @@ from pmdcid.fit.covariance import (
 )
 from pmdcid.fit.parameters import STEP, Parameters
 from pmdcid.fit.problem import Problem, Simulation
-from pmdcid.fit.results import Estimate, FitStats, SimFitResult, nrmse
+from pmdcid.fit.results import Estimate, FitStats, SimFitResult, correlations, nrmse
 from pmdcid.fit.solver import blas_single_thread, scale_of, solve
 from pmdcid.fit.tall import TALL_ROWS
 from pmdcid.model import Model
@@ -278,8 +278,7 @@ def _errors(Jm, fun, fit: _Fit, redchi: float, hjac, hse, tau):
                                                redchi, fit.options.correlated, fit.weight, tau)
         cov = cov + extra
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            corr = cov / np.outer(se, se)
+        corr = correlations(cov)
     except np.linalg.LinAlgError:
         return np.full(n, math.nan), np.full((n, n), math.nan), None, extra, curv
     return se, corr, info, extra, curv

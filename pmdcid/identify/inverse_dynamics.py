@@ -26,6 +26,7 @@ import numpy as np
 from pmdcid.errors import FitError
 from pmdcid.fit.covariance import block_covariance
 from pmdcid.fit.results import Estimate, ResultProtocol
+from pmdcid.identify.offset import offset_evident, offset_note
 from pmdcid.io.derive import check_cutoff, choose_cutoff, log_cutoff, log_kinematics, lowpass
 from pmdcid.model import Model
 from pmdcid.model.spec import BASE_PARAMS
@@ -37,9 +38,6 @@ STAGE = "inverse-dynamics"
 EDGE_PERIODS = 5.0
 #: rows at speeds below this fraction of the log's (99th percentile) speed are left out
 REST_FRACTION = 0.02
-#: a regressed torque offset is kept when it lies more than this many standard errors from 0
-#: (as fit-nonlinear's, :data:`pmdcid.identify.nonlinear.OFFSET_SE`)
-OFFSET_SE = 2.0
 
 
 def _units() -> dict[str, str]:
@@ -201,10 +199,9 @@ def fit_inverse_dynamics(logs, model: Model | None = None,
         X = X[:, :3]
         names = names[:3]
     theta, se, resid, sv = _solve(X, y, segments)
-    if len(names) == 4 and not abs(theta[3]) > OFFSET_SE * se[3]:
-        warns.append(Note(f"tau0 = {theta[3]:.3g} ± {se[3]:.2g} is within {OFFSET_SE:g} "
-                          "standard errors of 0: these logs show no torque offset; tau0 fixed "
-                          "at 0", about="tau0", severity="note"))
+    if len(names) == 4 and not offset_evident(theta[3], se[3], len(y)):
+        warns.append(Note(offset_note(theta[3], se[3], _units()["tau0"], len(y)), about="tau0",
+                          severity="note"))
         X = X[:, :3]
         names = names[:3]
         theta, se, resid, sv = _solve(X, y, segments)

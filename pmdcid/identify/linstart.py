@@ -55,8 +55,22 @@ def _noise(w: np.ndarray) -> float:
     return mad_std(d) / math.sqrt(2.0) if len(d) else 0.0
 
 
-def drive_torque(log, model: Model) -> tuple[np.ndarray, float]:
-    """(T [N m, or V per volt], damping km ke/R to take out of bv) of one log: module docstring."""
+def drive_sources(log, model: Model) -> list[str]:
+    """The drives a linear start can read ``log``'s torque from, in the order tried: the logged
+    torque, the voltage of a lumped model, the logged current (km i), the voltage through R
+    and km (module docstring)."""
+    if log.drive == "tau":
+        return ["tau"]
+    if is_lumped(model):
+        return ["v"]
+    out = ["i"] if log.has("i") and "i" not in log.derived else []
+    return out + ["v"] if model.has("R") or not out else out
+
+
+def drive_torque(log, model: Model, source: str | None = None) -> tuple[np.ndarray, float]:
+    """(T [N m, or V per volt], damping km ke/R to take out of bv) of one log from ``source``
+    (one of :func:`drive_sources`; None: the first): module docstring."""
+    source = source or drive_sources(log, model)[0]
     if log.drive == "tau":
         return np.asarray(log["tau"], float), 0.0
     if is_lumped(model):
@@ -64,7 +78,7 @@ def drive_torque(log, model: Model) -> tuple[np.ndarray, float]:
     if not model.has("km"):
         raise FitError("a linear start needs km (give --km) or a lumped model", log.path)
     km = model.value("km")
-    if log.has("i") and "i" not in log.derived:
+    if source == "i":
         return km * np.asarray(log["i"], float), 0.0
     if not model.has("R"):
         raise FitError("a linear start from the voltage needs R (fit-electrical)", log.path)
@@ -96,12 +110,12 @@ def noise_lag(w: np.ndarray) -> int:
     return int(np.flatnonzero(np.abs(dev) > lim)[-1]) + 1
 
 
-def _rows(log, model: Model):
+def _rows(log, model: Model, source: str | None = None):
     """Regressors [omega[k], T[k], -sign omega[k]], their instruments (omega[k] replaced by
     omega[k - m], m = :func:`noise_lag`: the speed's noise in omega[k] is in the regressor and
     pulls a towards 0; m samples back it is independent of the noise at k and k + 1), target
-    omega[k + 1], the back-EMF damping, dt."""
-    T, emf = drive_torque(log, model)
+    omega[k + 1], the back-EMF damping, dt; the torque from ``source`` (:func:`drive_torque`)."""
+    T, emf = drive_torque(log, model, source)
     w = np.asarray(log["omega"], float)
     sig = _noise(w)
     m = noise_lag(w)
@@ -139,13 +153,32 @@ class LinearStart(ResultProtocol):
 
 def linear_start(logs, model: Model) -> LinearStart:
     """J, bv, bc from ``logs`` (speed measured or derived) by the regression of the module's
-    docstring. Raises :class:`FitError` when the rotor hardly turns or the fit is not a stable
-    first-order system (a >= 1 or a <= 0: the drive does not explain the speed)."""
+    docstring, from each drive the logs give in turn (:func:`drive_sources`: a logged current
+    whose noise or the armature's lag leaves no stable first-order fit, then the voltage through
+    R and km), the first that fits kept (its source said in a warning when not the first).
+    Raises :class:`FitError` when the rotor hardly turns or no drive gives a stable first-order
+    system (a >= 1 or a <= 0: the drive does not explain the speed), naming each one tried."""
     logs = [lg for lg in logs if lg.has("omega")]
     names = ", ".join(lg.path for lg in logs) or None
     if not logs:
         raise FitError("a linear start needs a speed (or angle) column", names)
-    parts = [_rows(lg, model) for lg in logs]
+    sources = [s for s in drive_sources(logs[0], model)
+               if all(s in drive_sources(lg, model) for lg in logs)] or [None]
+    failed = []
+    for source in sources:
+        res = _linear_start(logs, model, source, names)
+        if isinstance(res, LinearStart):
+            if failed:
+                res.warnings.insert(0, f"the drive read from {source}: " + "; ".join(failed))
+            return res
+        failed.append(f"from {source}: {res}" if source else res)
+    raise FitError("; ".join(failed), names)
+
+
+def _linear_start(logs, model: Model, source, names) -> LinearStart | str:
+    """The regression with the torque from ``source``: the result, or why the fit is no stable
+    first-order system (the rotor hardly turning raises: no other drive changes that)."""
+    parts = [_rows(lg, model, source) for lg in logs]
     X = np.concatenate([p[0] for p in parts])
     Z = np.concatenate([p[1] for p in parts])
     y = np.concatenate([p[2] for p in parts])
@@ -157,8 +190,8 @@ def linear_start(logs, model: Model) -> LinearStart:
     a, g, gbc = th
     span = max(float(lg.t[-1] - lg.t[0]) for lg in logs)
     if not (0 < a < 1 + dt / span and g > 0):
-        raise FitError(f"the speed does not follow the drive as a first-order system (a = {a:.3g},"
-                       f" g = {g:.3g}): check the sign of the speed against the input", names)
+        return (f"the speed does not follow the drive as a first-order system (a = {a:.6g}, "
+                f"g = {g:.3g}): check the sign of the speed against the input")
     emf = float(np.median([p[3] for p in parts]))
     warns = []
     if a >= 1 - dt / span:  # no damping the logs resolve: J from the drive's gain alone
@@ -181,4 +214,4 @@ def linear_start(logs, model: Model) -> LinearStart:
     return LinearStart(est, [lg.path for lg in logs], warns)
 
 
-__all__ = ["LinearStart", "drive_torque", "linear_start"]
+__all__ = ["LinearStart", "drive_sources", "drive_torque", "linear_start"]

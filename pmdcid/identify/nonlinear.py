@@ -63,6 +63,7 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
     held_offset,
     working_model,
 )
+from pmdcid.identify.offset import offset_evident, offset_note
 from pmdcid.identify.ramp_profile import hold_profile
 from pmdcid.identify.share_valley import restart_from_dips, share_interval, valley_threshold
 from pmdcid.model import Model
@@ -670,28 +671,23 @@ def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool =
                   noise_model)
     with blas_single_thread():
         res = run()
-        if free is None and not offset_shown(res.estimates.get("tau0")):
+        if free is None and not offset_shown(res.estimates.get("tau0"), res.stats.ndata):
             e = res.estimates["tau0"]
             again = run(offset=False)
-            again.warnings.insert(0, Note(OFFSET_UNSHOWN.format(v=e.value, se=e.stderr, u=e.unit)
+            again.warnings.insert(0, Note(offset_note(e.value, e.stderr, e.unit, res.stats.ndata)
                                           + held_offset(model), about="tau0",
                                           severity="note"))
             res = again
         return res
 
 
-#: a fitted torque offset is kept when it lies more than this many standard errors from 0
-OFFSET_SE = 2.0
-OFFSET_UNSHOWN = ("tau0 = {v:.3g} ± {se:.2g} {u} is within 2 standard errors of 0: these logs "
-                  "show no torque offset, so it is not fitted")
-
-
-def offset_shown(e: Estimate | None) -> bool:
-    """True when there is no fitted tau0 to judge, or it lies more than :data:`OFFSET_SE`
-    standard errors from 0 (an undetermined one, its standard error not finite, is not shown)."""
+def offset_shown(e: Estimate | None, ndata: int) -> bool:
+    """True when there is no fitted tau0 to judge, or it passes the rule an added effect meets
+    (:func:`.offset.offset_evident`; an undetermined one, its standard error not
+    finite, does not)."""
     if e is None or not e.vary:
         return True
-    return math.isfinite(e.stderr) and abs(e.value) > OFFSET_SE * e.stderr
+    return offset_evident(e.value, e.stderr, ndata)
 
 
 def _best_start(*args, offset: bool = True) -> NonlinearResult:

@@ -125,8 +125,26 @@ def _rail(x: np.ndarray, value: float) -> tuple[int, float]:
     return count, jump
 
 
+def _dithers(x: np.ndarray, value: float, values: np.ndarray) -> bool:
+    """True when ``value`` (the top or bottom of ``x``) is a quantised level the signal settles
+    on, not a rail: every run at it is entered from the next level (one quantum away: a
+    settled speed logged in whole rpm or encoder counts moves between neighbouring levels), and
+    it alternates with that level, at least two runs at it per stretch spent at the two levels.
+    A rail is reached with a kink: entered from further below (the signal still rising, more
+    than a quantum a sample) or held in one run while the signal would have gone on."""
+    nxt = values[1] if value == values[0] else values[-2]  # ``values``: sorted, 20 or more
+    at, near = x == value, (x == value) | (x == nxt)
+    starts = np.flatnonzero(at[1:] & ~at[:-1]) + 1
+    if not len(starts) or not np.all(x[starts - 1] == nxt):
+        return False
+    stretches = int(np.sum(near[1:] & ~near[:-1])) + int(near[0])
+    runs = len(starts) + int(at[0])
+    return runs >= 2 * max(stretches, 1)
+
+
 def check_saturation(x: np.ndarray, name: str, path: str) -> bool:
-    """Warn (and return True) when ``x`` looks clipped flat at its maximum or minimum."""
+    """Warn (and return True) when ``x`` looks clipped flat at its maximum or minimum (not a
+    quantised level it settles on, :func:`_dithers`)."""
     n = len(x)
     if n < 20:
         return False
@@ -144,7 +162,7 @@ def check_saturation(x: np.ndarray, name: str, path: str) -> bool:
         others = counts[values != value]
         if (count >= max(5, SATURATION_MIN_FRACTION * n)
                 and count >= SATURATION_PILEUP * float(others.max())
-                and jump > 1e-6 * span):
+                and jump > 1e-6 * span and not _dithers(x, value, values)):
             warn(f"column '{name}' sits flat at its {side} {value:.6g} for {count} samples "
                  f"({100.0 * count / n:.1f} %): the sensor looks saturated (clipped); fits will "
                  "be biased: cut those parts or re-record with more sensor range", path)

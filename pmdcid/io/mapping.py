@@ -272,3 +272,38 @@ def parse_mapping(items: list[str] | tuple[str, ...] = (),
         spec = parse_spec(item)
         specs[spec.canon] = spec
     return ColumnMap(specs)
+
+
+#: what the front door's ``mapping=`` takes, for its one-line refusal
+MAPPING_FORMS = ("a ColumnMap, a 'CANON=SRC*K+OFF' string as -c takes it, a list of them, a dict "
+                 "{'omega': 'speed_rpm*rpm'}, or a mapping file's path (as --map)")
+
+
+def as_mapping(mapping) -> ColumnMap | None:
+    """``mapping`` as the library's :class:`ColumnMap`, from every form the command line takes:
+    None; a ColumnMap (as is); a ``"CANON=SRC*K+OFF"`` string (one ``-c``); a list or tuple of
+    them (repeated ``-c``); a dict ``{CANON: "SRC*K+OFF"}`` (as a JSON mapping file); a mapping
+    file's path (a :class:`~pathlib.Path`, or a string without ``=``: ``--map``). Anything else,
+    or an item that is not a mapping, is one :class:`LogError` line naming what is accepted."""
+    if mapping is None or isinstance(mapping, ColumnMap):
+        return mapping
+    if isinstance(mapping, str) and "=" in mapping:
+        return parse_mapping([mapping])
+    if isinstance(mapping, (str, Path)) or hasattr(mapping, "__fspath__"):
+        return parse_mapping(path=Path(mapping))
+    if isinstance(mapping, dict):
+        bad = [k for k, v in mapping.items()
+               if not isinstance(k, str) or not isinstance(v, (str, int, float))
+               or isinstance(v, bool)]
+        if bad:
+            raise LogError(f"mapping: entry {str(bad[0])[:40]!r} must map a column name to "
+                           f"'SRC*K+OFF' (a string); mapping takes {MAPPING_FORMS}")
+        return parse_mapping([f"{k}={v}" for k, v in mapping.items()])
+    if isinstance(mapping, (list, tuple)):
+        bad = [x for x in mapping if not isinstance(x, str)]
+        if bad:
+            raise LogError(f"mapping: item {str(bad[0])[:40]!r} ({type(bad[0]).__name__}) is "
+                           f"not a 'CANON=SRC*K+OFF' string; mapping takes {MAPPING_FORMS}")
+        return parse_mapping(list(mapping))
+    raise LogError(f"mapping: a {type(mapping).__name__} is not a column mapping; mapping takes "
+                   f"{MAPPING_FORMS}")

@@ -246,7 +246,10 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
     if not isinstance(params, dict):
         raise ModelError("'parameters' must be an object of name -> {value, stderr, unit}", path)
     model = Model(path=path)
-    lumped = obj.get("lumped") is True
+    lumped = obj.get("lumped", False)
+    if not isinstance(lumped, bool):
+        raise ModelError(f"'lumped' is {repr(lumped)[:30]}: give true (per-volt parameters) or "
+                         "false (SI)", path)
     for name, entry in params.items():
         if isinstance(entry, (int, float)) and not isinstance(entry, bool):
             entry = {"value": entry}
@@ -254,14 +257,13 @@ def model_from_json(obj: Any, path: str = "<model>") -> Model:
             raise ModelError(f"parameter '{name}' must be an object with a 'value'", path)
         unit = _unit_of_entry(name, entry, path)
         v = _check_value(name, entry["value"], path, unit, lumped)
-        se = entry.get("stderr")
-        se = float(se) if isinstance(se, (int, float)) and not isinstance(se, bool) else math.nan
+        se = _stderr_of(name, entry, path)
         if math.isfinite(se) and entry["value"] and v != float(entry["value"]):
             se *= v / float(entry["value"])  # the same prefix scaling as the value
         interval = _interval_of(name, entry, v, path, unit, lumped)
         unit = _canonical_unit(name, lumped) if param_spec(name) is not None else str(unit or "")
-        model.parameters[name] = Parameter(v, se, unit, str(entry.get("stage") or ""), interval,
-                                           _caveat_of(name, entry, path))
+        model.parameters[name] = Parameter(v, se, unit, _text_of(name, entry, "stage", path),
+                                           interval, _caveat_of(name, entry, path))
     effects = obj.get("effects", [])
     if not isinstance(effects, list) or not all(isinstance(e, str) for e in effects):
         raise ModelError("'effects' must be a list of effect names", path)
@@ -325,13 +327,33 @@ def check_interval(name: str, low: float, high: float, v: float, path) -> None:
 
 
 def _caveat_of(name: str, entry: dict, path) -> str:
-    got = entry.get("caveat", "")
+    return _text_of(name, entry, "caveat", path)
+
+
+def _text_of(name: str, entry: dict, key: str, path) -> str:
+    """A parameter's text field ``key`` (``stage``, ``caveat``): a text, or absent/null ("")."""
+    got = entry.get(key, "")
     if got is None:
         return ""
     if not isinstance(got, str):
-        raise ModelError(f"parameter '{name}' has caveat {repr(got)[:30]}: a caveat is a text",
+        raise ModelError(f"parameter '{name}' has {key} {repr(got)[:30]}: a {key} is a text",
                          path)
     return got
+
+
+def _stderr_of(name: str, entry: dict, path) -> float:
+    """A parameter's ``stderr`` in its entry's unit: a number >= 0, or absent/null (NaN: not
+    known); anything else (a text, a negative number) is refused naming the parameter."""
+    se = entry.get("stderr")
+    if se is None:
+        return math.nan
+    if isinstance(se, bool) or not isinstance(se, (int, float)) or not se >= 0:
+        raise ModelError(f"parameter '{name}' has stderr {repr(se)[:30]}: a standard error is a "
+                         "number >= 0 in the value's unit (or null: not known)", path)
+    try:
+        return float(se)
+    except OverflowError:  # an integer too large for a float
+        return math.inf
 
 
 def _unit_of_entry(name: str, entry: dict, path):
@@ -359,12 +381,56 @@ def _pairs(pairs):
     return out
 
 
+#: an integer literal longer than this is read as +-inf (refused as a value, naming its key)
+#: rather than failing the whole file on Python's int-conversion limit (4300 digits)
+MAX_INT_DIGITS = 400
+
+
+def _json_int(text: str):
+    if len(text) > MAX_INT_DIGITS:
+        return -math.inf if text.startswith("-") else math.inf
+    return int(text)
+
+
+def _key_path(text: str, pos: int) -> list[str]:
+    """The object keys enclosing ``text[pos]`` (outermost first): a scan of the strings and
+    brackets before it."""
+    stack: list = []
+    k, last = 0, None
+    while k < pos:
+        c = text[k]
+        if c == '"':
+            end = k + 1
+            while end < len(text) and text[end] != '"':
+                end += 2 if text[end] == "\\" else 1
+            last, k = text[k + 1:end], end + 1
+            continue
+        if c in "{[":
+            stack.append(None)
+        elif c in "}]" and stack:
+            stack.pop()
+        elif c == ":" and stack and last is not None:
+            stack[-1] = last
+        elif c == ",":
+            last = None
+        k += 1
+    return [x for x in stack if x is not None]
+
+
+def json_error_place(text: str, exc: json.JSONDecodeError) -> str:
+    """Where a JSON syntax error is, in words: ``line L column C``, and the keys it lies under
+    (``near parameters > L > value``) when there are any."""
+    where = f"line {exc.lineno} column {exc.colno}"
+    keys = _key_path(text, min(exc.pos, len(text)))
+    return where + (f", near {' > '.join(x[:30] for x in keys[-4:])}" if keys else "")
+
+
 def parse_model_json(text: str, path):
     """The model file's JSON, strictly: a key given twice (``R`` twice) refused with one line
     naming the file; ``NaN``/``Infinity`` (not JSON) are refused as a parameter's value, and
     elsewhere (an extra key) written back as ``null``, never as an invalid token."""
     try:
-        return json.loads(text, object_pairs_hook=_pairs)
+        return json.loads(text, object_pairs_hook=_pairs, parse_int=_json_int)
     except _Duplicate as exc:
         raise ModelError(f"model file is ambiguous: {exc}; repair it", path) from None
 
@@ -397,8 +463,8 @@ def load_model(path: str | os.PathLike, must_exist: bool = True) -> Model:
     try:
         obj = parse_model_json(text, p)
     except json.JSONDecodeError as exc:
-        raise ModelError(f"model file is not valid JSON (line {exc.lineno}: {exc.msg}): "
-                         "repair it, or delete it to start afresh", p) from None
+        raise ModelError(f"model file is not valid JSON ({json_error_place(text, exc)}: "
+                         f"{exc.msg}): repair it, or delete it to start afresh", p) from None
     except (ValueError, RecursionError) as exc:  # e.g. an integer of more than 4300 digits
         raise ModelError(f"model file is not usable JSON ({str(exc)[:60]}): repair it, or "
                          "delete it to start afresh", p) from None

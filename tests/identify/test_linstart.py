@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from pmdcid.errors import FitError
 from pmdcid.identify.linstart import linear_start, noise_lag
 from pmdcid.io import Log
 from pmdcid.model import Model
@@ -42,3 +43,44 @@ def test_linear_start_is_not_pulled_by_a_filtered_speed_noise(seed):
     est = linear_start([Log("x.csv", t, {"tau": tau, "omega": w})], Model()).estimates
     assert est["J"].value == pytest.approx(vals["J"], rel=0.05)
     assert 0.4 < est["bv"].value / vals["bv"] < 2.5
+
+
+def test_a_current_that_leaves_no_first_order_fit_falls_back_to_the_voltage():
+    """newrigs freerun-vmeas seed 7: a free-running motor at 1 kHz (bv tiny beside the back-EMF's
+    damping), a 256-count encoder's speed, current with 20 mA of noise, measured voltage with
+    0.3 V. On km i the speed has no damping the logs resolve and the noise takes a past 1
+    (1.00016): refused, and identify stopped half-way (exit 1). The voltage through R, km,
+    ke gives the back-EMF's damping: J within 25 %, the drive used said in a warning."""
+    rng = np.random.default_rng(0)
+    t = np.arange(7000) / 1000.0
+    v = np.where((t >= 1) & (t < 4), 12.0, 0.0)
+    vals = {**neutral_values(), "R": 2.0, "L": 1e-3, "km": 0.02, "ke": 0.02, "J": 1e-4,
+            "bv": 2e-6, "bc": 2e-3}
+    sim = simulate_values(t, v, vals)
+    step = 2 * np.pi / 256  # one count [rad]
+    th = np.concatenate([[0.0], np.cumsum(sim.omega[1:] * 1e-3)])
+    w = np.concatenate([[0.0], np.diff(np.floor(th / step))]) * step / 1e-3
+    m = Model()
+    for k in ("R", "L", "km", "ke"):
+        m.set(k, vals[k])
+    m.add_effect("back_emf")
+    log = Log("x.csv", t, {"v": v + rng.normal(0, 0.3, len(t)),
+                           "i": sim.i + rng.normal(0, 0.02, len(t)), "omega": w})
+    res = linear_start([log], m)
+    assert res.estimates["J"].value == pytest.approx(vals["J"], rel=0.25)
+    assert res.warnings[0].startswith("the drive read from v: from i: ")
+
+
+def test_no_drive_that_fits_names_each_one_tried():
+    """A speed that runs against every drive (its sign reversed): one FitError naming both."""
+    t = np.arange(3000) / 1000.0
+    v = np.where(t >= 0.5, 6.0, 0.0)
+    vals = {**neutral_values(), "R": 2.0, "L": 1e-3, "km": 0.02, "ke": 0.02, "J": 1e-4,
+            "bv": 2e-5, "bc": 1e-3}
+    sim = simulate_values(t, v, vals)
+    m = Model()
+    for k in ("R", "L", "km"):
+        m.set(k, vals[k])
+    log = Log("x.csv", t, {"v": v, "i": sim.i, "omega": -sim.omega})
+    with pytest.raises(FitError, match="from i: .*; from v: .*first-order"):
+        linear_start([log], m)

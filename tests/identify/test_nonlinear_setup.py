@@ -3,12 +3,16 @@ and a start that survives a friction inverse dynamics misreads. Round trips on s
 logs of bench/torquerig.py's rig (J 2e-3 kg m^2, bv 2e-3 N m s/rad, bc 0.02 N m; 0.05-0.15 N m
 steps, the speed logged with 1 rad/s noise)."""
 
+import math
+
 import numpy as np
 import pytest
 from ident_util import as_log
 
+from pmdcid.diagnose.settings import Rules
 from pmdcid.identify.nonlinear import fit_nonlinear
 from pmdcid.identify.nonlinear_setup import both_directions
+from pmdcid.identify.offset import OFFSET_BIC, offset_bic, offset_evident
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_values
 
@@ -84,15 +88,52 @@ def test_an_offset_other_data_determined_is_kept(rng):
 
 @pytest.mark.parametrize("seed", [4, 5])
 def test_no_offset_the_logs_do_not_show(seed):
-    """Both directions, no offset in the truth: the fitted tau0 lies within 2 standard errors of
-    0 (on 10 seeds of bench/torquerig.py's case c2: 10 of 10), so it is not written."""
+    """Both directions, no offset in the truth: the fitted tau0 falls short of the evidence an
+    effect needs (on 10 seeds of bench/torquerig.py's case c2: 10 of 10), so it is not written."""
     rng = np.random.default_rng(seed)
     vals = rig(rng)
     res = fit_nonlinear(two_ways(vals, rng), Model())
     assert "tau0" not in res.estimates
-    assert any("within 2 standard errors of 0" in w for w in res.warnings)
+    assert any("do not show a torque offset" in w for w in res.warnings)
     for k in ("J", "bv", "bc"):
         assert res.estimates[k].value == pytest.approx(vals[k], rel=0.10), k
+
+
+def test_an_offset_two_standard_errors_out_is_not_an_effect():
+    """Seed 18 (no offset in the truth) fits tau0 3.5 standard errors from 0 on 800 samples:
+    past a 2-standard-error test (which wrote it), short of an effect's evidence (ΔBIC
+    -3.5^2 + ln 800 = -5.6, not below -10): not written, the note says what to record."""
+    rng = np.random.default_rng(18)
+    vals = rig(rng)
+    logs = two_ways(vals, rng)
+    forced = fit_nonlinear(logs, Model(), free=["J", "bv", "bc", "tau0"]).estimates["tau0"]
+    assert 2.0 < abs(forced.value / forced.stderr) < math.sqrt(10 + math.log(800))
+    res = fit_nonlinear(logs, Model())
+    m = Model()
+    res.apply(m)
+    assert "tau0" not in res.estimates and "torque_offset" not in m.effects
+    assert any("record motion in both directions" in w for w in res.warnings)
+
+
+def test_offset_bic():
+    """The offset's ΔBIC is -z^2 + ln(n); an undetermined one (no finite error) never passes."""
+    assert offset_bic(4.0, 1.0, 1000) == pytest.approx(-16 + math.log(1000))
+    assert offset_evident(5.0, 1.0, 1000) and not offset_evident(4.0, 1.0, 1000)
+    assert not offset_evident(1.0, math.nan, 1000) and not offset_evident(1.0, 0.0, 1000)
+    assert OFFSET_BIC == Rules().bic  # the rule diagnose adds an effect by
+
+
+def test_a_clear_offset_is_written():
+    """Seed 4 with a true offset of 40 % of bc (100 Hz): written, within 3 standard errors."""
+    rng = np.random.default_rng(4)
+    vals = rig(rng)
+    vals["tau0"] = 0.4 * vals["bc"]
+    res = fit_nonlinear(two_ways(vals, rng), Model())
+    e = res.estimates["tau0"]
+    assert abs(e.value - vals["tau0"]) < 3 * e.stderr
+    m = Model()
+    res.apply(m)
+    assert "torque_offset" in m.effects
 
 
 @pytest.mark.slow

@@ -452,7 +452,7 @@ CASES: list[Case] = [
       r"^error: model\.json: parameter 'R' is not finite"),
     C("model-5000-digit-integer", combine(STEP, text(
         "model.json", '{"parameters": {"R": {"value": 1' + "0" * 5000 + "}}}")), SIM, 1,
-      r"^error: model\.json: model file is not usable JSON"),
+      r"^error: model\.json: parameter 'R' is not finite"),
     C("model-deeply-nested", combine(STEP, text("model.json", "[" * 100000 + "]" * 100000)),
       SIM, 1, r"^error: model\.json: model file is not usable JSON"),
     C("model-string-value", combine(STEP, model(L="17.8 mH")), SIM, 1,
@@ -1119,3 +1119,33 @@ def test_saturation_needs_a_pile_up_at_the_rail(rng):
         assert check_saturation(np.minimum(x, 1.5), "omega", "x.csv")
     with pytest.warns(PmdcidWarning, match="minimum -1.5"):
         assert check_saturation(np.maximum(-x, -1.5), "i", "x.csv")
+
+
+def _counted_settle(rng, top: float = 8533.0, q: float = 23.0, share: float = 0.8):
+    """A speed [rpm] from encoder counts (one count: ``q`` rpm a sample), 500 rows at 200 Hz:
+    a first-order rise from rest (at 0.1 s) to the level ``top``, then dithering between
+    ``top`` (a ``share`` of the settled rows) and the level below, as the counts do."""
+    t = np.arange(500) * 5e-3
+    w = np.round(top * (1 - np.exp(-np.clip(t - 0.1, 0, None) / 0.25)) / q) * q
+    settled = t > 1.5
+    w[settled] = np.where(rng.random(settled.sum()) < share, top, top - q)
+    return w
+
+
+def test_a_settled_speed_in_whole_counts_is_no_rail():
+    """newrigs dcm-pwm seed 7: a speed logged in counts of 23 rpm settles between its top level
+    and the one below (166 and 41 rows): the top is entered only from the next level and
+    alternates with it, a quantised settle, not a clip (refused at main). The same signal
+    clipped below its settled speed (entered from further below, the signal still rising), or
+    a coarse one held in a single run where it would go on, stays a rail."""
+    from pmdcid.errors import PmdcidWarning
+    from pmdcid.io.checks import check_saturation
+
+    rng = np.random.default_rng(7)
+    w = _counted_settle(rng)
+    assert not check_saturation(w, "omega", "x.csv")
+    with pytest.warns(PmdcidWarning, match="maximum 7000"):
+        assert check_saturation(np.minimum(w, 7000.0), "omega", "x.csv")
+    slow = np.round(np.minimum(np.linspace(0, 30, 500), 20.0))  # 1 count per 17 rows, clipped
+    with pytest.warns(PmdcidWarning, match="maximum 20"):
+        assert check_saturation(slow, "omega", "x.csv")

@@ -123,3 +123,28 @@ def test_a_model_saved_twice_by_its_reader_is_fine(tmp_path):
     p.write_text(p.read_text().replace("3.5", "4.5"))
     with pytest.raises(ModelError, match="changed since"):
         m.save(p)
+
+
+@pytest.mark.parametrize("text, said", [
+    (_obj('"R": {"value": 2.37, "stderr": "0.1"}'), r"parameter 'R' has stderr '0\.1'"),
+    (_obj('"R": {"value": 2.37, "stderr": -0.1}'), r"parameter 'R' has stderr -0\.1"),
+    (_obj('"R": {"value": 2.37, "stage": 5}'), r"parameter 'R' has stage 5"),
+    ('{"parameters": {"R": 2.37}, "lumped": "yes"}', r"'lumped' is 'yes'"),
+    (_obj('"R": {"value": 1' + "0" * 5000 + "}"), r"parameter 'R' is not finite"),
+    (_obj('"R": {"value": 2.37}, "L": {"value": }'),
+     r"not valid JSON \(line 1 column \d+, near parameters > L > value: Expecting value\)"),
+    (_obj('"R": {"value": 2.3.4}'), r"near parameters > R > value: Expecting ','"),
+], ids=["stderr-text", "stderr-negative", "stage-number", "lumped-text", "5000-digits",
+        "missing-value", "two-points"])
+def test_each_model_file_error_names_the_key(tmp_path, text, said):
+    """A value of the wrong kind, where the JSON parses, is one line naming the file and the key
+    (a stderr given as text or negative was silently dropped or kept, a 'lumped' that is not
+    true/false silently read as SI); a syntax error says under which keys it lies."""
+    with pytest.raises(ModelError, match=said) as exc:
+        _load(tmp_path, text)
+    assert str(exc.value).startswith(str(tmp_path / "m.json")) and "\n" not in str(exc.value)
+
+
+def test_a_null_stderr_is_not_known(tmp_path):
+    m = _load(tmp_path, _obj('"R": {"value": 2.37, "stderr": null, "stage": null}'))
+    assert m.value("R") == 2.37 and m.parameters["R"].stderr != m.parameters["R"].stderr
