@@ -108,12 +108,12 @@ def step_lag(logs, model) -> dict | None:
     with the steps' bv and bc is simulated on the step logs (per volt, the kernel's voltage
     structure, :func:`pmdcid.model.lumped.kernel_values`) with J, bv, bc, tau_e and a sensor
     delay free, from two starts (all the steps' dead time as lag, or all as latency), the
-    better kept; then from the lag's start with the dead zone and the back-EMF share free too
-    (:func:`_dead_zone_fit`: a dead zone above the running friction pins the lagged torque),
-    kept where its BIC is lower. A lag rounds the start of each step, a latency moves it whole:
-    where the sampling resolves the lag, the speed error tells them apart. tau_e is kept when
-    it exceeds :data:`LAG_SIGMAS` standard errors, the delay when it exceeds
-    :data:`MIN_SAMPLES` samples; when both are found, the latency alone is kept
+    better kept; then with the dead zone and the back-EMF share free too from the lag's start
+    and from that fit (:func:`_dead_zone_fit`: a dead zone above the running friction pins
+    the lagged torque), the lowest BIC kept. A lag rounds the start of each step, a latency
+    moves it whole: where the sampling resolves the lag, the speed error tells them apart.
+    tau_e is kept when it exceeds :data:`LAG_SIGMAS` standard errors, the delay when it
+    exceeds :data:`MIN_SAMPLES` samples; when both are found, the latency alone is kept
     (``lag_and_latency`` says what was found).
     """
     from pmdcid.simulate import logs_for
@@ -132,9 +132,10 @@ def step_lag(logs, model) -> dict | None:
     if not fits:
         return None
     both = min(fits, key=lambda f: f.stats.chisqr)
-    pinned = _dead_zone_fit(use, model, {**base, "tau_e": d0, "delay": 0.05 * dt})
-    if pinned is not None and pinned.stats.bic < both.stats.bic:
-        both = pinned
+    starts = ({**base, "tau_e": d0, "delay": 0.05 * dt},
+              {k: e.value for k, e in both.estimates.items()})
+    pinned = [f for f in (_dead_zone_fit(use, model, s) for s in starts) if f is not None]
+    both = min([both, *pinned], key=lambda f: f.stats.bic)
     return _found(use, model, both, dt, shift)
 
 
@@ -146,9 +147,10 @@ PINNED_SHARE = 0.99
 
 def _dead_zone_fit(use, model, start: dict):
     """The steps' lag fit with the dead zone and the back-EMF share free too, from ``start``
-    (all the dead time as lag) with the steps' offset (their bc) as the dead zone and the
-    share at :data:`PINNED_SHARE`; None where the fit fails. :func:`step_lag` keeps it where
-    its BIC is the lower (the two parameters' cost paid).
+    with the steps' offset (its bc) as the dead zone and the share at :data:`PINNED_SHARE`;
+    None where the fit fails. :func:`step_lag` runs it from all the dead time as lag and from
+    the better fit without them (a lag and a latency together split as that fit found them),
+    and keeps the lowest BIC (the two parameters' cost paid).
 
     Per volt the dead zone acts on the lagged torque v - ke w (:mod:`pmdcid.model.lumped`).
     Where the friction a running rotor needs is below the dead zone, the torque is pinned at
