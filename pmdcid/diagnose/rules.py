@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pmdcid.identify.offset import OFFSET_BIC
 from pmdcid.model import EFFECTS
 
 #: a refit above the model it extends by more than this share of its chi-square has failed
@@ -38,7 +39,7 @@ SAME_ROW_REL = 1e-7
 class Rules:
     """The thresholds a candidate must pass."""
 
-    bic: float = -10.0
+    bic: float = OFFSET_BIC  # the evidence every effect needs, a torque offset's in identify too
     heldout: float = -10.0
     min_z: float = 5.0
     min_gain: float = 0.01

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import math
 
-#: an offset is an effect: a stage writes tau0 only where it passes the evidence rule every added
-#: effect meets, its BIC difference on the fit below this (diagnose's ``Rules.bic``)
+#: the evidence every added effect meets, its BIC difference on the fit below this: diagnose's
+#: ``Rules.bic`` default, and the rule a stage writes tau0 by (an offset is an effect)
 OFFSET_BIC = -10.0
 #: the note when a fitted tau0 falls short of :data:`OFFSET_BIC`
 OFFSET_UNSHOWN = ("tau0 = {v:.3g} ± {se:.2g} {u} ({z:.1f} standard errors; ΔBIC ≈ {bic:+.0f}, not "
