@@ -173,10 +173,21 @@ def block_covariance(jac: np.ndarray, resid: np.ndarray, segments, white_cov: np
     cov = Hinv @ S @ Hinv
     cov = 0.5 * (cov + cov.T)
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.sqrt(np.clip(np.diag(cov), 0, None) / np.diag(white_cov))
+        ratio = standard_errors(cov) / np.sqrt(np.diag(white_cov))
     ratio = ratio[np.isfinite(ratio)]
     inflation = float(ratio.max()) if len(ratio) else 1.0
     return cov, CovarianceInfo(block, nb, tau, short, inflation)
+
+
+def standard_errors(cov) -> np.ndarray:
+    """Each parameter's standard error [its unit] from the covariance ``cov`` (n x n): the
+    square root of a finite, positive variance; NaN where the variance is zero, negative or not
+    finite: the data do not determine that parameter (a zero Jacobian column, a pseudo-inverse's
+    dropped direction, a sum with a propagated part that is not positive semidefinite). Never 0,
+    which would read as a parameter known exactly."""
+    var = np.diag(np.asarray(cov, float))
+    ok = np.isfinite(var) & (var > 0)
+    return np.where(ok, np.sqrt(np.where(ok, var, 1.0)), math.nan)
 
 
 def white_covariance(jac: np.ndarray, resid: np.ndarray, dof: int | None = None) -> np.ndarray:

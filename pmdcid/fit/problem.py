@@ -31,10 +31,11 @@ from pmdcid.fit.covariance import (
     CovarianceInfo,
     correlated_covariance,
     envelope_jacobian,
+    standard_errors,
     white_covariance,
 )
 from pmdcid.fit.parameters import Parameters
-from pmdcid.fit.results import Estimate, FitStats
+from pmdcid.fit.results import Estimate, FitStats, fitted
 from pmdcid.fit.solver import solve
 from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
 from pmdcid.model.effects import bounds_of, unit_of
@@ -442,10 +443,10 @@ class Problem:
         stats = FitStats(len(sol.fun), len(free), float(np.sum(sol.fun**2)), sol.nfev,
                          sol.success, sol.message)
         try:
-            se = np.sqrt(np.clip(np.diag(white_covariance(sol.jac, sol.fun)), 0, None))
+            se = standard_errors(white_covariance(sol.jac, sol.fun))
         except np.linalg.LinAlgError:
             se = np.full(len(free), math.nan)
-        est = {nm: Estimate(nm, float(out[nm]), float(e), unit_of(nm))
+        est = {nm: fitted(nm, out[nm], e, unit_of(nm))
                for nm, e in zip(free, se, strict=True)}
         c = self.chi2(out)
         return FitOutcome(out, est, stats, c, {p: self.count(p) for p in c})
@@ -487,7 +488,7 @@ class Problem:
             cov, info = correlated_covariance(jm, f0, self.segments("all"))
         except np.linalg.LinAlgError:
             return {}, None, None
-        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+        se = standard_errors(cov)
         return dict(zip(free, (float(e) for e in se), strict=True)), info, curv
 
 

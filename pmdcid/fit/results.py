@@ -162,8 +162,22 @@ class Estimate:
         if self.interval is not None:
             return f"{self.name}: {in_words(self.interval, self.unit, self.caveat)}"
         se = f" ± {self.stderr:.3g}" if math.isfinite(self.stderr) else ""
-        why = f" ({self.caveat})" if self.caveat and se else ""
+        why = f" ({self.caveat})" if self.caveat else ""
         return f"{self.name} = {self.value:.6g}{se} {self.unit}".rstrip() + why
+
+
+#: the words a fitted parameter carries in place of a standard error when its variance is not
+#: positive (:func:`pmdcid.fit.covariance.standard_errors`): its stderr is NaN (``null`` in the
+#: model file), never 0
+NOT_DETERMINED = "not determined by these logs: its variance is not positive, no standard error"
+
+
+def fitted(name: str, value: float, stderr: float, unit: str) -> Estimate:
+    """A fitted parameter's :class:`Estimate`; a standard error that is not a finite positive
+    number (a degenerate variance) is NaN and said in words (:data:`NOT_DETERMINED`)."""
+    if math.isfinite(stderr) and stderr > 0:
+        return Estimate(name, float(value), float(stderr), unit)
+    return Estimate(name, float(value), math.nan, unit, caveat=NOT_DETERMINED)
 
 
 def bounded(name: str, low: float, high: float, unit: str, caveat: str,

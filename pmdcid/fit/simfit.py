@@ -26,11 +26,12 @@ from pmdcid.fit.covariance import (
     envelope_jacobian,
     parameter_covariance,
     propagated,
+    standard_errors,
     white_covariance,
 )
 from pmdcid.fit.parameters import STEP, Parameters
 from pmdcid.fit.problem import Problem, Simulation
-from pmdcid.fit.results import Estimate, FitStats, SimFitResult, correlations, nrmse
+from pmdcid.fit.results import FitStats, SimFitResult, correlations, fitted, nrmse
 from pmdcid.fit.solver import blas_single_thread, scale_of, solve
 from pmdcid.fit.tall import TALL_ROWS
 from pmdcid.model import Model
@@ -231,7 +232,7 @@ class _Fit:
             hjac, hse = self.held_columns(sol.z, held)
         self.bufs.clear()  # no simulation until the last: freed for the covariance
         se, corr, info, extra, curv = _errors(Jm, sol.fun, self, stats.redchi, hjac, hse, tau)
-        est = {n: Estimate(n, float(v), float(e), unit_of(n))
+        est = {n: fitted(n, v, e, unit_of(n))
                for n, v, e in zip(free, x[:npar], se[:npar], strict=True)}
         correl = {a: {b: float(corr[i, j]) for j, b in enumerate(free) if j != i}
                   for i, a in enumerate(free)}
@@ -277,7 +278,7 @@ def _errors(Jm, fun, fit: _Fit, redchi: float, hjac, hse, tau):
         cov, info, curv = parameter_covariance(Jm, fun, fit.nd, fit.problem.segments("all"),
                                                redchi, fit.options.correlated, fit.weight, tau)
         cov = cov + extra
-        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+        se = standard_errors(cov)  # NaN, never 0, where the variance is not positive
         corr = correlations(cov)
     except np.linalg.LinAlgError:
         return np.full(n, math.nan), np.full((n, n), math.nan), None, extra, curv

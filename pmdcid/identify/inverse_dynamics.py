@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.fit.covariance import block_covariance
+from pmdcid.fit.covariance import block_covariance, standard_errors
 from pmdcid.fit.results import Estimate, ResultProtocol
 from pmdcid.identify.offset import offset_evident, offset_note
 from pmdcid.io.derive import check_cutoff, choose_cutoff, log_cutoff, log_kinematics, lowpass
@@ -240,7 +240,7 @@ def _solve(X, y, segments):
     cov = np.linalg.inv(Xs.T @ Xs) * s2 / np.outer(scale, scale)
     # the torque residual is model error, correlated in time: block sandwich (covariance.py)
     cov, _ = block_covariance(X, resid, segments, cov)
-    return theta, np.sqrt(np.clip(np.diag(cov), 0, None)), resid, sv
+    return theta, standard_errors(cov), resid, sv
 
 
 def fit_quasi_static(logs, model: Model | None = None,

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.fit.covariance import block_covariance, white_covariance
+from pmdcid.fit.covariance import block_covariance, standard_errors, white_covariance
 from pmdcid.fit.solver import scale_of, solve
 from pmdcid.io.derive import mad_std
 
@@ -577,7 +577,7 @@ def lsq(fun, x0, lo, hi, names, ndata: int | None = None, segments=None) -> Curv
     try:
         cov = white_covariance(sol.jac, r, dof)
         cov, _ = block_covariance(sol.jac, r, segments or [(0, 0, len(r))], cov)
-        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+        se = standard_errors(cov)
     except np.linalg.LinAlgError:
         se = np.full(len(x), math.nan)
     return CurveFit(tuple(names), x, se, math.sqrt(s2), n, bool(sol.success))

@@ -7,7 +7,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import lfilter
 
-from pmdcid.fit.covariance import block_covariance, correlation_time, integrated_time
+from pmdcid.fit.covariance import (
+    block_covariance,
+    correlation_time,
+    integrated_time,
+    standard_errors,
+)
 
 
 @pytest.mark.parametrize(("rho", "theory"), [(0.0, 1.0), (0.9, 19.0), (0.98, 99.0)])
@@ -158,3 +163,13 @@ def test_covariance_scales_with_the_residual_and_the_parameters(c, s, seed):
     se, se_s = np.sqrt(np.diag(cov)), np.sqrt(np.diag(cov_s))
     np.testing.assert_allclose(se_s[1], se[1] / s, rtol=1e-8)
     np.testing.assert_allclose(se_s[[0, 2]], se[[0, 2]], rtol=1e-8)
+
+
+def test_a_variance_not_positive_is_no_standard_error():
+    """A degenerate variance (zero: a dropped direction; negative: a covariance that is not
+    positive semidefinite; NaN) gives NaN, never 0 (a parameter known exactly)."""
+    cov = np.diag([4.0, 0.0, -1e-12, np.nan])
+    cov[0, 1] = cov[1, 0] = 0.5
+    se = standard_errors(cov)
+    assert se[0] == 2.0
+    assert np.isnan(se[1:]).all()

@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 from ident_util import step_logs
 
+from pmdcid.fit.results import NOT_DETERMINED, format_estimates, write_estimate
 from pmdcid.fit.simfit import ar_whitener, fit_simulation, held_uncertain
 from pmdcid.model import Model
+from pmdcid.model.params import model_from_json
 from pmdcid.simulate import param_values
 from pmdcid.synth import PAPER
 
@@ -43,6 +45,26 @@ def test_resistance_uncertainty_reaches_the_mechanical_parameters(rel):
         a, b = alone.estimates[name].stderr, held.estimates[name].stderr
         added = math.sqrt(b * b - a * a)
         assert added == pytest.approx(rel * held.estimates[name].value, rel=0.1), name
+
+
+def test_a_parameter_the_logs_do_not_determine_has_no_standard_error():
+    """The Stribeck velocity ws with no Stribeck effect moves nothing: its Jacobian column is
+    zero and its variance is not positive. It is said in words and written as a null stderr
+    (CONTRACT: the model file's stderr; the reader takes null as not known), never as 0."""
+    rng = np.random.default_rng(3)
+    m = _model(0.0)
+    logs = step_logs(param_values(m), rng, amplitudes=(1.0, 2.0))
+    res = fit_simulation(logs, m, ["J", "bv", "ws"], signals=("omega",))
+    ws = res.estimates["ws"]
+    assert math.isnan(ws.stderr) and ws.caveat == NOT_DETERMINED
+    assert res.estimates["J"].stderr > 0 and not res.estimates["J"].caveat
+    assert "±" not in str(ws) and NOT_DETERMINED in str(ws)
+    line = next(x for x in format_estimates(res.estimates.values()) if x.startswith("ws"))
+    assert "± 0" not in line and NOT_DETERMINED in line
+    write_estimate(m, ws, "test")
+    entry = m.to_json()["parameters"]["ws"]
+    assert entry["stderr"] is None and entry["caveat"] == NOT_DETERMINED
+    assert math.isnan(model_from_json(m.to_json()).parameters["ws"].stderr)
 
 
 def _ar1(rng, n, a):
