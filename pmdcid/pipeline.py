@@ -25,9 +25,9 @@ The mechanical fit starts from any moving log (:func:`_mechanical_start`): the s
 the steps found inside the rich logs, else a first-order least-squares fit of the moving logs
 (:mod:`pmdcid.identify.linstart`, through the logged current where there is one). The joint fit
 is checked (:func:`_joint_fit`): one that diverged (a mechanical time constant beyond the logs or
-any motor) is run again from the stages' estimate with their priors, and dropped, with the
-reason, when it diverges again. A rig whose logs move never ends without J: identify then raises
-naming what failed, with and without ``-o`` alike.
+any motor, or under one sample period: J collapsed) is run again from the stages' estimate with
+their priors, and dropped, with the reason, when it diverges again. A rig whose logs move never
+ends without J: identify then raises naming what failed, with and without ``-o`` alike.
 """
 
 from __future__ import annotations
@@ -390,6 +390,9 @@ def _diverged(model: Model, before: Model, logs) -> str | None:
     longest = max(float(lg.t[-1] - lg.t[0]) for lg in logs)
     if not math.isfinite(tau) or tau <= 0:
         return "no finite mechanical time constant"
+    dt = min(float(lg.t[1] - lg.t[0]) for lg in logs)
+    if tau < dt:  # J collapsed to ~0: no sampled speed can show it
+        return f"mechanical time constant {tau:.3g} s, under one sample period ({dt:.3g} s)"
     if tau > MAX_TAU_MECHANICAL or tau > DIVERGED_DURATIONS * longest:
         was = mechanical_tau(before, speed)
         was = f"; the stages gave {was:.3g} s" if math.isfinite(was) else ""

@@ -498,6 +498,10 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
         warns.append(f"the back-EMF damping km ke/R = {b_emf:.3g} N m s/rad exceeds the steps' "
                      f"total damping {d_eff:.3g}: km, ke or R is off; bv set to 0")
         est["bv"] = Estimate("bv", 0.0, bv_se, "N m s/rad")
+    if not math.isfinite(tm):
+        raise FitError("no step shows a transient in its samples (each speed at its level from "
+                       "the first sample): J cannot be read from these steps",
+                       ", ".join(dict.fromkeys(s.path for s in moving)))
     J = tm * d_eff
     J_se = J * math.hypot(tm_se / tm, bv_se / d_eff if d_eff else 0.0)
     est["J"] = Estimate("J", J, J_se, "kg m^2")

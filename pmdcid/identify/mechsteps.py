@@ -147,9 +147,25 @@ def fit_step(log, step, tau_e, km, R, sig, warns):
     ms.tau_m, ms.tau_m_se = cf2["tau_m"], cf2.se("tau_m")
     ms.dead_time, ms.beta = cf2["d"], cf2["beta"]
     ms.chisqr, ms.ndata = cf2.sigma**2 * max(cf2.ndata - 5, 1), cf2.ndata
-    if not ms.from_rest:
-        return ms, None
-    return ms, (t - step.t0, w - cf2["y0"], km * step.after / R, sig)
+    if not no_transient(ms, float(t[1] - t[0]), where, warns) and ms.from_rest:
+        return ms, (t - step.t0, w - cf2["y0"], km * step.after / R, sig)
+    return ms, None
+
+
+def no_transient(ms: MechStep, dt: float, where: str, warns: list) -> bool:
+    """Whether the step's speed shows no transient in its samples: a fitted time constant
+    (first- or second-order) under one sample period ``dt`` [s] (a speed already at its level
+    at the first sample: a log that starts turning, taken for a step from rest). The samples
+    cannot show such a time constant: the step's tau_mot, tau_m and J_paper are then NaN (not
+    read, left out of the means) and only its steady speed enters the steady-speed line."""
+    tau = min((x for x in (ms.tau_mot, ms.tau_m) if math.isfinite(x)), default=math.inf)
+    if tau >= dt:
+        return False
+    ms.tau_mot = ms.tau_m = ms.tau_m_se = ms.J_paper = math.nan
+    warns.append(f"{where}: the speed is at its level from the first sample (a time constant "
+                 f"of {tau:.3g} s, under one sample period, {dt:.3g} s): no transient to read J "
+                 "from; only its steady speed is used")
+    return True
 
 
 def head_level(log, step, w, sig, tau, tau_se) -> MechStep | None:

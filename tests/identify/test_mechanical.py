@@ -4,13 +4,13 @@ import math
 
 import numpy as np
 import pytest
-from ident_util import perturbed_truth, step_logs
+from ident_util import as_log, perturbed_truth, step_logs
 from repo_paths import FIXTURES
 
 from pmdcid.errors import ModelError
 from pmdcid.identify.mechanical import fit_mechanical
 from pmdcid.model import Model
-from pmdcid.synth import PAPER
+from pmdcid.synth import PAPER, PAPER_NOISE, synth_log
 
 
 def _electrical(vals, km=True):
@@ -395,3 +395,31 @@ def test_a_sagging_measured_voltage_is_refused_towards_fit_nonlinear(rng, paper_
     with pytest.raises(NoStepError, match="fit-nonlinear") as info:
         fit_mechanical([sagged], _electrical(paper_values))
     assert isinstance(info.value, FitError)
+
+
+def _turning_start_log(vals, rng, low=0.6, high=4.0):
+    """A step log that starts turning at ``low`` V's steady speed (the run-up to it cut off)
+    and steps to ``high`` V at 1 s: its first speed is under a fifth of its largest, as a
+    log whose step is applied as logging starts (lego-ev3) reads."""
+    t = np.arange(9000) / 1000.0
+    u = np.where(t < 5.0, low, high)
+    cols, _ = synth_log(t, u, vals, PAPER_NOISE, rng)
+    keep = t >= 4.0
+    return as_log("turning", t[keep] - 4.0, {k: v[keep] for k, v in cols.items()},
+                  "free-speed-step")
+
+
+@pytest.mark.parametrize("seed", [31, 32])
+def test_a_step_without_transient_does_not_set_j(seed):
+    """A log taken for a step from rest at its first sample whose speed is already at its
+    level: its time constant fits under one sample period, which the samples cannot show. It is
+    not read (no J from it, a warning), its steady speed kept; J comes from the steps that show
+    a transient (was: its near-zero time constant, with a tiny error, set J ~ 0)."""
+    rng = np.random.default_rng(seed)
+    vals = perturbed_truth(rng)
+    logs = [_turning_start_log(vals, rng), *step_logs(vals, rng, amplitudes=(2.0,))]
+    res = fit_mechanical(logs, _electrical(vals))
+    head = next(s for s in res.steps if s.path == "turning" and s.t0 == 0.0)
+    assert head.moved and math.isnan(head.tau_m) and math.isfinite(head.omega_ss)
+    assert any("under one sample period" in w for w in res.warnings)
+    assert res.estimates["J"].value == pytest.approx(vals["J"], rel=0.05)
