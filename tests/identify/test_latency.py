@@ -111,3 +111,29 @@ def test_a_lag_behind_a_pinned_dead_zone_is_no_latency():
     _nonlinear(False)(logs, m).apply(m)
     for k, true in HOBBY_PER_VOLT.items():
         assert m.value(k) == pytest.approx(true, rel=0.02), k
+
+
+@pytest.mark.slow
+def test_low_share_and_a_dead_zone_above_the_friction_round_trip():
+    """The dead-zone lag fit starts at a back-EMF share of PINNED_SHARE (0.99): on bench/
+    lawlag.py's share03 motor (the back-EMF about 0.3 of the per-volt damping, the dead zone
+    about 1.5 x the Coulomb friction), 1 kHz, L/R 4 ms, no delay, identify without diagnose
+    still finds the truth: J', bv', bc', tau_e within 2 standard errors, the dead zone's
+    interval holding it, and no sensor_delay."""
+    from bench.lawlag import per_volt
+    from bench.lawlag import scenario as lawlag_scenario
+    from pmdcid.api import identify
+
+    fit, _, vals = lawlag_scenario(1, 4.0, 1000.0, "none", "share03")
+    true = per_volt(vals)
+    assert true["dz"] > 1.2 * true["bc"]
+    model = identify(fit, diagnose=False, progress=False).model
+    assert "sensor_delay" not in model.effects, model.effects
+    for k in ("J", "bv", "bc", "tau_e"):
+        p = model.parameters[k]
+        assert abs(p.value - true[k]) <= 2.0 * p.stderr, (k, p.value, p.stderr, true[k])
+    dz = model.parameters["dz"]
+    if dz.interval is not None:
+        assert dz.interval[0] <= true["dz"] <= dz.interval[1], (dz.interval, true["dz"])
+    else:
+        assert abs(dz.value - true["dz"]) <= 2.0 * dz.stderr, (dz.value, dz.stderr, true["dz"])
