@@ -184,6 +184,17 @@ def _model(tau, **more):
     return m
 
 
+def test_a_joint_fit_whose_time_constant_is_under_a_sample_diverged():
+    """A mechanical time constant under one sample period (J collapsed to ~0: no sampled speed
+    can show it) is a diverged joint fit, as one beyond the logs is; one the logs resolve is
+    not (torquerig case k seed 6 wrote J -100 %)."""
+    from pmdcid.pipeline import _diverged
+
+    logs, before = [_log(3.0)], Model()
+    assert "under one sample period" in _diverged(_model(1e-4), before, logs)
+    assert _diverged(_model(0.1), before, logs) is None
+
+
 def test_time_unit_gate_names_the_unit_only_when_the_logs_resolve_the_time_constant():
     from pmdcid.identify.plausibility import gate_result
 
