@@ -191,13 +191,15 @@ def heldout_test(problem, values: dict[str, float], effect: str, others: list[st
     return HeldoutTest(distinct, confirmed, floor)
 
 
-def fit_tells(d_fit: np.ndarray, cols: list[np.ndarray], evidence: float) -> bool:
-    """Whether the fit part tells an effect (its change ``d_fit``) from the re-adjustments of
-    ``cols`` by at least ``evidence`` chi-square: the evidence diagnose asks of any effect
-    (:data:`~pmdcid.identify.offset.OFFSET_BIC`), here of the effect against its twins, which
-    have as many parameters. Where it does, the fit part has chosen between them and the twins
-    do not stand in on the held-out data; where it does not, neither part can tell them apart."""
-    return len(d_fit) > 0 and _distinct(d_fit, cols) >= evidence
+def fit_tells(d_fit: np.ndarray, cols: list[np.ndarray], evidence: float,
+              scale: float = 1.0) -> bool:
+    """Whether the fit part tells an effect (its change ``d_fit``, the chi-square times
+    ``scale``) from the re-adjustments of ``cols`` by at least ``evidence`` chi-square: the
+    evidence diagnose asks of any effect (:data:`~pmdcid.identify.offset.OFFSET_BIC`), here of
+    the effect against its twins, which have as many parameters. Where it does, the fit part
+    has chosen between them and the twins do not stand in on the held-out data; where it does
+    not, neither part can tell them apart."""
+    return len(d_fit) > 0 and _distinct(d_fit, cols) * scale >= evidence
 
 
 #: a projected change below this share of the change is the projection's rounding: an effect
@@ -238,8 +240,8 @@ def logs_can_test(problem, values: dict[str, float], probes: dict[str, dict[str,
     for effect, col in probes.items():
         d = change({**values, **col})
         seen = _distinct(d["fit"], [c["fit"] for p, c in cols.items() if p in base_free])
-        stand = _logs_stand_ins(effect, d["fit"], cols, base_free, chi2_fit / max(seen, 1e-300),
-                                -rules.bic)
+        stand = _logs_stand_ins(effect, d["fit"], cols, base_free,
+                                chi2_fit / seen if seen > 0 else 0.0, -rules.bic)
         distinct = _distinct(d["held"], [c["held"] for p, c in cols.items()
                                          if p in stand]) if n_held else 0.0
         out[effect] = LogsTest(seen, distinct, chi2_fit, floor)
@@ -254,8 +256,8 @@ def _logs_stand_ins(effect: str, d_fit: np.ndarray, cols: dict[str, dict[str, np
     in chi-square) from them (:func:`fit_tells`)."""
     stand = set(EFFECTS[effect].interacts) & set(base_free)
     twins = [p for p in line_stand_ins(effect) if p not in stand]
-    if twins and not fit_tells(d_fit * np.sqrt(scale), [
-            c["fit"] for p, c in cols.items() if p in base_free or p in twins], evidence):
+    if twins and not fit_tells(d_fit, [c["fit"] for p, c in cols.items()
+                                        if p in base_free or p in twins], evidence, scale):
         stand |= set(twins)
     return stand
 
