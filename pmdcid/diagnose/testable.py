@@ -12,7 +12,10 @@ The test, linearised at the candidate's refit (values ``fo``, effect switched on
   other parameters as refitted), weighted by the noise (each sample one unit of chi-square);
 - ``B``: the held-out sensitivities of the free base parameters that can stand in for the
   effect (``Effect.interacts``: bv for a drag law, bc for a load torque, bc and bv for a speed
-  bias; none for a delay, whose signature needs edges or reversals to show at all);
+  bias; none for a delay, whose signature needs edges or reversals to show at all); for a
+  direction asymmetry (``viscous_asymmetry``, ``torque_offset``) also the rest of the friction
+  line, in the model or not (:func:`line_stand_ins`), unless the fit part tells the effect from
+  it by the evidence any effect needs (:func:`fit_tells`);
 - *distinct* = ``|P d|^2``, ``P`` projecting out the columns of ``B``: the chi-square by which
   the held-out data can tell the effect, at its fitted size, from any re-adjustment of the
   others. Below ``floor`` the effect is *not testable with these logs*.
@@ -20,7 +23,8 @@ The test, linearised at the candidate's refit (values ``fo``, effect switched on
   and on): how much of that distinct part the held-out data actually bear out. A real effect
   gives about *distinct*; a spurious one about zero or less. The rule asks for half.
 
-Cost: one held-out simulation per free parameter and one with the effect off.
+Cost: one held-out simulation per free parameter and one with the effect off (for a direction
+asymmetry, of the whole logs: the fit part's columns decide whether its twins stand in).
 
 *Before any refit* (``pmdcid plan --check``: can these logs test the effect at all?),
 :func:`logs_can_test` applies the same test at the model's values with the effect switched on
