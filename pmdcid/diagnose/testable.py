@@ -12,7 +12,10 @@ The test, linearised at the candidate's refit (values ``fo``, effect switched on
   other parameters as refitted), weighted by the noise (each sample one unit of chi-square);
 - ``B``: the held-out sensitivities of the free base parameters that can stand in for the
   effect (``Effect.interacts``: bv for a drag law, bc for a load torque, bc and bv for a speed
-  bias; none for a delay, whose signature needs edges or reversals to show at all);
+  bias; none for a delay, whose signature needs edges or reversals to show at all); for a
+  direction asymmetry (``viscous_asymmetry``, ``torque_offset``) also the rest of the friction
+  line, in the model or not (:func:`line_stand_ins`), unless the fit part tells the effect from
+  it by the evidence any effect needs (:func:`fit_tells`);
 - *distinct* = ``|P d|^2``, ``P`` projecting out the columns of ``B``: the chi-square by which
   the held-out data can tell the effect, at its fitted size, from any re-adjustment of the
   others. Below ``floor`` the effect is *not testable with these logs*.
@@ -20,7 +23,8 @@ The test, linearised at the candidate's refit (values ``fo``, effect switched on
   and on): how much of that distinct part the held-out data actually bear out. A real effect
   gives about *distinct*; a spurious one about zero or less. The rule asks for half.
 
-Cost: one held-out simulation per free parameter and one with the effect off.
+Cost: one held-out simulation per free parameter and one with the effect off (for a direction
+asymmetry, of the whole logs: the fit part's columns decide whether its twins stand in).
 
 *Before any refit* (``pmdcid plan --check``: can these logs test the effect at all?),
 :func:`logs_can_test` applies the same test at the model's values with the effect switched on
@@ -40,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pmdcid.identify.offset import OFFSET_BIC
 from pmdcid.model import EFFECTS
 from pmdcid.runtime.cpus import pmap
 
@@ -101,14 +106,49 @@ TORQUES = ("bc", "dz", "tau0", "fs")
 MIN_TORQUE = 0.01
 
 
-def _step(name: str, value: float, torque_scale: float) -> float:
+def _step(name: str, values: dict[str, float], torque_scale: float) -> float:
     """The step of ``name``'s held-out sensitivity column: :data:`STEP` of its value, of at
-    least :data:`MIN_TORQUE` of the torque scale for a torque (0: no column)."""
+    least :data:`MIN_TORQUE` of the torque scale for a torque and of the viscous friction for
+    its direction-dependent part (0: no column)."""
+    value = values.get(name, 0.0)
     if not math.isfinite(value):
         return 0.0
     if name in TORQUES:
         return STEP * max(abs(value), MIN_TORQUE * torque_scale)
+    if name == "dbv" and math.isfinite(bv := values.get("bv", math.nan)):
+        return STEP * max(abs(value), abs(bv))
     return STEP * abs(value)
+
+
+def _steps(names, values: dict[str, float], torque_scale: float) -> list[tuple[str, float]]:
+    """(name, step) of the parameters of ``names`` that get a column."""
+    steps = [(p, _step(p, values, torque_scale)) for p in names]
+    return [(p, h) for p, h in steps if h > 0]
+
+
+#: the steady friction in each direction is a line in the speed: an intercept bc + tau0 and a
+#: slope bv + dbv turning forward, bc - tau0 and bv - dbv backward (``torque_offset`` and
+#: ``viscous_asymmetry`` are its two direction-dependent parts)
+FRICTION_LINE = ("bc", "tau0", "bv", "dbv")
+#: the parts of the line that differ by direction
+DIRECTIONAL = ("tau0", "dbv")
+
+
+def line_stand_ins(effect: str) -> list[str]:
+    """The rest of the friction line, where ``effect`` sets a direction-dependent part of it
+    (else none): what its change of the steady speeds must be told from, in the model or not.
+
+    Per direction the line has an intercept and a slope. Where the data hold one steady speed
+    per direction, an intercept of each direction (bc and tau0) takes up any change of the
+    slopes there, and a slope of each (bv and dbv) any change of the intercepts: an offset is
+    then not told from an asymmetric viscous friction, nor either of them from a drag law's
+    curvature. Two speeds in one direction and one in the other leave the four still
+    undetermined; a direction asymmetry is told apart only by two speeds in each direction, or
+    by transients that sweep the speed (their time constants are the slopes)."""
+    own = EFFECTS[effect].param_names
+    if not set(own) & set(DIRECTIONAL):
+        return []
+    return [p for p in FRICTION_LINE if p not in own]
 
 
 def _project_out(b: np.ndarray | None, y: np.ndarray) -> np.ndarray:
@@ -120,32 +160,50 @@ def _project_out(b: np.ndarray | None, y: np.ndarray) -> np.ndarray:
 
 
 def heldout_test(problem, values: dict[str, float], effect: str, others: list[str],
-                 torque_scale: float, floor: float) -> HeldoutTest | None:
+                 torque_scale: float, floor: float, evidence: float = -OFFSET_BIC) -> HeldoutTest:
     """The held-out test of ``effect`` at ``values`` (its refit), the parameters ``others``
-    free to re-adjust; None when nothing is held out."""
+    free to re-adjust, and the rest of the friction line (:func:`line_stand_ins`) where the fit
+    part cannot tell the effect from it by ``evidence`` (chi-square)."""
     if problem.count("held") == 0:
         return HeldoutTest(0.0, 0.0, floor)
     off = {**values, **{p.name: p.neutral for p in EFFECTS[effect].params
                         if p.name not in EFFECTS[effect].held}}
+    twins = [p for p in line_stand_ins(effect) if p not in others]
+    parts = ("fit", "held") if twins else ("held",)
 
-    def resid(v: dict[str, float]) -> np.ndarray:
-        return problem.weighted(problem.simulate_all(v, "held"), "held")
+    def resid(v: dict[str, float]) -> dict[str, np.ndarray]:
+        sims = problem.simulate_all(v, "all" if twins else "held")
+        return {part: problem.weighted(sims, part) for part in parts}
 
-    r_on = resid(values)
-    r_off = resid(off)
-    steps = [(p, _step(p, values.get(p, 0.0), torque_scale)) for p in others]
-    steps = [(p, h) for p, h in steps if h > 0]
-    cols = pmap(lambda ph: resid({**values, ph[0]: values[ph[0]] + ph[1]}) - r_on, steps)
-    cols = [c for c in cols if np.all(np.isfinite(c)) and np.any(c)]
-    b = np.column_stack(cols) if cols else None
-    d = r_on - r_off
+    r_on, r_off = resid(values), resid(off)
+    steps = _steps([*others, *twins], values, torque_scale)
+    cols = dict(zip([p for p, _ in steps], pmap(
+        lambda ph: resid({**values, ph[0]: values[ph[0]] + ph[1]}), steps), strict=True))
+    if twins and fit_tells(r_on["fit"] - r_off["fit"], [c["fit"] - r_on["fit"]
+                                                       for c in cols.values()], evidence):
+        cols = {p: c for p, c in cols.items() if p not in twins}
+    held = [c["held"] - r_on["held"] for c in cols.values()]
+    held = [c for c in held if np.all(np.isfinite(c)) and np.any(c)]
+    b = np.column_stack(held) if held else None
+    d = r_on["held"] - r_off["held"]
     if not np.all(np.isfinite(d)):
         return HeldoutTest(0.0, 0.0, floor)
     pd = _project_out(b, d)
     distinct = float(pd @ pd)
-    p_off, p_on = _project_out(b, r_off), _project_out(b, r_on)
+    p_off, p_on = _project_out(b, r_off["held"]), _project_out(b, r_on["held"])
     confirmed = float(p_off @ p_off - p_on @ p_on)
     return HeldoutTest(distinct, confirmed, floor)
+
+
+def fit_tells(d_fit: np.ndarray, cols: list[np.ndarray], evidence: float,
+              scale: float = 1.0) -> bool:
+    """Whether the fit part tells an effect (its change ``d_fit``, the chi-square times
+    ``scale``) from the re-adjustments of ``cols`` by at least ``evidence`` chi-square: the
+    evidence diagnose asks of any effect (:data:`~pmdcid.identify.offset.OFFSET_BIC`), here of
+    the effect against its twins, which have as many parameters. Where it does, the fit part
+    has chosen between them and the twins do not stand in on the held-out data; where it does
+    not, neither part can tell them apart."""
+    return len(d_fit) > 0 and _distinct(d_fit, cols) * scale >= evidence
 
 
 #: a projected change below this share of the change is the projection's rounding: an effect
@@ -178,20 +236,35 @@ def logs_can_test(problem, values: dict[str, float], probes: dict[str, dict[str,
         s = problem.simulate_all(v)
         return {p: problem.weighted(s, p) - r0[p] for p in ("fit", "held")}
 
-    steps = [(p, _step(p, values.get(p, 0.0), torque_scale)) for p in base_free]
-    steps = [(p, h) for p, h in steps if h > 0]
+    lines = [p for e in probes for p in line_stand_ins(e)]
+    steps = _steps(dict.fromkeys([*base_free, *lines]), values, torque_scale)
     cols = dict(zip([p for p, _ in steps], pmap(
         lambda ph: change({**values, ph[0]: values[ph[0]] + ph[1]}), steps), strict=True))
     out = {}
     for effect, col in probes.items():
-        eff = EFFECTS[effect]
         d = change({**values, **col})
-        seen = _distinct(d["fit"], [c["fit"] for c in cols.values()])
+        seen = _distinct(d["fit"], [c["fit"] for p, c in cols.items() if p in base_free])
+        stand = _logs_stand_ins(effect, d["fit"], cols, base_free,
+                                chi2_fit / seen if seen > 0 else 0.0, -rules.bic)
         distinct = _distinct(d["held"], [c["held"] for p, c in cols.items()
-                                         if p in eff.interacts]) if n_held else 0.0
+                                         if p in stand]) if n_held else 0.0
         out[effect] = LogsTest(seen, distinct, chi2_fit, floor)
     return out
 
 
-__all__ = ["CONFIRM_SHARE", "HeldoutTest", "LogsTest", "heldout_floor", "heldout_test",
-           "logs_can_test"]
+def _logs_stand_ins(effect: str, d_fit: np.ndarray, cols: dict[str, dict[str, np.ndarray]],
+                    base_free: list[str], scale: float, evidence: float) -> set[str]:
+    """The parameters standing in for ``effect`` on the held-out part before any refit: those
+    of ``base_free`` it interacts with, and the rest of the friction line unless the fit part
+    could tell the largest effect it holds (its change ``d_fit`` at the probe, times ``scale``
+    in chi-square) from them (:func:`fit_tells`)."""
+    stand = set(EFFECTS[effect].interacts) & set(base_free)
+    twins = [p for p in line_stand_ins(effect) if p not in stand]
+    if twins and not fit_tells(d_fit, [c["fit"] for p, c in cols.items()
+                                        if p in base_free or p in twins], evidence, scale):
+        stand |= set(twins)
+    return stand
+
+
+__all__ = ["CONFIRM_SHARE", "FRICTION_LINE", "HeldoutTest", "LogsTest", "heldout_floor",
+           "heldout_test", "line_stand_ins", "logs_can_test"]
