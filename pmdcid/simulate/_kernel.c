@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "22476ff77fc479ffa23b0f1cefd12e87c2e77eea"; }
+const char *kernel_digest(void) { return "d592b6d69a7b634928f0f96b876d5b82cfdd7b29"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -407,6 +407,57 @@ static inline double sliding_friction(const double *p, double omega, double dire
     return f;
 }
 
+/* The step (i1, w1, th1) taken in dead-zone mode eng from (i, w, th), made
+ * consistent at the dead zone's edge (voltage-driven): (i [A], omega [rad/s], theta [rad]).
+ *
+ * The hard dead zone switches the torque on the rotor between 0 and the full torque as the
+ * current crosses its break point. Where the full torque exceeds the friction a running rotor
+ * needs, the current is pinned at the edge: the back-EMF pulls it back whenever the torque is
+ * on, and the true (Filippov) solution slides along the edge with the part of the torque that
+ * holds it there. A step that decides its mode from its start would instead switch in and out
+ * every internal step, a pattern that jumps with every parameter (a rough fit cost).
+ *
+ * The mode is instead the one the step ends in: a step that ends on its own mode's side is
+ * kept; otherwise the other mode's step is taken too, and if that one ends on the far side the
+ * step slides: the two steps are blended with the weight that ends it exactly on the edge
+ * (the equivalent torque, first order in the step like the kernel's other events). The result
+ * depends on the two candidate steps only, not on which side the start was, so it is
+ * continuous in the state and the parameters.
+ */
+static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2][3][3], int eng, double vin, double i, double w, double th, double tl, double fric, double i1, double w1, double th1, double *r_0, double *r_1, double *r_2)
+{
+    double e1;
+    int m2;
+    double fe2;
+    double fm2;
+    double i2;
+    double w2;
+    double th2;
+    double e2;
+    double a;
+    e1 = fabs(p[P_KM] * i1) - p[P_DZ];
+    if (eng == (e1 >= 0.0)) {
+        *r_0 = i1;
+        *r_1 = w1;
+        *r_2 = th1;
+        return;
+    }
+    forcing(p, 0, !eng, vin, i, w, 0.0, tl, fric, &m2, &fe2, &fm2);
+    linear_step(Phi, Gam, m2, i, w, th, fe2, fm2, &i2, &w2, &th2);
+    e2 = fabs(p[P_KM] * i2) - p[P_DZ];
+    if (eng == (e2 < 0.0)) {
+        *r_0 = i2;
+        *r_1 = w2;
+        *r_2 = th2;
+        return;
+    }
+    a = e2 / (e2 - e1);
+    *r_0 = a * i1 + (1.0 - a) * i2;
+    *r_1 = a * w1 + (1.0 - a) * w2;
+    *r_2 = a * th1 + (1.0 - a) * th2;
+    return;
+}
+
 /* One internal step of the stick-slip loop: (i [A], omega [rad/s], theta [rad]) after it,
  * under the held torque input tin [N m] or drive voltage vin [V].
  *
@@ -470,6 +521,9 @@ static inline void stick_substep(const double *p, double Phi[2][3][3], double Ga
     fric = sliding_friction(p, w, direction, guarded);
     forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, &m, &fe, &fm);
     linear_step(Phi, Gam, m, i, w, th, fe, fm, &i1, &w1, &th1);
+    if (!torque_driven) {
+        edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1, &i1, &w1, &th1);
+    }
     if (tentative && w1 * direction <= 0.0) {
         *r_0 = i_stuck;
         *r_1 = w;

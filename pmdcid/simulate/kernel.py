@@ -30,6 +30,7 @@ from pmdcid.simulate import compiled
 from pmdcid.simulate.layout import (
     BC,
     BV,
+    DZ,
     DZ_OFFSET,
     DZ_SLOPE,
     FS,
@@ -230,6 +231,39 @@ def _linear_step(Phi, Gam, m, i, w, th, fe, fm):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
+def edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1,
+              th1):  # pragma: no cover - compiled
+    """The step (i1, w1, th1) taken in dead-zone mode ``eng`` from (i, w, th), made
+    consistent at the dead zone's edge (voltage-driven): (i [A], omega [rad/s], theta [rad]).
+
+    The hard dead zone switches the torque on the rotor between 0 and the full torque as the
+    current crosses its break point. Where the full torque exceeds the friction a running rotor
+    needs, the current is pinned at the edge: the back-EMF pulls it back whenever the torque is
+    on, and the true (Filippov) solution slides along the edge with the part of the torque that
+    holds it there. A step that decides its mode from its start would instead switch in and out
+    every internal step, a pattern that jumps with every parameter (a rough fit cost).
+
+    The mode is instead the one the step ends in: a step that ends on its own mode's side is
+    kept; otherwise the other mode's step is taken too, and if that one ends on the far side the
+    step slides: the two steps are blended with the weight that ends it exactly on the edge
+    (the equivalent torque, first order in the step like the kernel's other events). The result
+    depends on the two candidate steps only, not on which side the start was, so it is
+    continuous in the state and the parameters.
+    """
+    e1 = abs(p[KM] * i1) - p[DZ]
+    if eng == (e1 >= 0.0):
+        return i1, w1, th1
+    m2, fe2, fm2 = _forcing(p, False, not eng, vin, i, w, 0.0, tl, fric)
+    i2, w2, th2 = _linear_step(Phi, Gam, m2, i, w, th, fe2, fm2)
+    e2 = abs(p[KM] * i2) - p[DZ]
+    if eng == (e2 < 0.0):
+        return i2, w2, th2  # the other mode ends on its own side: the step crossed
+    a = e2 / (e2 - e1)  # sliding: the weight of this mode's step that ends on the edge
+    return (a * i1 + (1.0 - a) * i2, a * w1 + (1.0 - a) * w2,
+            a * th1 + (1.0 - a) * th2)
+
+
+@njit(cache=True, inline="always")
 def stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w,
                   th):  # pragma: no cover - compiled
     """One internal step of the stick-slip loop: (i [A], omega [rad/s], theta [rad]) after it,
@@ -268,6 +302,8 @@ def stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w,
     fric = sliding_friction(p, w, direction, guarded)
     m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric)
     i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
+    if not torque_driven:
+        i1, w1, th1 = edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1)
     if tentative and w1 * direction <= 0.0:
         return i_stuck, w, th  # did not break free after all: stays at rest
     if fstat > 0.0 and w1 * direction < 0.0:
