@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "d592b6d69a7b634928f0f96b876d5b82cfdd7b29"; }
+const char *kernel_digest(void) { return "1f42afcc98216ea740ba2cf493492820f20ba965"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -417,15 +417,17 @@ static inline double sliding_friction(const double *p, double omega, double dire
  * holds it there. A step that decides its mode from its start would instead switch in and out
  * every internal step, a pattern that jumps with every parameter (a rough fit cost).
  *
- * The mode is instead the one the step ends in: a step that ends on its own mode's side is
- * kept; otherwise the other mode's step is taken too, and if that one ends on the far side the
- * step slides: the two steps are blended with the weight that ends it exactly on the edge
- * (the equivalent torque, first order in the step like the kernel's other events). The result
- * depends on the two candidate steps only, not on which side the start was, so it is
- * continuous in the state and the parameters.
+ * Instead a step that ends on its own mode's side is kept. One that crossed the edge is
+ * blended with the other mode's step from the same start, weighted by the time before the
+ * crossing (the edge's distance e = |km i| - dz taken as linear over the step); where the other
+ * mode's step ends back on this side, the rest of the step slides: the weight is raised to
+ * the one that ends the step exactly on the edge (the equivalent torque), if larger. First
+ * order in the step like the kernel's other events, and continuous in the state and the
+ * parameters: the weights meet where the cases meet.
  */
 static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2][3][3], int eng, double vin, double i, double w, double th, double tl, double fric, double i1, double w1, double th1, double *r_0, double *r_1, double *r_2)
 {
+    double e0;
     double e1;
     int m2;
     double fe2;
@@ -435,6 +437,7 @@ static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2]
     double th2;
     double e2;
     double a;
+    e0 = fabs(p[P_KM] * i) - p[P_DZ];
     e1 = fabs(p[P_KM] * i1) - p[P_DZ];
     if (eng == (e1 >= 0.0)) {
         *r_0 = i1;
@@ -445,13 +448,10 @@ static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2]
     forcing(p, 0, !eng, vin, i, w, 0.0, tl, fric, &m2, &fe2, &fm2);
     linear_step(Phi, Gam, m2, i, w, th, fe2, fm2, &i2, &w2, &th2);
     e2 = fabs(p[P_KM] * i2) - p[P_DZ];
-    if (eng == (e2 < 0.0)) {
-        *r_0 = i2;
-        *r_1 = w2;
-        *r_2 = th2;
-        return;
+    a = e0 / (e0 - e1);
+    if (eng == (e2 >= 0.0)) {
+        a = py_fmax(a, e2 / (e2 - e1));
     }
-    a = e2 / (e2 - e1);
     *r_0 = a * i1 + (1.0 - a) * i2;
     *r_1 = a * w1 + (1.0 - a) * w2;
     *r_2 = a * th1 + (1.0 - a) * th2;

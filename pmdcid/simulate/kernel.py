@@ -243,22 +243,24 @@ def edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1,
     holds it there. A step that decides its mode from its start would instead switch in and out
     every internal step, a pattern that jumps with every parameter (a rough fit cost).
 
-    The mode is instead the one the step ends in: a step that ends on its own mode's side is
-    kept; otherwise the other mode's step is taken too, and if that one ends on the far side the
-    step slides: the two steps are blended with the weight that ends it exactly on the edge
-    (the equivalent torque, first order in the step like the kernel's other events). The result
-    depends on the two candidate steps only, not on which side the start was, so it is
-    continuous in the state and the parameters.
+    Instead a step that ends on its own mode's side is kept. One that crossed the edge is
+    blended with the other mode's step from the same start, weighted by the time before the
+    crossing (the edge's distance e = |km i| - dz taken as linear over the step); where the other
+    mode's step ends back on this side, the rest of the step slides: the weight is raised to
+    the one that ends the step exactly on the edge (the equivalent torque), if larger. First
+    order in the step like the kernel's other events, and continuous in the state and the
+    parameters: the weights meet where the cases meet.
     """
+    e0 = abs(p[KM] * i) - p[DZ]
     e1 = abs(p[KM] * i1) - p[DZ]
     if eng == (e1 >= 0.0):
         return i1, w1, th1
     m2, fe2, fm2 = _forcing(p, False, not eng, vin, i, w, 0.0, tl, fric)
     i2, w2, th2 = _linear_step(Phi, Gam, m2, i, w, th, fe2, fm2)
     e2 = abs(p[KM] * i2) - p[DZ]
-    if eng == (e2 < 0.0):
-        return i2, w2, th2  # the other mode ends on its own side: the step crossed
-    a = e2 / (e2 - e1)  # sliding: the weight of this mode's step that ends on the edge
+    a = e0 / (e0 - e1)  # this mode's share of the step: until the crossing
+    if eng == (e2 >= 0.0):  # the other mode's step ends back on this side: slides on the edge
+        a = max(a, e2 / (e2 - e1))
     return (a * i1 + (1.0 - a) * i2, a * w1 + (1.0 - a) * w2,
             a * th1 + (1.0 - a) * th2)
 
