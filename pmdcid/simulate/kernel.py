@@ -4,8 +4,10 @@ State x = (i [A], omega [rad/s], theta [rad]). Between events the model is linea
 forcing, so each internal step of length h uses the exact discretisation
 ``x+ = Phi x + Gamma f`` (matrix exponential of the augmented system, compiled), computed once
 per call for the two dead-zone modes. Input is zero-order held over each sample period.
-Non-linear terms (Coulomb sign, Stribeck, quadratic drag, cogging, brush drop, the dead-zone jump)
-are evaluated at the start of each internal step and held over it; a rotor at rest stays exactly
+Non-linear terms (Coulomb sign, Stribeck, quadratic drag, cogging, brush drop)
+are evaluated at the start of each internal step and held over it; a step whose current crosses
+the dead zone's break point is split at the crossing, and slides along it where the full torque
+exceeds what the running rotor needs (:func:`edge_step`); a rotor at rest stays exactly
 at rest while the torque on it is within the static friction level (no tanh smoothing), and a
 rotor whose speed would cross zero is stopped there and re-tested for sticking.
 
@@ -326,7 +328,7 @@ def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
     linear step (:func:`augmented_matrix`), the rest is held over the step
     (:func:`pmdcid.simulate.terms.lugre_held_friction`); then z is stepped exactly with the
     step's mean speed (:func:`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
-    driving torque as in the stick-slip loop.
+    driving torque as in the stick-slip loop, its edge placed by :func:`edge_step`.
     """
     if torque_driven:
         tm = tin
@@ -334,9 +336,12 @@ def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
         tm = p[KM] * i
     a = bristle_rate(p, w)
     fric = lugre_held_friction(p, w, z, a)
-    m, fe, fm = _forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, i, w,
-                         dead_zone(p, tm), load_torque(p, th), fric)
+    eng = dead_zone_engaged(p, tm)
+    tl = load_torque(p, th)
+    m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, dead_zone(p, tm), tl, fric)
     i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
+    if not torque_driven:
+        i1, w1, th1 = edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1)
     h = Gam[0, 2, 2]  # the angle's own input column integrates 1 over the step: exactly h
     z1 = bristle_step(z, a, h, th1 - th)
     if torque_driven:
