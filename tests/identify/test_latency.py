@@ -137,6 +137,9 @@ def test_low_share_and_a_dead_zone_above_the_friction_round_trip():
         assert dz.interval[0] <= true["dz"] <= dz.interval[1], (dz.interval, true["dz"])
     else:
         assert abs(dz.value - true["dz"]) <= 2.0 * dz.stderr, (dz.value, dz.stderr, true["dz"])
+
+
+@pytest.mark.slow
 def test_a_lag_and_latency_left_unresolved_is_the_lag_alone():
     """The large motor (bench/lawlag.py, seed 3, 500 Hz, L/R 2 ms, no latency): the steps'
     dead-zone fit stops on the ridge where a lag and a latency trade off (about 1 ms each,
