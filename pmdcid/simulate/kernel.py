@@ -4,8 +4,10 @@ State x = (i [A], omega [rad/s], theta [rad]). Between events the model is linea
 forcing, so each internal step of length h uses the exact discretisation
 ``x+ = Phi x + Gamma f`` (matrix exponential of the augmented system, compiled), computed once
 per call for the two dead-zone modes. Input is zero-order held over each sample period.
-Non-linear terms (Coulomb sign, Stribeck, quadratic drag, cogging, brush drop, the dead-zone jump)
-are evaluated at the start of each internal step and held over it; a rotor at rest stays exactly
+Non-linear terms (Coulomb sign, Stribeck, quadratic drag, cogging, brush drop)
+are evaluated at the start of each internal step and held over it; a step whose current crosses
+the dead zone's break point is split at the crossing, and slides along it where the full torque
+exceeds what the running rotor needs (:func:`edge_step`); a rotor at rest stays exactly
 at rest while the torque on it is within the static friction level (no tanh smoothing), and a
 rotor whose speed would cross zero is stopped there and re-tested for sticking.
 
@@ -30,6 +32,7 @@ from pmdcid.simulate import compiled
 from pmdcid.simulate.layout import (
     BC,
     BV,
+    DZ,
     DZ_OFFSET,
     DZ_SLOPE,
     FS,
@@ -230,6 +233,41 @@ def _linear_step(Phi, Gam, m, i, w, th, fe, fm):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
+def edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1,
+              th1):  # pragma: no cover - compiled
+    """The step (i1, w1, th1) taken in dead-zone mode ``eng`` from (i, w, th), made
+    consistent at the dead zone's edge (voltage-driven): (i [A], omega [rad/s], theta [rad]).
+
+    The hard dead zone switches the torque on the rotor between 0 and the full torque as the
+    current crosses its break point. Where the full torque exceeds the friction a running rotor
+    needs, the current is pinned at the edge: the back-EMF pulls it back whenever the torque is
+    on, and the true (Filippov) solution slides along the edge with the part of the torque that
+    holds it there. A step that decides its mode from its start would instead switch in and out
+    every internal step, a pattern that jumps with every parameter (a rough fit cost).
+
+    Instead a step that ends on its own mode's side is kept. One that crossed the edge is
+    blended with the other mode's step from the same start, weighted by the time before the
+    crossing (the edge's distance e = |km i| - dz taken as linear over the step); where the other
+    mode's step ends back on this side, the rest of the step slides: the weight is raised to
+    the one that ends the step exactly on the edge (the equivalent torque), if larger. First
+    order in the step like the kernel's other events, and continuous in the state and the
+    parameters: the weights meet where the cases meet.
+    """
+    e0 = abs(p[KM] * i) - p[DZ]
+    e1 = abs(p[KM] * i1) - p[DZ]
+    if eng == (e1 >= 0.0):
+        return i1, w1, th1
+    m2, fe2, fm2 = _forcing(p, False, not eng, vin, i, w, 0.0, tl, fric)
+    i2, w2, th2 = _linear_step(Phi, Gam, m2, i, w, th, fe2, fm2)
+    e2 = abs(p[KM] * i2) - p[DZ]
+    a = e0 / (e0 - e1)  # this mode's share of the step: until the crossing
+    if eng == (e2 >= 0.0):  # the other mode's step ends back on this side: slides on the edge
+        a = max(a, e2 / (e2 - e1))
+    return (a * i1 + (1.0 - a) * i2, a * w1 + (1.0 - a) * w2,
+            a * th1 + (1.0 - a) * th2)
+
+
+@njit(cache=True, inline="always")
 def stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w,
                   th):  # pragma: no cover - compiled
     """One internal step of the stick-slip loop: (i [A], omega [rad/s], theta [rad]) after it,
@@ -268,6 +306,8 @@ def stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w,
     fric = sliding_friction(p, w, direction, guarded)
     m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric)
     i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
+    if not torque_driven:
+        i1, w1, th1 = edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1)
     if tentative and w1 * direction <= 0.0:
         return i_stuck, w, th  # did not break free after all: stays at rest
     if fstat > 0.0 and w1 * direction < 0.0:
@@ -288,7 +328,7 @@ def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
     linear step (:func:`augmented_matrix`), the rest is held over the step
     (:func:`pmdcid.simulate.terms.lugre_held_friction`); then z is stepped exactly with the
     step's mean speed (:func:`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
-    driving torque as in the stick-slip loop.
+    driving torque as in the stick-slip loop, its edge placed by :func:`edge_step`.
     """
     if torque_driven:
         tm = tin
@@ -296,9 +336,12 @@ def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
         tm = p[KM] * i
     a = bristle_rate(p, w)
     fric = lugre_held_friction(p, w, z, a)
-    m, fe, fm = _forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, i, w,
-                         dead_zone(p, tm), load_torque(p, th), fric)
+    eng = dead_zone_engaged(p, tm)
+    tl = load_torque(p, th)
+    m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, dead_zone(p, tm), tl, fric)
     i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
+    if not torque_driven:
+        i1, w1, th1 = edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1)
     h = Gam[0, 2, 2]  # the angle's own input column integrates 1 over the step: exactly h
     z1 = bristle_step(z, a, h, th1 - th)
     if torque_driven:

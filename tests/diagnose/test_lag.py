@@ -100,6 +100,13 @@ class _Run:
     def count(self, part: str) -> int:
         return {"all": 10000, "fit": 6000, "held": 4000}[part]
 
+    def envelope_errors(self, vals, free, rel=1e-2):
+        """White residuals, the share uncorrelated with the lag: no inflation, rho 0."""
+        return {}, None, np.eye(len(free))
+
+    def correlated_stderr(self, vals, free, rel=1e-2):
+        return {}, None
+
     def fit(self, vals, free, part):
         from pmdcid.fit.problem import FitOutcome
         from pmdcid.fit.results import FitStats
@@ -136,6 +143,25 @@ def test_a_pair_decisive_on_all_data_is_refused_where_the_held_out_data_do_not_b
     close = _outcome(480950.0, delay=(4e-3, 1e-5), tau_e=(5e-5, 1e-6))
     assert _pair(better, ref, delay_free, close, both_free, min_z=3.0)[1] == 0.0
 
+
+def test_a_pair_whose_lag_a_correlated_residual_leaves_unresolved_is_not_taken():
+    """fra233-2025-pboon's case (session 17): the lag beside the delay decisive and at 5 of
+    the refit's errors, but on a residual whose correlation widens the errors 8 x: at 0.6 of
+    the error the model would print it is not determined, and not taken (its held-out runs
+    all got worse). The same pair on white residuals is taken."""
+    from types import SimpleNamespace
+
+    from pmdcid.diagnose.lag import _pair
+
+    delay_free, both_free = ["J", "bv", "delay"], ["J", "bv", "delay", "tau_e", "ke_share"]
+    ref = _outcome(480957.0, delay=(4e-3, 1e-5))
+    both = _outcome(470000.0, delay=(4e-3, 1e-5), tau_e=(5e-5, 1e-5))
+    white = _Run({frozenset(delay_free): 100.0, frozenset(both_free): 60.0})
+    assert _pair(white, ref, delay_free, both, both_free, min_z=3.0)[1] == pytest.approx(-40.0)
+    correlated = _Run({frozenset(delay_free): 100.0, frozenset(both_free): 60.0})
+    correlated.correlated_stderr = lambda vals, free, rel=1e-2: ({}, SimpleNamespace(inflation=8.0))
+    dbic, held = _pair(correlated, ref, delay_free, both, both_free, min_z=3.0)
+    assert dbic < -10 and held == 0.0
 
 def test_a_latency_of_whole_samples_yields_to_the_lag_only_where_it_fits_decisively_better():
     """The 2025 kit's case (fra233-2025-pboon: an 11 ms USB latency, a lag fitting its fit logs

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from pmdcid.simulate import simulate_values
+from pmdcid.simulate import neutral_values, simulate_values
 from pmdcid.synth import staircase, triangle
 
 
@@ -66,6 +66,24 @@ def test_dead_zone_blocks_torque_below_break_point(paper_values):
     t = np.arange(2000) * 1e-3
     sim = simulate_values(t, np.full_like(t, v_in), vals)
     assert np.all(sim.omega == 0.0)
+
+
+def test_dead_zone_above_running_friction_pins_torque_at_its_edge():
+    # dz above what the running rotor needs (bc + bv w): the current is held at the edge,
+    # i = dz/km, so the speed settles exactly at (v - R dz/km)/ke (Filippov sliding), and it
+    # moves smoothly with dz. A step that takes its mode from its start chatters in and out
+    # of the dead zone instead (0.4 rad/s ripple, the slope in dz jittering by 15 %)
+    vals = {**neutral_values(), "R": 5.0, "L": 0.01, "km": 0.01, "ke": 0.01, "J": 2e-6,
+            "bv": 1e-7, "bc": 2e-4, "dz": 4e-4}
+    t = np.arange(2000) * 1e-3
+    v = np.full_like(t, 3.0)
+    w = simulate_values(t, v, vals).omega
+    pinned = (3.0 - vals["R"] * vals["dz"] / vals["km"]) / vals["ke"]
+    assert w[-500:] == pytest.approx(np.full(500, pinned), rel=1e-6)
+    ends = [np.mean(simulate_values(t, v, {**vals, "dz": dz}).omega[-1000:])
+            for dz in np.linspace(3.9e-4, 4.1e-4, 21)]
+    slope = np.diff(ends)
+    assert np.all(slope < 0) and np.std(slope) < 1e-3 * abs(np.mean(slope))
 
 
 def test_stick_slip_stops_and_holds_on_triangle(paper_values):
