@@ -27,13 +27,21 @@ def _added_lines(res) -> list[str]:
         for p in EFFECTS[e].param_names:
             par = res.model.parameters.get(p)
             if par is not None and par.interval is None:
-                se = f" ± {par.stderr:.2g}" if math.isfinite(par.stderr) else ""
-                pars.append(f"{p} = {par.value:.5g}{se} {par.unit}".rstrip())
+                pars.append(_with_error(p, par))
         lines.append(f"  {e}: " + "; ".join(pars))
     for name, par in res.model.parameters.items():
         if par.interval is not None:
             lines.append(f"{name}: {in_words(par.interval, par.unit, par.caveat)}")
     return lines
+
+
+def _with_error(name: str, par) -> str:
+    """``name = value ± stderr unit``; without a standard error, what stands in its place in
+    words (the parameter's caveat), never a bare value that reads as exact."""
+    if math.isfinite(par.stderr):
+        return f"{name} = {par.value:.5g} ± {par.stderr:.2g} {par.unit}".rstrip()
+    why = par.caveat or "no standard error"
+    return f"{name} = {par.value:.5g} {par.unit}".rstrip() + f" ({why})"
 
 
 def format_table(res) -> str:
