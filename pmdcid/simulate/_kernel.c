@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "ba2e569037de056b9d8b869f7d6c31a716e7c8a1"; }
+const char *kernel_digest(void) { return "e094e5231d5ee7dd27251af53d63ecf957a0d038"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -275,17 +275,16 @@ static inline double dead_zone(const double *p, double torque)
  * holds it there. A step that decides its mode from its start would instead switch in and out
  * every internal step, a pattern that jumps with every parameter (a rough fit cost).
  *
- * Instead a step that ends on its own mode's side is kept. One that crossed the edge is
- * blended with the other mode's step from the same start, weighted by the time before the
- * crossing (the edge's distance e = |km i| - dz taken as linear over the step); where the other
- * mode's step ends back on this side, the rest of the step slides: the weight is raised to
- * the one that ends the step exactly on the edge (the equivalent torque), if larger. First
- * order in the step like the kernel's other events, and continuous in the state and the
- * parameters: the weights meet where the cases meet.
+ * Instead a step that ends on its own mode's side is kept. One that crossed the edge takes
+ * the other mode's step from the same start where that one ends on its own side (the
+ * crossing placed to within the step, first order like the kernel's other events); where each
+ * ends on the other's side the step slides: the two are blended with the weight that ends it
+ * exactly on the edge (the equivalent torque). A step that splits at the crossing time as well
+ * (tried in session 17: more accurate on the twisting approach to the edge) broke the
+ * round trips of motors with current logged (tests/plan/test_check.py); not kept.
  */
 static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2][3][3], int eng, double vin, double i, double w, double th, double tl, double fric, double i1, double w1, double th1, double *r_0, double *r_1, double *r_2)
 {
-    double e0;
     double e1;
     int m2;
     double fe2;
@@ -295,7 +294,6 @@ static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2]
     double th2;
     double e2;
     double a;
-    e0 = fabs(p[P_KM] * i) - p[P_DZ];
     e1 = fabs(p[P_KM] * i1) - p[P_DZ];
     if (eng == (e1 >= 0.0)) {
         *r_0 = i1;
@@ -306,10 +304,13 @@ static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2]
     forcing(p, 0, !eng, vin, i, w, 0.0, tl, fric, &m2, &fe2, &fm2);
     linear_step(Phi, Gam, m2, i, w, th, fe2, fm2, &i2, &w2, &th2);
     e2 = fabs(p[P_KM] * i2) - p[P_DZ];
-    a = e0 / (e0 - e1);
-    if (eng == (e2 >= 0.0)) {
-        a = py_fmax(a, e2 / (e2 - e1));
+    if (eng == (e2 < 0.0)) {
+        *r_0 = i2;
+        *r_1 = w2;
+        *r_2 = th2;
+        return;
     }
+    a = e2 / (e2 - e1);
     *r_0 = a * i1 + (1.0 - a) * i2;
     *r_1 = a * w1 + (1.0 - a) * w2;
     *r_2 = a * th1 + (1.0 - a) * th2;
@@ -528,6 +529,11 @@ static inline void stick_substep(const double *p, double Phi[2][3][3], double Ga
     fric = sliding_friction(p, w, direction, guarded);
     forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, &m, &fe, &fm);
     linear_step(Phi, Gam, m, i, w, th, fe, fm, &i1, &w1, &th1);
+    if (tentative && !eng) {
+        i1 = i_stuck;
+        w1 = w;
+        th1 = th;
+    }
     if (!torque_driven) {
         edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1, &i1, &w1, &th1);
     }
