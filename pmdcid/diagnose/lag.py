@@ -198,23 +198,20 @@ def _pair(run, ref: FitOutcome, ref_free: list[str], both: FitOutcome, both_free
 
 
 def _printed_resolved(run, both: FitOutcome, both_free: list[str], min_z: float) -> bool:
-    """Whether the lag of the pair ``both`` is determined (``min_z`` standard errors) with the
-    error the model would print: widened by the residual's correlation in time (the block
-    sandwich's inflation, :meth:`~pmdcid.fit.problem.Problem.correlated_stderr`), with the
-    back-EMF share held as the lag in a delay's place is judged
-    (:func:`~pmdcid.diagnose.lawlag.share_rho`). The refit's
-    own error counts every sample as independent: fra233-2025-pboon, after the dead zone's
-    edge was made continuous, split its 11 ms latency into 2.8 ms and a lag of 3.4 ms at 15
-    such errors on a residual correlated over 566 samples (8 x the white error), and every
-    held-out run got worse, chirp_100000 0.137 -> 0.145."""
+    """Whether the lag of the pair ``both`` is determined (``min_z`` standard errors) with its
+    error widened by the residual's correlation in time (the block sandwich's inflation,
+    :meth:`~pmdcid.fit.problem.Problem.correlated_stderr`), as the model would print it. The
+    refit's own error counts every sample as independent: fra233-2025-pboon, with the sliding
+    dead-zone edge tried in session 17, split its 11 ms latency into 2.8 ms and a 3.4 ms lag at
+    15 such errors on a residual correlated over 566 samples (8 x the white error), and every
+    held-out run got worse, chirp_100000 0.137 -> 0.145. The marginal error, as before (the
+    lag in a delay's place is judged with the share held: two rules, left open)."""
     _, info = run.problem.correlated_stderr(both.values, both_free)
-    rho = share_rho(run, both, both_free)
     if info is None or not info.inflation > 1.0:
-        return lag_resolved(both, min_z, rho)
+        return lag_resolved(both, min_z)
     tau = both.estimates["tau_e"]
     est = {**both.estimates, "tau_e": dataclasses.replace(tau, stderr=tau.stderr * info.inflation)}
-    probe = dataclasses.replace(both, estimates=est)
-    return lag_resolved(probe, min_z, rho)
+    return lag_resolved(dataclasses.replace(both, estimates=est), min_z)
 
 
 def _decisive_latency_free(run, final: FitOutcome, free: list[str], lag: FitOutcome) -> bool:

@@ -151,7 +151,8 @@ def _lag_alone(use, model, both, dt) -> dict | None:
     and the dead zone as 4.7 V, and the held-out 6 V steps went 0.024 -> 0.42).
 
     A lag and a latency both round or move a step's start: where the two are not resolved
-    apart the joint fit stops anywhere along their ridge (the large motor's seed 3 at 500 Hz,
+    apart the joint fit stops anywhere along their ridge (with the sliding dead-zone edge tried
+    in session 17, docs/model.md: the large motor's seed 3 at 500 Hz,
     L/R 2 ms: 1.0 +- 0.4 ms of lag and 0.95 +- 0.4 ms of latency, chi-square 6241; the lag
     alone 1.95 +- 0.05 ms, 6240), and neither passing its test left the whole dead time to a
     latency (4.1 ms). Every armature has its L/R; a latency needs its own evidence."""

@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "e094e5231d5ee7dd27251af53d63ecf957a0d038"; }
+const char *kernel_digest(void) { return "22476ff77fc479ffa23b0f1cefd12e87c2e77eea"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -143,25 +143,6 @@ static inline double lugre_held_friction(const double *p, double omega, double z
     return p[P_SIGMA0] * z - p[P_SIGMA1] * az + p[P_BQ] * omega * fabs(omega) + p[P_DBV] * fabs(omega);
 }
 
-/* True when the magnetic torque [N m] is at or beyond the hard dead zone's break point.
- */
-static inline int dead_zone_engaged(const double *p, double torque)
-{
-    return fabs(torque) >= p[P_DZ];
-}
-
-/* Torque [N m] opposing motion that does not depend on speed: tau0 + cogging(theta).
- */
-static inline double load_torque(const double *p, double theta)
-{
-    double t;
-    t = p[P_TAU0];
-    if (p[P_CA] != 0.0) {
-        t = t + p[P_CA] * sin(p[P_CN] * theta + p[P_CPHI]);
-    }
-    return t;
-}
-
 /* Voltage across R and L plus back-EMF after the brush drop [V] (brush_drop).
  *
  * The brushes take up to vb of the driving voltage v - ke*omega, opposing it; the part of
@@ -255,6 +236,13 @@ static inline double bristle_step(double z, double a, double h, double dtheta)
     return exp(-ah) * z - expm1(-ah) / ah * dtheta;
 }
 
+/* True when the magnetic torque [N m] is at or beyond the hard dead zone's break point.
+ */
+static inline int dead_zone_engaged(const double *p, double torque)
+{
+    return fabs(torque) >= p[P_DZ];
+}
+
 /* Hard dead zone (paper eq. 7) at torque level [N m]: 0 inside, sign*(k|T| + k_hat) outside.
  */
 static inline double dead_zone(const double *p, double torque)
@@ -265,56 +253,16 @@ static inline double dead_zone(const double *p, double torque)
     return p[P_DZ_SLOPE] * torque + p[P_DZ_OFFSET] * sgn(torque);
 }
 
-/* The step (i1, w1, th1) taken in dead-zone mode eng from (i, w, th), made
- * consistent at the dead zone's edge (voltage-driven): (i [A], omega [rad/s], theta [rad]).
- *
- * The hard dead zone switches the torque on the rotor between 0 and the full torque as the
- * current crosses its break point. Where the full torque exceeds the friction a running rotor
- * needs, the current is pinned at the edge: the back-EMF pulls it back whenever the torque is
- * on, and the true (Filippov) solution slides along the edge with the part of the torque that
- * holds it there. A step that decides its mode from its start would instead switch in and out
- * every internal step, a pattern that jumps with every parameter (a rough fit cost).
- *
- * Instead a step that ends on its own mode's side is kept. One that crossed the edge takes
- * the other mode's step from the same start where that one ends on its own side (the
- * crossing placed to within the step, first order like the kernel's other events); where each
- * ends on the other's side the step slides: the two are blended with the weight that ends it
- * exactly on the edge (the equivalent torque). A step that splits at the crossing time as well
- * (tried in session 17: more accurate on the twisting approach to the edge) broke the
- * round trips of motors with current logged (tests/plan/test_check.py); not kept.
+/* Torque [N m] opposing motion that does not depend on speed: tau0 + cogging(theta).
  */
-static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2][3][3], int eng, double vin, double i, double w, double th, double tl, double fric, double i1, double w1, double th1, double *r_0, double *r_1, double *r_2)
+static inline double load_torque(const double *p, double theta)
 {
-    double e1;
-    int m2;
-    double fe2;
-    double fm2;
-    double i2;
-    double w2;
-    double th2;
-    double e2;
-    double a;
-    e1 = fabs(p[P_KM] * i1) - p[P_DZ];
-    if (eng == (e1 >= 0.0)) {
-        *r_0 = i1;
-        *r_1 = w1;
-        *r_2 = th1;
-        return;
+    double t;
+    t = p[P_TAU0];
+    if (p[P_CA] != 0.0) {
+        t = t + p[P_CA] * sin(p[P_CN] * theta + p[P_CPHI]);
     }
-    forcing(p, 0, !eng, vin, i, w, 0.0, tl, fric, &m2, &fe2, &fm2);
-    linear_step(Phi, Gam, m2, i, w, th, fe2, fm2, &i2, &w2, &th2);
-    e2 = fabs(p[P_KM] * i2) - p[P_DZ];
-    if (eng == (e2 < 0.0)) {
-        *r_0 = i2;
-        *r_1 = w2;
-        *r_2 = th2;
-        return;
-    }
-    a = e2 / (e2 - e1);
-    *r_0 = a * i1 + (1.0 - a) * i2;
-    *r_1 = a * w1 + (1.0 - a) * w2;
-    *r_2 = a * th1 + (1.0 - a) * th2;
-    return;
+    return t;
 }
 
 /* One internal step of the LuGre loop: (i [A], omega [rad/s], theta [rad], z [rad]) after
@@ -325,15 +273,13 @@ static inline void edge_step(const double *p, double Phi[2][3][3], double Gam[2]
  * linear step (`augmented_matrix`), the rest is held over the step
  * (`pmdcid.simulate.terms.lugre_held_friction`); then z is stepped exactly with the
  * step's mean speed (`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
- * driving torque as in the stick-slip loop, its edge placed by `edge_step`.
+ * driving torque as in the stick-slip loop.
  */
 static inline void lugre_substep(const double *p, double Phi[2][3][3], double Gam[2][3][3], int torque_driven, double tin, double vin, double i, double w, double th, double z, double *r_0, double *r_1, double *r_2, double *r_3)
 {
     double tm;
     double a;
     double fric;
-    int eng;
-    double tl;
     int m;
     double fe;
     double fm;
@@ -349,13 +295,8 @@ static inline void lugre_substep(const double *p, double Phi[2][3][3], double Ga
     }
     a = bristle_rate(p, w);
     fric = lugre_held_friction(p, w, z, a);
-    eng = dead_zone_engaged(p, tm);
-    tl = load_torque(p, th);
-    forcing(p, torque_driven, eng, vin, i, w, dead_zone(p, tm), tl, fric, &m, &fe, &fm);
+    forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, i, w, dead_zone(p, tm), load_torque(p, th), fric, &m, &fe, &fm);
     linear_step(Phi, Gam, m, i, w, th, fe, fm, &i1, &w1, &th1);
-    if (!torque_driven) {
-        edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1, &i1, &w1, &th1);
-    }
     h = Gam[0][2][2];
     z1 = bristle_step(z, a, h, th1 - th);
     if (torque_driven) {
@@ -529,14 +470,6 @@ static inline void stick_substep(const double *p, double Phi[2][3][3], double Ga
     fric = sliding_friction(p, w, direction, guarded);
     forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, &m, &fe, &fm);
     linear_step(Phi, Gam, m, i, w, th, fe, fm, &i1, &w1, &th1);
-    if (tentative && !eng) {
-        i1 = i_stuck;
-        w1 = w;
-        th1 = th;
-    }
-    if (!torque_driven) {
-        edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1, &i1, &w1, &th1);
-    }
     if (tentative && w1 * direction <= 0.0) {
         *r_0 = i_stuck;
         *r_1 = w;

@@ -4,10 +4,8 @@ State x = (i [A], omega [rad/s], theta [rad]). Between events the model is linea
 forcing, so each internal step of length h uses the exact discretisation
 ``x+ = Phi x + Gamma f`` (matrix exponential of the augmented system, compiled), computed once
 per call for the two dead-zone modes. Input is zero-order held over each sample period.
-Non-linear terms (Coulomb sign, Stribeck, quadratic drag, cogging, brush drop)
-are evaluated at the start of each internal step and held over it; a step whose current crosses
-the dead zone's break point is split at the crossing, and slides along it where the full torque
-exceeds what the running rotor needs (:func:`edge_step`); a rotor at rest stays exactly
+Non-linear terms (Coulomb sign, Stribeck, quadratic drag, cogging, brush drop, the dead-zone jump)
+are evaluated at the start of each internal step and held over it; a rotor at rest stays exactly
 at rest while the torque on it is within the static friction level (no tanh smoothing), and a
 rotor whose speed would cross zero is stopped there and re-tested for sticking.
 
@@ -32,7 +30,6 @@ from pmdcid.simulate import compiled
 from pmdcid.simulate.layout import (
     BC,
     BV,
-    DZ,
     DZ_OFFSET,
     DZ_SLOPE,
     FS,
@@ -233,40 +230,6 @@ def _linear_step(Phi, Gam, m, i, w, th, fe, fm):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1,
-              th1):  # pragma: no cover - compiled
-    """The step (i1, w1, th1) taken in dead-zone mode ``eng`` from (i, w, th), made
-    consistent at the dead zone's edge (voltage-driven): (i [A], omega [rad/s], theta [rad]).
-
-    The hard dead zone switches the torque on the rotor between 0 and the full torque as the
-    current crosses its break point. Where the full torque exceeds the friction a running rotor
-    needs, the current is pinned at the edge: the back-EMF pulls it back whenever the torque is
-    on, and the true (Filippov) solution slides along the edge with the part of the torque that
-    holds it there. A step that decides its mode from its start would instead switch in and out
-    every internal step, a pattern that jumps with every parameter (a rough fit cost).
-
-    Instead a step that ends on its own mode's side is kept. One that crossed the edge takes
-    the other mode's step from the same start where that one ends on its own side (the
-    crossing placed to within the step, first order like the kernel's other events); where each
-    ends on the other's side the step slides: the two are blended with the weight that ends it
-    exactly on the edge (the equivalent torque). A step that splits at the crossing time as well
-    (tried in session 17: more accurate on the twisting approach to the edge) broke the
-    round trips of motors with current logged (tests/plan/test_check.py); not kept.
-    """
-    e1 = abs(p[KM] * i1) - p[DZ]
-    if eng == (e1 >= 0.0):
-        return i1, w1, th1
-    m2, fe2, fm2 = _forcing(p, False, not eng, vin, i, w, 0.0, tl, fric)
-    i2, w2, th2 = _linear_step(Phi, Gam, m2, i, w, th, fe2, fm2)
-    e2 = abs(p[KM] * i2) - p[DZ]
-    if eng == (e2 < 0.0):
-        return i2, w2, th2  # the other mode's step ends on its own side: the step crossed
-    a = e2 / (e2 - e1)  # sliding: the weight of this mode's step that ends on the edge
-    return (a * i1 + (1.0 - a) * i2, a * w1 + (1.0 - a) * w2,
-            a * th1 + (1.0 - a) * th2)
-
-
-@njit(cache=True, inline="always")
 def stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w,
                   th):  # pragma: no cover - compiled
     """One internal step of the stick-slip loop: (i [A], omega [rad/s], theta [rad]) after it,
@@ -305,12 +268,6 @@ def stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w,
     fric = sliding_friction(p, w, direction, guarded)
     m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric)
     i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
-    if tentative and not eng:  # no torque through yet: the rotor is held, not sliding back
-        i1 = i_stuck
-        w1 = w
-        th1 = th
-    if not torque_driven:
-        i1, w1, th1 = edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1)
     if tentative and w1 * direction <= 0.0:
         return i_stuck, w, th  # did not break free after all: stays at rest
     if fstat > 0.0 and w1 * direction < 0.0:
@@ -331,7 +288,7 @@ def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
     linear step (:func:`augmented_matrix`), the rest is held over the step
     (:func:`pmdcid.simulate.terms.lugre_held_friction`); then z is stepped exactly with the
     step's mean speed (:func:`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
-    driving torque as in the stick-slip loop, its edge placed by :func:`edge_step`.
+    driving torque as in the stick-slip loop.
     """
     if torque_driven:
         tm = tin
@@ -339,12 +296,9 @@ def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
         tm = p[KM] * i
     a = bristle_rate(p, w)
     fric = lugre_held_friction(p, w, z, a)
-    eng = dead_zone_engaged(p, tm)
-    tl = load_torque(p, th)
-    m, fe, fm = _forcing(p, torque_driven, eng, vin, i, w, dead_zone(p, tm), tl, fric)
+    m, fe, fm = _forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, i, w,
+                         dead_zone(p, tm), load_torque(p, th), fric)
     i1, w1, th1 = _linear_step(Phi, Gam, m, i, w, th, fe, fm)
-    if not torque_driven:
-        i1, w1, th1 = edge_step(p, Phi, Gam, eng, vin, i, w, th, tl, fric, i1, w1, th1)
     h = Gam[0, 2, 2]  # the angle's own input column integrates 1 over the step: exactly h
     z1 = bristle_step(z, a, h, th1 - th)
     if torque_driven:

@@ -69,19 +69,14 @@ def _within(model, name: str, true: float, k: float = 2.0) -> bool:
 def test_a_real_delay_beside_the_lag_is_kept_with_it(seed, rate):
     # a 2-sample latency beside the 2 ms L/R that fit-mechanical's steps resolve both of. Main
     # at cabd12f dropped the delay (fitted at 1.95 and 1.8 samples: under its 2-sample floor)
-    # and wrote the lag as their sum (tau_e 5.9 and 3.9 ms), J 23 and 92 se off. Where the
-    # pair splits their sum is a ridge: within 3 of its standard errors (session 17, the dead
-    # zone's edge continuous: seed 2 at 500 Hz tau_e 2.74 +- 0.33 ms, delay 3.28 +- 0.33 ms,
-    # J +2.1 se, the sum 6.01 ms; before, 2.05 and 3.98 ms)
+    # and wrote the lag as their sum (tau_e 5.9 and 3.9 ms), J 23 and 92 se off
     fit, _, vals = scenario(seed, 1e3 * LAG, rate, "sensor_delay")
     model = identify(fit, diagnose=True, progress=False).model
     pv = per_volt(vals)
     assert "sensor_delay" in model.effects, model.effects
-    assert _within(model, "delay", vals["delay"], 3.0), (model.parameters["delay"], vals["delay"])
-    assert _within(model, "tau_e", LAG, 3.0), (model.parameters["tau_e"], LAG)
-    assert model.value("delay") + model.value("tau_e") == pytest.approx(vals["delay"] + LAG,
-                                                                        rel=0.05)
-    assert _within(model, "J", pv["J"], 3.0), (model.parameters["J"], pv["J"])
+    assert model.value("delay") == pytest.approx(vals["delay"], rel=0.2)
+    assert model.value("tau_e") == pytest.approx(LAG, rel=0.2)
+    assert _within(model, "J", pv["J"]), (model.parameters["J"], pv["J"])
 
 
 @pytest.mark.slow

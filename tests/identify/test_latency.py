@@ -144,7 +144,8 @@ def test_a_lag_and_latency_left_unresolved_is_the_lag_alone():
     """The large motor (bench/lawlag.py, seed 3, 500 Hz, L/R 2 ms, no latency): the steps'
     dead-zone fit stops on the ridge where a lag and a latency trade off (about 1 ms each,
     neither resolved). The lag alone is asked before the whole dead time goes to a latency
-    (before: sensor_delay 4.1 ms, no tau_e, J' -2.1 se); every estimate within 3 se."""
+    (with the sliding dead-zone edge tried in session 17, docs/model.md, before this rule:
+    sensor_delay 4.1 ms, no tau_e, J' -2.1 se); every estimate within 3 se."""
     from bench.lawlag import per_volt, scenario
 
     fit, _, vals = scenario(3, 2.0, 500.0, "none", "large")

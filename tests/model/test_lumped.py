@@ -63,13 +63,7 @@ def test_per_volt_model_reproduces_the_si_motor():
         w = simulate_log(view, m).omega  # the lag resolved: lag_substeps a sample
         ref = simulate_values(lg.t, lg.u, {**neutral_values(), **SI},
                               nsub=lag_substeps(DT, TAU_E)).omega
-        # the same equations scaled: equal to rounding, which the dead zone's edge amplifies
-        # where the current slides along it (the blend's weight divides the edge distances
-        # of two steps that differ by O(h^2)): on the triangle 2.8e-4 of the range at most,
-        # 2.4e-5 RMS (session 17); a mapping error would be of the order of the range
-        d = np.abs(w - ref)
-        assert np.max(d) <= 1e-3 * np.ptp(ref), lg.path
-        assert np.sqrt(np.mean(d**2)) <= 1e-4 * np.ptp(ref), lg.path
+        assert np.max(np.abs(w - ref)) <= 1e-9 * np.ptp(ref), lg.path
 
 
 def test_dead_zone_acts_on_the_lagged_torque():
