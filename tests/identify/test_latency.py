@@ -60,6 +60,7 @@ def test_no_latency_no_sensor_delay():
     assert MIN_SAMPLES >= 1
 
 
+@pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 def test_paper_sequence_with_latency_recovers_the_lumped_motor():
     m = _lumped()
     _mechanical(_steps(0.0035, seed=14), m).apply(m)

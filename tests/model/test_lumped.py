@@ -99,6 +99,7 @@ def test_to_si_turns_tau_e_into_L():
     assert not si.has("tau_e") and not si.has("ke_share")
 
 
+@pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 def test_lumped_round_trip_keeps_the_electrical_lag():
     """identify on voltage + speed logs (1 kHz, L/R = 3 ms, speed noise 1 rad/s of ~650):
     tau_e within 10 %, J, bv, bc within 1 %, ke_share within 2 %, dz within 3 % and within
