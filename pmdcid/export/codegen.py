@@ -46,12 +46,12 @@ RUNTIME = (kernel._run_states, kernel.discretize_into, grid._set_cost)
 RUNTIME_SOURCE = Path(kernel.__file__).with_name("_kernel.c")
 #: array arguments by name: their shapes (``p``: the parameter vector, layout.NAMES; None: a
 #: length known at run time, passed in C as ``n_NAME`` after the array)
-ARRAYS = {"p": (len(layout.NAMES),), "Phi": (2, 3, 3), "Gam": (2, 3, 3), "M": (6, 6),
+ARRAYS = {"p": (len(layout.NAMES),), "Phi": (4, 3, 3), "Gam": (4, 3, 3), "M": (6, 6),
           "E": (6, 6), "X": (6, 6), "Y": (6, 6), "Z": (6, 6), "u": (None,), "x0": (None,),
           "out": (None, layout.NSTATE), "w_meas": (None,), "th_meas": (None,)}
 #: scalar arguments that are not floats, by name
 BOOLS = frozenset({"torque_driven", "guarded", "engaged", "eng"})
-INTS = frozenset({"m", "k", "nsub"})
+INTS = frozenset({"m", "k", "nsub", "mode0"})
 #: math.* functions and what they are called in C and in MATLAB
 MATH = {"exp": "exp", "expm1": "expm1", "sin": "sin", "cos": "cos", "sqrt": "sqrt",
         "ceil": "ceil", "floor": "floor", "log2": "log2", "log": "log", "isfinite": "isfinite"}

@@ -117,8 +117,8 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
         nsub = max(nsub, max(lag_substeps(dt, v["L"]) for v, _ in mapped))
     u, dt, nsub, q = _read_input(np.asarray(log.u, float), dt, nsub, _reading(vals_list[0]))
     h = dt / nsub
-    Phi = np.empty((len(P), 2, 3, 3))
-    Gam = np.empty((len(P), 2, 3, 3))
+    Phi = np.empty((len(P), 4, 3, 3))
+    Gam = np.empty((len(P), 4, 3, 3))
     cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
     for k, p in enumerate(P):
         key = tuple(p[list(LINEAR)])

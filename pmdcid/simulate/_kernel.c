@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "22476ff77fc479ffa23b0f1cefd12e87c2e77eea"; }
+const char *kernel_digest(void) { return "20f17d98674c32eaa39b93f337bc40631a69f2ee"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -205,7 +205,7 @@ static inline void forcing(const double *p, int torque_driven, int eng, double v
 
 /* One exact step of (i, omega, theta) in dead-zone mode m under held forcing (fe, fm).
  */
-static inline void linear_step(double Phi[2][3][3], double Gam[2][3][3], int m, double i, double w, double th, double fe, double fm, double *r_0, double *r_1, double *r_2)
+static inline void linear_step(double Phi[4][3][3], double Gam[4][3][3], int m, double i, double w, double th, double fe, double fm, double *r_0, double *r_1, double *r_2)
 {
     double i1;
     double w1;
@@ -275,7 +275,7 @@ static inline double load_torque(const double *p, double theta)
  * step's mean speed (`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
  * driving torque as in the stick-slip loop.
  */
-static inline void lugre_substep(const double *p, double Phi[2][3][3], double Gam[2][3][3], int torque_driven, double tin, double vin, double i, double w, double th, double z, double *r_0, double *r_1, double *r_2, double *r_3)
+static inline void lugre_substep(const double *p, double Phi[4][3][3], double Gam[4][3][3], int torque_driven, double tin, double vin, double i, double w, double th, double z, double *r_0, double *r_1, double *r_2, double *r_3)
 {
     double tm;
     double a;
@@ -311,7 +311,7 @@ static inline void lugre_substep(const double *p, double Phi[2][3][3], double Ga
 
 /* The LuGre loop (`lugre_substep`).
  */
-static inline void run_lugre(const double *u, int n_u, const double *p, double Phi[2][3][3], double Gam[2][3][3], int nsub, int torque_driven, double i, double w, double th, double z, double (*out)[4])
+static inline void run_lugre(const double *u, int n_u, const double *p, double Phi[4][3][3], double Gam[4][3][3], int nsub, int torque_driven, double i, double w, double th, double z, double (*out)[4])
 {
     int k;
     int each;
@@ -415,9 +415,10 @@ static inline double sliding_friction(const double *p, double omega, double dire
  * the rotor free within this step, a moving step is tried, accepted only if the rotor then
  * moves in the driving direction (second-order breakaway timing). A speed that would cross
  * zero is stopped there (re-tested for sticking next step). guarded:
- * `pmdcid.simulate.terms.friction_guarded` of p.
+ * `pmdcid.simulate.terms.friction_guarded` of p. mode0: 0 for a whole internal
+ * step, 2 for one of its `EDGE_REFINE` parts (`discretize_into`'s modes).
  */
-static inline void stick_substep(const double *p, double Phi[2][3][3], double Gam[2][3][3], int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
+static inline void stick_core(const double *p, double Phi[4][3][3], double Gam[4][3][3], int mode0, int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
 {
     double tm;
     int eng;
@@ -452,7 +453,7 @@ static inline void stick_substep(const double *p, double Phi[2][3][3], double Ga
         if (fabs(net) <= fstat) {
             if (!torque_driven) {
                 ve = armature_voltage(p, vin, 0.0);
-                i_stuck = Phi[1][0][0] * i + Gam[1][0][0] * ve / p[P_L];
+                i_stuck = Phi[mode0 + 1][0][0] * i + Gam[mode0 + 1][0][0] * ve / p[P_L];
                 net = dead_zone(p, p[P_KM] * i_stuck) - tl;
             }
             if (fabs(net) <= fstat) {
@@ -469,7 +470,7 @@ static inline void stick_substep(const double *p, double Phi[2][3][3], double Ga
     }
     fric = sliding_friction(p, w, direction, guarded);
     forcing(p, torque_driven, eng, vin, i, w, td, tl, fric, &m, &fe, &fm);
-    linear_step(Phi, Gam, m, i, w, th, fe, fm, &i1, &w1, &th1);
+    linear_step(Phi, Gam, mode0 + m, i, w, th, fe, fm, &i1, &w1, &th1);
     if (tentative && w1 * direction <= 0.0) {
         *r_0 = i_stuck;
         *r_1 = w;
@@ -488,12 +489,37 @@ static inline void stick_substep(const double *p, double Phi[2][3][3], double Ga
     return;
 }
 
+/* One internal step of the stick-slip loop (`_stick_core`), taken again as
+ * `EDGE_REFINE` finer steps where the current crosses the dead zone's break point.
+ */
+static inline void stick_substep(const double *p, double Phi[4][3][3], double Gam[4][3][3], int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
+{
+    int each;
+    double i1;
+    double w1;
+    double th1;
+    stick_core(p, Phi, Gam, 0, torque_driven, guarded, tin, vin, i, w, th, &i1, &w1, &th1);
+    if (torque_driven || dead_zone_engaged(p, p[P_KM] * i) == dead_zone_engaged(p, p[P_KM] * i1)) {
+        *r_0 = i1;
+        *r_1 = w1;
+        *r_2 = th1;
+        return;
+    }
+    for (each = 0; each < 16 /* EDGE_REFINE */; each++) {
+        stick_core(p, Phi, Gam, 2, torque_driven, guarded, tin, vin, i, w, th, &i, &w, &th);
+    }
+    *r_0 = i;
+    *r_1 = w;
+    *r_2 = th;
+    return;
+}
+
 /* The stick-slip loop (`stick_substep`). LuGre is off: its bristle deflection z is
  * not integrated (stays at its start). guarded: passed as a constant so that the loop is
  * compiled twice, once without the friction curve and its positivity hold (on the critical
  * path of every step: ~8 ns of 20).
  */
-static inline void run_stick(const double *u, int n_u, const double *p, double Phi[2][3][3], double Gam[2][3][3], int nsub, int torque_driven, double i, double w, double th, double z, double (*out)[4], int guarded)
+static inline void run_stick(const double *u, int n_u, const double *p, double Phi[4][3][3], double Gam[4][3][3], int nsub, int torque_driven, double i, double w, double th, double z, double (*out)[4], int guarded)
 {
     int k;
     int each;
@@ -512,7 +538,7 @@ static inline void run_stick(const double *u, int n_u, const double *p, double P
  * triple or a full state): the LuGre loop when LuGre is on, else the stick-slip loop,
  * compiled with and without the friction curve's guard.
  */
-void run_states(const double *u, int n_u, const double *p, double Phi[2][3][3], double Gam[2][3][3], int nsub, int torque_driven, const double *x0, int n_x0, double (*out)[4])
+void run_states(const double *u, int n_u, const double *p, double Phi[4][3][3], double Gam[4][3][3], int nsub, int torque_driven, const double *x0, int n_x0, double (*out)[4])
 {
     double z0;
     z0 = n_x0 > 3 ? x0[3] : 0.0;
@@ -648,18 +674,24 @@ static inline void expm_small(double M[6][6], double E[6][6])
 }
 
 /* Exact zero-order-hold discretisation over h [s] for both dead-zone modes, into Phi and
- * Gam (2, 3, 3): Phi = expm(A h), Gam = int_0^h expm(A s) ds (from the augmented
- * 6x6 exponential). Mode 0 is the dead zone engaged (torque passes), mode 1 disengaged.
+ * Gam (4, 3, 3): Phi = expm(A h), Gam = int_0^h expm(A s) ds (from the augmented
+ * 6x6 exponential). Mode 0 is the dead zone engaged (torque passes), mode 1 disengaged; modes
+ * 2 and 3 the same over h / `EDGE_REFINE` (a step that crosses the dead zone's edge).
  */
-void discretize_into(const double *p, double h, int torque_driven, double Phi[2][3][3], double Gam[2][3][3])
+void discretize_into(const double *p, double h, int torque_driven, double Phi[4][3][3], double Gam[4][3][3])
 {
     int m;
     int r;
     int c;
     double M[6][6] = {{0.0}};
     double E[6][6] = {{0.0}};
-    for (m = 0; m < 2; m++) {
-        augmented_matrix(p, m == 0, torque_driven, h, M);
+    double hm;
+    for (m = 0; m < 4; m++) {
+        hm = h;
+        if (m >= 2) {
+            hm = h / 16 /* EDGE_REFINE */;
+        }
+        augmented_matrix(p, m == 0 || m == 2, torque_driven, hm, M);
         expm_small(M, E);
         for (r = 0; r < 3; r++) {
             for (c = 0; c < 3; c++) {

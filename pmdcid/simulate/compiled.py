@@ -91,7 +91,7 @@ def _functions(lib) -> SimpleNamespace:
     def run_into(u, p, Phi, Gam, nsub, torque_driven, x0, out):
         if out.shape != (len(u), NSTATE) or p.shape != (NSTATE_P,) or len(x0) < 3:
             raise ValueError("run_into: arrays of the wrong shape")
-        lib.run_states(_ptr(u), len(u), _ptr(p), _ptr(Phi, (2, 3, 3)), _ptr(Gam, (2, 3, 3)),
+        lib.run_states(_ptr(u), len(u), _ptr(p), _ptr(Phi, (4, 3, 3)), _ptr(Gam, (4, 3, 3)),
                        int(nsub), bool(torque_driven), _ptr(x0), len(x0), _ptr(out))
         return out
 
@@ -100,7 +100,7 @@ def _functions(lib) -> SimpleNamespace:
 
     def discretize_into(p, h, torque_driven, Phi, Gam):
         lib.discretize_into(_ptr(p, (NSTATE_P,)), float(h), bool(torque_driven),
-                            _ptr(Phi, (2, 3, 3)), _ptr(Gam, (2, 3, 3)))
+                            _ptr(Phi, (4, 3, 3)), _ptr(Gam, (4, 3, 3)))
 
     def batch_cost(u, P, Phis, Gams, nsub, torque_driven, w_meas, th_meas, sw, sth, omega0,
                    x0, bufs):

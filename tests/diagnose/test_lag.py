@@ -11,6 +11,8 @@ its own figure is the written model's; logs with a latency and no lag keep the d
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from ident_util import LUMPED, as_log
@@ -211,4 +213,6 @@ def test_a_lag_whose_share_the_logs_do_not_tell_replaces_the_delay():
     for k in ("J", "tau_e"):
         p = model.parameters[k]
         assert abs(p.value - true[k]) <= 2.0 * p.stderr, (k, p.value, p.stderr, true[k])
-    assert model.parameters["ke_share"].stderr <= 1.0
+    share = model.parameters["ke_share"]
+    # bounded by the valley's span, or said in words as not determined (never ± 46)
+    assert share.stderr <= 1.0 or (math.isnan(share.stderr) and share.caveat), share

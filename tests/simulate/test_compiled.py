@@ -57,9 +57,9 @@ def test_kernel_discretisation_and_batch_match_the_jit(torque, effects):
     P, Phis, Gams = [], [], []
     for _ in range(2):
         p = param_vector(_vals(rng, effects))
-        Phi, Gam = np.empty((2, 3, 3)), np.empty((2, 3, 3))
+        Phi, Gam = np.empty((4, 3, 3)), np.empty((4, 3, 3))
         real(kernel.discretize_into)(p, 1e-3 / 3, torque, Phi, Gam)
-        Phi_c, Gam_c = np.empty((2, 3, 3)), np.empty((2, 3, 3))
+        Phi_c, Gam_c = np.empty((4, 3, 3)), np.empty((4, 3, 3))
         FAST.discretize_into(p, 1e-3 / 3, torque, Phi_c, Gam_c)
         assert close(Phi_c, Phi) and close(Gam_c, Gam)
         x0 = rng.standard_normal(4) * [1.0, 1.0, 1.0, 1e-4]

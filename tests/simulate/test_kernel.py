@@ -69,8 +69,9 @@ def test_dead_zone_blocks_torque_below_break_point(paper_values):
 
 
 @pytest.mark.xfail(strict=True, reason="the kernel takes the dead zone's mode at each internal "
-                   "step's start: it chatters at the edge (a sliding edge was tried in session "
-                   "17 and not kept: docs/model.md)")
+                   "step's start: it chatters at the edge, on steps of h/16 where a step crosses "
+                   "it (ripple 0.39 -> 0.094 rad/s, the slope's jitter 7.3 % -> 0.31 %; a sliding "
+                   "edge was tried in session 17 and not kept: docs/model.md)")
 def test_dead_zone_above_running_friction_pins_torque_at_its_edge():
     # dz above what the running rotor needs (bc + bv w): the current is held at the edge,
     # i = dz/km, so the speed settles exactly at (v - R dz/km)/ke (Filippov sliding), and it
