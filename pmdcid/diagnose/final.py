@@ -23,7 +23,7 @@ from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.results import Estimate, bounded
 from pmdcid.identify.dead_zone import dead_zone_interval
-from pmdcid.identify.nonlinear import DZ_CAVEAT, masked_upper
+from pmdcid.identify.nonlinear import DZ_CAVEAT, crossing_upper
 from pmdcid.model import EFFECTS
 from pmdcid.model.lumped import LUMPED_ONLY, is_lumped, lumped_unit
 from pmdcid.runtime.cpus import pmap
@@ -40,7 +40,10 @@ def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
     A dead zone below the breakaway torque never acts on a rotor that turns only while the
     torque exceeds it: every dz from 0 up to some level fits equally (within two standard errors,
     4 x the reduced chi-square, or ``rel`` of the chi-square). Returns that level when dz = 0 is
-    among them (the dead zone is not identified), None when the data see the dead zone.
+    among them (the dead zone is not identified), None when the data see the dead zone; the
+    level is read between the grid's points (:func:`~pmdcid.identify.nonlinear.crossing_upper`,
+    as fit-nonlinear reads it): on the grid's last point inside, a band narrower than its first
+    step was written "between 0 and 0 N m" (guanlunlu-l298n driven as torque, session 18).
     """
     v = fo.values
     c = fo.chi2["all"]
@@ -50,7 +53,7 @@ def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
     cost = np.array([problem.chi2({**v, "dz": d})["all"] for d in dzs])
     if cost[0] - c > thr:
         return None
-    return masked_upper(dzs, cost, thr)
+    return crossing_upper(dzs, cost, thr)
 
 
 def _inflation(problem: Problem, fo: FitOutcome, free: list[str]) -> float:

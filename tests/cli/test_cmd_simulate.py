@@ -36,7 +36,9 @@ def test_simulate_reproduces_fixture(tmp_path, paper_model, name):
     assert np.std(r_i) == pytest.approx(PAPER_NOISE.i, rel=0.05)
     assert abs(np.mean(r_om)) < 4 * PAPER_NOISE.omega / np.sqrt(len(r_om))
     q = 2 * np.pi / PAPER_NOISE.encoder
-    assert np.max(np.abs(meas["theta"] - sim["theta"])) <= q / 2 + 1e-9
+    # within half a count, give or take the model file's rounding of the values (1e-8 rad
+    # where a sample sits at half a count: the triangle's with the edge refined, session 18)
+    assert np.max(np.abs(meas["theta"] - sim["theta"])) <= q / 2 + 1e-7
 
 
 def test_simulate_noise_is_seeded(tmp_path, paper_model):
