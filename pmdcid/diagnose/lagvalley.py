@@ -33,11 +33,13 @@ import math
 from types import SimpleNamespace
 
 from pmdcid.fit.problem import FitOutcome
+from pmdcid.fit.results import honest
 from pmdcid.identify.share_valley import (
     NAMES,
     VALLEY_STARTS,
     at_share,
     dips,
+    pm,
     restart_from_dips,
     share_range,
     valley_points,
@@ -117,18 +119,17 @@ def valley_errors(run, final: FitOutcome, free: list[str], info, notes: list[str
     for k in NAMES:
         e = final.estimates[k]
         spread = abs(ends[-1][k] - ends[0][k]) / math.sqrt(12.0)  # uniform over the interval
-        local = at_share(e.stderr, (rho or {}).get(k, math.nan))
+        local = at_share(e.stderr, (rho or {}).get(k, math.nan), k)
         se = math.hypot(local, spread, mid[0][k] - e.value)
         if se > local:
-            final.estimates[k] = dataclasses.replace(e, stderr=se)
+            final.estimates[k] = honest(dataclasses.replace(e, stderr=se))
     notes.append(
         f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's share "
         "of bv trades with J and tau_e at equal linear response, only the friction and the dead "
         "zone tell them apart): J's, tau_e's and ke_share's standard errors are the root mean "
         "square distance from the fit's values to a share uniform over that interval, the local "
-        f"fit's {'with the share held ' if rho else ''}combined (J = {point['J']:.5g} ± "
-        f"{final.estimates['J'].stderr:.2g}, ke_share = {point['ke_share']:.3g} ± "
-        f"{final.estimates['ke_share'].stderr:.2g})")
+        f"fit's {'with the share held ' if rho else ''}combined (J = "
+        f"{pm(final.estimates['J'], '.5g')}, ke_share = {pm(final.estimates['ke_share'])})")
 
 
 def share_correlations(names: list[str], curv) -> dict[str, float]:

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.fit.covariance import CovarianceInfo
+from pmdcid.model.effects import range_only
 from pmdcid.model.tables import in_words
 
 
@@ -169,15 +170,36 @@ class Estimate:
 #: the words a fitted parameter carries in place of a standard error when its variance is not
 #: positive (:func:`pmdcid.fit.covariance.standard_errors`): its stderr is NaN (``null`` in the
 #: model file), never 0
-NOT_DETERMINED = "not determined by these logs: its variance is not positive, no standard error"
+UNDETERMINED = "not determined by these logs"
+NOT_DETERMINED = f"{UNDETERMINED}: its variance is not positive, no standard error"
 
 
-def fitted(name: str, value: float, stderr: float, unit: str) -> Estimate:
-    """A fitted parameter's :class:`Estimate`; a standard error that is not a finite positive
-    number (a degenerate variance) is NaN and said in words (:data:`NOT_DETERMINED`)."""
-    if math.isfinite(stderr) and stderr > 0:
-        return Estimate(name, float(value), float(stderr), unit)
-    return Estimate(name, float(value), math.nan, unit, caveat=NOT_DETERMINED)
+def fitted(name: str, value: float, stderr: float, unit: str, caveat: str = "") -> Estimate:
+    """A fitted parameter's :class:`Estimate` (``caveat``: words it carries anyway); a standard
+    error that is not a finite positive number (a degenerate variance) is NaN and said in
+    words (:data:`NOT_DETERMINED`), and so is one that spans the parameter's whole declared
+    range (:func:`pmdcid.model.effects.range_only`: a bounded parameter's value +-2 standard
+    errors covering every value it may take)."""
+    value, stderr = float(value), float(stderr)
+    if not (math.isfinite(stderr) and stderr > 0):
+        words = NOT_DETERMINED
+    else:
+        words = range_only(name, value, stderr)
+    if not words:
+        return Estimate(name, value, stderr, unit, caveat=caveat)
+    return Estimate(name, value, math.nan, unit, caveat="; ".join(c for c in (words, caveat)
+                                                                   if c))
+
+
+def honest(e: Estimate) -> Estimate:
+    """``e`` with its standard error read by :func:`fitted`'s rule (for an estimate whose error
+    was widened or replaced after the fit: the words of a not-determined error it carried
+    before dropped when the new error stands); ``e`` itself when bounded (an interval), held,
+    or without a standard error."""
+    if e.interval is not None or not e.vary or not math.isfinite(e.stderr):
+        return e
+    kept = "; ".join(c for c in e.caveat.split("; ") if c and not c.startswith(UNDETERMINED))
+    return fitted(e.name, e.value, e.stderr, e.unit, kept)
 
 
 def bounded(name: str, low: float, high: float, unit: str, caveat: str,

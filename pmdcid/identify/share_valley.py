@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from pmdcid.fit.results import Estimate
+from pmdcid.fit.results import Estimate, honest
 from pmdcid.model.lumped import same_response
 
 #: the shares the valley is read at: the whole range, 0 to 1
@@ -227,10 +227,23 @@ def share_interval(cost, fit, est: dict[str, Estimate]) -> tuple[dict[str, Estim
     return _moved({k: e.value for k, e in est.items()}, est, found, rho)
 
 
-def at_share(se: float, rho: float) -> float:
+def at_share(se: float, rho: float, name: str = "") -> float:
     """A standard error with the share held: ``se sqrt(1 - rho^2)``, ``rho`` the local
-    correlation with the share (``se`` itself where that is not a number)."""
+    correlation with the share (``se`` itself where that is not a number); 0 for the share
+    itself (``name`` ke_share) where the fit gave it none (its local error spanned its whole
+    range, :func:`pmdcid.fit.results.fitted`): held, it has no error of its own, and the
+    valley's spread is then its whole error."""
+    if name == "ke_share" and not math.isfinite(se):
+        return 0.0
     return se * math.sqrt(max(1.0 - rho * rho, 0.0)) if math.isfinite(rho) else se
+
+
+def pm(e: Estimate, fmt: str = ".3g") -> str:
+    """``value ± stderr`` of ``e`` for a note, or the value and "(no standard error)" where it
+    has none (:func:`pmdcid.fit.results.fitted`: not determined)."""
+    if math.isfinite(e.stderr):
+        return f"{e.value:{fmt}} ± {e.stderr:.2g}"
+    return f"{e.value:{fmt}} (no standard error)"
 
 
 def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
@@ -250,15 +263,14 @@ def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
     for k in NAMES:
         e = est[k]
         spread = abs(hi[k] - lo[k]) / math.sqrt(12.0)  # uniform over the interval
-        local = at_share(e.stderr, rho.get(k, math.nan))
-        out[k] = Estimate(k, mid[k], math.hypot(local, spread), e.unit, caveat=e.caveat)
+        local = at_share(e.stderr, rho.get(k, math.nan), k)
+        out[k] = honest(Estimate(k, mid[k], math.hypot(local, spread), e.unit, caveat=e.caveat))
     why = (f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's "
            "share of bv trades with J and tau_e at equal linear response, only the friction "
            "and the dead zone tell them apart): J, tau_e and ke_share at that interval's "
            "middle, their standard errors the local fit's with the share held and a share "
-           f"uniform over the interval combined (the local fit gave J = {est['J'].value:.5g} ± "
-           f"{est['J'].stderr:.2g}, ke_share = {est['ke_share'].value:.3g} ± "
-           f"{est['ke_share'].stderr:.2g})")
+           f"uniform over the interval combined (the local fit gave J = {pm(est['J'], '.5g')}, "
+           f"ke_share = {pm(est['ke_share'])})")
     return out, why
 
 

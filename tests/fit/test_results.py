@@ -65,3 +65,29 @@ def test_sim_fit_result_correl_within_unit_interval():
     stats = FitStats(100, 2, 98.0, 5, True, "")
     res = SimFitResult(est, stats, {"J": {"bc": 9.0}, "bc": {"J": -0.5}})
     assert math.isnan(res.correlation("J", "bc")) and res.correlation("bc", "J") == -0.5
+
+
+def test_fitted_writes_a_bounded_error_spanning_its_range_in_words():
+    """A share fitted 1e-4 ± 0.58 (its +-2 se cover [0, 1]): no standard error, the words;
+    the table says it without a ±."""
+    from pmdcid.fit.results import fitted, format_estimates
+
+    e = fitted("ke_share", 1e-4, 0.58, "1")
+    assert math.isnan(e.stderr) and "bounded only by its range [0, 1]" in e.caveat
+    assert "±" not in str(e)
+    line = format_estimates([e])[1]
+    assert "0.58" not in line and "bounded only by its range" in line
+    assert fitted("ke_share", 0.9, 0.2, "1").stderr == 0.2
+    assert fitted("tau_e", 0.002, 0.6, "s").caveat.startswith("not determined by these logs")
+
+
+def test_honest_reads_a_widened_error_again():
+    import dataclasses
+
+    from pmdcid.fit.results import fitted, honest
+
+    e = fitted("ke_share", 0.9, 0.01, "1", caveat="a note")
+    wide = honest(dataclasses.replace(e, stderr=0.6))
+    assert math.isnan(wide.stderr) and wide.caveat.endswith("; a note")
+    back = honest(dataclasses.replace(wide, stderr=0.05))  # a narrower reading: words dropped
+    assert back.stderr == 0.05 and back.caveat == "a note"
