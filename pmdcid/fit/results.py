@@ -191,6 +191,15 @@ def fitted(name: str, value: float, stderr: float, unit: str, caveat: str = "") 
                                                                    if c))
 
 
+def plus_minus(value: float, stderr: float, fmt: str = ".3g") -> str:
+    """``value ± stderr`` for a message, or the value and "(no standard error)" where the
+    error is not a finite positive number (:func:`fitted`: not determined): never ``± nan``
+    or ``± 0``."""
+    if math.isfinite(stderr) and stderr > 0:
+        return f"{value:{fmt}} ± {stderr:.2g}"
+    return f"{value:{fmt}} (no standard error)"
+
+
 def honest(e: Estimate) -> Estimate:
     """``e`` with its standard error read by :func:`fitted`'s rule (for an estimate whose error
     was widened or replaced after the fit: the words of a not-determined error it carried

@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from pmdcid.fit.results import Estimate, honest
+from pmdcid.fit.results import Estimate, honest, plus_minus
 from pmdcid.model.lumped import same_response
 
 #: the shares the valley is read at: the whole range, 0 to 1
@@ -239,11 +239,8 @@ def at_share(se: float, rho: float, name: str = "") -> float:
 
 
 def pm(e: Estimate, fmt: str = ".3g") -> str:
-    """``value ± stderr`` of ``e`` for a note, or the value and "(no standard error)" where it
-    has none (:func:`pmdcid.fit.results.fitted`: not determined)."""
-    if math.isfinite(e.stderr):
-        return f"{e.value:{fmt}} ± {e.stderr:.2g}"
-    return f"{e.value:{fmt}} (no standard error)"
+    """``value ± stderr`` of ``e`` for a note (:func:`pmdcid.fit.results.plus_minus`)."""
+    return plus_minus(e.value, e.stderr, fmt)
 
 
 def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
