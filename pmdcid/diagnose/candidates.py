@@ -234,7 +234,9 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
             others = stand_ins(name, free)
             c.test = heldout_test(run.problem, fo.values, name, others,
                                   run.ctx0.torque_scale, floor)
-            if not c.test.testable and c.delta_bic < run.settings.rules.bic:
+            # logs that turn one way test no direction effect, whatever the folds hold out
+            if (not c.test.testable and not c.test.one_way
+                    and c.delta_bic < run.settings.rules.bic):
                 across_logs(run, c, cur, free)
     return c, {"values": ref_vals, "chi2": ref}
 
