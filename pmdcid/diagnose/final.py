@@ -21,7 +21,7 @@ from pmdcid.diagnose.lagdz import lag_refits, masked_on_profile, refitted_line, 
 from pmdcid.diagnose.lagvalley import share_correlations, valley_errors, valley_restart
 from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
-from pmdcid.fit.results import Estimate, bounded, fitted
+from pmdcid.fit.results import Estimate, bounded
 from pmdcid.identify.dead_zone import dead_zone_interval
 from pmdcid.identify.nonlinear import DZ_CAVEAT, masked_upper
 from pmdcid.model import EFFECTS
@@ -175,13 +175,13 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
         if est is not None and name in free:
             se = profile_stderr(problem, final.values, name, final.stats.redchi)
             if math.isfinite(se) and not se <= est.stderr:
-                final.estimates[name] = fitted(name, est.value, se, est.unit)
+                final.estimates[name] = Estimate(name, est.value, se, est.unit)
     # the refits' errors assume white residuals; on real data the residual is correlated
     hac, info, curv = problem.envelope_errors(final.values, list(final.estimates))
     for name, se in hac.items():
         est = final.estimates[name]
         if math.isfinite(se) and se > est.stderr and name in free:
-            final.estimates[name] = fitted(name, est.value, se, est.unit)
+            final.estimates[name] = Estimate(name, est.value, se, est.unit)
     if info is not None and (info.inflation > 1.5 or info.lower_bound):
         notes.append(info.describe())
     names = [n for n in final.estimates if n in final.values]  # curv's order

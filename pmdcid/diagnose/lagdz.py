@@ -32,7 +32,6 @@ import math
 import numpy as np
 
 from pmdcid.errors import PmdcidError
-from pmdcid.fit.results import honest
 from pmdcid.identify.dead_zone import REFIT_POINTS, REFIT_TOP, refit_interval, refit_profile
 from pmdcid.identify.nonlinear import MASK_REL, crossing_upper
 
@@ -105,7 +104,7 @@ def widen(estimates: dict, spread: dict[str, float]) -> None:
     for k, s in spread.items():
         e = estimates.get(k)
         if e is not None and s > 0 and math.isfinite(e.stderr):
-            estimates[k] = honest(dataclasses.replace(e, stderr=math.hypot(e.stderr, s)))
+            estimates[k] = dataclasses.replace(e, stderr=math.hypot(e.stderr, s))
 
 
 def refitted_line(run, final, free: list[str], shim, notes: list[str]) -> None:
@@ -124,7 +123,7 @@ def refitted_line(run, final, free: list[str], shim, notes: list[str]) -> None:
     for k, e in moved.items():
         old = final.estimates[k]
         se = e.stderr if k == "dz" else math.hypot(old.stderr, spread.get(k, 0.0))
-        final.estimates[k] = honest(dataclasses.replace(old, stderr=max(se, old.stderr)))
+        final.estimates[k] = dataclasses.replace(old, stderr=max(se, old.stderr))
     if why:
         notes.append(why + "; the armature's lag taken by diagnose, dz read with it")
 

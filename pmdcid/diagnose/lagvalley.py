@@ -33,7 +33,6 @@ import math
 from types import SimpleNamespace
 
 from pmdcid.fit.problem import FitOutcome
-from pmdcid.fit.results import honest
 from pmdcid.identify.share_valley import (
     NAMES,
     VALLEY_STARTS,
@@ -119,10 +118,10 @@ def valley_errors(run, final: FitOutcome, free: list[str], info, notes: list[str
     for k in NAMES:
         e = final.estimates[k]
         spread = abs(ends[-1][k] - ends[0][k]) / math.sqrt(12.0)  # uniform over the interval
-        local = at_share(e.stderr, (rho or {}).get(k, math.nan), k)
+        local = at_share(e.stderr, (rho or {}).get(k, math.nan))
         se = math.hypot(local, spread, mid[0][k] - e.value)
         if se > local:
-            final.estimates[k] = honest(dataclasses.replace(e, stderr=se))
+            final.estimates[k] = dataclasses.replace(e, stderr=se)
     notes.append(
         f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's share "
         "of bv trades with J and tau_e at equal linear response, only the friction and the dead "

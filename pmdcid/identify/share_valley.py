@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from pmdcid.fit.results import Estimate, honest, plus_minus
+from pmdcid.fit.results import Estimate, plus_minus, shown
 from pmdcid.model.lumped import same_response
 
 #: the shares the valley is read at: the whole range, 0 to 1
@@ -227,20 +227,17 @@ def share_interval(cost, fit, est: dict[str, Estimate]) -> tuple[dict[str, Estim
     return _moved({k: e.value for k, e in est.items()}, est, found, rho)
 
 
-def at_share(se: float, rho: float, name: str = "") -> float:
+def at_share(se: float, rho: float) -> float:
     """A standard error with the share held: ``se sqrt(1 - rho^2)``, ``rho`` the local
-    correlation with the share (``se`` itself where that is not a number); 0 for the share
-    itself (``name`` ke_share) where the fit gave it none (its local error spanned its whole
-    range, :func:`pmdcid.fit.results.fitted`): held, it has no error of its own, and the
-    valley's spread is then its whole error."""
-    if name == "ke_share" and not math.isfinite(se):
-        return 0.0
+    correlation with the share (``se`` itself where that is not a number)."""
     return se * math.sqrt(max(1.0 - rho * rho, 0.0)) if math.isfinite(rho) else se
 
 
 def pm(e: Estimate, fmt: str = ".3g") -> str:
-    """``value ± stderr`` of ``e`` for a note (:func:`pmdcid.fit.results.plus_minus`)."""
-    return plus_minus(e.value, e.stderr, fmt)
+    """``value ± stderr`` of ``e`` for a note as it is shown (:func:`pmdcid.fit.results.shown`:
+    no standard error where it spans the whole range; :func:`~pmdcid.fit.results.plus_minus`)."""
+    s = shown(e)
+    return plus_minus(s.value, s.stderr, fmt)
 
 
 def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
@@ -260,8 +257,8 @@ def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
     for k in NAMES:
         e = est[k]
         spread = abs(hi[k] - lo[k]) / math.sqrt(12.0)  # uniform over the interval
-        local = at_share(e.stderr, rho.get(k, math.nan), k)
-        out[k] = honest(Estimate(k, mid[k], math.hypot(local, spread), e.unit, caveat=e.caveat))
+        local = at_share(e.stderr, rho.get(k, math.nan))
+        out[k] = Estimate(k, mid[k], math.hypot(local, spread), e.unit, caveat=e.caveat)
     why = (f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's "
            "share of bv trades with J and tau_e at equal linear response, only the friction "
            "and the dead zone tell them apart): J, tau_e and ke_share at that interval's "

@@ -67,27 +67,23 @@ def test_sim_fit_result_correl_within_unit_interval():
     assert math.isnan(res.correlation("J", "bc")) and res.correlation("bc", "J") == -0.5
 
 
-def test_fitted_writes_a_bounded_error_spanning_its_range_in_words():
-    """A share fitted 1e-4 ± 0.58 (its +-2 se cover [0, 1]): no standard error, the words;
-    the table says it without a ±."""
-    from pmdcid.fit.results import fitted, format_estimates
+
+def test_an_error_spanning_the_whole_range_is_shown_in_words():
+    """A share fitted 1e-4 ± 0.58 (its +-2 se cover [0, 1]): kept for the readings that follow
+    the cost, printed and tabled without a ±, the words in its place."""
+    from pmdcid.fit.results import fitted, format_estimates, shown
 
     e = fitted("ke_share", 1e-4, 0.58, "1")
-    assert math.isnan(e.stderr) and "bounded only by its range [0, 1]" in e.caveat
-    assert "±" not in str(e)
+    assert e.stderr == 0.58  # the number the share's valley reads
+    s = shown(e)
+    assert math.isnan(s.stderr) and "bounded only by its range [0, 1]" in s.caveat
+    assert "±" not in str(e) and "bounded only by its range" in str(e)
     line = format_estimates([e])[1]
     assert "0.58" not in line and "bounded only by its range" in line
-    assert fitted("ke_share", 0.9, 0.2, "1").stderr == 0.2
-    assert fitted("tau_e", 0.002, 0.6, "s").caveat.startswith("not determined by these logs")
+    from pmdcid.fit.results import ResultProtocol
 
-
-def test_honest_reads_a_widened_error_again():
-    import dataclasses
-
-    from pmdcid.fit.results import fitted, honest
-
-    e = fitted("ke_share", 0.9, 0.01, "1", caveat="a note")
-    wide = honest(dataclasses.replace(e, stderr=0.6))
-    assert math.isnan(wide.stderr) and wide.caveat.endswith("; a note")
-    back = honest(dataclasses.replace(wide, stderr=0.05))  # a narrower reading: words dropped
-    assert back.stderr == 0.05 and back.caveat == "a note"
+    res = ResultProtocol()
+    res.estimates = {"ke_share": e}
+    assert math.isnan(res.rows()[0][2])  # to_dict, to_pandas, the notebook's table
+    assert shown(fitted("ke_share", 0.9, 0.2, "1")).stderr == 0.2  # [0.5, 1.3]: it says something
+    assert shown(fitted("J", 1.0, 10.0, "kg m^2")).stderr == 10.0  # an open range
