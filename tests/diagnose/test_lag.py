@@ -11,6 +11,8 @@ its own figure is the written model's; logs with a latency and no lag keep the d
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from ident_util import LUMPED, as_log
@@ -200,7 +202,8 @@ def test_a_lag_whose_share_the_logs_do_not_tell_replaces_the_delay():
     but its tau_e was 0.73 standard errors: the marginal error, inflated by a share the logs do
     not tell (shares 0 to 1 fit as well), and the delay was kept (J' -8 standard errors). With
     the share held tau_e is determined: no delay is written, J' and tau_e cover the truth,
-    and the share's error is at most what the valley spans (0 to 1)."""
+    and the share, whose +-2 standard errors span all of 0 to 1, is written without one, in
+    words (its error was 0.58 about 1e-4: docs/identification.md)."""
     from bench.lawlag import per_volt
     from bench.lawlag import scenario as lawlag_scenario
 
@@ -211,4 +214,5 @@ def test_a_lag_whose_share_the_logs_do_not_tell_replaces_the_delay():
     for k in ("J", "tau_e"):
         p = model.parameters[k]
         assert abs(p.value - true[k]) <= 2.0 * p.stderr, (k, p.value, p.stderr, true[k])
-    assert model.parameters["ke_share"].stderr <= 1.0
+    share = model.parameters["ke_share"]
+    assert math.isnan(share.stderr) and "bounded only by its range [0, 1]" in share.caveat
