@@ -92,12 +92,17 @@ def effect_z(eff, fo: FitOutcome) -> float:
 
 
 def _param_z(spec, fo: FitOutcome) -> float:
+    """One parameter's distance from neutral in standard errors; 0 where its standard error is
+    none (NaN: the refit does not determine it, :func:`pmdcid.fit.results.fitted`), whose size
+    is then not shown (it read as infinitely many standard errors, passing the size rule)."""
     est = fo.estimates.get(spec.name)
     if est is None:
         return math.inf
     if not math.isfinite(spec.neutral):
         return math.inf
     d = abs(est.value - spec.neutral)
+    if not math.isfinite(est.stderr):
+        return 0.0
     return d / est.stderr if est.stderr > 0 else (math.inf if d > 0 else 0.0)
 
 
@@ -234,7 +239,9 @@ def evaluate(run, screen, cur: FitOutcome, free: list[str], rnd: int) -> tuple[C
             others = stand_ins(name, free)
             c.test = heldout_test(run.problem, fo.values, name, others,
                                   run.ctx0.torque_scale, floor)
-            if not c.test.testable and c.delta_bic < run.settings.rules.bic:
+            # logs that turn one way test no direction effect, whatever the folds hold out
+            if (not c.test.testable and not c.test.one_way
+                    and c.delta_bic < run.settings.rules.bic):
                 across_logs(run, c, cur, free)
     return c, {"values": ref_vals, "chi2": ref}
 

@@ -38,6 +38,7 @@ from pmdcid.identify.share_valley import (
     VALLEY_STARTS,
     at_share,
     dips,
+    pm,
     restart_from_dips,
     share_range,
     valley_points,
@@ -126,9 +127,8 @@ def valley_errors(run, final: FitOutcome, free: list[str], info, notes: list[str
         "of bv trades with J and tau_e at equal linear response, only the friction and the dead "
         "zone tell them apart): J's, tau_e's and ke_share's standard errors are the root mean "
         "square distance from the fit's values to a share uniform over that interval, the local "
-        f"fit's {'with the share held ' if rho else ''}combined (J = {point['J']:.5g} ± "
-        f"{final.estimates['J'].stderr:.2g}, ke_share = {point['ke_share']:.3g} ± "
-        f"{final.estimates['ke_share'].stderr:.2g})")
+        f"fit's {'with the share held ' if rho else ''}combined (J = "
+        f"{pm(final.estimates['J'], '.5g')}, ke_share = {pm(final.estimates['ke_share'])})")
 
 
 def share_correlations(names: list[str], curv) -> dict[str, float]:

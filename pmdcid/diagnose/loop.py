@@ -91,6 +91,8 @@ class Run:
         self.folds: Folds | None = None
         #: the armature's lag taken into the base parameters (:mod:`pmdcid.diagnose.lawlag`)
         self.lag_taken = False
+        #: the effects the run searches (:func:`search_pool`)
+        self.pool: list[str] = []
         #: the lag taken in a sensor delay's place after the final fit (:mod:`.lag`)
         self.lag_late = False
 
@@ -345,6 +347,7 @@ def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> Diagn
     problem = Problem(logs, settings.split, settings.max_samples, holdout_plan(logs))
     pool = search_pool(problem, model, effects)
     run = Run(problem, model, settings)
+    run.pool = pool
     run.say = say
     notes: list[str] = []
     read_slow_inputs(run, ramp, notes)

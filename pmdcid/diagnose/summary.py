@@ -12,6 +12,7 @@ from pmdcid.diagnose.folds import floor_of
 from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, pooled, whiteness
 from pmdcid.diagnose.rules import UNTESTABLE
 from pmdcid.diagnose.shape import residual_shapes
+from pmdcid.diagnose.testable import ONE_WAY, one_way
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.fit.results import ResultProtocol, write_estimate
 from pmdcid.model import EFFECTS, Model
@@ -78,10 +79,15 @@ def heldout_errors(run, base: FitOutcome, final_vals: dict[str, float],
     return [{"log": run.problem.logs[k].path, "before": b[k], "after": a[k]} for k in held]
 
 
-def untestable(cands: list[Candidate]) -> list[dict]:
-    """Effects the fit part supports that no held-out data here can test: what to record."""
-    return [{"effect": c.effect, "record": EFFECTS[c.effect].record, "reason": c.reason}
-            for c in cands if c.reason.startswith(UNTESTABLE)]
+def untestable(cands: list[Candidate], pool=(), logs=()) -> list[dict]:
+    """Effects the fit part supports that no held-out data here can test, and the direction
+    effects of the search ``pool`` that ``logs`` turning one way cannot test at all, supported
+    or not (:func:`~pmdcid.diagnose.testable.one_way`): what to record."""
+    out = [{"effect": c.effect, "record": EFFECTS[c.effect].record, "reason": c.reason}
+           for c in cands if c.reason.startswith(UNTESTABLE)]
+    listed = {u["effect"] for u in out}
+    return out + [{"effect": e, "record": EFFECTS[e].record, "reason": f"{UNTESTABLE}: {ONE_WAY}"}
+                  for e in pool if e not in listed and one_way(e, logs)]
 
 
 def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
@@ -111,7 +117,7 @@ def summarise(run, new: Model, base: FitOutcome, final_vals: dict[str, float],
         "before": pooled(before),
         "after": pooled(after),
         "unexplained": bool(unexplained),
-        "untestable": untestable(cands),
+        "untestable": untestable(cands, getattr(run, "pool", ()), problem.logs),
         "residual_shape": shapes,
         "notes": notes,
         "warnings": drive_warnings(problem, final_sims, final_vals, added),

@@ -190,6 +190,13 @@ def standard_errors(cov) -> np.ndarray:
     return np.where(ok, np.sqrt(np.where(ok, var, 1.0)), math.nan)
 
 
+def standard_error(var: float) -> float:
+    """One quantity's standard error [its unit] from its variance ``var`` [unit^2] (a
+    propagated ``g' cov g``, one diagonal entry): :func:`standard_errors`' rule for a scalar,
+    the square root of a finite, positive variance, else NaN (not determined; never 0)."""
+    return float(standard_errors(np.array([[var]], float))[0])
+
+
 def white_covariance(jac: np.ndarray, resid: np.ndarray, dof: int | None = None) -> np.ndarray:
     """Textbook covariance ``(J'J)^+ s^2``, ``s^2 = sum(r^2) / dof`` (``dof`` default: rows minus
     columns, at least 1). Raises numpy's LinAlgError when J'J cannot be pseudo-inverted."""

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.fit.covariance import CovarianceInfo
+from pmdcid.model.effects import range_only
 from pmdcid.model.tables import in_words
 
 
@@ -26,7 +27,7 @@ class ResultProtocol:
         """(name, value, stderr, unit, interval, caveat) of each estimated parameter
         (:class:`pmdcid.model.tables.Row`)."""
         return [(e.name, e.value, e.stderr, e.unit, e.interval, e.caveat)
-                for e in getattr(self, "estimates", {}).values()]
+                for e in map(shown, getattr(self, "estimates", {}).values())]
 
     def __str__(self) -> str:
         return self.table()
@@ -161,6 +162,8 @@ class Estimate:
     def __str__(self) -> str:
         if self.interval is not None:
             return f"{self.name}: {in_words(self.interval, self.unit, self.caveat)}"
+        if shown(self) is not self:
+            return str(shown(self))
         se = f" ± {self.stderr:.3g}" if math.isfinite(self.stderr) else ""
         why = f" ({self.caveat})" if self.caveat else ""
         return f"{self.name} = {self.value:.6g}{se} {self.unit}".rstrip() + why
@@ -174,10 +177,37 @@ NOT_DETERMINED = "not determined by these logs: its variance is not positive, no
 
 def fitted(name: str, value: float, stderr: float, unit: str) -> Estimate:
     """A fitted parameter's :class:`Estimate`; a standard error that is not a finite positive
-    number (a degenerate variance) is NaN and said in words (:data:`NOT_DETERMINED`)."""
+    number (a degenerate variance) is NaN and said in words (:data:`NOT_DETERMINED`). One that
+    spans the parameter's whole range is kept here, for the readings that follow the cost (a
+    lumped model's share valley, the secant errors), and shown as none (:func:`shown`)."""
     if math.isfinite(stderr) and stderr > 0:
         return Estimate(name, float(value), float(stderr), unit)
     return Estimate(name, float(value), math.nan, unit, caveat=NOT_DETERMINED)
+
+
+def shown(e: Estimate) -> Estimate:
+    """``e`` as it is printed and written: a standard error that spans the parameter's whole
+    declared range (:func:`pmdcid.model.effects.range_only`: a bounded parameter whose value
+    +-2 standard errors covers every value it may take, the linearisation of a cost flat
+    across it) is none (NaN) with the words in its place, as the model file writes it
+    (:meth:`pmdcid.model.params.Model.set`); ``e`` itself otherwise. The estimate keeps its
+    number for the readings that follow the cost."""
+    if e.interval is not None or not e.vary:
+        return e
+    words = range_only(e.name, e.value, e.stderr)
+    if not words:
+        return e
+    return Estimate(e.name, e.value, math.nan, e.unit, e.vary,
+                    caveat="; ".join(c for c in (words, e.caveat) if c))
+
+
+def plus_minus(value: float, stderr: float, fmt: str = ".3g") -> str:
+    """``value ± stderr`` for a message, or the value and "(no standard error)" where the
+    error is not a finite positive number (:func:`fitted`: not determined): never ``± nan``
+    or ``± 0``."""
+    if math.isfinite(stderr) and stderr > 0:
+        return f"{value:{fmt}} ± {stderr:.2g}"
+    return f"{value:{fmt}} (no standard error)"
 
 
 def bounded(name: str, low: float, high: float, unit: str, caveat: str,
@@ -318,7 +348,7 @@ def format_estimates(estimates, width: int = 10) -> list[str]:
     """Table lines ``name  value ± stderr  unit`` (``fixed`` when the parameter did not vary;
     a bounded one in words, ``name  between LOW and HIGH UNIT (why)``)."""
     lines = [f"{'parameter':<{width}} {'value':>13}   {'± stderr':<11} unit"]
-    for e in estimates:
+    for e in map(shown, estimates):
         if e.interval is not None:
             lines.append(f"{e.name:<{width}} {in_words(e.interval, e.unit, e.caveat)}")
             continue

@@ -28,8 +28,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError
-from pmdcid.fit.covariance import block_covariance
-from pmdcid.fit.results import Estimate, FitStats, bounded, format_estimates, write_estimate
+from pmdcid.fit.covariance import block_covariance, standard_error, standard_errors
+from pmdcid.fit.results import (
+    Estimate,
+    FitStats,
+    bounded,
+    fitted,
+    format_estimates,
+    plus_minus,
+    write_estimate,
+)
 from pmdcid.identify.plausibility import MAX_TAU_ELECTRICAL
 from pmdcid.identify.steps import held_levels
 from pmdcid.io.derive import mad_std
@@ -295,8 +303,8 @@ def _offsets(logs, th, cov, warns) -> dict[str, Estimate]:
         b = th[4 + k]
         grad = np.zeros(len(th))
         grad[1], grad[4 + k] = -b / g**2, 1.0 / g
-        v0, v0_se = b / g, math.sqrt(max(float(grad @ cov @ grad), 0.0))
-        out[lg.path] = Estimate(f"v0[{lg.path}]", v0, v0_se, "V")
+        v0, v0_se = b / g, standard_error(float(grad @ cov @ grad))
+        out[lg.path] = fitted(f"v0[{lg.path}]", v0, v0_se, "V")
         if abs(v0) > OFFSET_SIGMAS * v0_se and abs(v0) > 0.01 * float(np.max(np.abs(lg["v"]))):
             warns.append(f"{lg.path}: the current implies a voltage offset of {v0:.3g} ± "
                          f"{v0_se:.2g} V (a brush drop or a current-sensor offset; fitted "
@@ -347,17 +355,17 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
                        "i=SRC*-1), or the logs do not excite the armature (constant voltage)",
                        names)
     vals, pcov = _propagate(th, cov, dt)
-    se = np.sqrt(np.clip(np.diag(pcov), 0, None))
+    se = standard_errors(pcov)  # NaN, never 0, where a variance is not positive
     R, tau, ke = vals
     warns: list[str] = []
     if not (math.isfinite(se[0]) and se[0] < 0.5 * R):
-        raise FitError(f"R is not determined by these logs (R = {R:.3g} ± {se[0]:.2g} ohm): the "
+        raise FitError(f"R is not determined by these logs (R = {plus_minus(R, se[0])} ohm): the "
                        "voltage must vary (steps, a ramp) while the current is logged", names)
-    a_se = math.sqrt(max(cov[0, 0], 0.0))
+    a_se = standard_error(cov[0, 0])
     bound = not math.isfinite(tau)
     tau_at = None  # the lag simulations use when the bound is none (below)
     if bound:  # a <= 0: only an upper bound on tau_e from a's upper confidence limit
-        a_hi = min(max(a, 0.0) + 2 * a_se, 1 - 1e-12)
+        a_hi = min(max(a, 0.0) + 2 * a_se, 1 - 1e-12) if math.isfinite(a_se) else 1 - 1e-12
         tau = -dt / math.log(a_hi) if a_hi > 0 else dt / math.log(1e12)
         tau_se = tau
         if tau > MAX_TAU_ELECTRICAL:  # a's interval reaches 1: the logs bound no lag at all
@@ -372,7 +380,7 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
                  "L di/dt + ke omega), not as a blocked rotor")
     ke_ok = abs(ke) >= 2 * se[2]
     if not ke_ok:
-        warns.append(f"the back-EMF constant is not resolved (ke = {ke:.3g} ± {se[2]:.2g} V "
+        warns.append(f"the back-EMF constant is not resolved (ke = {plus_minus(ke, se[2])} V "
                      "s/rad): the speed varies too little against the voltage, or the current "
                      "does not see it; ke and the back_emf effect are not written")
     elif ke < 0:
@@ -394,10 +402,8 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
     if ke_ok and ke > 0 and not (model is not None and model.has("km")):
         warns.append(KM_FROM_KE_NOTE.format(ke=ke))
     offsets = _offsets(logs, th, cov, warns)
-    est = {"R": Estimate("R", float(R), float(se[0]), "ohm"),
-           "L": Estimate("L", float(L), float(L_se), "H"),
-           "ke": Estimate("ke", float(ke), float(se[2]), "V s/rad"),
-           "tau_e": Estimate("tau_e", float(tau), float(tau_se), "s")}
+    est = {"R": fitted("R", R, se[0], "ohm"), "L": fitted("L", L, L_se, "H"),
+           "ke": fitted("ke", ke, se[2], "V s/rad"), "tau_e": fitted("tau_e", tau, tau_se, "s")}
     if bound:  # only an upper bound: the interval up to it, its value as before
         why = ("not resolved by these logs, L/R under the sample period: sample faster, or "
                "record a blocked-rotor log")

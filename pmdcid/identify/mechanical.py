@@ -33,7 +33,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pmdcid.errors import FitError, NoStepError
-from pmdcid.fit.results import Estimate, FitStats, ResultProtocol, format_estimates
+from pmdcid.fit.covariance import standard_error
+from pmdcid.fit.results import Estimate, FitStats, ResultProtocol, fitted, format_estimates
 from pmdcid.identify.inductance import carry_inductance_error
 from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-exported
     MOVE_SIGMAS,
@@ -446,6 +447,20 @@ def _mean_se(x: np.ndarray, se: np.ndarray | None = None) -> tuple[float, float]
                                if len(x) > 1 else math.nan)
 
 
+def line_friction(a: float, c: float, cov: np.ndarray, km: float, R: float, b_emf: float):
+    """(d_eff, bv, bv_se, bc, bc_se) from the steady-speed line |omega_ss| = a |V| + c
+    (:func:`steady_line`: a [rad/s/V], c [rad/s], their 2x2 covariance ``cov``): the total
+    damping d_eff = km/(R a) [N m s/rad] (viscous plus the back-EMF's ``b_emf`` = km ke/R),
+    bv = d_eff - b_emf, bc = -c d_eff [N m], the errors propagated (delta method) by the one
+    rule (:func:`pmdcid.fit.covariance.standard_error`: NaN, never 0, where a variance is not
+    positive)."""
+    d_eff = km / (R * a)
+    # d(bc) = -d_eff dc - c d(d_eff); d(d_eff) = -d_eff/a da
+    g = np.array([c * d_eff / a, -d_eff])
+    return (d_eff, d_eff - b_emf, d_eff * standard_error(cov[0, 0]) / a, -c * d_eff,
+            standard_error(float(g @ cov @ g)))
+
+
 def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=0.0):
     """Means over steps, the steady-speed line, J. ``b_emf`` = km ke/R [N m s/rad]: the damping
     the back-EMF adds (model effect back_emf), taken out of the line's damping to give bv."""
@@ -475,19 +490,13 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
         if a <= 0:
             raise FitError("steady speed does not grow with the input across the steps: check "
                            "the sign and scale of the speed column")
-        d_eff = km / (R * a)  # total damping: viscous plus back-EMF's km ke/R
-        bv = d_eff - b_emf
-        bv_se = d_eff * math.sqrt(cov[0, 0]) / a
-        bc = -c * d_eff
-        # d(bc) = -d_eff dc - c d(d_eff); d(d_eff) = -d_eff/a da
-        g = np.array([c * d_eff / a, -d_eff])
-        bc_se = math.sqrt(max(float(g @ cov @ g), 0.0))
+        d_eff, bv, bv_se, bc, bc_se = line_friction(a, c, cov, km, R, b_emf)
         if bc < 0:
             warns.append(f"the steady-speed line gives a negative Coulomb friction bc = {bc:.3g} "
                          "N m (intercept above zero): bc set to 0")
             bc = 0.0
-        est["bv"] = Estimate("bv", bv, bv_se, "N m s/rad")
-        est["bc"] = Estimate("bc", bc, bc_se, "N m")
+        est["bv"] = fitted("bv", bv, bv_se, "N m s/rad")
+        est["bc"] = fitted("bc", bc, bc_se, "N m")
     else:
         warns.append("all steps have the same amplitude: Coulomb friction cannot be separated "
                      "from viscous; bv = b (paper) and bc = 0 are written")

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pmdcid.fit.covariance import standard_error
 from pmdcid.identify.freerun import first_diff_noise_std
 from pmdcid.identify.steps import (
     MIN_PLATEAU_SAMPLES,
@@ -192,7 +193,7 @@ def head_level(log, step, w, sig, tau, tau_se) -> MechStep | None:
     resid = y - X @ coef
     s2 = max(float(resid @ resid) / max(n - 2, 1), sig**2)
     cov = np.linalg.pinv(X.T @ X) * s2
-    se = math.sqrt(max(float(cov[0, 0]), 0.0))
+    se = standard_error(float(cov[0, 0]))  # NaN where not determined: kept off the line
     if math.isfinite(tau_se) and tau_se > 0:
         dt = min(tau_se, 0.5 * tau)
         se = math.hypot(se, 0.5 * (solve_at(tau + dt)[1][0] - solve_at(tau - dt)[1][0])

@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from pmdcid.fit.results import Estimate
+from pmdcid.fit.results import Estimate, plus_minus, shown
 from pmdcid.model.lumped import same_response
 
 #: the shares the valley is read at: the whole range, 0 to 1
@@ -233,6 +233,13 @@ def at_share(se: float, rho: float) -> float:
     return se * math.sqrt(max(1.0 - rho * rho, 0.0)) if math.isfinite(rho) else se
 
 
+def pm(e: Estimate, fmt: str = ".3g") -> str:
+    """``value ± stderr`` of ``e`` for a note as it is shown (:func:`pmdcid.fit.results.shown`:
+    no standard error where it spans the whole range; :func:`~pmdcid.fit.results.plus_minus`)."""
+    s = shown(e)
+    return plus_minus(s.value, s.stderr, fmt)
+
+
 def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
     """J, tau_e, ke_share at the middle of the share interval ``found``, their standard
     errors the local ones with the share held (:func:`at_share`; ``rho``: each one's local
@@ -256,9 +263,8 @@ def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
            "share of bv trades with J and tau_e at equal linear response, only the friction "
            "and the dead zone tell them apart): J, tau_e and ke_share at that interval's "
            "middle, their standard errors the local fit's with the share held and a share "
-           f"uniform over the interval combined (the local fit gave J = {est['J'].value:.5g} ± "
-           f"{est['J'].stderr:.2g}, ke_share = {est['ke_share'].value:.3g} ± "
-           f"{est['ke_share'].stderr:.2g})")
+           f"uniform over the interval combined (the local fit gave J = {pm(est['J'], '.5g')}, "
+           f"ke_share = {pm(est['ke_share'])})")
     return out, why
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pmdcid.errors import ModelError
-from pmdcid.model.effects import EFFECTS, param_spec, unit_of
+from pmdcid.model.effects import EFFECTS, param_spec, range_only, unit_of
 
 FORMAT_VERSION = 1
 
@@ -81,8 +81,16 @@ class Model:
 
     def set(self, name: str, value: float, stderr: float = math.nan, unit: str | None = None,
             stage: str = "", caveat: str = "") -> None:
+        """Write ``name`` = ``value`` ± ``stderr`` [``unit``, default its declared one]. A
+        standard error that spans the parameter's whole declared range
+        (:func:`pmdcid.model.effects.range_only`: a bounded parameter whose value +-2 standard
+        errors covers every value it may take) is written as none (NaN, null in the file) with
+        the words saying so, before ``caveat``."""
         if unit is None:
             unit = unit_of(name)
+        words = range_only(name, float(value), float(stderr))
+        if words:
+            stderr, caveat = math.nan, "; ".join(c for c in (words, caveat) if c)
         self.parameters[name] = Parameter(float(value), float(stderr), unit, stage,
                                           caveat=caveat)
 

@@ -24,6 +24,34 @@ class ParamSpec:
     lower: float = -math.inf
     upper: float = math.inf
 
+    def spanned(self, value: float, stderr: float) -> bool:
+        """Whether ``value`` +- :data:`RANGE_SE` x ``stderr`` covers this parameter's whole
+        range [lower, upper] (:func:`spans_range`)."""
+        return spans_range(value, stderr, self.lower, self.upper)
+
+
+#: standard errors either side of a bounded parameter's value that, spanning its whole range,
+#: leave nothing the logs said about it (a 95 % interval wider than every value it may take)
+RANGE_SE = 2.0
+
+
+def spans_range(value: float, stderr: float, lower: float, upper: float) -> bool:
+    """Whether the interval ``value`` +- :data:`RANGE_SE` ``stderr`` [unit] covers the whole
+    range [``lower``, ``upper``] [unit] of a parameter bounded on both sides: its standard error
+    then carries no information from the logs (a linearisation of a cost flat across the range:
+    a lumped model's back-EMF share 0.0001 +- 0.58 on [0, 1]) and is not one to print. False for
+    a range open on either side, or a standard error that is not a finite number."""
+    return (math.isfinite(lower) and math.isfinite(upper) and math.isfinite(stderr)
+            and value - RANGE_SE * stderr <= lower and value + RANGE_SE * stderr >= upper)
+
+
+def range_words(lower: float, upper: float, unit: str) -> str:
+    """The words a parameter carries in place of a standard error that spans its whole range
+    (:func:`spans_range`)."""
+    rng = f"[{lower:g}, {upper:g}]" + (f" {unit}" if unit and unit != "1" else "")
+    return (f"not determined by these logs: bounded only by its range {rng} (+-2 standard "
+            "errors of the fit would span all of it)")
+
 
 BASE_PARAMS: dict[str, ParamSpec] = {
     p.name: p
@@ -49,4 +77,4 @@ BASE_PARAMS: dict[str, ParamSpec] = {
     ]
 }
 
-__all__ = ["BASE_PARAMS", "ParamSpec"]
+__all__ = ["BASE_PARAMS", "RANGE_SE", "ParamSpec", "range_words", "spans_range"]

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pmdcid.fit.covariance import standard_errors
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import blocked_rotor, param_values, simulate_values
@@ -150,11 +151,19 @@ def stderr(F: np.ndarray) -> np.ndarray:
     w, V = np.linalg.eigh(Fn)
     keep = w > 1e-12 * w.max()
     inv = (V[:, keep] / w[keep]) @ V[:, keep].T
-    se = np.sqrt(np.clip(np.diag(inv), 0.0, None)) / d[seen]
+    se = predicted_se(inv) / d[seen]
     free = (np.abs(V[:, ~keep]) > 1e-3).any(axis=1)  # along a direction the data cannot see
     se[free] = math.inf
     out[seen] = se
     return out
+
+
+def predicted_se(cov: np.ndarray) -> np.ndarray:
+    """Predicted standard errors from a predicted covariance by the fits' one rule
+    (:func:`pmdcid.fit.covariance.standard_errors`: a variance that is not finite and positive
+    gives none), none written as inf here, plan's word for a parameter the profiles leave free
+    (was 0 for a zero variance: a parameter known exactly)."""
+    return np.nan_to_num(standard_errors(cov), nan=math.inf)
 
 
 #: the parameters identify fits from the blocked-rotor logs' current (fit-electrical)
@@ -192,12 +201,12 @@ def staged_from(F_el: np.ndarray, F_sp: np.ndarray, names: list[str]) -> np.ndar
     if not e:
         return stderr(F_sp)
     cov_e = _pinv(F_el[np.ix_(e, e)])
-    out[e] = np.sqrt(np.clip(np.diag(cov_e), 0.0, None))
+    out[e] = predicted_se(cov_e)
     if m:
         inv_mm = _pinv(F_sp[np.ix_(m, m)])
         A = np.where(np.isfinite(inv_mm), inv_mm, 0.0) @ F_sp[np.ix_(m, e)]
         carried = A @ np.where(np.isfinite(cov_e), cov_e, 0.0) @ A.T
-        out[m] = np.sqrt(np.clip(np.diag(inv_mm) + np.diag(carried), 0.0, None))
+        out[m] = predicted_se(inv_mm + np.diag(np.diag(carried)))
     return out
 
 

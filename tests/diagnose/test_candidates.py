@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from pmdcid.diagnose.candidates import stand_ins
 
 CURVE = ["fc1", "fc2", "fc3"]
@@ -22,3 +24,21 @@ def test_effects_that_share_nothing_do_not_stand_in():
     assert stand_ins("brush_drop", ["vb", "R", "L", "J", "bv", "bc", *CURVE]) == ["R"]
     # a candidate's own parameters are never among them
     assert "bq" not in stand_ins("quadratic_drag", ["bq", "bv", *CURVE])
+
+
+def test_an_effect_whose_size_is_not_determined_has_no_size():
+    """A refit that leaves the effect's parameter without a standard error (its variance not
+    positive: NaN, 'not determined') gives a size of 0 standard errors, not infinitely many
+    (which passed the size rule)."""
+    import math
+    from types import SimpleNamespace
+
+    from pmdcid.diagnose.candidates import effect_z
+    from pmdcid.fit.results import fitted
+    from pmdcid.model import EFFECTS
+
+    eff = EFFECTS["torque_offset"]
+    fo = SimpleNamespace(estimates={"tau0": fitted("tau0", 0.01, math.nan, "N m")})
+    assert effect_z(eff, fo) == 0.0
+    fo = SimpleNamespace(estimates={"tau0": fitted("tau0", 0.01, 0.002, "N m")})
+    assert effect_z(eff, fo) == pytest.approx(5.0)

@@ -202,7 +202,8 @@ def test_a_lag_whose_share_the_logs_do_not_tell_replaces_the_delay():
     but its tau_e was 0.73 standard errors: the marginal error, inflated by a share the logs do
     not tell (shares 0 to 1 fit as well), and the delay was kept (J' -8 standard errors). With
     the share held tau_e is determined: no delay is written, J' and tau_e cover the truth,
-    and the share's error is at most what the valley spans (0 to 1)."""
+    and the share, whose +-2 standard errors span all of 0 to 1, is written without one, in
+    words (its error was 0.58 about 1e-4: docs/identification.md)."""
     from bench.lawlag import per_volt
     from bench.lawlag import scenario as lawlag_scenario
 
@@ -214,5 +215,4 @@ def test_a_lag_whose_share_the_logs_do_not_tell_replaces_the_delay():
         p = model.parameters[k]
         assert abs(p.value - true[k]) <= 2.0 * p.stderr, (k, p.value, p.stderr, true[k])
     share = model.parameters["ke_share"]
-    # bounded by the valley's span, or said in words as not determined (never ± 46)
-    assert share.stderr <= 1.0 or (math.isnan(share.stderr) and share.caveat), share
+    assert math.isnan(share.stderr) and "bounded only by its range [0, 1]" in share.caveat

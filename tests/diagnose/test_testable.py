@@ -66,6 +66,7 @@ def test_one_step_log_adds_nothing_it_cannot_test(rig):
     assert laws, res.table()
     assert "steady speeds" in untestable[laws[0]]["record"]
     assert "possible, not testable with these logs" in res.table()
+    _says_one_way(res)
 
 
 def test_logs_at_other_operating_points_confirm_the_effect(rig):
@@ -82,6 +83,22 @@ def test_logs_at_other_operating_points_confirm_the_effect(rig):
     bq = res.model.parameters["bq"]
     true_bq = MOTOR["bq"] * MOTOR["R"] / MOTOR["km"]  # per volt
     assert abs(bq.value - true_bq) <= max(3 * bq.stderr, 0.02 * true_bq), (bq, true_bq)
+    _says_one_way(res)
+
+
+def _says_one_way(res):
+    """Logs that turn one way only (every level positive): the direction effects are listed
+    as possible, not testable, with what to record (both directions), supported or not."""
+    from pmdcid.diagnose.testable import ONE_WAY
+    from pmdcid.model import EFFECTS
+
+    untestable = {u["effect"]: u for u in res.summary["untestable"]}
+    for e in ("viscous_asymmetry", "torque_offset"):
+        assert e in untestable, res.table()
+        assert ONE_WAY in untestable[e]["reason"]
+        assert untestable[e]["record"] == EFFECTS[e].record
+        assert "both directions" in untestable[e]["record"]
+        assert f"possible, not testable with these logs: {e} (record" in res.table()
 
 
 def _ctx(dt=0.01, speed=100.0):

@@ -173,3 +173,12 @@ def test_a_variance_not_positive_is_no_standard_error():
     se = standard_errors(cov)
     assert se[0] == 2.0
     assert np.isnan(se[1:]).all()
+
+
+def test_one_variance_follows_the_same_rule():
+    """The scalar sibling (a propagated g' cov g, one diagonal entry): the same rule."""
+    from pmdcid.fit.covariance import standard_error
+
+    assert standard_error(4.0) == 2.0
+    for var in (0.0, -1e-12, np.nan, np.inf):
+        assert np.isnan(standard_error(var)), var

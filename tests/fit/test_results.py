@@ -65,3 +65,25 @@ def test_sim_fit_result_correl_within_unit_interval():
     stats = FitStats(100, 2, 98.0, 5, True, "")
     res = SimFitResult(est, stats, {"J": {"bc": 9.0}, "bc": {"J": -0.5}})
     assert math.isnan(res.correlation("J", "bc")) and res.correlation("bc", "J") == -0.5
+
+
+
+def test_an_error_spanning_the_whole_range_is_shown_in_words():
+    """A share fitted 1e-4 ± 0.58 (its +-2 se cover [0, 1]): kept for the readings that follow
+    the cost, printed and tabled without a ±, the words in its place."""
+    from pmdcid.fit.results import fitted, format_estimates, shown
+
+    e = fitted("ke_share", 1e-4, 0.58, "1")
+    assert e.stderr == 0.58  # the number the share's valley reads
+    s = shown(e)
+    assert math.isnan(s.stderr) and "bounded only by its range [0, 1]" in s.caveat
+    assert "±" not in str(e) and "bounded only by its range" in str(e)
+    line = format_estimates([e])[1]
+    assert "0.58" not in line and "bounded only by its range" in line
+    from pmdcid.fit.results import ResultProtocol
+
+    res = ResultProtocol()
+    res.estimates = {"ke_share": e}
+    assert math.isnan(res.rows()[0][2])  # to_dict, to_pandas, the notebook's table
+    assert shown(fitted("ke_share", 0.9, 0.2, "1")).stderr == 0.2  # [0.5, 1.3]: it says something
+    assert shown(fitted("J", 1.0, 10.0, "kg m^2")).stderr == 10.0  # an open range

@@ -63,6 +63,25 @@ def test_a_staircase_with_reversals_tests_them(tmp_path):
         assert any(ln.split() == [e, "testable"] for ln in out.splitlines()), out
 
 
+def test_a_staircase_turning_one_way_tests_no_direction_effect(tmp_path):
+    """The reversing staircase's levels, all positive: its operating points test the speed
+    laws, but logs that never reverse cannot tell a direction asymmetry from bc and bv (at main
+    viscous_asymmetry was called testable here, by the two columns' curvature: 1684 chi-square
+    against a floor of 81)."""
+    from pmdcid.diagnose.testable import ONE_WAY
+
+    levels = [0.5, 1.0, 2.0, 0.3, 1.5, 0.6, 2.5, 0.8, 1.2, 2.2]
+    rows, out = _check(tmp_path, _log(tmp_path, "oneway.csv", levels, 1.0, 4))
+    for e in ("viscous_asymmetry", "torque_offset"):
+        assert not rows[e]["testable"], rows[e]
+        assert ONE_WAY in rows[e]["why"]
+        assert "both directions" in rows[e]["record"]
+        line = next(ln for ln in out.splitlines() if ln.strip().startswith(e + " "))
+        assert f"possible, not testable with these logs: record {EFFECTS[e].record}" in line
+    for e in ("quadratic_drag", "friction_curve"):  # several speeds: the laws are testable
+        assert rows[e]["testable"], rows[e]
+
+
 def test_only_effects_diagnose_screens_are_judged(tmp_path):
     """lugre is searched only when asked (--effect), and an effect the model has is not a
     candidate: neither is listed."""

@@ -37,6 +37,7 @@ from pmdcid.model.effects.registry import (
     bounds_of,
     effect_param_specs,
     param_spec,
+    range_only,
     register,
     unit_of,
 )
@@ -51,4 +52,4 @@ for _module in CATALOGUE:
     register(_module.EFFECT)
 
 __all__ = ["CATALOGUE", "EFFECTS", "Effect", "bounds_of", "effect_param_specs", "param_spec",
-           "unit_of"]
+           "range_only", "unit_of"]

@@ -19,7 +19,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from pmdcid.model.spec import BASE_PARAMS, ParamSpec
+from pmdcid.model.spec import BASE_PARAMS, ParamSpec, range_words
 
 
 @dataclass(frozen=True)
@@ -105,3 +105,17 @@ def bounds_of(name: str) -> tuple[float, float]:
     """(lower, upper) bounds of any parameter (unbounded for an unknown name)."""
     spec = param_spec(name)
     return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
+
+
+def range_only(name: str, value: float, stderr: float) -> str:
+    """The words for a standard error of ``name`` that spans its whole declared range (its
+    value +-2 ``stderr`` covers [lower, upper]: :func:`pmdcid.model.spec.spans_range`), to
+    write in its place (``stderr`` then NaN, null in the model file); "" for any other (an
+    unknown name, a range open on a side, a standard error that says something). The one rule
+    for every bounded parameter, base or effect: the model's writer
+    (:meth:`pmdcid.model.params.Model.set`) and the fits' estimates
+    (:func:`pmdcid.fit.results.fitted`) both apply it."""
+    spec = param_spec(name)
+    if spec is None or not spec.spanned(value, stderr):
+        return ""
+    return range_words(spec.lower, spec.upper, spec.unit)
