@@ -45,12 +45,6 @@ def truth(tmp_path_factory):
 
 
 @pytest.mark.slow  # a round trip of seconds: make test, not test-fast
-@pytest.mark.xfail(strict=True, reason=(
-    "with the dead zone's edge refined in the kernel the plan takes a PRBS in place of its "
-    "levels profile; identify's joint fit stops on the PRBS's stick-slip events short of the "
-    "minimum (the truth's chi-square 1227 lower: J +4.9, bv -3.7, bc +4.0 standard errors, with "
-    "main's kernel too on the same recording): docs/identification.md, 'A PRBS the joint fit "
-    "does not finish'"))
 def test_plan_for_a_model_recorded_and_identified_within_its_predicted_stderr(tmp_path, truth):
     _run("plan", "-m", truth, "--vmax", 12, "--budget", 60, "-o", tmp_path / "plan")
     plan = json.loads((tmp_path / "plan" / "plan.json").read_text())
