@@ -162,8 +162,9 @@ class Estimate:
     def __str__(self) -> str:
         if self.interval is not None:
             return f"{self.name}: {in_words(self.interval, self.unit, self.caveat)}"
-        if shown(self) is not self:
-            return str(shown(self))
+        seen = shown(self)
+        if seen is not self:
+            return str(seen)
         se = f" ± {self.stderr:.3g}" if math.isfinite(self.stderr) else ""
         why = f" ({self.caveat})" if self.caveat else ""
         return f"{self.name} = {self.value:.6g}{se} {self.unit}".rstrip() + why

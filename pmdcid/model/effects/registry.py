@@ -113,8 +113,8 @@ def range_only(name: str, value: float, stderr: float) -> str:
     write in its place (``stderr`` then NaN, null in the model file); "" for any other (an
     unknown name, a range open on a side, a standard error that says something). The one rule
     for every bounded parameter, base or effect: the model's writer
-    (:meth:`pmdcid.model.params.Model.set`) and the fits' estimates
-    (:func:`pmdcid.fit.results.fitted`) both apply it."""
+    (:meth:`pmdcid.model.params.Model.set`) and the results as shown
+    (:func:`pmdcid.fit.results.shown`; the fits keep their own numbers) both apply it."""
     spec = param_spec(name)
     if spec is None or not spec.spanned(value, stderr):
         return ""
