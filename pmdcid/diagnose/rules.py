@@ -15,7 +15,8 @@ A candidate is first *checked* (is its refit evidence at all?), then *judged* ag
   :mod:`pmdcid.diagnose.crosslog`) and bearing out what they can tell; the held-out likelihood
   ratio below ``heldout``; the effect's size at least ``min_z`` standard errors; the
   chi-square drop at least ``min_gain`` of the excess on both parts; the speed NRMSE of no log
-  held out whole (or head held out across logs) rising by more than ``max_rise`` (relative).
+  held out whole (or head held out across logs, or the time split's held-out parts beside
+  them) rising by more than ``max_rise`` (relative).
   The first rule a candidate fails is its reason.
 """
 
