@@ -363,13 +363,19 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
                        "voltage must vary (steps, a ramp) while the current is logged", names)
     a_se = standard_error(cov[0, 0])
     bound = not math.isfinite(tau)
-    tau_at = None  # the lag simulations use when the bound is none (below)
+    tau_at = None  # the lag simulations use where only a bound is known (below)
     if bound:  # a <= 0: only an upper bound on tau_e from a's upper confidence limit
         a_hi = min(max(a, 0.0) + 2 * a_se, 1 - 1e-12) if math.isfinite(a_se) else 1 - 1e-12
         tau = -dt / math.log(a_hi) if a_hi > 0 else dt / math.log(1e12)
         tau_se = tau
+        # simulated as the regression's own estimate gives it (a <= 0: under a sample period),
+        # never at the bound: a measured voltage's noise widens a's interval, and a lag at its
+        # upper end is one the logs do not show (bench/newrigs.py freerun-vmeas seed 1, 1 kHz,
+        # L/R 0.6 ms: simulated at the bound's 27 ms, the speed's fit took bc 31 % low at 6.7
+        # standard errors and bv 2.3 x; at the estimate, bc 3 % and bv 5 % off)
+        tau_at = dt / math.log(1e12)
         if tau > MAX_TAU_ELECTRICAL:  # a's interval reaches 1: the logs bound no lag at all
-            tau, tau_at = MAX_TAU_ELECTRICAL, dt / math.log(1e12)
+            tau = MAX_TAU_ELECTRICAL
     else:
         tau_se = float(se[1])
     resolved = bool(not bound and tau >= MIN_TAU_SAMPLES * dt and tau_se < MAX_L_REL_SE * tau)
@@ -404,17 +410,17 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
     offsets = _offsets(logs, th, cov, warns)
     est = {"R": fitted("R", R, se[0], "ohm"), "L": fitted("L", L, L_se, "H"),
            "ke": fitted("ke", ke, se[2], "V s/rad"), "tau_e": fitted("tau_e", tau, tau_se, "s")}
-    if bound:  # only an upper bound: the interval up to it, its value as before
-        why = ("not resolved by these logs, L/R under the sample period: sample faster, or "
-               "record a blocked-rotor log")
-        at = tau if tau_at is None else tau_at
-        if tau_at is not None:  # no bound: simulating at its end would be a lag of a second
+    if bound:  # only an upper bound: the interval up to it, simulated at the estimate
+        why = ("not resolved by these logs, L/R under the sample period (simulated as under "
+               "one, as the regression's own estimate gives it): sample faster, or record a "
+               "blocked-rotor log")
+        if tau >= MAX_TAU_ELECTRICAL:  # no bound: simulating at its end would be a lag of 1 s
             why = ("not resolved by these logs: the current does not bound L/R below any "
                    f"motor's ({MAX_TAU_ELECTRICAL:g} s; a measured voltage's noise hides the "
                    "armature's lag), simulated as under one sample period, as the regression's "
                    "own estimate gives it: sample faster, or record a blocked-rotor log")
-        est["L"] = bounded("L", 0.0, float(L), "H", why, float(at * R))
-        est["tau_e"] = bounded("tau_e", 0.0, float(tau), "s", why, float(at))
+        est["L"] = bounded("L", 0.0, float(L), "H", why, float(tau_at * R))
+        est["tau_e"] = bounded("tau_e", 0.0, float(tau), "s", why, float(tau_at))
     stats = FitStats(len(r), len(th), float(r @ r), 0, True)
     return FreeRunResult(est, offsets, [lg.path for lg in logs], stats, dt, resolved, bound,
                          bool(ke_ok), warns, info.describe())
