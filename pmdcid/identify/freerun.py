@@ -372,7 +372,7 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
         # never at the bound: a measured voltage's noise widens a's interval, and a lag at its
         # upper end is one the logs do not show (bench/newrigs.py freerun-vmeas seed 1, 1 kHz,
         # L/R 0.6 ms: simulated at the bound's 27 ms, the speed's fit took bc 31 % low at 6.7
-        # standard errors and bv 2.3 x; at the estimate, bc 3 % and bv 5 % off)
+        # standard errors and bv 2.3 x; at the estimate, bc -2.4 % and bv +3 %)
         tau_at = dt / math.log(1e12)
         if tau > MAX_TAU_ELECTRICAL:  # a's interval reaches 1: the logs bound no lag at all
             tau = MAX_TAU_ELECTRICAL

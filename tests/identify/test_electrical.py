@@ -275,7 +275,7 @@ def test_free_running_lag_known_only_by_a_bound_is_simulated_at_the_estimate(tmp
     from pmdcid.api import identify
 
     rig = freerun_vmeas(1)
-    truth = bench_truth_freerun(1)
+    truth = _freerun_truth(1)
     logs = [read_mapped(p, rig.maps) for p in write(tmp_path, rig.steps)]
     est = fit_electrical(logs, Model()).estimates
     dt, R = logs[0].dt, est["R"].value
@@ -287,7 +287,7 @@ def test_free_running_lag_known_only_by_a_bound_is_simulated_at_the_estimate(tmp
     assert abs(model.value("bv") / truth["bv"] - 1) < 0.5, (model.value("bv"), truth["bv"])
 
 
-def bench_truth_freerun(seed: int) -> dict:
+def _freerun_truth(seed: int) -> dict:
     """The SI truth bench/newrigs.py's freerun-vmeas rig draws first from its seed's rng."""
     from bench.thinlogs import MOTOR, truth
 
