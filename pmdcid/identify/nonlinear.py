@@ -466,12 +466,11 @@ def _scan_inertia(logs, work, free, signals, fit, sigma, opts, bounds, priors, h
     """The local stage again from a clearly lower point of the cost along J alone (others
     held, :data:`SCAN_SE` standard errors) or, on a lumped model with its lag free, along
     every parameter's profile line (:func:`_profile_lines`), else ``fit`` as it is. The
-    stick-slip cost has
-    kinks where a local stage can stop short of the minimum in J: on bench/stderr_coverage.py's
-    paper motor (seeds 900-919) 3 of 20 joint fits stopped 1.8-2.6 standard errors off J's
-    minimum (seed 909: the cost 5.8 lower 2 standard errors further); restarted, J fell within
-    2 standard errors of the truth in 17 of 20 seeds (15 before), the RMS of
-    (J - truth)/stderr 1.10 (1.40)."""
+    stick-slip cost has kinks where a local stage can stop short of the minimum in J: on
+    bench/stderr_coverage.py's paper motor (seeds 900-919) 3 of 20 joint fits stopped 1.8-2.6
+    standard errors off J's minimum (seed 909: the cost 5.8 lower 2 standard errors further);
+    restarted, J fell within 2 standard errors of the truth in 17 of 20 seeds (15 before), the
+    RMS of (J - truth)/stderr 1.10 (1.40)."""
     e = fit.estimates.get("J")
     if e is None or not (math.isfinite(e.stderr) and e.stderr > 0):
         return fit
@@ -511,6 +510,10 @@ def _profile_lines(fit, steps) -> list[dict[str, float]]:
             for j in range(len(free)) for k in steps]
 
 
+#: the fitted parameters a scan's point may not take below 0
+NONNEGATIVE = ("J", "bv", "bc", "dz", "tau_e", "ke_share", "fs", "ws", "bq")
+
+
 def _inside(point: dict[str, float], bounds: dict) -> bool:
     """Whether ``point`` lies within ``bounds`` and its physical parameters are not negative."""
     for k, v in point.items():
@@ -518,10 +521,6 @@ def _inside(point: dict[str, float], bounds: dict) -> bool:
         if not lo <= v <= hi:
             return False
     return not ("ke_share" in point and point["ke_share"] > 1.0)
-
-
-#: the fitted parameters a scan's point may not take below 0
-NONNEGATIVE = ("J", "bv", "bc", "dz", "tau_e", "ke_share", "fs", "ws", "bq")
 
 
 def _valley_restart(logs, work, free, signals, fit, sigma, opts, bounds, priors, held,
