@@ -150,13 +150,25 @@ def drop_warning(problem, vals: dict[str, float], added: list[str]) -> str | Non
             "brush_drop, its current-dependent part R)")
 
 
+#: a sensor delay within this share of a sample period of half that period is said to be a
+#: speed counted over each period (its mean, late by half the period)
+HALF_SAMPLE_SHARE = 0.15
+
+
 def latency_warning(problem, vals: dict[str, float], added: list[str]) -> str | None:
     """A sensor delay found without a current: it may be the input applied late."""
     if "sensor_delay" not in added or problem.measures("i"):
         return None
-    return (f"sensor_delay = {1e3 * vals['delay']:.3g} ms with no current logged: a command "
+    delay = vals["delay"]
+    line = (f"sensor_delay = {1e3 * delay:.3g} ms with no current logged: a command "
             "applied late (a host-paced loop's latency over USB or serial) looks the same on "
             "voltage and speed; log the current to tell them apart (input_delay)")
+    dt = float(np.median(np.concatenate([np.diff(log.t) for log in problem.logs])))
+    if abs(delay - 0.5 * dt) <= HALF_SAMPLE_SHARE * dt:
+        line += (f". It is about half a sample period ({1e3 * dt:.3g} ms): a speed counted over "
+                 "each period (encoder counts per period, divided by it) is the period's mean, "
+                 "late by half of it; that is what a sensor delay is for")
+    return line
 
 
 def drive_warnings(problem, sims, vals: dict[str, float], added: list[str]) -> list[str]:

@@ -312,6 +312,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
                           ", ".join(lg.path for lg in logs))
     warns += [f"{exc}: not used ({BY_SIMULATION})" for exc in no_step]
     _still_warnings(steps, warns)
+    _short_warnings(steps, warns)
     moving = [s for s in steps if s.moved]
     if not moving:
         why = _why_no_step(steps)
@@ -380,6 +381,33 @@ def _still_warnings(steps, warns) -> None:
                  if s.note == note]
         if where:
             warns.append(f"{what}: {'; '.join(where)}: reported, not fitted")
+
+
+def _short_warnings(steps, warns) -> None:
+    """One warning per log for the steps whose input holds under
+    :data:`~pmdcid.identify.mechsteps.SETTLE_TAUS` time constants (a rich log, an APRBS, holds
+    dozens: the table lists each)."""
+    short: dict[str, list[MechStep]] = {}
+    for s in steps:
+        if s.short is not None:
+            short.setdefault(s.path, []).append(s)
+    end = "the speed does not settle; refused (not used)"
+    for path, group in short.items():
+        held, tau = (np.array(x) for x in zip(*(s.short for s in group), strict=True))
+        if len(group) == 1:
+            s = group[0]
+            warns.append(f"{path} (step to {s.level:.3g} {s.unit} at t = {s.t0:.4g} s): the input "
+                         f"holds {held[0]:.3g} s, under {SETTLE_TAUS:g} time constants "
+                         f"({tau[0]:.3g} s): {end}")
+            continue
+        warns.append(f"{path}: {len(group)} steps (at t = {group[0].t0:.4g} ... "
+                     f"{group[-1].t0:.4g} s) hold their input {_span(held)} s, under "
+                     f"{SETTLE_TAUS:g} of their time constants ({_span(tau)} s): {end}")
+
+
+def _span(x: np.ndarray) -> str:
+    lo, hi = float(np.min(x)), float(np.max(x))
+    return f"{lo:.3g}" if f"{lo:.3g}" == f"{hi:.3g}" else f"{lo:.3g}-{hi:.3g}"
 
 
 def _joint(res: MechanicalResult, data, tau_e) -> None:

@@ -67,6 +67,9 @@ class MechStep:
     from_rest: bool = True
     omega0: float = math.nan  # speed at the step instant [rad/s]
     note: str = ""  # why a step is not used
+    #: a plateau too short to settle: (how long the input holds [s], the first-order time
+    #: constant [s])
+    short: tuple[float, float] | None = None
     #: a level read at the log's start (the rotor turning, the input held before the first
     #: step: :func:`head_level`): no step, only its steady speed enters the line
     head: bool = False
@@ -132,10 +135,9 @@ def fit_step(log, step, tau_e, km, R, sig, warns):
     cf1 = fit_first_order(t, w, st_w, st)
     plateau = float(t[-1] - step.t0)
     if not plateau >= SETTLE_TAUS * (cf1["tau"] + cf1["d"]):
+        # said once per log by mechanical._short_warnings (a rich log holds dozens)
         ms.note = "plateau too short"
-        warns.append(f"{where}: the input holds {plateau:.3g} s, under {SETTLE_TAUS:g} time "
-                     f"constants ({cf1['tau']:.3g} s): the speed does not settle; the step is "
-                     "refused (not used)")
+        ms.short = (plateau, float(cf1["tau"]))
         return ms, None
     ms.moved, ms.strejc_order = True, st.order
     ms.omega0, ms.tau_mot = cf1["y0"], cf1["tau"]

@@ -423,3 +423,22 @@ def test_a_step_without_transient_does_not_set_j(seed):
     assert head.moved and math.isnan(head.tau_m) and math.isfinite(head.omega_ss)
     assert any("under one sample period" in w for w in res.warnings)
     assert res.estimates["J"].value == pytest.approx(vals["J"], rel=0.05)
+
+
+def test_many_short_plateaus_in_one_log_give_one_warning(rng, paper_values):
+    """A log that settles on its first step, then steps every 20 ms (an APRBS's short holds):
+    the first step is fitted, each short one is listed in the table as not used, and the
+    warnings name them in one line for the log, not one line each."""
+    tau = paper_values["J"] / paper_values["bv"]
+    t = np.arange(4000) / 1000.0
+    levels = [2.0, 2.5, 1.5, 3.0, 2.2, 2.8, 1.8, 2.4]
+    hold = 0.4 * tau  # well under 3 time constants
+    k = np.minimum(((t - 2.0) // hold).astype(int) + 1, len(levels) - 1)
+    u = np.where(t < 0.2, 0.0, np.where(t < 2.0, levels[0], np.take(levels, np.maximum(k, 0))))
+    res = fit_mechanical([_log_from(paper_values, rng, t, u)], _electrical(paper_values))
+    short = [s for s in res.steps if s.note == "plateau too short"]
+    assert len(short) >= 5
+    said = [w for w in res.warnings if "do not settle" in w or "does not settle" in w]
+    assert len(said) == 1, said
+    assert f"{len(short)} steps" in said[0] and "steps.csv" in said[0]
+    assert res.steps[0].moved and res.steps[0].from_rest

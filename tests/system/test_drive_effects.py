@@ -224,8 +224,9 @@ def test_real_slow_carriers_are_seen_and_fast_ones_not():
 
 # --- drive drop and latency without current -----------------------------------------------------
 
-def _problem(u_max: float, lumped: bool, current: bool):
-    log = SimpleNamespace(u=np.array([0.0, u_max]), meta={"lumped": "true"} if lumped else {})
+def _problem(u_max: float, lumped: bool, current: bool, dt: float = 1e-3):
+    log = SimpleNamespace(u=np.array([0.0, u_max]), meta={"lumped": "true"} if lumped else {},
+                          t=np.arange(100) * dt)
     return SimpleNamespace(logs=[log], measures=lambda s: current and s == "i")
 
 
@@ -246,6 +247,15 @@ def test_a_sensor_delay_without_current_may_be_latency():
     assert "3.5 ms" in latency_warning(_problem(12.0, True, False), vals, ["sensor_delay"])
     assert latency_warning(_problem(12.0, False, True), vals, ["sensor_delay"]) is None
     assert latency_warning(_problem(12.0, True, False), vals, []) is None
+    assert "half a sample" not in latency_warning(_problem(12.0, True, False), vals,
+                                                  ["sensor_delay"])
+
+
+def test_a_sensor_delay_of_half_a_sample_is_said_to_be_a_counted_speed():
+    """Encoder counts per 20 ms period: the speed is the period's mean, 10 ms late."""
+    vals = {**neutral_values(), "delay": 10.2e-3}
+    line = latency_warning(_problem(12.0, True, False, dt=0.02), vals, ["sensor_delay"])
+    assert "half a sample period (20 ms)" in line and "counts per period" in line
 
 
 def test_exporters_take_a_late_input():
