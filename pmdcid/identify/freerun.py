@@ -271,7 +271,7 @@ def _iv_regression(parts):
         Z[:, 0] = _simulated_current(A, th, starts, ends)
         if noisy_v:
             Z[:, 1] = _neighbour_mean(A[:, 1], starts, ends)
-        th = np.linalg.solve((Z / scale).T @ (A / scale), (Z / scale).T @ y) / scale
+        th = np.linalg.lstsq((Z / scale).T @ (A / scale), (Z / scale).T @ y, rcond=None)[0] / scale
     r = A @ th - y
     s2 = float(r @ r) / max(len(y) - A.shape[1], 1)
     segs = [(k, int(a), int(b)) for k, (a, b) in enumerate(zip(starts, ends, strict=True))]
@@ -346,8 +346,12 @@ def fit_free_running(logs, model: Model | None = None) -> FreeRunResult:
         raise FitError("free-running logs at different sample periods ("
                        + ", ".join(f"{d * 1e3:.4g} ms" for d in sorted(set(dts))) + "): fit "
                        "each rate separately", ", ".join(lg.path for lg in logs))
-    th, cov, r, info = _iv_regression([_rows(lg) for lg in logs])
     names = ", ".join(lg.path for lg in logs)
+    parts = [_rows(lg) for lg in logs]
+    if not any(np.ptp(x[:, 1]) > 1e-9 * np.max(np.abs(x[:, 1]), initial=0.0) for x, _, _ in parts):
+        raise FitError("the voltage never changes in these logs: R, L and ke need a voltage "
+                       "that changes (steps, a ramp) while the current is logged", names)
+    th, cov, r, info = _iv_regression(parts)
     a, g = th[0], th[1]
     if not (g > 0 and math.isfinite(g)) or not a < 1:
         raise FitError("the free-running regression gives a non-positive conductance: check the "

@@ -165,6 +165,20 @@ def test_free_running_without_speed_is_refused(rng):
         fit_electrical([log], Model())
 
 
+def test_free_running_at_a_constant_voltage_is_refused_in_words(rng):
+    """A voltage held from the first sample to the last (the motor started as logging began):
+    its level is one column with each log's offset, so R is not separable; one clear error, not
+    a singular matrix."""
+    from pmdcid.synth import PAPER_NOISE, synth_log
+
+    vals = _free_truth(rng)
+    t = np.arange(3000) / 1000.0
+    cols, _ = synth_log(t, np.full_like(t, 1.5), vals, PAPER_NOISE, rng)
+    log = as_log("const.csv", t, cols)
+    with pytest.raises(FitError, match="const.csv: the voltage never changes"):
+        fit_electrical([log], Model())
+
+
 def test_blocked_rotor_log_with_a_still_speed_column_keeps_the_step_fit(rng, paper_values):
     logs = blocked_logs(paper_values, rng)
     for lg in logs:  # a speed sensor reading a still rotor: noise around an offset
