@@ -38,8 +38,9 @@ from pmdcid.diagnose.settings import Settings
 from pmdcid.diagnose.slow_inputs import read_slow_inputs
 from pmdcid.diagnose.starts import grid_start, profile_best, staged_fit
 from pmdcid.diagnose.summary import DiagnoseResult, summarise, write_model
-from pmdcid.errors import ModelError
+from pmdcid.errors import FitError, ModelError
 from pmdcid.fit.problem import FitOutcome, Problem
+from pmdcid.fit.results import speed_against
 from pmdcid.fit.solver import blas_single_thread
 from pmdcid.model import EFFECTS, Model
 from pmdcid.model.lumped import is_lumped
@@ -343,10 +344,23 @@ def final_model(run: Run, cur: FitOutcome, added: list[str], notes: list[str], h
     return final, free, how
 
 
+def _refuse_reversed_speed(problem: Problem, vals: dict[str, float]) -> None:
+    """A speed that runs against the model's on every log: refused before any refit (the
+    friction would grow to hold the rotor back, bc in kN m)."""
+    sims = problem.simulate_all(vals)
+    pairs = [(sim.omega, np.asarray(log["omega"], float))
+             for log, sim in zip(problem.logs, sims, strict=True)
+             if sim is not None and log.has("omega") and not log.blocked]
+    line = speed_against(pairs)
+    if line:
+        raise FitError(line, ", ".join(str(log.path) for log in problem.logs))
+
+
 def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> DiagnoseResult:
     problem = Problem(logs, settings.split, settings.max_samples, holdout_plan(logs))
     pool = search_pool(problem, model, effects)
     run = Run(problem, model, settings)
+    _refuse_reversed_speed(problem, run.vals0)
     run.pool = pool
     run.say = say
     notes: list[str] = []

@@ -375,6 +375,31 @@ def nrmse(sim: np.ndarray, meas: np.ndarray) -> float:
     return err / sd if sd > 0 else math.nan
 
 
+#: a measured speed whose correlation with the model's simulated speed is below this on every
+#: log runs against it (:func:`speed_against`)
+AGAINST = -0.5
+
+
+def speed_against(pairs) -> str | None:
+    """One line when the measured speed runs against the model's on every log that moves:
+    ``pairs`` holds (simulated, measured) speed arrays [rad/s] per log. A speed sensor that
+    counts the other way (or a motor wired the other way round) gives a correlation near -1;
+    a model of the wrong motor still turns the same way as its input. None when any log
+    follows the model, or none moves."""
+    rs = []
+    for sim, meas in pairs:
+        ok = np.isfinite(sim) & np.isfinite(meas)
+        if ok.sum() >= 3 and np.std(sim[ok]) > 0 and np.std(meas[ok]) > 0:
+            rs.append(float(np.corrcoef(sim[ok], meas[ok])[0, 1]))
+    if not rs or max(rs) >= AGAINST:
+        return None
+    lo, hi = f"{min(rs):.2f}", f"{max(rs):.2f}"
+    span = lo if lo == hi else f"{lo} to {hi}"
+    return (f"the measured speed runs against the model's (their correlation {span}): the speed "
+            "sensor counts the other way from the input; map it with -c omega=COLUMN*-1 (and "
+            "theta the same way)")
+
+
 #: what a table says for an NRMSE that is undefined (:func:`nrmse`: NaN)
 NRMSE_UNDEFINED = "undefined (the measurement never changes)"
 

@@ -18,7 +18,9 @@ Rules (each names the cause and the mapping that fixes it):
   back-EMF v - R*i the armature leaves. More than 3 times it (median over the driven samples)
   names rpm or deg/s. (Less is not refused: a driver's voltage drop lowers the real v.)
 - **time constants** of the fitted result: an armature L/R above 1 s or a mechanical time
-  constant above 100 s is beyond any motor; the time column is in ms or µs.
+  constant above 100 s is beyond any motor; the time column is in ms or µs. A mechanical time
+  constant under 0.5 ms that the logs resolve (over 3 samples) is below any motor's: the time
+  column was scaled too small (seconds mapped as ms).
 """
 
 from __future__ import annotations
@@ -34,6 +36,11 @@ MAX_SAMPLE_PERIOD = 0.2
 #: largest armature time constant L/R of any motor [s], largest mechanical one [s]
 MAX_TAU_ELECTRICAL = 1.0
 MAX_TAU_MECHANICAL = 100.0
+#: shortest mechanical time constant of any motor [s]: the smallest coreless motors take a few
+#: milliseconds
+MIN_TAU_MECHANICAL = 5e-4
+#: a time constant this many sample periods long is resolved by a log
+RESOLVED_SAMPLES = 3
 #: median of km*|omega|/|v| over the driven samples above which omega cannot be rad/s
 MAX_BACK_EMF_RATIO = 2.0
 
@@ -345,12 +352,31 @@ def _refuse(msg: str, path, force: bool) -> None:
     warn(msg, path)
 
 
+def _fast_tau_message(model, logs) -> str | None:
+    """A mechanical time constant shorter than any motor's that the logs resolve (several
+    samples long): the time column scaled too small (a log in s mapped as ms)."""
+    if not logs:
+        return None
+    tau = mechanical_tau(model, typical_speed(logs))
+    dt = min(log.dt for log in logs)
+    if not RESOLVED_SAMPLES * dt < tau < MIN_TAU_MECHANICAL:
+        return None
+    longest = max(float(log.t[-1] - log.t[0]) for log in logs)
+    return (f"the fitted mechanical time constant J/(b+km^2/R) = {tau:.3g} s is shorter than "
+            f"any motor's (> {MIN_TAU_MECHANICAL:g} s), and the logs resolve it (sample period "
+            f"{dt:.3g} s, the longest log {longest:.3g} s): t looks scaled too small; a t in "
+            "seconds needs no mapping, one in ms -c t=COLUMN*ms")
+
+
 def _tau_gate(model, logs, force: bool) -> None:
     """A time constant beyond any motor's that the logs resolve (within a few log lengths)
     names the time unit; one far longer than every log was not determined by them (a fit that
     diverged), and says so."""
     msgs = _tau_messages(model, typical_speed(logs))
     if not msgs:
+        fast = _fast_tau_message(model, logs)
+        if fast:
+            _refuse(fast, logs[0].path, force)
         return
     text, tau = msgs[0]
     dt = max(log.dt for log in logs)

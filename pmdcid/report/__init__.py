@@ -15,7 +15,10 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pmdcid.errors import LogError
+import numpy as np
+
+from pmdcid.errors import LogError, warn
+from pmdcid.fit.results import speed_against
 from pmdcid.model import Model
 
 
@@ -201,6 +204,10 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
             say(f"report: simulating {name} ({k + 1}/{len(logs)})")
             cmps.append(compare_log(log, model, name))
         ba = _before_after(logs, names, model, before_model)
+        against = speed_against([(c.sim.omega, np.asarray(c.log["omega"], float))
+                                 for c in cmps if c.log.has("omega") and not c.blocked])
+        if against:
+            warn(against, ", ".join(str(lg.path) for lg in logs))
         say("report: figures")
         figs = drawer.draw(figure_jobs(cmps, ba, names))
     if summary is None:
@@ -221,7 +228,7 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
         "mean": mean_errors(model_errors_from(cmps)),
         "before_after": ba,
         "summary": summary,
-        "notes": report_notes(model, summary, logs),
+        "notes": report_notes(model, summary, logs, [against] if against else []),
         "lumped": model.extra.get("lumped") is True,
         "figures": sorted(figs),
     })

@@ -20,9 +20,10 @@ def _params_of(names, effects: dict) -> list[str]:
     return out
 
 
-def report_notes(model, summary: dict | None, logs) -> list[dict]:
+def report_notes(model, summary: dict | None, logs, own=()) -> list[dict]:
     """Records (text, about, severity, stage, log, ``rows``: the parameter rows it qualifies,
-    ``log_index``: the report's log it is about or None), warnings first, each text once."""
+    ``log_index``: the report's log it is about or None), warnings first, each text once.
+    ``own``: the report's own warnings (what it found comparing the model with the logs)."""
     from pmdcid.fit.results import known_names
     from pmdcid.model import EFFECTS
     from pmdcid.notes import as_note
@@ -30,6 +31,7 @@ def report_notes(model, summary: dict | None, logs) -> list[dict]:
     names, paths = known_names(), [str(lg.path) for lg in logs]
     items = [as_note(r, names=names, logs=paths) for r in model.extra.get("notes", [])
              if isinstance(r, (dict, str))]
+    items += [as_note(w, stage="report", names=names, logs=paths) for w in own]
     if summary:
         items += [as_note(w, stage="diagnose", names=names, logs=paths)
                   for w in summary.get("warnings", []) if isinstance(w, str)]

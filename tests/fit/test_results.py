@@ -87,3 +87,19 @@ def test_an_error_spanning_the_whole_range_is_shown_in_words():
     assert math.isnan(res.rows()[0][2])  # to_dict, to_pandas, the notebook's table
     assert shown(fitted("ke_share", 0.9, 0.2, "1")).stderr == 0.2  # [0.5, 1.3]: it says something
     assert shown(fitted("J", 1.0, 10.0, "kg m^2")).stderr == 10.0  # an open range
+
+
+def test_a_speed_that_runs_against_the_model_on_every_log_is_said(rng):
+    """A sensor counting the other way gives a correlation near -1 on every log; one log that
+    follows the model, or a speed that never moves, says nothing."""
+    from pmdcid.fit.results import speed_against
+
+    t = np.linspace(0, 4, 400)
+    sim = 50 * np.sin(t)
+    meas = -sim + rng.normal(0, 2, t.size)
+    line = speed_against([(sim, meas), (2 * sim, 2 * meas)])
+    assert line and "-c omega=COLUMN*-1" in line and "-1.00" in line
+    assert speed_against([(sim, meas), (sim, sim + rng.normal(0, 2, t.size))]) is None
+    assert speed_against([(sim, np.zeros_like(sim))]) is None
+    assert speed_against([]) is None
+

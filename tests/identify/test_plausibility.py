@@ -65,3 +65,26 @@ def test_low_speed_logged_in_whole_rpm_is_not_refused(rng):
     assert stuck_issue(truth_model(vals), [log]) is None
     stall = vals["km"] * 0.6 / vals["R"]
     assert stuck_issue(truth_model({**vals, "bc": 0.97 * stall}), [log]) is None
+
+
+def test_a_mechanical_time_constant_shorter_than_any_motor_names_the_time_unit(rng):
+    """The paper's motor logged at 1 kHz, its t (seconds) mapped as ms: every time constant
+    comes out 1000 x short and many samples long. The true model at the true clock passes; the
+    same motor scaled to that clock (J / 1000) is refused naming t; a J under a sample period
+    (not resolved: a slow log, not a unit) is not."""
+    from pmdcid.errors import LogError
+    from pmdcid.identify.plausibility import gate_result
+
+    vals = {"R": 2.3724, "L": 17.7933e-3, "km": 50.2e-3, "J": 3.10442e-3, "bv": 0.0314,
+            "bc": 0.005, "dz": 6.35e-3}
+    t = np.arange(3000) * 1e-3
+    u = np.where(t > 0.5, 2.0, 0.0)
+    om = simulate_values(t, u, {**neutral_values(), **vals}).omega
+    om = om + rng.normal(0, 0.05, t.size)
+    gate_result(truth_model(vals), [Log.from_arrays(t, v=u, omega=om, name="s.csv")])
+    fast = Log.from_arrays(t * 1e-3, v=u, omega=om, name="ms.csv")
+    with pytest.raises(LogError, match=r"ms\.csv: the fitted mechanical time constant .* "
+                                       "shorter than any motor's.*t looks scaled too small"):
+        gate_result(truth_model({**vals, "J": vals["J"] * 1e-3, "L": vals["L"] * 1e-3}), [fast])
+    slow = Log.from_arrays(t * 20, v=u, omega=om, name="slow.csv")  # 20 ms samples
+    gate_result(truth_model({**vals, "J": 1e-6}), [slow])

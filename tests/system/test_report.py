@@ -290,3 +290,31 @@ def test_report_on_a_rotor_that_never_moves(tmp_path, paper_values):
     assert sig["omega"]["rms"] == 0.0
     assert sig["i"]["nrmse"] < 1e-6  # the CSV keeps 9 significant digits
     _check_numbers_match(Path(res.html_path).read_text(), res.metrics)
+
+
+def test_a_reversed_speed_is_said_by_report_and_refused_by_diagnose(tmp_path, rng, paper_values):
+    """A speed sensor counting the other way: report warns in words (stderr and the page's
+    notes); diagnose refuses before it refits friction to hold the rotor back."""
+    import warnings
+
+    from pmdcid.diagnose.entry import diagnose_logs
+    from pmdcid.errors import FitError
+
+    log = _short_triangle(tmp_path, rng, paper_values, drop=("i",))
+    cols = {c: -np.asarray(log[c]) for c in ("omega", "theta")}
+    write_log(tmp_path / "rev.csv", log.t, {"v": log.u, **cols})
+    rev = read_log(tmp_path / "rev.csv")
+    model = truth_model(paper_values)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        res = make_report([rev], model, tmp_path / "rep")
+    assert any("runs against the model's" in str(w.message) for w in said)
+    assert any("runs against" in n["text"] for n in res.metrics["notes"])
+    with pytest.raises(FitError, match="rev.csv: the measured speed runs against"):
+        diagnose_logs([rev], model)
+    with warnings.catch_warnings(record=True) as said:  # the right way round: no word
+        warnings.simplefilter("always")
+        res = make_report([log], model, tmp_path / "rep2")
+    assert not any("runs against" in str(w.message) for w in said)
+    assert not any("runs against" in n["text"] for n in res.metrics["notes"])
+
