@@ -16,7 +16,10 @@ Rules (each names the cause and the mapping that fixes it):
   times that (median over the driven samples) is in rpm (x 9.55) or deg/s (x 57.3).
 - **back-EMF balance** (voltage logs with current, R and km known): km*omega equals the
   back-EMF v - R*i the armature leaves. More than 3 times it (median over the driven samples)
-  names rpm or deg/s. (Less is not refused: a driver's voltage drop lowers the real v.)
+  names rpm or deg/s. Less is allowed (a driver's voltage drop lowers the real v), but not
+  30 times less where the rotor turns at half its top speed or more, nor a back-EMF that grows
+  over 3 times as fast as km*omega along the logged speeds (a drop is an intercept, not a
+  slope): v in mV, or the wrong km.
 - **time constants** of the fitted result: an armature L/R above 1 s or a mechanical time
   constant above 100 s is beyond any motor; the time column is in ms or µs. A mechanical time
   constant under 0.5 ms that the logs resolve (over 3 samples) is below any motor's: the time
@@ -30,6 +33,7 @@ import math
 import numpy as np
 
 from pmdcid.errors import LogError, warn
+from pmdcid.io.derive import noise_std
 
 #: longest sample period of a motor log [s]
 MAX_SAMPLE_PERIOD = 0.2
@@ -41,6 +45,11 @@ MAX_TAU_MECHANICAL = 100.0
 MIN_TAU_MECHANICAL = 5e-4
 #: a time constant this many sample periods long is resolved by a log
 RESOLVED_SAMPLES = 3
+#: km*omega and the back-EMF v - R*i differ by more than this factor: a unit is wrong
+MAX_EMF_FACTOR = 3.0
+#: the back-EMF v - R*i at most this many times km*omega where the rotor turns at half its top
+#: speed or more (a driver that loses 97 % of its command there drives no motor fast)
+MAX_DROP_FACTOR = 30.0
 #: median of km*|omega|/|v| over the driven samples above which omega cannot be rad/s
 MAX_BACK_EMF_RATIO = 2.0
 
@@ -96,10 +105,29 @@ def speed_issue(log, km: float | None, R: float | None = None) -> str | None:
     if sure.sum() < 100:
         return None
     k = float(np.median(km * om[sure] / emf[sure]))
-    if k <= 3.0:
+    if k > MAX_EMF_FACTOR:
+        return (f"km*omega is {k:.3g} x the back-EMF v - R*i (R = {R:g} ohm, km = {km:g} N m/A), "
+                f"where it should equal it: {_omega_hint(k)}")
+    fast = sure & (np.abs(om) > max(0.5 * float(np.max(np.abs(om[sure]))),
+                                    MOVES_NOISE * noise_std(om)))
+    return _emf_excess_issue(km * om[fast], emf[fast], R, km) if fast.sum() >= 100 else None
+
+
+def _emf_excess_issue(kw: np.ndarray, emf: np.ndarray, R: float, km: float) -> str | None:
+    """The back-EMF v - R*i [V] many times km*omega [V] where the rotor turns at half its top
+    speed or more: a driver drops part of its command, but not nearly all of it where the
+    rotor turns fast, and a drop is an intercept, not a slope along the speeds. v in mV, or a
+    km that is not this motor's."""
+    q = float(np.median(emf / kw))
+    slope = np.polyfit(kw, emf, 1)[0] if np.ptp(kw) > 0.2 * np.max(np.abs(kw)) else 0.0
+    if q > MAX_DROP_FACTOR:
+        what = f"is {q:.3g} x km*omega where the rotor turns fast"
+    elif slope > MAX_EMF_FACTOR and np.corrcoef(kw, emf)[0, 1] > 0.9:
+        what = f"grows {slope:.3g} x as fast as km*omega along the logged speeds"
+    else:
         return None
-    return (f"km*omega is {k:.3g} x the back-EMF v - R*i (R = {R:g} ohm, km = {km:g} N m/A), "
-            f"where it should equal it: {_omega_hint(k)}")
+    return (f"the back-EMF v - R*i {what} (R = {R:g} ohm, km = {km:g} N m/A), where it should "
+            "equal it: check v's unit and scale (a v in mV: -c v=COLUMN*1e-3) and km")
 
 
 #: full scales of integer PWM/DAC counts (8 to 16 bits, signed and unsigned)
@@ -248,8 +276,6 @@ MOVES_NOISE = 20.0
 def turns_from_rest(log) -> bool:
     """The rotor is at rest at the log's start and turns later (measured speed, else angle):
     then some input torque overcame the friction at rest."""
-    from pmdcid.io.derive import noise_std
-
     sig = next((c for c in ("omega", "theta") if log.has(c) and c not in log.derived), None)
     if sig is None:
         return False

@@ -88,3 +88,30 @@ def test_a_mechanical_time_constant_shorter_than_any_motor_names_the_time_unit(r
         gate_result(truth_model({**vals, "J": vals["J"] * 1e-3, "L": vals["L"] * 1e-3}), [fast])
     slow = Log.from_arrays(t * 20, v=u, omega=om, name="slow.csv")  # 20 ms samples
     gate_result(truth_model({**vals, "J": 1e-6}), [slow])
+
+
+@pytest.mark.parametrize("levels", [(6.0,), (3.0, 6.0, 9.0)])
+def test_a_voltage_in_millivolts_is_refused_where_a_drivers_drop_is_not(rng, levels):
+    """The paper's motor stepped to one or three levels, its current and speed logged: v in mV
+    (x 1000) is refused by the back-EMF balance; a driver that drops 2 V of each command
+    (logged as commanded) and the true volts pass."""
+    from pmdcid.errors import LogError
+    from pmdcid.identify.plausibility import gate
+
+    vals = {"R": 2.3724, "L": 17.7933e-3, "km": 50.2e-3, "J": 3.10442e-3, "bv": 0.0314,
+            "bc": 0.005, "dz": 6.35e-3}
+    t = np.arange(3000 * len(levels)) * 1e-3
+    u = np.zeros_like(t)
+    for k, lv in enumerate(levels):
+        u[(t >= 3.0 * k + 0.2)] = lv
+
+    def log(cmd, applied, name):
+        sim = simulate_values(t, applied, {**neutral_values(), **vals})
+        return Log.from_arrays(t, v=cmd, i=sim.i + rng.normal(0, 0.005, t.size),
+                               omega=sim.omega + rng.normal(0, 0.05, t.size), name=name)
+
+    km, R = vals["km"], vals["R"]
+    gate([log(u, u, "volts.csv")], km=km, R=R)
+    gate([log(u, np.where(u > 0, u - 2.0, 0.0), "drop.csv")], km=km, R=R)
+    with pytest.raises(LogError, match=r"mv\.csv: the back-EMF v - R\*i .* km\*omega.*in mV"):
+        gate([log(1000 * u, u, "mv.csv")], km=km, R=R)
