@@ -387,11 +387,9 @@ def _fast_tau_message(model, logs) -> str | None:
     dt = min(log.dt for log in logs)
     if not RESOLVED_SAMPLES * dt < tau < MIN_TAU_MECHANICAL:
         return None
-    longest = max(float(log.t[-1] - log.t[0]) for log in logs)
-    return (f"the fitted mechanical time constant J/(b+km^2/R) = {tau:.3g} s is shorter than "
-            f"any motor's (> {MIN_TAU_MECHANICAL:g} s), and the logs resolve it (sample period "
-            f"{dt:.3g} s, the longest log {longest:.3g} s): t looks scaled too small; a t in "
-            "seconds needs no mapping, one in ms -c t=COLUMN*ms")
+    return (f"the fitted mechanical time constant {tau:.3g} s, {tau / dt:.0f} samples of "
+            f"{dt:.3g} s, is shorter than any motor's ({1e3 * MIN_TAU_MECHANICAL:g} ms): t is "
+            "scaled too small (t in seconds needs no -c t=COLUMN*ms)")
 
 
 def _tau_gate(model, logs, force: bool) -> None:
