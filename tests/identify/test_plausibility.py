@@ -84,7 +84,7 @@ def test_a_mechanical_time_constant_shorter_than_any_motor_names_the_time_unit(r
     gate_result(truth_model(vals), [Log.from_arrays(t, v=u, omega=om, name="s.csv")])
     fast = Log.from_arrays(t * 1e-3, v=u, omega=om, name="ms.csv")
     with pytest.raises(LogError, match=r"ms\.csv: the fitted mechanical time constant .* "
-                                       "shorter than any motor's.*t looks scaled too small"):
+                                       "shorter than any motor.s.*t is scaled too small"):
         gate_result(truth_model({**vals, "J": vals["J"] * 1e-3, "L": vals["L"] * 1e-3}), [fast])
     slow = Log.from_arrays(t * 20, v=u, omega=om, name="slow.csv")  # 20 ms samples
     gate_result(truth_model({**vals, "J": 1e-6}), [slow])
