@@ -49,7 +49,9 @@ UNIT_RATIOS: tuple[tuple[float, str], ...] = (
     (math.pi / 180.0, "theta looks like degrees: map it with -c theta=COLUMN*deg"),
     (1.0 / (2 * math.pi), "omega looks like rev/s: map it with -c omega=COLUMN*rps"),
     (2 * math.pi, "theta looks like revolutions: map it with -c theta=COLUMN*rev"),
-    (1e-3, "theta looks like milli-units (mm, mrad): map it with -c theta=COLUMN*1e-3"),
+    (1e-3, "theta looks like milli-units (mm, mrad): map it with -c theta=COLUMN*1e-3, or t is "
+           "scaled 1000 x too small (a t in s mapped with *ms)"),
+    (1e-6, "t is scaled 1e6 x too small (a t in s mapped with *us), or theta is in micro-units"),
     (1e3, "omega looks like milli-units per second (-c omega=COLUMN*1e-3), or t is in ms "
           "(-c t=COLUMN*ms)"),
     (1e6, "t looks like microseconds: map it with -c t=COLUMN*us"),

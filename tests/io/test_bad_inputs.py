@@ -1092,7 +1092,10 @@ def test_no_warning_on_real_emps_logs():
 
 
 @pytest.mark.parametrize("scale, unit", [(60 / (2 * np.pi), "rpm"), (180 / np.pi, "deg/s"),
-                                         (1 / (2 * np.pi), "rev/s"), (1e3, "milli")])
+                                         (1 / (2 * np.pi), "rev/s"), (1e3, "milli"),
+                                         (1e-3, r"t is scaled 1000 x too small \(a t in s "
+                                                r"mapped with \*ms\)"),
+                                         (1e-6, r"t is scaled 1e6 x too small")])
 def test_speed_unit_named(scale, unit, rng):
     from pmdcid.errors import PmdcidWarning
     from pmdcid.io.checks import check_speed_units
