@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from pmdcid.errors import LogError, short_list, warn
+from pmdcid.io.checks import held_glitches
+from pmdcid.io.clock import INPUTS
 from pmdcid.io.mapping import CANONICAL, SETPOINTS, ColumnMap, parse_mapping
 
 
@@ -149,6 +151,8 @@ def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
     clock = examine(t, path)
     for canon in list(data):
         data[canon] = fill_nans(canon, data[canon], path)
+    for canon in set(INPUTS) & set(data):
+        data[canon] = held_glitches(canon, data[canon], path)
     extra = {c: x for c, x in (extra or {}).items() if np.isfinite(x).all()}
     extra.update({c: data.pop(c) for c in SETPOINTS if c in data})  # mapped set-points
     if not clock.uniform:

@@ -202,3 +202,38 @@ def check_speed_units(omega: np.ndarray, theta: np.ndarray, dt: float, path: str
                 "check the units and scales of both columns")
     warn(f"omega is {k:.4g} x d(theta)/dt, where it should equal it: {hint}", path)
     return k
+
+
+#: an input sample this many times the rest's range beyond it (in a run of at most
+#: GLITCH_RUN samples) is a logging glitch, not a command
+GLITCH_SPANS = 3.0
+GLITCH_RUN = 2
+
+
+def held_glitches(name: str, x: np.ndarray, path: str) -> np.ndarray:
+    """The input column ``x`` (``v`` [V] or ``tau`` [N m]) with isolated glitches held at the
+    value before them (a warning names them): a run of at most :data:`GLITCH_RUN` samples more
+    than :data:`GLITCH_SPANS` times the rest's range (0.5 to 99.5 %) outside that range, where
+    the rest varies (a log at rest but for a short kick, an impulse test, is left alone). A
+    drive holds each command it is given, so a serial glitch of 100 V in a 0-2 V log would
+    otherwise be simulated as a kick, and hide the log's steps."""
+    lo, hi = np.percentile(x, [0.5, 99.5])
+    span = float(hi - lo)
+    if not span > 0:
+        return x
+    out = (x < lo - GLITCH_SPANS * span) | (x > hi + GLITCH_SPANS * span)
+    if not out.any():
+        return x
+    edges = np.diff(np.concatenate(([0], out.view(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    short = [(a, e) for a, e in zip(starts, ends, strict=True) if e - a <= GLITCH_RUN]
+    if not short:
+        return x
+    y = x.copy()
+    for a, e in short:
+        y[a:e] = y[a - 1] if a > 0 else y[e] if e < len(y) else y[a]
+    a = short[0][0]
+    warn(f"column '{name}': {len(short)} isolated glitch(es) far outside its range "
+         f"{lo:.4g} to {hi:.4g} (e.g. {x[a]:.4g} at data row {a + 1}) held at the value before "
+         "them: a drive holds its command; remove those rows if they were real", path)
+    return y

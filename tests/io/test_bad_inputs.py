@@ -1152,3 +1152,30 @@ def test_a_settled_speed_in_whole_counts_is_no_rail():
     slow = np.round(np.minimum(np.linspace(0, 30, 500), 20.0))  # 1 count per 17 rows, clipped
     with pytest.warns(PmdcidWarning, match="maximum 20"):
         assert check_saturation(slow, "omega", "x.csv")
+
+
+def test_an_input_glitch_is_held_and_said_where_a_kick_or_a_pulse_is_not(rng):
+    """A serial glitch of 100 V in a 0-2 V staircase is held at the value before it (a drive
+    holds its command) with a warning naming its row; a 2-sample kick on a log otherwise at 0
+    V (an impulse test) and a 10-sample pulse beyond the rest's range are left alone."""
+    import warnings
+
+    from pmdcid.errors import PmdcidWarning
+    from pmdcid.io import Log
+
+    t = np.arange(3000) * 1e-3
+    u = np.where(t < 1.0, 0.0, np.where(t < 2.0, 1.0, 2.0))
+    glitch = u.copy()
+    glitch[1500] = 100.0
+    with pytest.warns(PmdcidWarning, match=r"'v': 1 isolated glitch.*100 at data row 1501"):
+        log = Log.from_arrays(t, v=glitch, omega=rng.normal(0, 0.01, t.size), name="g.csv")
+    assert np.array_equal(log.u, u)
+    kick = np.zeros_like(t)
+    kick[100:102] = 12.0
+    pulse = u.copy()
+    pulse[2500:2510] = 40.0
+    for x in (kick, pulse):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", PmdcidWarning)
+            log = Log.from_arrays(t, v=x, omega=rng.normal(0, 0.01, t.size), name="k.csv")
+        assert np.array_equal(log.u, x)
