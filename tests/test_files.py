@@ -15,6 +15,7 @@ from click.testing import CliRunner
 import pmdcid
 from pmdcid import api
 from pmdcid.cli import main
+from pmdcid.errors import LogError
 from pmdcid.identify.runners import apply_stage, fit_stage, stage_mechanical
 from pmdcid.io.logs import write_log
 from pmdcid.model.lumped import is_lumped
@@ -79,3 +80,39 @@ def test_file_options_go_with_the_file(tmp_path):
     with pytest.raises(TypeError, match="model"):
         api.fit_electrical(str(PAPER_DIR / "blocked_1.5V.csv"), pmdcid.Model(), update=True)
     assert not list(tmp_path.iterdir())
+
+
+def test_identify_refuses_a_report_file_it_did_not_write_before_any_work(tmp_path, monkeypatch):
+    """identify -o DIR: a report.html pmdcid did not write was refused only after the whole
+    identification; now before it, and --force (identify's) replaces it."""
+    import pmdcid.pipeline
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("identify ran before its outputs were checked")
+
+    monkeypatch.setattr(pmdcid.pipeline, "identify", no_work)
+    (tmp_path / "rep").mkdir()
+    (tmp_path / "rep" / "report.html").write_text("<html>mine</html>")
+    res = CliRunner().invoke(main, ["identify", str(PAPER_DIR / "step_1.0V.csv"), "-m",
+                                    str(tmp_path / "m.json"), "-o", str(tmp_path / "rep")])
+    lines = res.stderr.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    assert "report.html: exists and was not written by pmdcid" in lines[0]
+    assert (tmp_path / "rep" / "report.html").read_text() == "<html>mine</html>"
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_simulate_into_a_folder_checks_every_output_first(tmp_path):
+    from pmdcid.files import simulate_files
+
+    ins = [str(PAPER_DIR / "step_1.0V.csv"), str(PAPER_DIR / "step_2.0V.csv")]
+    out = tmp_path / "sims"
+    out.mkdir()
+    (out / "step_2.0V.csv").write_text("t,v\n0,1\n")  # the user's own file
+    with pytest.raises(LogError, match="step_2.0V.csv: exists and was not written"):
+        simulate_files(ins, str(PAPER_DIR / "truth.json"), str(out))
+    assert sorted(p.name for p in out.iterdir()) == ["step_2.0V.csv"]  # step_1.0V not written
+    twice = [ins[0], str(tmp_path / "step_1.0V.csv")]
+    shutil.copy(ins[0], twice[1])
+    with pytest.raises(LogError, match="two INPUTs are named step_1.0V.csv"):
+        simulate_files(twice, str(PAPER_DIR / "truth.json"), str(out))

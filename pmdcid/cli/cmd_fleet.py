@@ -26,8 +26,12 @@ from pmdcid.cli.options import FiniteFloat, log_options
                                    "pass and failed to units.parquet.")
 @click.option("--no-diagnose", is_flag=True,
               help="Skip each unit's effect search after its joint fit (faster).")
+@click.option("--force", is_flag=True,
+              help="Replace a units.parquet, outliers.csv or fleet.html in DIR that pmdcid "
+                   "did not write.")
 @log_options
-def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnose, mapping):
+def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnose, force,
+              mapping):
     """Identify every unit of a fleet on a Dask cluster: DIR/units.parquet, DIR/outliers.csv,
     DIR/fleet.html."""
     from pmdcid import api
@@ -36,7 +40,8 @@ def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnos
         raise click.UsageError("--workers sizes the local cluster; with --scheduler the "
                                "cluster's own workers run the units")
     res = api.run_fleet(manifest, out_dir, scheduler=scheduler, workers=workers, km=km,
-                    limits=limits_path, diagnose=not no_diagnose, mapping=mapping or None)
+                        limits=limits_path, diagnose=not no_diagnose, mapping=mapping or None,
+                        force=force)
     echo(res.table())
     for w in res.warnings:
         echo(f"warning: {w}", err=True)

@@ -20,7 +20,8 @@ from pmdcid.cli.options import FiniteFloat, controller_option, log_options, mode
               help="Later stages use their own logs alone (default: combined with what the "
                    "earlier stages determined).")
 @click.option("--force", is_flag=True,
-              help="Write the model even when the plausibility checks refuse the logs' units.")
+              help="Write the model even when the plausibility checks refuse the logs' units, "
+                   "and replace a report file in DIR that pmdcid did not write.")
 @controller_option("Closed-loop logs: the controller that ran them (see fit-nonlinear); the "
                    "rich logs' fits simulate the loop from the logged reference.")
 @log_options
