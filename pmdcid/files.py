@@ -19,6 +19,7 @@ inside the functions, so that a command loads what it needs and no more.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -49,7 +50,53 @@ def logs_of(logs, name: str = "logs", mapping=None, defer: bool = False) -> list
                             f"{type(lg).__name__}")
     if not logs:
         raise LogError("no logs given")
+    refuse_repeated_logs(logs)
     return [lg if isinstance(lg, Log) else read_log(lg, mapping, defer) for lg in logs]
+
+
+def _content_hash(path: str) -> str | None:
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except OSError:
+        return None  # read_log says what is wrong with it
+    return h.hexdigest()
+
+
+def _same_log(a: str, b: str) -> str | None:
+    """How the log file ``b`` repeats ``a`` (said in the error), or None. Contents are only
+    compared between files of one size."""
+    if same_file(a, b, planned=True):
+        return "given twice" if a == b else f"the same file as {a}, given twice"
+    try:
+        if not (os.path.isfile(a) and os.path.isfile(b)) or (
+                os.path.getsize(a) != os.path.getsize(b)):
+            return None
+    except OSError:
+        return None
+    ha = _content_hash(a)
+    return (f"a copy of {a} (identical content)" if ha is not None and ha == _content_hash(b)
+            else None)
+
+
+def refuse_repeated_logs(logs) -> None:
+    """One log given twice -- the same file under two names (``log1.csv ./log1.csv``), a copy
+    of it (identical bytes) or one Log object twice -- would be counted twice and the standard
+    errors understated: a one-line :class:`LogError` naming the repeat, before any work."""
+    for k, lg in enumerate(logs):
+        for earlier in logs[:k]:
+            if lg is earlier and not isinstance(lg, (str, os.PathLike)):
+                raise LogError("the same Log is given twice: its data would count twice "
+                               "(standard errors too small); give each log once",
+                               getattr(lg, "path", None))
+            if not (isinstance(lg, (str, os.PathLike)) and isinstance(earlier, (str, os.PathLike))):
+                continue
+            how = _same_log(os.fspath(earlier), os.fspath(lg))
+            if how is not None:
+                raise LogError(f"{how}: its data would count twice (standard errors too "
+                               "small); give each log once", os.fspath(lg))
 
 
 def model_of(model, name: str = "model", must_exist: bool = True):
