@@ -46,6 +46,12 @@ class LogError(PmdcidError):
     """A log file cannot be read or does not carry what a command needs."""
 
 
+class MappingError(LogError):
+    """A column mapping given as text (``-c CANON=SOURCE...``) that does not parse, found only
+    when it is read against a log's names (a right-hand side holding ``/`` may be a signal's
+    name): the option's value is at fault, and the command line says so as a usage error."""
+
+
 class ModelError(PmdcidError):
     """A model file is missing, malformed, or lacks parameters a stage needs."""
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main
-from pmdcid.cli.options import FiniteFloat, log_options
+from pmdcid.cli.options import INPUT_FILE, FiniteFloat, log_options
 
 
 @main.command("fleet")
-@click.argument("manifest", type=click.Path(dir_okay=False), metavar="MANIFEST")
+@click.argument("manifest", type=INPUT_FILE, metavar="MANIFEST")
 @click.option("-o", "--output", "out_dir", type=click.Path(), required=True, metavar="DIR",
               help="Folder for units.parquet, outliers.csv, fleet.html (and the results/ "
                    "journal a rerun resumes from).")
@@ -21,7 +21,7 @@ from pmdcid.cli.options import FiniteFloat, log_options
               help="Worker processes of the local cluster (default: the CPUs).")
 @click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
               help="Torque constant [N m/A] (datasheet) every unit uses.")
-@click.option("--limits", "limits_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--limits", "limits_path", type=INPUT_FILE, default=None,
               metavar="FILE", help='End-of-line limits, JSON {"R": [min, max], ...}: adds '
                                    "pass and failed to units.parquet.")
 @click.option("--no-diagnose", is_flag=True,

@@ -8,15 +8,15 @@ import sys
 import click
 
 from pmdcid.cli import echo, main
-from pmdcid.cli.options import FiniteFloat, log_options
+from pmdcid.cli.options import INPUT_FILE, FiniteFloat, log_options
 
 #: largest budget x rate a plan simulates (samples): 2e7 is 5.5 h at 1 kHz, ~1 GB of sensitivities
 MAX_PLAN_SAMPLES = 2e7
 
 
 @main.command("plan")
-@click.argument("logs", nargs=-1, metavar="[LOG...]", type=click.Path(dir_okay=False))
-@click.option("-m", "--model", "model_path", type=click.Path(dir_okay=False), metavar="MODEL",
+@click.argument("logs", nargs=-1, metavar="[LOG...]", type=INPUT_FILE)
+@click.option("-m", "--model", "model_path", type=INPUT_FILE, metavar="MODEL",
               help="Model file (JSON) the plan is designed for (read only).")
 @click.option("--guess", is_flag=True,
               help="No model yet: a short, safe first experiment (small steps, a slow ramp).")
