@@ -293,14 +293,15 @@ def report(logs, model, out_dir, *, summary=None, before=None, progress=None, ma
 def plan(model=None, out_dir=None, *, vmax: float | None = None, taumax: float | None = None,
          speed_max: float | None = None, rate: float = 1000.0, budget: float = 120.0,
          noise_omega: float | None = None, noise_i: float | None = None,
-         command: str = "pmdcid.plan(...)"):
+         command: str = "pmdcid.plan(...)", force: bool = False):
     """Input profiles to record, as ``pmdcid plan``: for ``model`` (a Model or a model file's
     path), or, with ``model=None``, a first safe experiment (``--guess``: give ``vmax`` [V] or
     ``taumax`` [N m]). ``speed_max`` [rad/s]: the largest speed the motion may reach; ``rate``
     [Hz]: sampling and input hold rate; ``budget`` [s]: total recording time; ``noise_omega``
     [rad/s] and ``noise_i`` [A]: the sensors' noise std (None: defaults). With ``out_dir`` the
     profiles (CSV), plan.json and plan.md are written there (``command``: how plan.md says the
-    plan was made). Returns the
+    plan was made); a file there that pmdcid plan did not write (a recorded log named like a
+    profile, your own plan.md) is refused before any work unless ``force``. Returns the
     :class:`~pmdcid.plan.design.Plan` (``.profiles``, ``.stderr``: predicted standard errors)."""
     from pmdcid.errors import PmdcidError
     from pmdcid.plan.design import plan_for_model
@@ -312,10 +313,10 @@ def plan(model=None, out_dir=None, *, vmax: float | None = None, taumax: float |
                           "the rig may take")
     settings = _plan_settings(vmax, taumax, speed_max, rate, budget, noise_omega, noise_i)
     if out_dir is not None:
-        check_out_dir(out_dir)
+        check_out_dir(out_dir, force=force)
     out = guess_plan(settings) if model is None else plan_for_model(_model(model), settings)
     if out_dir is not None:
-        write_plan(out, out_dir, command)
+        write_plan(out, out_dir, command, force)
     return out
 
 
@@ -337,11 +338,12 @@ def _plan_settings(vmax, taumax, speed_max, rate, budget, noise_omega, noise_i):
 def check_plan(logs, model, out_dir=None, *, vmax: float | None = None,
                taumax: float | None = None, speed_max: float | None = None,
                rate: float = 1000.0, budget: float = 120.0, noise_omega: float | None = None,
-               noise_i: float | None = None, mapping=None):
+               noise_i: float | None = None, mapping=None, force: bool = False):
     """What recorded ``logs`` can identify of ``model``, as ``pmdcid plan --check``: the
     predicted standard errors, the parameters they leave undetermined, which of diagnose's
     effects they could test and what to record for the others (docs/plan.md). With
-    ``out_dir``, check.json is written there. Options as :func:`plan`. Returns the check's
+    ``out_dir``, check.json is written there (one pmdcid did not write refused unless
+    ``force``). Options as :func:`plan`. Returns the check's
     result (``.lines()``: the text, ``.as_dict()``: check.json)."""
     import json
 
@@ -351,7 +353,7 @@ def check_plan(logs, model, out_dir=None, *, vmax: float | None = None,
 
     settings = _plan_settings(vmax, taumax, speed_max, rate, budget, noise_omega, noise_i)
     if out_dir is not None:
-        check_out_dir(out_dir)
+        check_out_dir(out_dir, ["check.json"], force)
     res = check_logs(_checked_logs(logs, mapping), _model(model), settings)
     if out_dir is not None:
         with output_folder(out_dir) as d:

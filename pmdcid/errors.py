@@ -34,16 +34,25 @@ def short_list(names, limit: int = 12) -> str:
 class PmdcidError(Exception):
     """A problem with the user's data, files or model: one clear line, names the file if any."""
 
-    def __init__(self, message: str, path: str | None = None):
+    def __init__(self, message: str, path: str | None = None, limit: int = MAX_MESSAGE):
         self.path = str(path) if path is not None else None
         if self.path is not None and len(self.path) > 120:
             self.path = self.path[:60] + "..." + self.path[-57:]
+        #: the longest line the message may be (more than MAX_MESSAGE only for a message made
+        #: of several bounded reasons, each of which says what to do: identify's)
+        self.limit = limit
         text = f"{self.path}: {message}" if self.path else str(message)
-        super().__init__(one_line(text))
+        super().__init__(one_line(text, limit))
 
 
 class LogError(PmdcidError):
     """A log file cannot be read or does not carry what a command needs."""
+
+
+class MappingError(LogError):
+    """A column mapping given as text (``-c CANON=SOURCE...``) that does not parse, found only
+    when it is read against a log's names (a right-hand side holding ``/`` may be a signal's
+    name): the option's value is at fault, and the command line says so as a usage error."""
 
 
 class ModelError(PmdcidError):

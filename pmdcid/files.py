@@ -19,6 +19,7 @@ inside the functions, so that a command loads what it needs and no more.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -49,7 +50,53 @@ def logs_of(logs, name: str = "logs", mapping=None, defer: bool = False) -> list
                             f"{type(lg).__name__}")
     if not logs:
         raise LogError("no logs given")
+    refuse_repeated_logs(logs)
     return [lg if isinstance(lg, Log) else read_log(lg, mapping, defer) for lg in logs]
+
+
+def _content_hash(path: str) -> str | None:
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except OSError:
+        return None  # read_log says what is wrong with it
+    return h.hexdigest()
+
+
+def _same_log(a: str, b: str) -> str | None:
+    """How the log file ``b`` repeats ``a`` (said in the error), or None. Contents are only
+    compared between files of one size."""
+    if same_file(a, b, planned=True):
+        return "given twice" if a == b else f"the same file as {a}, given twice"
+    try:
+        if not (os.path.isfile(a) and os.path.isfile(b)) or (
+                os.path.getsize(a) != os.path.getsize(b)):
+            return None
+    except OSError:
+        return None
+    ha = _content_hash(a)
+    return (f"a copy of {a} (identical content)" if ha is not None and ha == _content_hash(b)
+            else None)
+
+
+def refuse_repeated_logs(logs) -> None:
+    """One log given twice -- the same file under two names (``log1.csv ./log1.csv``), a copy
+    of it (identical bytes) or one Log object twice -- would be counted twice and the standard
+    errors understated: a one-line :class:`LogError` naming the repeat, before any work."""
+    for k, lg in enumerate(logs):
+        for earlier in logs[:k]:
+            if lg is earlier and not isinstance(lg, (str, os.PathLike)):
+                raise LogError("the same Log is given twice: its data would count twice "
+                               "(standard errors too small); give each log once",
+                               getattr(lg, "path", None))
+            if not (isinstance(lg, (str, os.PathLike)) and isinstance(earlier, (str, os.PathLike))):
+                continue
+            how = _same_log(os.fspath(earlier), os.fspath(lg))
+            if how is not None:
+                raise LogError(f"{how}: its data would count twice (standard errors too "
+                               "small); give each log once", os.fspath(lg))
 
 
 def model_of(model, name: str = "model", must_exist: bool = True):
@@ -212,11 +259,13 @@ def run_identify(logs, model_path, out_dir=None, mapping=None, km=None, run_diag
 
     _refuse_model_over_a_log(logs, model_path)
     if out_dir is not None:
-        from pmdcid.report import check_out_dir
+        from pmdcid.report import check_out_dir, check_report_outputs
 
         check_out_dir(out_dir)
     model = load_model(model_path, must_exist=False)
     read = logs_of(logs, mapping=mapping, defer=True)
+    if out_dir is not None:  # a file in DIR pmdcid did not write: refused before the work
+        check_report_outputs(out_dir, read, force)
     gate(read, force, _value(model, "km", km), _value(model, "R"))
     with bounded_for(model_path):
         res = identify(read, model, km=km, run_diagnose=run_diagnose, priors=priors,
@@ -228,11 +277,11 @@ def run_identify(logs, model_path, out_dir=None, mapping=None, km=None, run_diag
     gate_result(res.model, read, force)
     with locked(model_path):
         save_model(res.model, model_path)
-    _identify_report(res, read, out_dir, progress)
+    _identify_report(res, read, out_dir, progress, force)
     return res
 
 
-def _identify_report(res, logs, out_dir, progress) -> None:
+def _identify_report(res, logs, out_dir, progress, force=False) -> None:
     if out_dir is None:
         return
     if not res.model.has("J"):
@@ -245,7 +294,7 @@ def _identify_report(res, logs, out_dir, progress) -> None:
     summary = res.diagnose.summary if res.diagnose is not None else None
     shown = [lg for lg, p in zip(logs, res.plan, strict=True) if p.kind != "unused"]
     res.report_dir = make_report(shown, res.model, out_dir, summary=summary,
-                                 progress=progress).out_dir
+                                 progress=progress, force=force).out_dir
 
 
 def run_report(logs, model, out_dir, summary=None, before=None, mapping=None, progress=None,
@@ -275,6 +324,12 @@ def _is_ours(path: str) -> bool:
     return f"# generator: {GENERATOR}" in head
 
 
+def _refuse_foreign(output, force: bool) -> None:
+    """An existing ``output`` pmdcid did not write is kept unless ``force``."""
+    if os.path.exists(output) and not force and not _is_ours(output):
+        raise LogError("exists and was not written by pmdcid; use --force to overwrite it", output)
+
+
 def simulate_file(input_path, model_path, output, mapping=None, noise=None, seed=None,
                   blocked: bool = False, force: bool = False, x0=None, controller=None) -> str:
     """``pmdcid simulate``: read INPUT's t and v/tau, simulate MODEL
@@ -288,8 +343,7 @@ def simulate_file(input_path, model_path, output, mapping=None, noise=None, seed
     for src, what in ((input_path, "input log"), (model_path, "model file")):
         if input_at(output, [src]):
             raise LogError(f"output would overwrite the {what}; choose another -o", output)
-    if os.path.exists(output) and not force and not _is_ours(output):
-        raise LogError("exists and was not written by pmdcid; use --force to overwrite it", output)
+    _refuse_foreign(output, force)
     log = read_log(input_path, mapping)
     log.drive  # noqa: B018 - raises a clear error when neither v nor tau is present
     model = load_model(model_path)
@@ -325,6 +379,12 @@ def simulate_files(input_paths: list[str], model_path, out_dir, **opts) -> list[
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise LogError("is a file, not a folder: with several INPUTs, -o names a folder", str(out))
+    names = [Path(src).name for src in input_paths]
+    for k, src in enumerate(input_paths):  # every output checked before the first simulation
+        if names[k] in names[:k]:
+            raise LogError(f"two INPUTs are named {names[k]}: both would be written to "
+                           f"{out / names[k]}; rename one", src)
+        _refuse_foreign(str(out / names[k]), opts.get("force", False))
     with output_folder(out):  # removed again if the first write fails
         return [simulate_file(src, model_path, str(out / Path(src).name), **opts)
                 for src in input_paths]

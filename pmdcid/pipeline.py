@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.errors import MAX_MESSAGE, FitError, LogError, PmdcidError, short_list
+from pmdcid.errors import MAX_MESSAGE, FitError, LogError, PmdcidError, one_line, short_list
 from pmdcid.fit.results import ResultProtocol, notes_of
 from pmdcid.identify.nonlinear_setup import MIN_SAMPLES, closed_loop_logs
 from pmdcid.identify.plausibility import (
@@ -432,13 +432,12 @@ def _require_mechanics(res: IdentifyResult, moving) -> None:
     half model, no guessed one)."""
     if _staged_mech(res):
         return
-    # each stage's reason shortened alike: the one-line limit would otherwise keep the first
-    # note and the end of the last, and drop the reasons between
-    budget = max(40, (MAX_MESSAGE - 110) // max(len(res.notes), 1))
-    said = "; ".join(n if len(n) <= budget else n[:budget - 3].rstrip() + "..."
-                     for n in res.notes) or "no stage gave J"
+    # each stage's whole reason (a stage's name and its one error line, bounded as such): its
+    # end says what to do (the speed's sign, the unit to map); the line is as long as they are
+    each = 2 * MAX_MESSAGE
+    said = "; ".join(one_line(n, each) for n in res.notes) or "no stage gave J"
     raise FitError("identify could not fit the mechanics (J, bv) from the moving logs: " + said,
-                   ", ".join(lg.path for lg in moving))
+                   ", ".join(lg.path for lg in moving), limit=each * (len(res.notes) + 1))
 
 
 def _free_running_electrical(res: IdentifyResult, moving, say) -> None:

@@ -15,6 +15,7 @@ from click.testing import CliRunner
 import pmdcid
 from pmdcid import api
 from pmdcid.cli import main
+from pmdcid.errors import LogError
 from pmdcid.identify.runners import apply_stage, fit_stage, stage_mechanical
 from pmdcid.io.logs import write_log
 from pmdcid.model.lumped import is_lumped
@@ -79,3 +80,68 @@ def test_file_options_go_with_the_file(tmp_path):
     with pytest.raises(TypeError, match="model"):
         api.fit_electrical(str(PAPER_DIR / "blocked_1.5V.csv"), pmdcid.Model(), update=True)
     assert not list(tmp_path.iterdir())
+
+
+def test_identify_refuses_a_report_file_it_did_not_write_before_any_work(tmp_path, monkeypatch):
+    """identify -o DIR: a report.html pmdcid did not write was refused only after the whole
+    identification; now before it, and --force (identify's) replaces it."""
+    import pmdcid.pipeline
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("identify ran before its outputs were checked")
+
+    monkeypatch.setattr(pmdcid.pipeline, "identify", no_work)
+    (tmp_path / "rep").mkdir()
+    (tmp_path / "rep" / "report.html").write_text("<html>mine</html>")
+    res = CliRunner().invoke(main, ["identify", str(PAPER_DIR / "step_1.0V.csv"), "-m",
+                                    str(tmp_path / "m.json"), "-o", str(tmp_path / "rep")])
+    lines = res.stderr.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    assert "report.html: exists and was not written by pmdcid" in lines[0]
+    assert (tmp_path / "rep" / "report.html").read_text() == "<html>mine</html>"
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_simulate_into_a_folder_checks_every_output_first(tmp_path):
+    from pmdcid.files import simulate_files
+
+    ins = [str(PAPER_DIR / "step_1.0V.csv"), str(PAPER_DIR / "step_2.0V.csv")]
+    out = tmp_path / "sims"
+    out.mkdir()
+    (out / "step_2.0V.csv").write_text("t,v\n0,1\n")  # the user's own file
+    with pytest.raises(LogError, match="step_2.0V.csv: exists and was not written"):
+        simulate_files(ins, str(PAPER_DIR / "truth.json"), str(out))
+    assert sorted(p.name for p in out.iterdir()) == ["step_2.0V.csv"]  # step_1.0V not written
+    twice = [ins[0], str(tmp_path / "step_1.0V.csv")]
+    shutil.copy(ins[0], twice[1])
+    with pytest.raises(LogError, match="two INPUTs are named step_1.0V.csv"):
+        simulate_files(twice, str(PAPER_DIR / "truth.json"), str(out))
+
+
+@pytest.mark.parametrize("second", ["./step.csv", "step.csv", "copy.csv"],
+                         ids=["another-name", "same-name", "a-copy"])
+@pytest.mark.parametrize("command", [["fit-mechanical", "--km", "0.05"], ["identify"],
+                                     ["report", "-o", "rep"]])
+def test_a_log_given_twice_is_refused(paper_step, second, command):
+    """identify log1.csv log1.csv (or ./log1.csv, or a copy) counted the data twice: standard
+    errors too small by sqrt(2). Refused in the one place every command reads its logs."""
+    shutil.copy(paper_step / "step.csv", paper_step / "copy.csv")
+    before = (paper_step / "m.json").read_bytes()
+    res = CliRunner().invoke(main, [command[0], "step.csv", second, "-m", "m.json",
+                                    *command[1:]])
+    lines = res.stderr.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    assert lines[0].startswith(f"error: {second}: ") and "give each log once" in lines[0]
+    assert "step.csv" in lines[0].split(": ", 2)[2] or second == "step.csv"
+    assert (paper_step / "m.json").read_bytes() == before
+
+
+def test_the_same_log_object_twice_is_refused():
+    lg = pmdcid.Log.from_csv(PAPER_DIR / "step_1.0V.csv")
+    with pytest.raises(LogError, match="given twice"):
+        api.fit_mechanical([lg, lg], pmdcid.Model(), km=0.05)
+    other = pmdcid.Log.from_csv(PAPER_DIR / "step_2.0V.csv")  # different logs pass the check
+    from pmdcid.files import refuse_repeated_logs
+
+    refuse_repeated_logs([lg, other, str(PAPER_DIR / "step_1.0V.csv"),
+                          str(PAPER_DIR / "step_2.0V.csv")])

@@ -625,8 +625,9 @@ def test_a_stage_result_outside_physical_bounds_is_never_the_next_stages_start(m
 
 def test_no_mechanics_says_every_stages_reason_within_one_line():
     """identify without J names what each stage said. The one-line limit kept the first note
-    and the end of the last ("... ; join ... oves there)"): a reason between was lost. Each
-    note is now shortened alike, its head (stage and reason) kept."""
+    and the end of the last ("... ; join ... oves there)"): a reason between was lost. Then
+    each note was shortened alike, and the fix at its end lost: now each is whole, on one
+    line longer than MAX_MESSAGE."""
     import pmdcid.pipeline as pl
     from pmdcid.errors import MAX_MESSAGE, FitError
 
@@ -636,5 +637,22 @@ def test_no_mechanics_says_every_stages_reason_within_one_line():
     with pytest.raises(FitError) as exc:
         pl._require_mechanics(res, [Log("step.csv", np.arange(3.0), {"v": np.ones(3)})])
     text = str(exc.value)
-    assert len(text) <= MAX_MESSAGE and " ... " not in text
-    assert all(f"{s}: skipped: step.csv: a long" in text for s in stages), text
+    assert len(text) > MAX_MESSAGE and " ... " not in text and "\n" not in text
+    assert all(n.strip() in text for n in notes), text
+
+
+def test_identify_s_error_keeps_each_stage_s_whole_reason(tmp_path):
+    """identify's one error line joined the stages' reasons each cut to ~60 characters
+    ("fit-mechanical: skipped: log1.csv, log2.csv: the steps give...;"), losing the fix the
+    reason ends with (-c omega=COLUMN*-1 for a speed logged with the wrong sign)."""
+    step = FIXTURES / "paper" / "step_1.0V.csv"
+    res = CliRunner().invoke(main, ["identify", str(step), "-m", str(tmp_path / "m.json"),
+                                    "--km", "0.0502", "--no-diagnose",
+                                    "-c", "omega=omega*-1", "-c", "theta=theta*-1"])
+    lines = res.stderr.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    line = lines[0]
+    assert "identify could not fit the mechanics" in line
+    assert "(-c omega=COLUMN*-1), the input's offset, and km; " in line  # fit-mechanical's fix
+    assert line.endswith("run fit-mechanical first")  # the last stage's reason, whole
+    assert "...;" not in line and not (tmp_path / "m.json").exists()

@@ -59,12 +59,12 @@ class _Group(click.Group):
     command's warnings printed only when it succeeds: :class:`_Warnings`)."""
 
     def invoke(self, ctx):
-        from pmdcid.errors import PmdcidError, PmdcidWarning
+        from pmdcid.errors import MAX_MESSAGE, PmdcidError, PmdcidWarning
         from pmdcid.errors import one_line as _one_line
         from pmdcid.io.escape import terminal
 
-        def one_line(text) -> str:  # shown safely first, then at most MAX_MESSAGE characters
-            return _one_line(terminal(str(text)))
+        def one_line(text, limit=MAX_MESSAGE) -> str:  # shown safely, then at most limit chars
+            return _one_line(terminal(str(text)), limit)
 
         from pmdcid.runtime.malloc import tune_malloc
         from pmdcid.runtime.outputs import transaction
@@ -90,7 +90,7 @@ class _Group(click.Group):
             click.echo(f"error: terminated ({exc.name}): nothing was written", err=True)
             sys.exit(128 + exc.signum)
         except PmdcidError as exc:
-            echo("error: " + one_line(str(exc)), err=True)  # always one short line
+            echo("error: " + one_line(str(exc), exc.limit), err=True)  # always one line
             sys.exit(1)
         except (click.exceptions.Abort, click.ClickException):
             raise

@@ -5,10 +5,11 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main
+from pmdcid.cli.options import INPUT_FILE
 
 
 @main.command("channels")
-@click.argument("log_file", metavar="FILE", type=click.Path(dir_okay=False))
+@click.argument("log_file", metavar="FILE", type=INPUT_FILE)
 @click.option("--json", "as_json", is_flag=True,
               help="Print a JSON list of {name, samples, rate_hz, unit} instead of a table.")
 def channels_cmd(log_file, as_json):

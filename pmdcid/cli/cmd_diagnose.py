@@ -5,11 +5,11 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main, progress_lines
-from pmdcid.cli.options import log_options, model_option
+from pmdcid.cli.options import INPUT_FILE, log_options, model_option
 
 
 @main.command("diagnose")
-@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=click.Path(dir_okay=False))
+@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=INPUT_FILE)
 @model_option(updated=False)
 @click.option("-o", "--output", "out_path", required=True, type=click.Path(dir_okay=False),
               metavar="NEW_MODEL", help="Where to write the model with the effects found "

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main
-from pmdcid.cli.options import FiniteFloat, controller_option, log_options, model_option
+from pmdcid.cli.options import INPUT_FILE, FiniteFloat, controller_option, log_options, model_option
 from pmdcid.model.spec import BASE_PARAMS
 
 #: --km within the bounds the model file accepts (a model the tool writes it must read back)
@@ -13,7 +13,7 @@ KM = FiniteFloat(min=0.0, min_open=True, max=BASE_PARAMS["km"].upper)
 FORCE = click.option("--force", is_flag=True,
                      help="Write the model even when the logs look implausible (a unit left "
                           "unmapped, a saturated sensor): the refusal becomes a warning.")
-LOGS = click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False),
+LOGS = click.argument("logs", nargs=-1, required=True, type=INPUT_FILE,
                       metavar="LOG...")
 
 

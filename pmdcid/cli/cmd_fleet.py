@@ -6,11 +6,11 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main
-from pmdcid.cli.options import FiniteFloat, log_options
+from pmdcid.cli.options import INPUT_FILE, FiniteFloat, log_options
 
 
 @main.command("fleet")
-@click.argument("manifest", type=click.Path(dir_okay=False), metavar="MANIFEST")
+@click.argument("manifest", type=INPUT_FILE, metavar="MANIFEST")
 @click.option("-o", "--output", "out_dir", type=click.Path(), required=True, metavar="DIR",
               help="Folder for units.parquet, outliers.csv, fleet.html (and the results/ "
                    "journal a rerun resumes from).")
@@ -21,13 +21,17 @@ from pmdcid.cli.options import FiniteFloat, log_options
               help="Worker processes of the local cluster (default: the CPUs).")
 @click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
               help="Torque constant [N m/A] (datasheet) every unit uses.")
-@click.option("--limits", "limits_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--limits", "limits_path", type=INPUT_FILE, default=None,
               metavar="FILE", help='End-of-line limits, JSON {"R": [min, max], ...}: adds '
                                    "pass and failed to units.parquet.")
 @click.option("--no-diagnose", is_flag=True,
               help="Skip each unit's effect search after its joint fit (faster).")
+@click.option("--force", is_flag=True,
+              help="Replace a units.parquet, outliers.csv or fleet.html in DIR that pmdcid "
+                   "did not write.")
 @log_options
-def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnose, mapping):
+def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnose, force,
+              mapping):
     """Identify every unit of a fleet on a Dask cluster: DIR/units.parquet, DIR/outliers.csv,
     DIR/fleet.html."""
     from pmdcid import api
@@ -36,7 +40,8 @@ def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnos
         raise click.UsageError("--workers sizes the local cluster; with --scheduler the "
                                "cluster's own workers run the units")
     res = api.run_fleet(manifest, out_dir, scheduler=scheduler, workers=workers, km=km,
-                    limits=limits_path, diagnose=not no_diagnose, mapping=mapping or None)
+                        limits=limits_path, diagnose=not no_diagnose, mapping=mapping or None,
+                        force=force)
     echo(res.table())
     for w in res.warnings:
         echo(f"warning: {w}", err=True)

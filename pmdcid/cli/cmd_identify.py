@@ -5,11 +5,11 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main, progress_lines
-from pmdcid.cli.options import FiniteFloat, controller_option, log_options, model_option
+from pmdcid.cli.options import INPUT_FILE, FiniteFloat, controller_option, log_options, model_option
 
 
 @main.command("identify")
-@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=click.Path(dir_okay=False))
+@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=INPUT_FILE)
 @model_option()
 @click.option("-o", "--output", "out_dir", type=click.Path(), default=None, metavar="DIR",
               help="Write the report (report.html, metrics.json, figures) into DIR.")
@@ -20,7 +20,8 @@ from pmdcid.cli.options import FiniteFloat, controller_option, log_options, mode
               help="Later stages use their own logs alone (default: combined with what the "
                    "earlier stages determined).")
 @click.option("--force", is_flag=True,
-              help="Write the model even when the plausibility checks refuse the logs' units.")
+              help="Write the model even when the plausibility checks refuse the logs' units, "
+                   "and replace a report file in DIR that pmdcid did not write.")
 @controller_option("Closed-loop logs: the controller that ran them (see fit-nonlinear); the "
                    "rich logs' fits simulate the loop from the logged reference.")
 @log_options

@@ -8,15 +8,15 @@ import sys
 import click
 
 from pmdcid.cli import echo, main
-from pmdcid.cli.options import FiniteFloat, log_options
+from pmdcid.cli.options import INPUT_FILE, FiniteFloat, log_options
 
 #: largest budget x rate a plan simulates (samples): 2e7 is 5.5 h at 1 kHz, ~1 GB of sensitivities
 MAX_PLAN_SAMPLES = 2e7
 
 
 @main.command("plan")
-@click.argument("logs", nargs=-1, metavar="[LOG...]", type=click.Path(dir_okay=False))
-@click.option("-m", "--model", "model_path", type=click.Path(dir_okay=False), metavar="MODEL",
+@click.argument("logs", nargs=-1, metavar="[LOG...]", type=INPUT_FILE)
+@click.option("-m", "--model", "model_path", type=INPUT_FILE, metavar="MODEL",
               help="Model file (JSON) the plan is designed for (read only).")
 @click.option("--guess", is_flag=True,
               help="No model yet: a short, safe first experiment (small steps, a slow ramp).")
@@ -39,9 +39,12 @@ MAX_PLAN_SAMPLES = 2e7
               metavar="A", help="Current noise std [A] (default 1 % of the top current).")
 @click.option("-o", "--output", "out_dir", type=click.Path(), default=None, metavar="DIR",
               help="Folder for the profiles, plan.json and plan.md (with --check: check.json).")
+@click.option("--force", is_flag=True,
+              help="Replace a file in DIR that pmdcid plan did not write (a profile's name, "
+                   "plan.json, plan.md, check.json).")
 @log_options
 def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budget, noise_omega,
-             noise_i, out_dir, mapping):
+             noise_i, out_dir, force, mapping):
     """Input profiles to record, and the standard error each parameter will have."""
     from pathlib import Path
 
@@ -69,14 +72,14 @@ def plan_cmd(logs, model_path, guess, check, vmax, taumax, speed_max, rate, budg
     options = dict(vmax=vmax, taumax=taumax, speed_max=speed_max, rate=rate, budget=budget,
                    noise_omega=noise_omega, noise_i=noise_i)
     if check:
-        res = api.check_plan(logs, model_path, out_dir, mapping=mapping, **options)
+        res = api.check_plan(logs, model_path, out_dir, mapping=mapping, force=force, **options)
         for line in res.lines():
             echo(line)
         if out_dir:
             echo(f"wrote {Path(out_dir) / 'check.json'}")
         return
     plan = api.plan(None if guess else model_path, out_dir, **options,
-                    command="pmdcid plan " + " ".join(sys.argv[2:]))
+                    command="pmdcid plan " + " ".join(sys.argv[2:]), force=force)
     echo(f"wrote {len(plan.profiles)} profiles ({plan.seconds:.1f} s) and plan.json, "
                f"plan.md into {out_dir}")
     for note in plan.notes:

@@ -5,17 +5,17 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main, progress_lines
-from pmdcid.cli.options import log_options, model_option
+from pmdcid.cli.options import INPUT_FILE, log_options, model_option
 
 
 @main.command("report")
-@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=click.Path(dir_okay=False))
+@click.argument("logs", nargs=-1, required=True, metavar="LOG...", type=INPUT_FILE)
 @model_option(updated=False)
 @click.option("-o", "--output", "out_dir", required=True, type=click.Path(), metavar="DIR",
               help="Folder for report.html, metrics.json and the figures (created).")
-@click.option("--summary", "summary_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--summary", "summary_path", type=INPUT_FILE, default=None,
               metavar="SUMMARY.json", help="A diagnose summary to show on the page.")
-@click.option("--before", "before_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--before", "before_path", type=INPUT_FILE, default=None,
               metavar="MODEL", help="Model to show as 'before' (default: MODEL without its "
                                     "effects, when it has any).")
 @click.option("--force", is_flag=True,

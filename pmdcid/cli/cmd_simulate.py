@@ -6,6 +6,7 @@ import click
 
 from pmdcid.cli import echo, main
 from pmdcid.cli.options import (
+    INPUT_FILE,
     FiniteFloat,
     controller_option,
     log_options,
@@ -16,7 +17,7 @@ from pmdcid.cli.options import (
 
 @main.command("simulate")
 @click.argument("input_logs", nargs=-1, required=True, metavar="INPUT...",
-                type=click.Path(dir_okay=False))
+                type=INPUT_FILE)
 @model_option(updated=False)
 @click.option("-o", "--output", required=True, type=click.Path(), metavar="OUT.csv|DIR",
               help="The simulated log (one INPUT), or the folder for one log per INPUT, each "

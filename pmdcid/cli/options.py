@@ -6,6 +6,13 @@ import functools
 
 import click
 
+from pmdcid.errors import LogError, MappingError
+
+#: a file a command reads (a LOG, MODEL, a --map, --summary, --before or --limits file, a
+#: MANIFEST): click checks nothing, the library opens it and says in one line what is wrong
+#: (missing, a folder, not readable): a file problem is exit 1, never click's usage error (exit 2)
+INPUT_FILE = click.Path(readable=False)
+
 
 class FiniteFloat(click.ParamType):
     """A finite number (no nan/inf) not below ``min`` (or above it, when ``min_open``)."""
@@ -38,7 +45,7 @@ def log_options(f):
     @click.option("-c", "--column", "columns", multiple=True, metavar="CANON=SRC[*K][+OFF]",
                   help="Map a log column to a canonical one, e.g. -c omega=speed_rpm*rpm "
                        "(repeatable; see docs/cli.md).")
-    @click.option("--map", "map_file", type=click.Path(dir_okay=False), default=None,
+    @click.option("--map", "map_file", type=INPUT_FILE, default=None,
                   help="File of column mappings, one CANON=SRC*K+OFF per line (or JSON).")
     @click.option("--cutoff", "cutoff_hz", type=FiniteFloat(min=0.0, min_open=True),
                   default=None, metavar="HZ",
@@ -46,7 +53,6 @@ def log_options(f):
                        "(and acceleration) [Hz]; default min(rate/10, 100 Hz).")
     @functools.wraps(f)
     def wrapper(*args, columns=(), map_file=None, cutoff_hz=None, **kwargs):
-        from pmdcid.errors import LogError
         from pmdcid.io import parse_mapping
 
         try:
@@ -54,15 +60,27 @@ def log_options(f):
         except LogError as exc:
             if exc.path is not None:  # a problem in the --map file: exit 1, names the file
                 raise
-            from pmdcid.io.escape import terminal
-
-            raise click.BadParameter(terminal(str(exc)), param_hint="'-c' / '--column'") from None
+            raise _bad_column(exc) from None
         mapping.cutoff_hz = cutoff_hz
         kwargs["mapping"] = mapping
         guard_outputs()
-        return f(*args, **kwargs)
+        try:
+            return f(*args, **kwargs)
+        except MappingError as exc:  # a -c text that parses against no log's names: exit 2
+            raise _bad_column(exc) from None
 
     return wrapper
+
+
+def _bad_column(exc: LogError) -> click.BadParameter:
+    """A malformed ``-c`` value as click's usage error (exit 2): the mapping's own words,
+    without the log it was read against when it parsed only against a log's names."""
+    from pmdcid.io.escape import terminal
+
+    text = str(exc)
+    if exc.path and text.startswith(f"{exc.path}: "):
+        text = text[len(exc.path) + 2:]
+    return click.BadParameter(terminal(text), param_hint="'-c' / '--column'")
 
 
 #: options naming files or folders a command writes: every command's -o, and per command more
@@ -83,7 +101,6 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
     every output (and the model a stage writes) passes the one output guard first
     (:func:`pmdcid.runtime.outputs.check_target`: no FIFO, device or symlink loop).
     """
-    from pmdcid.errors import LogError
     from pmdcid.runtime.outputs import check_target, input_at
 
     ctx = ctx or click.get_current_context(silent=True)
@@ -112,7 +129,7 @@ def model_option(required: bool = True, updated: bool = True):
     """``-m MODEL``; ``updated``: the command writes its results into MODEL (the fits,
     identify), else it only reads it (simulate, export, report, diagnose)."""
     return click.option("-m", "--model", "model_path", required=required,
-                        type=click.Path(dir_okay=False), metavar="MODEL",
+                        type=INPUT_FILE, metavar="MODEL",
                         help="Model file (JSON), read and updated." if updated
                         else "Model file (JSON), read only (never written).")
 

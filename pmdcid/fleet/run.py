@@ -19,9 +19,15 @@ from dataclasses import dataclass, field
 from pmdcid.errors import LogError, PmdcidError
 from pmdcid.fleet import journal
 from pmdcid.fleet.manifest import Measurement, read_manifest
+from pmdcid.fleet.table import is_units_parquet
+from pmdcid.runtime.outputs import check_folder_outputs, starts_with
 
 #: the files a fleet writes into DIR (besides the journal folder)
 OUTPUTS = ("units.parquet", "outliers.csv", "fleet.html")
+#: how a fleet recognises each of them as its own (another file there is kept unless --force)
+OURS = {"units.parquet": is_units_parquet,
+        "outliers.csv": lambda p: starts_with(p, b"unit,parameter,value,reason\n", 28),
+        "fleet.html": lambda p: starts_with(p, b"<title>pmdcid fleet</title>")}
 
 
 class FleetError(PmdcidError):
@@ -120,14 +126,17 @@ def _wire(job: dict) -> dict:
 
 def run_fleet(manifest, out_dir, *, scheduler: str | None = None, workers: int | None = None,
               km: float | None = None, limits: str | None = None, diagnose: bool = True,
-              mapping=None, bar_stream=None) -> FleetResult:
+              mapping=None, bar_stream=None, force: bool = False) -> FleetResult:
     """``pmdcid fleet`` (module doc). ``scheduler``: a Dask scheduler's address (default: a
     local cluster of ``workers`` processes); ``km`` [N m/A]: the datasheet torque constant
     every unit uses; ``limits``: a limits file (:mod:`.limits`); ``bar_stream``: where the
-    progress bar goes when it is a terminal (default stderr). Returns a :class:`FleetResult`;
-    raises :class:`FleetError` when nothing could run."""
+    progress bar goes when it is a terminal (default stderr); ``force``: replace a file under
+    an output's name in DIR that a fleet did not write (refused before any work otherwise).
+    Returns a :class:`FleetResult`; raises :class:`FleetError` when nothing could run."""
     from pmdcid.fleet.limits import read_limits
 
+    if os.path.isdir(str(out_dir)):
+        check_folder_outputs(out_dir, OUTPUTS, force, ours=OURS)
     measurements = read_manifest(manifest)
     lim = read_limits(limits) if limits is not None else None
     jobs, bad = plan(measurements, options_of(km, diagnose, mapping), mapping)

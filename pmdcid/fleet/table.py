@@ -112,6 +112,16 @@ def parquet_bytes(cols: dict[str, list]) -> bytes:
     return sink.getvalue().to_pybytes()
 
 
+def is_units_parquet(path: str) -> bool:
+    """Whether ``path`` is a units.parquet a fleet wrote (a parquet table with the fleet's
+    ``unit``, ``status`` and ``error`` columns)."""
+    _, pq = _pyarrow()
+    try:
+        return {"unit", "status", "error"} <= set(pq.read_schema(path).names)
+    except (OSError, ValueError):  # pyarrow's ArrowInvalid is a ValueError
+        return False
+
+
 def outliers_csv(outliers) -> str:
     """``unit,parameter,value,reason`` (one row per outlier pair; values as repr floats)."""
     buf = io.StringIO()

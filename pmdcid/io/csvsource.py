@@ -144,7 +144,7 @@ def column_specs(cols: list[str], mapping, canonical, p: str):
                 if spec.origin is not None:  # a mapping-file line naming a signal not here
                     skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no such signal"
                     continue
-                raise LogError(str(exc), p) from None
+                raise type(exc)(str(exc), p) from None  # a MappingError stays one
         missing = [r for r in spec.refs if r not in have]
         if missing and spec.origin is not None and len(missing) == len(spec.refs):
             skipped[canon] = f"{spec.origin} ({spec.text}) was skipped: no column '{missing[0]}'"

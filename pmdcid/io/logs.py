@@ -305,9 +305,16 @@ def read_logs(paths, mapping: ColumnMap | None = None, defer: bool = False) -> l
 WRITE_CHUNK = 50_000
 
 
-#: the time column keeps 15 significant digits: a time stamp (e.g. seconds since 1970 with
-#: milliseconds) is written back as it was read
-TIME_FORMAT = "%.15g"
+#: the time column is written with full round-trip precision (the shortest text that reads
+#: back as the same float, Python's repr; integral stamps as integers): a time stamp (seconds
+#: since 1970 with microseconds, 1700000000.011166) is written back as it was read
+TIME_FORMAT = "%r"
+
+
+def _stamps(t: list) -> list:
+    """The time column's values for :data:`TIME_FORMAT`: integral ones as ints (``12``, not
+    ``12.0``), the others as they are."""
+    return [int(x) if x.is_integer() and abs(x) < 2**53 else x for x in t]
 
 
 def write_csv(fh, t: np.ndarray, columns: dict[str, np.ndarray],
@@ -326,7 +333,9 @@ def write_csv(fh, t: np.ndarray, columns: dict[str, np.ndarray],
         arr = np.column_stack([c[a:a + WRITE_CHUNK] for c in cols])
         # one %-format of the whole chunk: the text np.savetxt(fmt=..., delimiter=",") writes
         # row by row, in half the time (savetxt's per-row loop was a quarter of `simulate`)
-        fh.write((row * len(arr)) % tuple(arr.ravel().tolist()))
+        vals = arr.ravel().tolist()
+        vals[::len(cols)] = _stamps(vals[::len(cols)])
+        fh.write((row * len(arr)) % tuple(vals))
 
 
 def format_csv(t: np.ndarray, columns: dict[str, np.ndarray], meta: dict[str, str] | None = None,

@@ -38,7 +38,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pmdcid.errors import LogError
+from pmdcid.errors import LogError, MappingError
 from pmdcid.io.expr import evaluate, parse_expr, refs
 
 #: the canonical column names of a log (docs/units.md): time [s], voltage [V], torque [N m],
@@ -177,7 +177,7 @@ def resolve(spec: ColumnSpec, names) -> ColumnSpec:
         rhs.startswith(n) and rhs[len(n)] in "*/+-"))), key=len, default=None)
     if best is None or best == spec.source:
         if spec.pending is not None and spec.source not in names:
-            raise LogError(spec.pending)
+            raise MappingError(spec.pending)
         return spec
     tail = _parse_spec(f"{spec.canon}=x{rhs[len(best):]}")
     return ColumnSpec(spec.canon, best, tail.scale, tail.offset, None, spec.origin, spec.text)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 from pmdcid.errors import LogError
@@ -12,9 +13,11 @@ from pmdcid.io.kinds import canonical
 from pmdcid.io.logs import write_log
 from pmdcid.model.effects import unit_of
 from pmdcid.plan.design import Plan
-from pmdcid.runtime.outputs import atomic_write_text
+from pmdcid.runtime.outputs import atomic_write_text, check_folder_outputs, json_object, starts_with
 
 GENERATOR = "pmdcid plan"
+#: a profile's file name (``NN_KIND.csv``): what a plan may write besides plan.json and plan.md
+PROFILE_NAME = re.compile(r"\d\d_\w+\.csv")
 
 
 def _num(x: float):
@@ -94,22 +97,52 @@ def plan_markdown(plan: Plan, command: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def check_out_dir(folder: str | os.PathLike) -> None:
-    """Refuse (before any work) an output folder that is a file or lies under one."""
+def _is_plan_json(path: str) -> bool:
+    obj = json_object(path)
+    return obj is not None and {"profiles", "predicted_stderr"} <= set(obj)
+
+
+def _is_check_json(path: str) -> bool:
+    obj = json_object(path)
+    return obj is not None and {"logs", "threshold", "parameters"} <= set(obj)
+
+
+def _is_plan_md(path: str) -> bool:
+    return (starts_with(path, b"# Identification plan\n", 22)
+            and starts_with(path, b"\n| file | seconds | what it is for |\n"))
+
+
+#: what a plan writes under each name (by suffix for the profiles): how it recognises its own
+OURS = {"plan.json": _is_plan_json, "check.json": _is_check_json, "plan.md": _is_plan_md,
+        ".csv": lambda p: starts_with(p, f"# generator: {GENERATOR}\n".encode(), 400)}
+
+
+def check_out_dir(folder: str | os.PathLike, names=None, force: bool = False) -> None:
+    """Refuse (before any work) an output folder that is a file or lies under one, and a file
+    in it that the plan would replace and pmdcid plan did not write (unless ``force``).
+    ``names``: the files the command writes (default: a plan's plan.json, plan.md and every
+    ``NN_KIND.csv`` in the folder, since the profiles are only known after the work)."""
     p = Path(folder).absolute()
     for q in [p, *p.parents]:
         if q.exists():
             if not q.is_dir():
                 raise LogError("is a file, not a folder: choose another -o", str(folder))
-            return
+            break
+    if names is None:
+        names = ["plan.json", "plan.md"]
+        if p.is_dir():
+            names += sorted(f for f in os.listdir(p) if PROFILE_NAME.fullmatch(f))
+    check_folder_outputs(folder, names, force, ours=OURS)
 
 
-def write_plan(plan: Plan, folder: str | os.PathLike, command: str = "") -> list[str]:
-    """Write the profiles, plan.json and plan.md into ``folder`` (created). Returns the paths."""
+def write_plan(plan: Plan, folder: str | os.PathLike, command: str = "",
+               force: bool = False) -> list[str]:
+    """Write the profiles, plan.json and plan.md into ``folder`` (created); a file there that
+    pmdcid plan did not write is refused unless ``force``. Returns the paths."""
     from pmdcid.runtime.outputs import output_folder
 
     d = Path(folder)
-    check_out_dir(d)
+    check_out_dir(d, [f"{p.name}.csv" for p in plan.profiles] + ["plan.json", "plan.md"], force)
     written = []
     with output_folder(d):  # removed again if a write fails
         for p in plan.profiles:

@@ -20,6 +20,7 @@ import numpy as np
 from pmdcid.errors import LogError, warn
 from pmdcid.fit.results import speed_against
 from pmdcid.model import Model
+from pmdcid.runtime.outputs import check_folder_outputs
 
 
 @dataclass
@@ -185,17 +186,15 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
     """
     from pmdcid import __version__
     from pmdcid.report import html
-    from pmdcid.report.compare import compare_log, mean_errors, unique_names
+    from pmdcid.report.compare import compare_log, mean_errors
     from pmdcid.report.metrics import LOW_SPEED_FRACTION, MAX_LAG
     from pmdcid.report.notes import report_notes
     from pmdcid.report.parallel import FigureDrawer
-    from pmdcid.runtime.outputs import check_folder_outputs, output_folder
+    from pmdcid.runtime.outputs import output_folder
 
     if not logs:
         raise LogError("no log files given")
-    check_out_dir(out_dir)
-    names = unique_names(logs)
-    check_folder_outputs(out_dir, _file_names(names), force)  # before the work, and again below
+    names = check_report_outputs(out_dir, logs, force)  # before the work, and again below
     say = progress or (lambda msg: None)
     # started before the simulations: the workers' imports overlap them (report/parallel.py)
     with FigureDrawer(2 * len(logs) + 2) as drawer:
@@ -268,6 +267,28 @@ def figure_jobs(cmps, ba: dict | None, names: list[str]) -> list:
     return jobs
 
 
+def unique_names(logs) -> list[str]:
+    """Short labels for the logs (file names, made unique)."""
+    names: list[str] = []
+    for log in logs:
+        base = os.path.splitext(os.path.basename(str(log.path)))[0] or "log"
+        name, k = base, 2
+        while name in names:
+            name, k = f"{base}-{k}", k + 1
+        names.append(name)
+    return names
+
+
+def check_report_outputs(out_dir, logs, force: bool = False) -> list[str]:
+    """Refuse, before any work, an output folder that is a file, and a file a report of
+    ``logs`` would replace in it that pmdcid did not write (unless ``force``). Returns the
+    logs' names on the page."""
+    check_out_dir(out_dir)
+    names = unique_names(logs)
+    check_folder_outputs(out_dir, _file_names(names), force)
+    return names
+
+
 def _file_names(names: list[str]) -> list[str]:
     """The files a report of logs ``names`` writes (as :func:`figure_jobs` names them)."""
     figs = [f"{n}_{kind}.png" for n in names for kind in ("overlay", "residual")]
@@ -290,4 +311,5 @@ def model_errors_from(cmps) -> list[dict]:
     return [{s: sm["nrmse"] for s, sm in c.metrics["signals"].items()} for c in cmps]
 
 
-__all__ = ["ReportResult", "check_out_dir", "load_summary", "make_report"]
+__all__ = ["ReportResult", "check_out_dir", "check_report_outputs", "load_summary", "make_report",
+           "unique_names"]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -97,18 +96,6 @@ def compared_signals(log) -> list[str]:
         raise LogError("has nothing to compare the model with: it needs omega, theta or "
                        "(voltage-driven) i", log.path)
     return out
-
-
-def unique_names(logs) -> list[str]:
-    """Short labels for the logs (file names, made unique)."""
-    names: list[str] = []
-    for log in logs:
-        base = os.path.splitext(os.path.basename(str(log.path)))[0] or "log"
-        name, k = base, 2
-        while name in names:
-            name, k = f"{base}-{k}", k + 1
-        names.append(name)
-    return names
 
 
 def compare_log(log, model: Model, name: str) -> LogComparison:

@@ -20,8 +20,9 @@
 - :func:`output_folder`: an output folder created for a block of writes is removed again when
   the block fails (a full disk leaves no empty folder), inside a command or not.
 - :func:`check_folder_outputs`: the files a command writes into a folder (report's
-  report.html, metrics.json, figures): guarded as above, and an existing one the tool did not
-  write is only replaced with ``--force`` (the rule simulate, export and diagnose follow).
+  report.html, metrics.json, figures; plan's profiles, plan.json, plan.md, check.json; fleet's
+  units.parquet, outliers.csv, fleet.html): guarded as above, and an existing one the tool did
+  not write is only replaced with ``--force`` (the rule simulate, export and diagnose follow).
 """
 
 from __future__ import annotations
@@ -160,7 +161,9 @@ def input_at(output, inputs, planned: bool = False) -> str | None:
     return next((inp for inp in inputs if inp and same_file(output, inp, planned)), None)
 
 
-def _json_object(path: str):
+def json_object(path: str):
+    """The JSON object in the file ``path`` (a dict), or None: not one, unreadable or too large
+    to be a file pmdcid wrote."""
     try:
         if os.path.getsize(path) > MAX_OURS_BYTES:
             return None
@@ -179,7 +182,7 @@ def check_overwrite(path, kind: str, force: bool = False, option: str = "-o") ->
         return
     if not os.path.exists(p):  # a dangling symlink: its target is created
         return
-    obj = _json_object(p)
+    obj = json_object(p)
     ours = obj is not None and ("parameters" in obj if kind == "model" else "added" in obj)
     if not ours:
         raise LogError(f"exists and is not a pmdcid {kind} file: {option} would overwrite it; "
@@ -229,15 +232,11 @@ def _is_png(path: str) -> bool:
 
 
 def _is_report_page(path: str) -> bool:
-    try:
-        with open(path, "rb") as fh:
-            return b"<title>pmdcid report" in fh.read(4096)
-    except OSError:
-        return False
+    return starts_with(path, b"<title>pmdcid report")
 
 
 def _is_metrics(path: str) -> bool:
-    obj = _json_object(path)
+    obj = json_object(path)
     return obj is not None and {"version", "parameters", "logs"} <= set(obj)
 
 
@@ -245,22 +244,36 @@ def _is_metrics(path: str) -> bool:
 OURS_IN_FOLDER = {"report.html": _is_report_page, "metrics.json": _is_metrics, ".png": _is_png}
 
 
-def _ours_in_folder(path: str) -> bool:
+def _ours_in_folder(path: str, ours: dict) -> bool:
     name = os.path.basename(path)
-    test = OURS_IN_FOLDER.get(name) or OURS_IN_FOLDER.get(os.path.splitext(name)[1])
+    test = ours.get(name) or ours.get(os.path.splitext(name)[1])
     return test is not None and test(path)
 
 
-def check_folder_outputs(folder, names, force: bool = False, option: str = "-o") -> None:
+def starts_with(path: str, text: bytes, within: int = 4096) -> bool:
+    """Whether ``text`` is in the first ``within`` bytes of the file ``path`` (a marker pmdcid
+    writes at the top of its files)."""
+    try:
+        with open(path, "rb") as fh:
+            return text in fh.read(within)
+    except OSError:
+        return False
+
+
+def check_folder_outputs(folder, names, force: bool = False, option: str = "-o",
+                         ours: dict | None = None) -> None:
     """Refuse, before anything is written, a file ``names`` would replace in ``folder`` that is
     not a regular file inside it (:func:`check_target`), or -- without ``force`` -- that pmdcid
-    did not write (:data:`OURS_IN_FOLDER`)."""
+    did not write: ``ours`` maps a name (or a suffix) to the test that recognises what pmdcid
+    writes under it (default :data:`OURS_IN_FOLDER`, report's files; plan and fleet pass
+    theirs)."""
+    ours = OURS_IN_FOLDER if ours is None else ours
     for name in names:
         target = os.path.join(str(folder), name)
         check_target(target, folder, option)
         if force or not os.path.lexists(target) or not os.path.exists(target):
             continue
-        if os.path.isdir(target) or not _ours_in_folder(target):
+        if os.path.isdir(target) or not _ours_in_folder(target, ours):
             raise LogError(f"exists and was not written by pmdcid: {option} {folder} would "
                            "replace it; move it, choose another folder, or use --force", target)
 

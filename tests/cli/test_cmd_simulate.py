@@ -100,3 +100,18 @@ def test_simulate_several_inputs_refusals(tmp_path, paper_model, case):
     assert res.exit_code == code, res.output
     assert not (tmp_path / "out").exists()
     assert (tmp_path / "file.csv").read_text() == "not a folder\n"
+
+
+def test_simulate_keeps_input_t_to_the_last_digit(tmp_path, paper_model):
+    """INPUT's t is kept unchanged (CONTRACT): Unix-epoch stamps with microseconds
+    (1700000000.011166) were written with 15 significant digits (1700000000.01117)."""
+    t = 1700000000.011166 + np.arange(300) * 0.001
+    rows = [f"{x!r},{1.0 if k >= 50 else 0.0}" for k, x in enumerate(t.tolist())]
+    (tmp_path / "in.csv").write_text("t,v\n" + "\n".join(rows) + "\n")
+    out = tmp_path / "out.csv"
+    res = CliRunner().invoke(main, ["simulate", str(tmp_path / "in.csv"), "-m", str(paper_model),
+                                    "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    data = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")][1:]
+    assert [ln.split(",")[0] for ln in data] == [r.split(",")[0] for r in rows]
+    assert data[0].startswith("1700000000.011166,")

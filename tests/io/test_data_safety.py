@@ -130,16 +130,19 @@ def test_log_text_is_what_savetxt_writes():
     np = logs_mod.np
     rng = np.random.default_rng(16)
     n = 2000
-    t = np.cumsum(rng.uniform(1e-4, 2e-3, n)) + 1.7e9  # epoch seconds: 15 digits kept
+    t = np.cumsum(rng.uniform(1e-4, 2e-3, n)) + 1.7e9  # epoch seconds: every digit kept
+    t[:2] = [0.0, 12.0]  # integral stamps as integers
     v = rng.standard_normal(n) * 10.0 ** rng.integers(-12, 12, n)
     v[:6] = [0.0, -0.0, np.nan, np.inf, -np.inf, 1e300]
     cols = {"v": v, "i": -v / 3.0}
     got = logs_mod.format_csv(t, cols, precision=9)
     buf = io.StringIO()
-    buf.write("t,v,i\n")
-    np.savetxt(buf, np.column_stack([t, v, -v / 3.0]), delimiter=",",
-               fmt=[logs_mod.TIME_FORMAT, "%.9g", "%.9g"])
-    assert got == buf.getvalue()
+    np.savetxt(buf, np.column_stack([v, -v / 3.0]), delimiter=",", fmt=["%.9g", "%.9g"])
+    stamps = ["0", "12", *(repr(x) for x in t[2:].tolist())]  # round-trip: repr
+    want = "".join(f"{s},{row}\n" for s, row in zip(stamps, buf.getvalue().splitlines(),
+                                                      strict=True))
+    assert got == "t,v,i\n" + want
+    assert np.array_equal(np.array(stamps, dtype=float), t)
 
 
 def test_atomic_write_text_round_trip(tmp_path):
