@@ -416,6 +416,11 @@ CASES: list[Case] = [
       r"'furlongs' is neither a number nor a unit"),
     C("map-not-canonical", combine(MODEL, STEP), SIM + ["-c", "speed=omega"], 2,
       r"'speed' is not a canonical column"),
+    C("map-twice", combine(MODEL, STEP), SIM + ["-c", "omega=omega*rpm", "-c", "omega=omega"],
+      2, r"omega is mapped twice, by -c omega=omega\*rpm and by -c omega=omega: keep one"),
+    C("map-file-twice", combine(MODEL, STEP, text("cols.map", "omega=omega*rpm\nomega=omega\n")),
+      SIM + ["--map", "cols.map"], 1, r"^error: cols\.map: omega is mapped twice, by cols\.map "
+      r"line 1 \(omega=omega\*rpm\) and by cols\.map line 2 \(omega=omega\)"),
     C("map-file-missing", combine(MODEL, STEP), SIM + ["--map", "cols.map"], 1,
       r"^error: cols\.map: cannot read column-mapping file"),
     C("map-file-bad-json", combine(MODEL, STEP, text("cols.map", '{"omega": ')),
