@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from pmdcid.errors import LogError, short_list, warn
+from pmdcid.io.clock import INPUTS
 from pmdcid.io.mapping import CANONICAL, SETPOINTS, ColumnMap, parse_mapping
 
 
@@ -96,8 +97,10 @@ OVERLOAD = 1e30
 
 
 def fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
-    """``x`` with short NaN gaps interpolated (a warning); too many, an inf or an overload
-    marker (|x| >= :data:`OVERLOAD`): LogError."""
+    """``x`` with short NaN gaps filled (a warning): an input (``v``, ``tau``: zero-order held,
+    CONTRACT.md) holds the sample before the gap (a gap at the start takes the first sample
+    after it), a measurement is interpolated linearly; too many, an inf or an overload marker
+    (|x| >= :data:`OVERLOAD`): LogError."""
     big = np.abs(np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)) >= OVERLOAD
     if big.any():
         row = int(np.flatnonzero(big)[0])
@@ -122,9 +125,21 @@ def fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
             path)
     good = np.flatnonzero(~bad)
     x = x.copy()
-    x[bad] = np.interp(np.flatnonzero(bad), good, x[good])
-    warn(f"column '{name}': filled {nbad} NaN value(s) by linear interpolation", path)
+    if name in INPUTS:
+        x[bad] = x[held_index(bad, good)]
+        how = "holding the sample before (the input is zero-order held)"
+    else:
+        x[bad] = np.interp(np.flatnonzero(bad), good, x[good])
+        how = "linear interpolation"
+    warn(f"column '{name}': filled {nbad} NaN value(s) by {how}", path)
     return x
+
+
+def held_index(bad: np.ndarray, good: np.ndarray) -> np.ndarray:
+    """For each sample flagged ``bad``, the index of the last good sample before it (the first
+    good one when none is before); ``good``: the indices of the good samples, ascending."""
+    k = np.searchsorted(good, np.flatnonzero(bad)) - 1
+    return good[np.maximum(k, 0)]
 
 
 def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
