@@ -114,18 +114,36 @@ def numeric_column(df, src: str, p: str, strict: bool = True) -> np.ndarray:
 
     col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
     if strict and not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str)
-        notnum = np.isnan(col) & raw.notna().to_numpy() & (
-            raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
-        ).to_numpy()
+        cells = raw.astype(str).str.strip()
+        blank = raw.isna().to_numpy() | cells.str.lower().isin(["nan", "", "na", "null"]).to_numpy()
+        notnum = np.isnan(col) & ~blank
         if notnum.any():
-            row = int(np.flatnonzero(notnum)[0])
-            raise LogError(
-                f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
-                f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
-                "that row (or map another column)",
-                p,
-            )
+            comma = pd.to_numeric(cells.str.replace(",", ".", regex=False), errors="coerce")
+            row, why = _bad_cell(cells, notnum, blank, comma.notna().to_numpy())
+            raise LogError(f"column '{src}' holds non-numeric value {cells.iloc[row][:30]!r} "
+                           f"(data row {row + 1}): {why}; fix or remove that row (or map another "
+                           "column)", p)
     return col
+
+
+#: a number grouped in thousands: ``1.234,5`` (decimal comma) or ``1,234.5`` (decimal point)
+_GROUPED = {",": re.compile(r"^[+-]?\d{1,3}(\.\d{3})+(,\d*)?$"),
+            ".": re.compile(r"^[+-]?\d{1,3}(,\d{3})+(\.\d*)?$")}
+
+
+def _bad_cell(cells, notnum: np.ndarray, blank: np.ndarray,
+              comma: np.ndarray) -> tuple[int, str]:
+    """The first cell of text column ``cells`` that is no number in the column's own decimal
+    mark (the mark most of its cells are numbers in: ``comma`` flags those that are numbers with
+    a decimal comma), and what is wrong with it."""
+    mark = "," if comma.sum() > (~notnum & ~blank).sum() else "."
+    bad = ~comma & ~blank if mark == "," else notnum
+    row = int(np.flatnonzero(bad)[0]) if bad.any() else int(np.flatnonzero(notnum)[0])
+    if _GROUPED[mark].match(cells.iloc[row]):
+        sep = "." if mark == "," else ","
+        return row, (f"a thousands separator ('{sep}') in a number with '{mark}' decimals: "
+                     "export numbers without digit grouping")
+    return row, f"numbers only, with '{mark}' decimals"
 
 
 def column_specs(cols: list[str], mapping, canonical, p: str):

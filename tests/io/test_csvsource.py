@@ -1,0 +1,40 @@
+"""pmdcid/io/csvsource.py: opening a log as rigs and spreadsheets export it."""
+
+import numpy as np
+import pytest
+
+from pmdcid.errors import LogError
+from pmdcid.io import read_log
+
+
+def _euro(rows: int, cell: dict[int, str] | None = None) -> str:
+    """A European export (';' separated, decimal comma); ``cell``: data row (1-based) -> the
+    text of its omega cell."""
+    lines = ["t;v;omega"]
+    for k in range(rows):
+        omega = (cell or {}).get(k + 1, f"{0.5 * np.sin(k / 7):.6f}".replace(".", ","))
+        lines.append(f"{k / 1000:.3f};1;{omega}".replace("0.", "0,"))
+    return "\n".join(lines) + "\n"
+
+
+def test_a_thousands_separator_is_named_with_its_cell_and_row(tmp_path):
+    p = tmp_path / "euro.csv"
+    p.write_text(_euro(40, {30: "1.234,5"}))
+    with pytest.raises(LogError, match=r"column 'omega' holds non-numeric value '1\.234,5' \(data "
+                                       r"row 30\): a thousands separator \('\.'\) in a number "
+                                       r"with ',' decimals"):
+        read_log(p)
+    p.write_text(_euro(40, {12: "ERR"}))  # any other text: named, in the file's decimal mark
+    with pytest.raises(LogError, match=r"'ERR' \(data row 12\): numbers only, with ',' decimals"):
+        read_log(p)
+    p.write_text(_euro(40))
+    assert read_log(p)["omega"][7] == pytest.approx(0.5 * np.sin(1.0), abs=1e-6)
+
+
+def test_a_grouped_number_with_decimal_points_is_named_too(tmp_path):
+    p = tmp_path / "us.csv"
+    rows = [f"{k / 1000:.3f};1;{'1,234.5' if k == 20 else f'{k / 10:.1f}'}" for k in range(40)]
+    p.write_text("t;v;omega\n" + "\n".join(rows) + "\n")
+    with pytest.raises(LogError, match=r"'1,234\.5' \(data row 21\): a thousands separator "
+                                       r"\(','\) in a number with '\.' decimals"):
+        read_log(p)
