@@ -153,15 +153,21 @@ def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
     grid from 0 (the original kept as ``t_file``); a loop-timed one is resampled onto a uniform
     grid (the input held, measurements interpolated; ``log.resampled`` keeps the file's
     instants, one line says so). ``resampled``: the :class:`~pmdcid.io.clock.Resampling` of
-    columns already put on a uniform grid by a reader (signals on several clocks). NaN gaps are
-    filled (:func:`fill_nans`); the plausibility checks run; speed is derived from the angle, or
-    the angle from the speed, when one is missing.
+    columns already put on a uniform grid by a reader (signals on several clocks). A column with
+    no number at all is dropped, as if absent (a warning; a command needing it says it lacks it,
+    and why). NaN gaps are filled (:func:`fill_nans`); the plausibility checks run; speed is
+    derived from the angle, or the angle from the speed, when one is missing.
     """
     from pmdcid.io.clock import examine, resample_columns
 
     data = {k: np.asarray(v, dtype=float) for k, v in data.items()}
     t = data.pop("t")
     clock = examine(t, path)
+    skipped = dict(skipped or {})
+    for canon in [c for c, x in data.items() if len(x) and np.isnan(x).all()]:
+        del data[canon]  # a column with no number at all: as if absent
+        skipped[canon] = f"column '{canon}' is empty"
+        warn(f"column '{canon}' is empty (no number in any row): ignored", path)
     for canon in list(data):
         data[canon] = fill_nans(canon, data[canon], path)
     extra = {c: x for c, x in (extra or {}).items() if np.isfinite(x).all()}
@@ -171,7 +177,7 @@ def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
     t_file = clock.grid if resampled is not None else t
     t = clock.grid - clock.grid[0]
     log = log_type(path=path, t=t, data=data, meta=dict(meta or {}), extra=extra,
-              cutoff_hz=cutoff_hz, t_file=t_file, skipped=dict(skipped or {}),
+              cutoff_hz=cutoff_hz, t_file=t_file, skipped=skipped,
               resampled=resampled)
     if resampled is not None:
         log.notes.append(resampled.note)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from pmdcid.errors import LogError
 from pmdcid.io import read_log, write_log
 
 
@@ -38,3 +39,15 @@ def test_a_missing_torque_sample_is_held_too(tmp_path):
     with pytest.warns(UserWarning, match="column 'tau': filled 1 NaN value.* holding"):
         log = read_log(p)
     assert log["tau"][300] == 0.01
+
+
+def test_an_empty_column_is_as_if_absent(tmp_path):
+    t = np.arange(400) * 1e-3
+    p = tmp_path / "a.csv"
+    p.write_text("t,v,i,omega\n" + "".join(f"{a:.3f},1,,{a:.3f}\n" for a in t))
+    with pytest.warns(UserWarning, match=r"column 'i' is empty \(no number in any row\): ignored"):
+        log = read_log(p)
+    assert not log.has("i") and log.has("omega") and log.has("theta")  # theta from omega
+    with pytest.raises(LogError, match=r"needs column\(s\) i for R; column 'i' is empty; "
+                                       r"it has v, omega, theta"):
+        log.require("i", purpose="R")
