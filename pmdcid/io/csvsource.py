@@ -25,6 +25,8 @@ from pmdcid.io.text import BOMS_16, decode
 HEAD_BYTES = 1 << 16
 #: data rows looked at to recognise the separator and the decimal mark
 SNIFF_ROWS = 20
+#: the separator of a whitespace-separated file (pandas' regular expression)
+WHITESPACE = r"\s+"
 
 
 @dataclass
@@ -88,6 +90,42 @@ def separator_hint(src: Source, nskip: int) -> str:
             return (f"; it looks {word}-separated, but its rows do not all have as many fields "
                     "as the header")
     return ""
+
+
+def _fields(line: str, sep: str) -> int:
+    return len(line.split() if sep == WHITESPACE else line.split(sep))
+
+
+def _numbers(line: str, sep: str) -> bool:
+    """True when every field of ``line`` is a number (a data row, not a header)."""
+    try:
+        [float(c.strip().strip('"')) for c in (line.split() if sep == WHITESPACE
+                                              else line.split(sep)) if c.strip()]
+    except ValueError:
+        return False
+    return True
+
+
+def check_header(src: Source, nskip: int, p: str) -> None:
+    """Refuse a first line that is no header: a title or note written without ``#`` (``Logged by
+    rig 3 on ...``) has fewer fields than the rows below, and a later line with as many fields
+    as the rows, not numbers, above a row of numbers, is the header. The message names both
+    lines and the fix."""
+    lines = [(k, ln) for k, ln in enumerate(src.head.splitlines()) if k >= nskip and ln.strip()]
+    counts = [_fields(ln, src.sep) for _, ln in lines[:SNIFF_ROWS + 1]]
+    if len(counts) < 3:
+        return
+    width = max(set(counts[1:]), key=counts[1:].count)  # the rows' number of fields
+    j = next((j for j, c in enumerate(counts) if c == width), 0)
+    if (counts[0] >= width or j == 0 or j + 1 >= len(lines) or _numbers(lines[j][1], src.sep)
+            or not _numbers(lines[j + 1][1], src.sep)  # the header must head rows of numbers
+            or any(ln.count('"') % 2 for _, ln in lines[:j + 1])):  # a quoted name across lines
+        return
+    (k0, first), (kj, header) = lines[0], lines[j]
+    raise LogError(f"line {k0 + 1} ({first.strip()[:40]!r}) does not look like a header: it has "
+                   f"{counts[0]} field(s) where the rows below have {width}, and line {kj + 1} "
+                   f"({header.strip()[:40]!r}) looks like the header; start the line(s) before "
+                   "it with '#' (comments) or delete them", p)
 
 
 def header_names(src: Source, nskip: int) -> list[str]:
