@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.errors import LogError, short_list
+from pmdcid.io.mapping import ColumnSpec, resolve
 from pmdcid.io.text import BOMS_16, decode
 
 HEAD_BYTES = 1 << 16
@@ -186,10 +187,9 @@ def _bad_cell(cells, notnum: np.ndarray, blank: np.ndarray,
 
 def column_specs(cols: list[str], mapping, canonical, p: str):
     """Spec of each canonical column, and the mapping-file lines skipped for this log."""
-    from pmdcid.io.mapping import ColumnSpec, resolve
-
     have = set(cols)
     specs = {c: ColumnSpec(c, c) for c in canonical if c in have}
+    specs.update(_any_case(cols, canonical, specs, mapping))
     skipped: dict[str, str] = {}
     slashed = [c for c in cols if "/" in c]
     for canon, spec in mapping.specs.items():
@@ -213,12 +213,24 @@ def column_specs(cols: list[str], mapping, canonical, p: str):
     return specs, skipped
 
 
+def _any_case(cols: list[str], canonical, specs: dict, mapping) -> dict:
+    """Specs of the canonical columns a header names in another case (``T``, ``OMEGA``,
+    ``Omega``): where exactly one column matches, no column has the exact name and no mapping
+    names the column or reads that header."""
+    mapped = {r for spec in mapping.specs.values() for r in spec.refs}
+    out = {}
+    for c in canonical:
+        hits = [h for h in cols if h.lower() == c and h not in mapped]
+        if c not in specs and c not in mapping.specs and len(hits) == 1:
+            out[c] = ColumnSpec(c, hits[0], text=f"{c}={hits[0]}")
+    return out
+
+
 def _annotated_specs(cols: list[str], specs: dict, p: str) -> None:
     """Add the canonical columns whose headers say quantity and unit (:mod:`.headers`), with a
     note naming the conversion, where neither a column of that name nor a mapping gives them."""
     from pmdcid.errors import warn
     from pmdcid.io.headers import claimed
-    from pmdcid.io.mapping import ColumnSpec
 
     used = {r for spec in specs.values() for r in spec.refs}
     said = []

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pmdcid.errors import LogError
-from pmdcid.io import read_log
+from pmdcid.io import parse_mapping, read_log
 
 
 def _euro(rows: int, cell: dict[int, str] | None = None) -> str:
@@ -51,3 +51,15 @@ def test_a_first_line_that_is_no_header_is_named_with_the_fix(tmp_path):
         read_log(p)
     p.write_text("# kind: step\n# Logged by rig 3 on 2024-01-01\nt,v,omega\n" + rows)
     assert read_log(p).n == 40
+
+
+def test_canonical_names_match_in_any_case_where_unambiguous(tmp_path):
+    rows = "".join(f"{k / 1000:.3f},1,{k / 10:.1f},{k / 5:.1f}\n" for k in range(40))
+    p = tmp_path / "upper.csv"
+    p.write_text("T,V,OMEGA,Omega\n" + rows)  # two speed columns: neither is taken
+    log = read_log(p)
+    assert log.dt == pytest.approx(1e-3) and log.drive == "v" and not log.has("omega")
+    p.write_text("T,V,OMEGA,w\n" + rows)
+    assert read_log(p)["omega"][10] == pytest.approx(1.0)
+    log = read_log(p, parse_mapping(["omega=w"]))  # a mapping wins over the case rule
+    assert log["omega"][10] == pytest.approx(2.0)
