@@ -54,7 +54,7 @@ def frame_columns(df, mapping: ColumnMap, path: str):
     cols = [str(c) for c in df.columns]
     specs, skipped = column_specs(cols, mapping, CANONICAL, path)
     if "t" not in specs:
-        seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar")]
+        seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar"), (" ", "space")]
         sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
         if sep:
             raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}) but its rows do not "

@@ -7,6 +7,8 @@
 - European exports (Excel with a comma decimal mark) separate fields with ``;`` and write
   ``0,001``: a header with ``;`` (or a tab) and no ``,``, whose first data rows have as many
   separators, is read with that separator, and with a decimal comma when the data show one.
+- A header of names separated by spaces (no ``,``, ``;`` or tab), whose first data rows have as
+  many whitespace-separated fields, is read as whitespace-separated (``t v i omega``).
 """
 
 from __future__ import annotations
@@ -73,9 +75,9 @@ def sniff(src: Source, nskip: int) -> Source:
     header, rows = lines[0], lines[1:1 + SNIFF_ROWS]
     if len(rows) > 1 and len(src.head.encode()) >= HEAD_BYTES:
         rows = rows[:-1]  # the last line of the head may be cut
-    for sep in (";", "\t"):
-        k = header.count(sep)
-        if k and "," not in header and all(r.count(sep) == k for r in rows):
+    for sep in (";", "\t", WHITESPACE):
+        k = _fields(header, sep) - 1
+        if k and "," not in header and all(_fields(r, sep) == k + 1 for r in rows):
             src.sep = sep
             if any(re.search(r"\d,\d", r) for r in rows):
                 src.decimal = ","
@@ -135,7 +137,8 @@ def header_names(src: Source, nskip: int) -> list[str]:
     k = next((j for j, ln in enumerate(lines) if ln.strip()), None)
     if k is None:
         return []
-    names = [c.strip().strip('"') for c in lines[k].split(src.sep)]
+    cells = lines[k].split() if src.sep == WHITESPACE else lines[k].split(src.sep)
+    names = [c.strip().strip('"') for c in cells]
     if k == len(lines) - 1:  # the header runs past the head: its last name may be cut
         names = names[:-1]
     return names

@@ -63,3 +63,15 @@ def test_canonical_names_match_in_any_case_where_unambiguous(tmp_path):
     assert read_log(p)["omega"][10] == pytest.approx(1.0)
     log = read_log(p, parse_mapping(["omega=w"]))  # a mapping wins over the case rule
     assert log["omega"][10] == pytest.approx(2.0)
+
+
+def test_a_whitespace_separated_log_is_read(tmp_path):
+    rows = "".join(f"{k / 1000:.3f}  1\t{k / 10:.1f}\n" for k in range(40))
+    p = tmp_path / "spaces.csv"
+    p.write_text("t v  omega\n" + rows)
+    log = read_log(p)
+    assert log.dt == pytest.approx(1e-3) and log["omega"][10] == pytest.approx(1.0)
+    p.write_text("t v omega\n" + rows.replace("0.005  1", "0.005 1 7"))  # a ragged row
+    with pytest.raises(LogError, match=r"looks space-separated \(header 't v omega'\) but its "
+                                       r"rows do not have as many separators"):
+        read_log(p)
