@@ -18,7 +18,8 @@ import numpy as np
 
 from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.clock import INPUTS
-from pmdcid.io.mapping import CANONICAL, SETPOINTS, ColumnMap, parse_mapping
+from pmdcid.io.csvsource import column_specs, is_datetime_column, numeric_column
+from pmdcid.io.mapping import CANONICAL, SETPOINTS, ColumnMap, ColumnSpec, parse_mapping
 
 
 def as_mapping(columns=None, map_file=None, cutoff_hz: float | None = None) -> ColumnMap:
@@ -49,25 +50,16 @@ def frame_columns(df, mapping: ColumnMap, path: str):
     expressions: :mod:`pmdcid.io.csvsource`); raises :class:`LogError` naming the column for a
     missing source, a text cell, or no time column.
     """
-    from pmdcid.io.csvsource import column_specs, numeric_column
-
     cols = [str(c) for c in df.columns]
     specs, skipped = column_specs(cols, mapping, CANONICAL, path)
     if "t" not in specs:
-        seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar"), (" ", "space")]
-        sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
-        if sep:
-            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}) but its rows do not "
-                           "have as many separators as the header: make every row alike, or "
-                           "convert the file to comma-separated CSV", path)
-        why = f"; {skipped['t']}" if "t" in skipped else ""
-        raise LogError(f"has no time column 't' (columns are {short_list(cols)}{why}; map one "
-                       "with -c t=SOURCE)", path)
+        specs["t"] = _time_spec(df, cols, specs, skipped, path)
     cache: dict[str, np.ndarray] = {}
+    times = set(specs["t"].refs)
 
     def get(name: str) -> np.ndarray:
         if name not in cache:
-            cache[name] = numeric_column(df, name, path)
+            cache[name] = numeric_column(df, name, path, times=name in times)
         return cache[name]
 
     data: dict[str, np.ndarray] = {}
@@ -82,6 +74,24 @@ def frame_columns(df, mapping: ColumnMap, path: str):
         if np.isfinite(x).any():
             extra[c] = x
     return data, extra, skipped
+
+
+def _time_spec(df, cols: list[str], specs: dict, skipped: dict, path: str) -> ColumnSpec:
+    """The time column of a table without a ``t`` column or mapping: the one column of ISO 8601
+    date-times, if there is one; else a :class:`LogError` saying why there is none."""
+    used = {r for spec in specs.values() for r in spec.refs}
+    dates = [c for c in cols if c not in used and is_datetime_column(df, c)]
+    if len(dates) == 1:
+        return ColumnSpec("t", dates[0], text=f"t={dates[0]}")
+    seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar"), (" ", "space")]
+    sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
+    if sep:
+        raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}) but its rows do not "
+                       "have as many separators as the header: make every row alike, or "
+                       "convert the file to comma-separated CSV", path)
+    why = f"; {skipped['t']}" if "t" in skipped else ""
+    raise LogError(f"has no time column 't' (columns are {short_list(cols)}{why}; map one "
+                   "with -c t=SOURCE)", path)
 
 
 #: at most this many unmapped numeric columns are kept in ``Log.extra`` (a transposed export

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pmdcid.errors import LogError, short_list
+from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.mapping import ColumnSpec, resolve
 from pmdcid.io.text import BOMS_16, decode
 
@@ -144,9 +144,38 @@ def header_names(src: Source, nskip: int) -> list[str]:
     return names
 
 
-def numeric_column(df, src: str, p: str, strict: bool = True) -> np.ndarray:
+#: an ISO 8601 date and time (``2024-03-01 12:00:00.000``, ``2024-03-01T12:00:00Z``, with an
+#: offset ``+01:00``): a time column a logger wrote as wall-clock time
+_DATETIME = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}([.,]\d+)?)?\s*"
+                       r"(Z|[+-]\d{2}(:?\d{2})?)?$")
+
+
+def is_datetime_column(df, name: str) -> bool:
+    """True when column ``name`` of ``df`` is text whose first cell is an ISO 8601 date-time."""
+    raw = df[name]
+    if isinstance(raw, np.ndarray) or raw.dtype.kind in "biufcmM":
+        return False
+    k = raw.first_valid_index()
+    return k is not None and bool(_DATETIME.match(str(raw.loc[k]).strip()))
+
+
+def _seconds(stamps, first: str, src: str, p: str) -> np.ndarray:
+    """Date-times (a tz-aware pandas Series, NaT where a cell is none; ``first``: the first cell
+    as written) as seconds from the first; a warning says so."""
+    ns = stamps.dt.tz_convert(None).to_numpy(dtype="datetime64[ns]").astype(np.int64)
+    nat = stamps.isna().to_numpy()
+    out = (ns - (ns[~nat][0] if (~nat).any() else 0)).astype(float) * 1e-9
+    out[nat] = np.nan  # a cell that is no date-time: the time check names its row
+    warn(f"column '{src}' holds date-times (the first {first[:40]!r}): read as t, in seconds "
+         "from the first", p)
+    return out
+
+
+def numeric_column(df, src: str, p: str, strict: bool = True, times: bool = False) -> np.ndarray:
     """Column ``src`` as floats; a text cell that is not a number is an error naming its row
-    (``strict``) or NaN. ``df`` is a DataFrame or a :class:`pmdcid.io.plain.PlainFrame`."""
+    (``strict``) or NaN. ``df`` is a DataFrame or a :class:`pmdcid.io.plain.PlainFrame`.
+    ``times``: a column of ISO 8601 date-times (:func:`is_datetime_column`) is read as seconds
+    from its first (with a warning)."""
     raw = df[src]
     if isinstance(raw, np.ndarray):  # a PlainFrame's column: plain float64 numbers
         if raw.base is None and raw.dtype == float:  # a column stored alone (chunked read)
@@ -154,6 +183,9 @@ def numeric_column(df, src: str, p: str, strict: bool = True) -> np.ndarray:
         return np.array(raw, dtype=float)  # a copy: no view keeps the whole table alive
     import pandas as pd
 
+    if times and is_datetime_column(df, src):
+        stamps = pd.to_datetime(raw, format="ISO8601", utc=True, errors="coerce")
+        return _seconds(stamps, str(raw.loc[raw.first_valid_index()]).strip(), src, p)
     col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
     if strict and not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str)
         cells = raw.astype(str).str.strip()
@@ -232,7 +264,6 @@ def _any_case(cols: list[str], canonical, specs: dict, mapping) -> dict:
 def _annotated_specs(cols: list[str], specs: dict, p: str) -> None:
     """Add the canonical columns whose headers say quantity and unit (:mod:`.headers`), with a
     note naming the conversion, where neither a column of that name nor a mapping gives them."""
-    from pmdcid.errors import warn
     from pmdcid.io.headers import claimed
 
     used = {r for spec in specs.values() for r in spec.refs}

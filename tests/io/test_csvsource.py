@@ -75,3 +75,18 @@ def test_a_whitespace_separated_log_is_read(tmp_path):
     with pytest.raises(LogError, match=r"looks space-separated \(header 't v omega'\) but its "
                                        r"rows do not have as many separators"):
         read_log(p)
+
+
+def test_iso_8601_date_times_are_read_as_seconds_from_the_first(tmp_path):
+    start = np.datetime64("2024-03-01T23:59:59.990")  # across midnight
+    stamps = start + np.arange(40) * np.timedelta64(1, "ms")
+    rows = "".join(f"{str(s).replace('T', ' ')},1,{k / 10:.1f}\n" for k, s in enumerate(stamps))
+    p = tmp_path / "wall.csv"
+    p.write_text("timestamp,v,omega\n" + rows)
+    with pytest.warns(UserWarning, match=r"column 'timestamp' holds date-times \(the first "
+                                         r"'2024-03-01 23:59:59\.990'\): read as t, in seconds"):
+        log = read_log(p)
+    assert log.dt == pytest.approx(1e-3) and log.t_file[-1] == pytest.approx(0.039)
+    p.write_text("t,v,omega\n" + rows.replace(" ", "T").replace(",1,", "Z,1,"))  # 'T', UTC 'Z'
+    with pytest.warns(UserWarning, match="column 't' holds date-times"):
+        assert read_log(p).n == 40
