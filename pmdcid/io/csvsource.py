@@ -32,6 +32,18 @@ SNIFF_ROWS = 20
 WHITESPACE = r"\s+"
 
 
+#: compressed files by their magic bytes: what they are, and how to get the CSV out
+COMPRESSED = (
+    (b"\x1f\x8b", ("gzip-compressed", "decompress it first (zcat FILE > log.csv), or read it "
+                   "through a pipe: <(zcat FILE)")),
+    (b"BZh", ("bzip2-compressed", "decompress it first (bzcat FILE > log.csv)")),
+    (b"\xfd7zXZ\x00", ("xz-compressed", "decompress it first (xzcat FILE > log.csv)")),
+    (b"\x28\xb5\x2f\xfd", ("zstd-compressed", "decompress it first (zstdcat FILE > log.csv)")),
+    (b"PK\x03\x04", ("a zip archive (or an Excel workbook)", "extract the CSV from it (or save "
+                      "the sheet as CSV)")),
+)
+
+
 @dataclass
 class Source:
     """What pandas reads (a path or an in-memory buffer), the text head, the CSV dialect."""
@@ -61,6 +73,10 @@ def open_source(p: str) -> Source:
             raise LogError("starts like UTF-16 text but is not: export the log as UTF-8 CSV",
                            p) from None
         return Source(io.StringIO(text), text[:HEAD_BYTES])
+    packed = next(((magic, *how) for magic, how in COMPRESSED if head.startswith(magic)), None)
+    if packed:
+        raise LogError(f"is {packed[1]} (its first bytes are {packed[0].hex(' ')}), not CSV "
+                       f"text: {packed[2]}", p)
     if b"\x00" in head:
         raise LogError("is not a text CSV file (binary content): export the log as CSV", p)
     text = head.decode("utf-8", errors="replace").lstrip("\ufeff")

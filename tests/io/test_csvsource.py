@@ -1,5 +1,8 @@
 """pmdcid/io/csvsource.py: opening a log as rigs and spreadsheets export it."""
 
+import bz2
+import gzip
+
 import numpy as np
 import pytest
 
@@ -90,3 +93,14 @@ def test_iso_8601_date_times_are_read_as_seconds_from_the_first(tmp_path):
     p.write_text("t,v,omega\n" + rows.replace(" ", "T").replace(",1,", "Z,1,"))  # 'T', UTC 'Z'
     with pytest.warns(UserWarning, match="column 't' holds date-times"):
         assert read_log(p).n == 40
+
+
+def test_a_compressed_log_is_named_as_such_with_the_way_out(tmp_path):
+    p = tmp_path / "run.csv"
+    p.write_bytes(gzip.compress(b"t,v\n0,1\n0.001,1\n0.002,1\n"))
+    with pytest.raises(LogError, match=r"is gzip-compressed \(its first bytes are 1f 8b\), not "
+                                       r"CSV text: decompress it first \(zcat FILE > log\.csv\)"):
+        read_log(p)
+    p.write_bytes(bz2.compress(b"t,v\n0,1\n0.001,1\n0.002,1\n"))
+    with pytest.raises(LogError, match=r"is bzip2-compressed"):
+        read_log(p)
