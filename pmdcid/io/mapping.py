@@ -2,16 +2,17 @@
 
 Syntax of one mapping (command line ``-c/--column``, or one line of a mapping file)::
 
-    CANON=SOURCE[*FACTOR...][/DIVISOR...][+OFFSET|-OFFSET]
+    CANON=[-]SOURCE[*FACTOR...][/DIVISOR...][+OFFSET|-OFFSET]
 
-``value_SI = raw * factors / divisors + offset``. Factors may be numbers, ``pi`` or unit names
-(``rpm``, ``deg``, ``rev``, ``ms``, ``us``, ``mA``, ``mV``, ``mNm``, ``mm``, ``krpm``) that
-stand for the factor converting that unit to SI. Examples::
+``value_SI = raw * factors / divisors + offset`` (a leading ``-`` negates ``raw``). Factors may
+be numbers, ``pi`` or unit names (``rpm``, ``deg``, ``rev``, ``ms``, ``us``, ``mA``, ``mV``,
+``mNm``, ``mm``, ``krpm``) that stand for the factor converting that unit to SI. Examples::
 
     omega=speed_rpm*rpm            # rpm -> rad/s
     theta=encoder*2*pi/4096        # encoder counts (4096 per revolution) -> rad
     v=pwm_counts*12/1023           # 10-bit PWM on a 12 V supply -> V
     omega=tacho_V*150*rpm          # tachometer at 1 V per 150 rpm -> rad/s
+    omega=-speed_rpm*rpm           # a sensor counting the other way (a leading minus)
     t=time_ms*ms                   # milliseconds -> s
     i=current_mA*mA-0.002          # mA -> A, minus a 2 mA sensor offset
     theta=angle                    # plain rename
@@ -208,9 +209,11 @@ def _parse_spec(text: str) -> ColumnSpec:
         expr = expr[: om.start()].strip()
     tokens = re.split(r"([*/])", expr)
     source = tokens[0].strip().strip('"')
+    scale = 1.0
+    if source.startswith("-"):  # a sensor counting the other way: -speed*rpm
+        source, scale = source[1:].strip(), -1.0
     if not source:
         raise LogError(f"column mapping '{text}' names no source column")
-    scale = 1.0
     for op, tok in zip(tokens[1::2], tokens[2::2], strict=True):
         val = _number(tok, text)
         if op == "*":

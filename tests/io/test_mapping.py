@@ -142,3 +142,13 @@ def test_a_column_mapped_twice_is_refused_naming_both(tmp_path):
         parse_mapping([], rig_json)
     rig.write_text("omega=speed_rpm*rpm\n")  # a -c overriding the file is not a conflict
     assert parse_mapping(["omega=speed"], rig).specs["omega"].source == "speed"
+
+
+def test_a_leading_minus_negates_the_source(tmp_path):
+    s = parse_spec("omega=-speed_rpm*rpm+1")
+    assert (s.source, s.offset) == ("speed_rpm", 1.0)
+    assert s.scale == pytest.approx(-2 * math.pi / 60)
+    p = tmp_path / "rig.csv"
+    write_log(p, np.arange(50) * 1e-3, {"v": np.ones(50), "speed_rpm": np.full(50, 60.0)})
+    log = read_log(p, parse_mapping(["omega=-speed_rpm*rpm"]))
+    assert log["omega"][10] == pytest.approx(-2 * math.pi)
