@@ -54,13 +54,55 @@ class Source:
     decimal: str = "."
 
 
+#: bytes read at a time from a file's end, looking for NUL padding after the last row
+TAIL_BYTES = 1 << 16
+#: what may trail a log's last row: NUL padding, and line ends and blanks among it
+_TRAILING = b"\x00\r\n\t "
+
+
+def _padding(fh) -> tuple[int, int]:
+    """(bytes before the padding, NUL bytes in it) of the open file ``fh``, the padding being the
+    NUL bytes (with line ends and blanks among them) after its last row: a logger that
+    pre-allocates its file or writes whole buffers leaves them. (size, 0) without NULs there."""
+    size = end = fh.seek(0, os.SEEK_END)
+    nuls = 0
+    while end > 0:
+        start = max(0, end - TAIL_BYTES)
+        fh.seek(start)
+        block = fh.read(end - start)
+        kept = block.rstrip(_TRAILING)
+        nuls += block.count(b"\x00", len(kept))
+        end = start + len(kept)
+        if kept:
+            break
+    return (end, nuls) if nuls else (size, 0)
+
+
+def _read(p: str) -> tuple[bytes | None, bytes]:
+    """The whole of log ``p`` (None for a regular file: read by path) and its head; a file
+    padded with NUL bytes after its last row is read without them (one warning). UTF-16 text,
+    whose line ends hold NUL bytes, is left as it is."""
+    with open(p, "rb") as fh:
+        if stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+            data, head = None, fh.read(HEAD_BYTES)
+            end, nuls = (0, 0) if head.startswith(BOMS_16) else _padding(fh)
+            if nuls:
+                fh.seek(0)
+                data = fh.read(end)
+        else:  # a pipe: read once
+            data = fh.read()
+            kept = b"" if data.startswith(BOMS_16) else data.rstrip(_TRAILING)
+            end, nuls = len(kept), data.count(b"\x00", len(kept)) if kept else 0
+    if nuls:
+        data = data[:end] + b"\n"
+        warn(f"ignored {nuls} NUL byte(s) after the last row (a logger's padding)", p)
+    return data, (head if data is None else data[:HEAD_BYTES])
+
+
 def open_source(p: str) -> Source:
     """Read the head of log ``p`` (all of it when it is not a regular file); see module doc."""
     try:
-        regular = stat.S_ISREG(os.stat(p).st_mode)
-        with open(p, "rb") as fh:
-            data = None if regular else fh.read()
-            head = fh.read(HEAD_BYTES) if regular else data[:HEAD_BYTES]
+        data, head = _read(p)
     except OSError as exc:
         raise LogError(f"cannot read log ({exc.strerror})", p) from None
     if head.startswith(BOMS_16):
@@ -210,10 +252,17 @@ def numeric_column(df, src: str, p: str, strict: bool = True, times: bool = Fals
         if notnum.any():
             comma = pd.to_numeric(cells.str.replace(",", ".", regex=False), errors="coerce")
             row, why = _bad_cell(cells, notnum, blank, comma.notna().to_numpy())
-            raise LogError(f"column '{src}' holds non-numeric value {cells.iloc[row][:30]!r} "
+            raise LogError(f"column '{src}' holds non-numeric value {_shown(cells.iloc[row])} "
                            f"(data row {row + 1}): {why}; fix or remove that row (or map another "
                            "column)", p)
     return col
+
+
+def _shown(cell: str) -> str:
+    """A cell for a message: its first 30 characters quoted, NUL bytes counted, not printed."""
+    if "\x00" not in cell:
+        return repr(cell[:30])
+    return f"{cell.replace(chr(0), '')[:30]!r} with {cell.count(chr(0))} NUL byte(s)"
 
 
 #: a number grouped in thousands: ``1.234,5`` (decimal comma) or ``1,234.5`` (decimal point)

@@ -104,3 +104,17 @@ def test_a_compressed_log_is_named_as_such_with_the_way_out(tmp_path):
     p.write_bytes(bz2.compress(b"t,v\n0,1\n0.001,1\n0.002,1\n"))
     with pytest.raises(LogError, match=r"is bzip2-compressed"):
         read_log(p)
+
+
+def test_nul_padding_after_the_last_row_is_ignored(tmp_path):
+    rows = "".join(f"{k / 1000:.3f},1,{k / 10:.1f}\n" for k in range(40))
+    p = tmp_path / "padded.csv"
+    p.write_bytes(("t,v,omega\n" + rows).encode() + b"\x00" * 500)
+    with pytest.warns(UserWarning, match=r"ignored 500 NUL byte\(s\) after the last row"):
+        log = read_log(p)
+    assert log.n == 40 and log["omega"][-1] == pytest.approx(3.9)
+    big = "".join(f"{k / 1000:.3f},1,{k / 10:.1f}\n" for k in range(6000))  # past the head
+    p.write_bytes(("t,v,omega\n" + big).encode() + b"\x00" * 30 + b"\n" + big[:40].encode())
+    with pytest.raises(LogError) as got:  # NULs inside the log: refused, counted, not printed
+        read_log(p)
+    assert "with 30 NUL byte(s)" in str(got.value) and "\\x00" not in str(got.value)
