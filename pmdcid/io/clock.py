@@ -109,8 +109,8 @@ def _why_back(t: np.ndarray, row: int) -> str:
                 f"stopped and padded its buffer; cut the log after data row {row + 1}")
     dtv = np.diff(t)
     if (dtv < 0).all():
-        return ": every row is earlier than the one before, the rows are in reverse order: sort " \
-               "the log by time"
+        return (": every row is earlier than the one before, the rows are in reverse order: "
+                "sort the log by time")
     period = float(np.median(dtv[dtv > 0])) if (dtv > 0).any() else 0.0
     drop = float(t[row] - t[row + 1])
     if period > 0 and drop <= OUT_OF_ORDER_PERIODS * period:

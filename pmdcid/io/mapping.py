@@ -285,10 +285,15 @@ def _add_once(specs: dict[str, ColumnSpec], spec: ColumnSpec, path=None) -> None
     ``-c omega=...``, or two lines of one mapping file) is refused: the last would silently win.
     The same mapping given twice is harmless and kept once."""
     first = specs.get(spec.canon)
-    if first is not None and first.text != spec.text:
+    if first is not None and _meaning(first) != _meaning(spec):
         raise LogError(f"{spec.canon} is mapped twice, by {_said(first)} and by {_said(spec)}: "
                        "keep one", path)
     specs[spec.canon] = spec
+
+
+def _meaning(spec: ColumnSpec) -> tuple:
+    """What a mapping computes, however it is spelt (blanks, ``*1``)."""
+    return spec.source, spec.scale, spec.offset, spec.expr, spec.pending
 
 
 def _said(spec: ColumnSpec) -> str:
