@@ -19,7 +19,8 @@ import numpy as np
 from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.checks import held_glitches
 from pmdcid.io.clock import INPUTS
-from pmdcid.io.mapping import CANONICAL, SETPOINTS, ColumnMap, parse_mapping
+from pmdcid.io.csvsource import column_specs, is_datetime_column, numeric_column
+from pmdcid.io.mapping import CANONICAL, SETPOINTS, ColumnMap, ColumnSpec, parse_mapping
 
 
 def as_mapping(columns=None, map_file=None, cutoff_hz: float | None = None) -> ColumnMap:
@@ -50,25 +51,16 @@ def frame_columns(df, mapping: ColumnMap, path: str):
     expressions: :mod:`pmdcid.io.csvsource`); raises :class:`LogError` naming the column for a
     missing source, a text cell, or no time column.
     """
-    from pmdcid.io.csvsource import column_specs, numeric_column
-
     cols = [str(c) for c in df.columns]
     specs, skipped = column_specs(cols, mapping, CANONICAL, path)
     if "t" not in specs:
-        seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar")]
-        sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
-        if sep:
-            raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}) but its rows do not "
-                           "have as many separators as the header: make every row alike, or "
-                           "convert the file to comma-separated CSV", path)
-        why = f"; {skipped['t']}" if "t" in skipped else ""
-        raise LogError(f"has no time column 't' (columns are {short_list(cols)}{why}; map one "
-                       "with -c t=SOURCE)", path)
+        specs["t"] = _time_spec(df, cols, specs, skipped, path)
     cache: dict[str, np.ndarray] = {}
+    times = set(specs["t"].refs)
 
     def get(name: str) -> np.ndarray:
         if name not in cache:
-            cache[name] = numeric_column(df, name, path)
+            cache[name] = numeric_column(df, name, path, times=name in times)
         return cache[name]
 
     data: dict[str, np.ndarray] = {}
@@ -85,6 +77,24 @@ def frame_columns(df, mapping: ColumnMap, path: str):
     return data, extra, skipped
 
 
+def _time_spec(df, cols: list[str], specs: dict, skipped: dict, path: str) -> ColumnSpec:
+    """The time column of a table without a ``t`` column or mapping: the one column of ISO 8601
+    date-times, if there is one; else a :class:`LogError` saying why there is none."""
+    used = {r for spec in specs.values() for r in spec.refs}
+    dates = [c for c in cols if c not in used and is_datetime_column(df, c)]
+    if len(dates) == 1:
+        return ColumnSpec("t", dates[0], text=f"t={dates[0]}")
+    seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar"), (" ", "space")]
+    sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
+    if sep:
+        raise LogError(f"looks {sep}-separated (header {cols[0][:40]!r}) but its rows do not "
+                       "have as many separators as the header: make every row alike, or "
+                       "convert the file to comma-separated CSV", path)
+    why = f"; {skipped['t']}" if "t" in skipped else ""
+    raise LogError(f"has no time column 't' (columns are {short_list(cols)}{why}; map one "
+                   "with -c t=SOURCE)", path)
+
+
 #: at most this many unmapped numeric columns are kept in ``Log.extra`` (a transposed export
 #: of 120 000 columns must not cost 120 000 conversions)
 MAX_EXTRA = 64
@@ -98,8 +108,10 @@ OVERLOAD = 1e30
 
 
 def fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
-    """``x`` with short NaN gaps interpolated (a warning); too many, an inf or an overload
-    marker (|x| >= :data:`OVERLOAD`): LogError."""
+    """``x`` with short NaN gaps filled (a warning): an input (``v``, ``tau``: zero-order held,
+    CONTRACT.md) holds the sample before the gap (a gap at the start takes the first sample
+    after it), a measurement is interpolated linearly; too many, an inf or an overload marker
+    (|x| >= :data:`OVERLOAD`): LogError."""
     big = np.abs(np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)) >= OVERLOAD
     if big.any():
         row = int(np.flatnonzero(big)[0])
@@ -124,9 +136,21 @@ def fill_nans(name: str, x: np.ndarray, path: str) -> np.ndarray:
             path)
     good = np.flatnonzero(~bad)
     x = x.copy()
-    x[bad] = np.interp(np.flatnonzero(bad), good, x[good])
-    warn(f"column '{name}': filled {nbad} NaN value(s) by linear interpolation", path)
+    if name in INPUTS:
+        x[bad] = x[held_index(bad, good)]
+        how = "holding the sample before (the input is zero-order held)"
+    else:
+        x[bad] = np.interp(np.flatnonzero(bad), good, x[good])
+        how = "linear interpolation"
+    warn(f"column '{name}': filled {nbad} NaN value(s) by {how}", path)
     return x
+
+
+def held_index(bad: np.ndarray, good: np.ndarray) -> np.ndarray:
+    """For each sample flagged ``bad``, the index of the last good sample before it (the first
+    good one when none is before); ``good``: the indices of the good samples, ascending."""
+    k = np.searchsorted(good, np.flatnonzero(bad)) - 1
+    return good[np.maximum(k, 0)]
 
 
 def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
@@ -140,15 +164,21 @@ def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
     grid from 0 (the original kept as ``t_file``); a loop-timed one is resampled onto a uniform
     grid (the input held, measurements interpolated; ``log.resampled`` keeps the file's
     instants, one line says so). ``resampled``: the :class:`~pmdcid.io.clock.Resampling` of
-    columns already put on a uniform grid by a reader (signals on several clocks). NaN gaps are
-    filled (:func:`fill_nans`); the plausibility checks run; speed is derived from the angle, or
-    the angle from the speed, when one is missing.
+    columns already put on a uniform grid by a reader (signals on several clocks). A column with
+    no number at all is dropped, as if absent (a warning; a command needing it says it lacks it,
+    and why). NaN gaps are filled (:func:`fill_nans`); the plausibility checks run; speed is
+    derived from the angle, or the angle from the speed, when one is missing.
     """
     from pmdcid.io.clock import examine, resample_columns
 
     data = {k: np.asarray(v, dtype=float) for k, v in data.items()}
     t = data.pop("t")
     clock = examine(t, path)
+    skipped = dict(skipped or {})
+    for canon in [c for c, x in data.items() if len(x) and np.isnan(x).all()]:
+        del data[canon]  # a column with no number at all: as if absent
+        skipped[canon] = f"column '{canon}' is empty"
+        warn(f"column '{canon}' is empty (no number in any row): ignored", path)
     for canon in list(data):
         data[canon] = fill_nans(canon, data[canon], path)
     for canon in set(INPUTS) & set(data):
@@ -160,7 +190,7 @@ def validated_log(log_type: type, path: str, data: dict[str, np.ndarray],
     t_file = clock.grid if resampled is not None else t
     t = clock.grid - clock.grid[0]
     log = log_type(path=path, t=t, data=data, meta=dict(meta or {}), extra=extra,
-              cutoff_hz=cutoff_hz, t_file=t_file, skipped=dict(skipped or {}),
+              cutoff_hz=cutoff_hz, t_file=t_file, skipped=skipped,
               resampled=resampled)
     if resampled is not None:
         log.notes.append(resampled.note)

@@ -93,19 +93,30 @@ def _dt_text(x: float) -> str:
 #: counters whose wrap a time column may show: bits, and the units a count may stand for [s]
 COUNTER_BITS = (8, 16, 24, 32)
 COUNTER_UNITS = ((1e-6, "microsecond"), (1e-3, "millisecond"), (1.0, "second"))
+#: a step back of the time by at most this many sample periods is rows out of order (two rows
+#: swapped, a row written late), not a counter's wrap: a wrap drops by the counter's whole range
+OUT_OF_ORDER_PERIODS = 3.0
 
 
 def _why_back(t: np.ndarray, row: int) -> str:
     """What a step back of the time after data row ``row + 1`` most likely is, and what to do:
-    a logger that stopped (every later stamp 0), a counter that wraps (the step back is a
+    a logger that stopped (every later stamp 0), rows in reverse order, rows out of order (a
+    step back of a few sample periods at most), a counter that wraps (the step back is a
     power-of-two count of a time unit), or just a time that must increase."""
     after = t[row + 1:]
     if len(after) > 1 and not after.any():
         return (f": every stamp from there to the end ({len(after)} rows) is 0, a logger that "
                 f"stopped and padded its buffer; cut the log after data row {row + 1}")
-    dtv = np.diff(t[: row + 1])
-    period = float(np.median(dtv)) if len(dtv) else 0.0
-    span = float(t[row] - t[row + 1]) + period  # the counter's range, one period added back
+    dtv = np.diff(t)
+    if (dtv < 0).all():
+        return (": every row is earlier than the one before, the rows are in reverse order: "
+                "sort the log by time")
+    period = float(np.median(dtv[dtv > 0])) if (dtv > 0).any() else 0.0
+    drop = float(t[row] - t[row + 1])
+    if period > 0 and drop <= OUT_OF_ORDER_PERIODS * period:
+        return (f": rows out of order at t = {t[row]:g} s (the next row is {drop / period:.2g} "
+                "sample period(s) earlier): sort the log by time")
+    span = drop + period  # the counter's range, one period added back
     for bits in COUNTER_BITS:
         for unit, name in COUNTER_UNITS:
             if period > 0 and abs(span - 2.0**bits * unit) <= 2 * period:

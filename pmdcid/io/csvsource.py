@@ -7,6 +7,8 @@
 - European exports (Excel with a comma decimal mark) separate fields with ``;`` and write
   ``0,001``: a header with ``;`` (or a tab) and no ``,``, whose first data rows have as many
   separators, is read with that separator, and with a decimal comma when the data show one.
+- A header of names separated by spaces (no ``,``, ``;`` or tab), whose first data rows have as
+  many whitespace-separated fields, is read as whitespace-separated (``t v i omega``).
 """
 
 from __future__ import annotations
@@ -19,12 +21,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pmdcid.errors import LogError, short_list
+from pmdcid.errors import LogError, short_list, warn
+from pmdcid.io.mapping import ColumnSpec, resolve
 from pmdcid.io.text import BOMS_16, decode
 
 HEAD_BYTES = 1 << 16
 #: data rows looked at to recognise the separator and the decimal mark
 SNIFF_ROWS = 20
+#: the separator of a whitespace-separated file (pandas' regular expression)
+WHITESPACE = r"\s+"
+
+
+#: compressed files by their magic bytes: what they are, and how to get the CSV out
+COMPRESSED = (
+    (b"\x1f\x8b", ("gzip-compressed", "decompress it first (zcat FILE > log.csv), or read it "
+                   "through a pipe: <(zcat FILE)")),
+    (b"BZh", ("bzip2-compressed", "decompress it first (bzcat FILE > log.csv)")),
+    (b"\xfd7zXZ\x00", ("xz-compressed", "decompress it first (xzcat FILE > log.csv)")),
+    (b"\x28\xb5\x2f\xfd", ("zstd-compressed", "decompress it first (zstdcat FILE > log.csv)")),
+    (b"PK\x03\x04", ("a zip archive (or an Excel workbook)", "extract the CSV from it (or save "
+                      "the sheet as CSV)")),
+)
 
 
 @dataclass
@@ -37,13 +54,55 @@ class Source:
     decimal: str = "."
 
 
+#: bytes read at a time from a file's end, looking for NUL padding after the last row
+TAIL_BYTES = 1 << 16
+#: what may trail a log's last row: NUL padding, and line ends and blanks among it
+_TRAILING = b"\x00\r\n\t "
+
+
+def _padding(fh) -> tuple[int, int]:
+    """(bytes before the padding, NUL bytes in it) of the open file ``fh``, the padding being the
+    NUL bytes (with line ends and blanks among them) after its last row: a logger that
+    pre-allocates its file or writes whole buffers leaves them. (size, 0) without NULs there."""
+    size = end = fh.seek(0, os.SEEK_END)
+    nuls = 0
+    while end > 0:
+        start = max(0, end - TAIL_BYTES)
+        fh.seek(start)
+        block = fh.read(end - start)
+        kept = block.rstrip(_TRAILING)
+        nuls += block.count(b"\x00", len(kept))
+        end = start + len(kept)
+        if kept:
+            break
+    return (end, nuls) if nuls else (size, 0)
+
+
+def _read(p: str) -> tuple[bytes | None, bytes]:
+    """The whole of log ``p`` (None for a regular file: read by path) and its head; a file
+    padded with NUL bytes after its last row is read without them (one warning). UTF-16 text,
+    whose line ends hold NUL bytes, is left as it is."""
+    with open(p, "rb") as fh:
+        if stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+            data, head = None, fh.read(HEAD_BYTES)
+            end, nuls = (0, 0) if head.startswith(BOMS_16) else _padding(fh)
+            if nuls:
+                fh.seek(0)
+                data = fh.read(end)
+        else:  # a pipe: read once
+            data = fh.read()
+            kept = b"" if data.startswith(BOMS_16) else data.rstrip(_TRAILING)
+            end, nuls = len(kept), data.count(b"\x00", len(kept)) if kept else 0
+    if nuls:
+        data = data[:end] + b"\n"
+        warn(f"ignored {nuls} NUL byte(s) after the last row (a logger's padding)", p)
+    return data, (head if data is None else data[:HEAD_BYTES])
+
+
 def open_source(p: str) -> Source:
     """Read the head of log ``p`` (all of it when it is not a regular file); see module doc."""
     try:
-        regular = stat.S_ISREG(os.stat(p).st_mode)
-        with open(p, "rb") as fh:
-            data = None if regular else fh.read()
-            head = fh.read(HEAD_BYTES) if regular else data[:HEAD_BYTES]
+        data, head = _read(p)
     except OSError as exc:
         raise LogError(f"cannot read log ({exc.strerror})", p) from None
     if head.startswith(BOMS_16):
@@ -56,6 +115,10 @@ def open_source(p: str) -> Source:
             raise LogError("starts like UTF-16 text but is not: export the log as UTF-8 CSV",
                            p) from None
         return Source(io.StringIO(text), text[:HEAD_BYTES])
+    packed = next(((magic, *how) for magic, how in COMPRESSED if head.startswith(magic)), None)
+    if packed:
+        raise LogError(f"is {packed[1]} (its first bytes are {packed[0].hex(' ')}), not CSV "
+                       f"text: {packed[2]}", p)
     if b"\x00" in head:
         raise LogError("is not a text CSV file (binary content): export the log as CSV", p)
     text = head.decode("utf-8", errors="replace").lstrip("\ufeff")
@@ -70,9 +133,9 @@ def sniff(src: Source, nskip: int) -> Source:
     header, rows = lines[0], lines[1:1 + SNIFF_ROWS]
     if len(rows) > 1 and len(src.head.encode()) >= HEAD_BYTES:
         rows = rows[:-1]  # the last line of the head may be cut
-    for sep in (";", "\t"):
-        k = header.count(sep)
-        if k and "," not in header and all(r.count(sep) == k for r in rows):
+    for sep in (";", "\t", WHITESPACE):
+        k = _fields(header, sep) - 1
+        if k and "," not in header and all(_fields(r, sep) == k + 1 for r in rows):
             src.sep = sep
             if any(re.search(r"\d,\d", r) for r in rows):
                 src.decimal = ","
@@ -90,21 +153,87 @@ def separator_hint(src: Source, nskip: int) -> str:
     return ""
 
 
+def _fields(line: str, sep: str) -> int:
+    return len(line.split() if sep == WHITESPACE else line.split(sep))
+
+
+def _numbers(line: str, sep: str) -> bool:
+    """True when every field of ``line`` is a number (a data row, not a header)."""
+    try:
+        [float(c.strip().strip('"')) for c in (line.split() if sep == WHITESPACE
+                                              else line.split(sep)) if c.strip()]
+    except ValueError:
+        return False
+    return True
+
+
+def check_header(src: Source, nskip: int, p: str) -> None:
+    """Refuse a first line that is no header: a title or note written without ``#`` (``Logged by
+    rig 3 on ...``) has fewer fields than the rows below, and a later line with as many fields
+    as the rows, not numbers, above a row of numbers, is the header. The message names both
+    lines and the fix."""
+    lines = [(k, ln) for k, ln in enumerate(src.head.splitlines()) if k >= nskip and ln.strip()]
+    counts = [_fields(ln, src.sep) for _, ln in lines[:SNIFF_ROWS + 1]]
+    if len(counts) < 3:
+        return
+    width = max(set(counts[1:]), key=counts[1:].count)  # the rows' number of fields
+    j = next((j for j, c in enumerate(counts) if c == width), 0)
+    if (counts[0] >= width or j == 0 or j + 1 >= len(lines) or _numbers(lines[j][1], src.sep)
+            or not _numbers(lines[j + 1][1], src.sep)  # the header must head rows of numbers
+            or any(ln.count('"') % 2 for _, ln in lines[:j + 1])):  # a quoted name across lines
+        return
+    (k0, first), (kj, header) = lines[0], lines[j]
+    raise LogError(f"line {k0 + 1} ({first.strip()[:40]!r}) does not look like a header: it has "
+                   f"{counts[0]} field(s) where the rows below have {width}, and line {kj + 1} "
+                   f"({header.strip()[:40]!r}) looks like the header; start the line(s) before "
+                   "it with '#' (comments) or delete them", p)
+
+
 def header_names(src: Source, nskip: int) -> list[str]:
     """The raw header's names (stripped, unquoted), for the duplicate-name check."""
     lines = src.head.splitlines()[nskip:]
     k = next((j for j, ln in enumerate(lines) if ln.strip()), None)
     if k is None:
         return []
-    names = [c.strip().strip('"') for c in lines[k].split(src.sep)]
+    cells = lines[k].split() if src.sep == WHITESPACE else lines[k].split(src.sep)
+    names = [c.strip().strip('"') for c in cells]
     if k == len(lines) - 1:  # the header runs past the head: its last name may be cut
         names = names[:-1]
     return names
 
 
-def numeric_column(df, src: str, p: str, strict: bool = True) -> np.ndarray:
+#: an ISO 8601 date and time (``2024-03-01 12:00:00.000``, ``2024-03-01T12:00:00Z``, with an
+#: offset ``+01:00``): a time column a logger wrote as wall-clock time
+_DATETIME = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}([.,]\d+)?)?\s*"
+                       r"(Z|[+-]\d{2}(:?\d{2})?)?$")
+
+
+def is_datetime_column(df, name: str) -> bool:
+    """True when column ``name`` of ``df`` is text whose first cell is an ISO 8601 date-time."""
+    raw = df[name]
+    if isinstance(raw, np.ndarray) or raw.dtype.kind in "biufcmM":
+        return False
+    k = raw.first_valid_index()
+    return k is not None and bool(_DATETIME.match(str(raw.loc[k]).strip()))
+
+
+def _seconds(stamps, first: str, src: str, p: str) -> np.ndarray:
+    """Date-times (a tz-aware pandas Series, NaT where a cell is none; ``first``: the first cell
+    as written) as seconds from the first; a warning says so."""
+    ns = stamps.dt.tz_convert(None).to_numpy(dtype="datetime64[ns]").astype(np.int64)
+    nat = stamps.isna().to_numpy()
+    out = (ns - (ns[~nat][0] if (~nat).any() else 0)).astype(float) * 1e-9
+    out[nat] = np.nan  # a cell that is no date-time: the time check names its row
+    warn(f"column '{src}' holds date-times (the first {first[:40]!r}): read as t, in seconds "
+         "from the first", p)
+    return out
+
+
+def numeric_column(df, src: str, p: str, strict: bool = True, times: bool = False) -> np.ndarray:
     """Column ``src`` as floats; a text cell that is not a number is an error naming its row
-    (``strict``) or NaN. ``df`` is a DataFrame or a :class:`pmdcid.io.plain.PlainFrame`."""
+    (``strict``) or NaN. ``df`` is a DataFrame or a :class:`pmdcid.io.plain.PlainFrame`.
+    ``times``: a column of ISO 8601 date-times (:func:`is_datetime_column`) is read as seconds
+    from its first (with a warning)."""
     raw = df[src]
     if isinstance(raw, np.ndarray):  # a PlainFrame's column: plain float64 numbers
         if raw.base is None and raw.dtype == float:  # a column stored alone (chunked read)
@@ -112,28 +241,55 @@ def numeric_column(df, src: str, p: str, strict: bool = True) -> np.ndarray:
         return np.array(raw, dtype=float)  # a copy: no view keeps the whole table alive
     import pandas as pd
 
+    if times and is_datetime_column(df, src):
+        stamps = pd.to_datetime(raw, format="ISO8601", utc=True, errors="coerce")
+        return _seconds(stamps, str(raw.loc[raw.first_valid_index()]).strip(), src, p)
     col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
     if strict and not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str)
-        notnum = np.isnan(col) & raw.notna().to_numpy() & (
-            raw.astype(str).str.strip().str.lower().isin(["nan", "", "na", "null"]) == False  # noqa: E712
-        ).to_numpy()
+        cells = raw.astype(str).str.strip()
+        blank = raw.isna().to_numpy() | cells.str.lower().isin(["nan", "", "na", "null"]).to_numpy()
+        notnum = np.isnan(col) & ~blank
         if notnum.any():
-            row = int(np.flatnonzero(notnum)[0])
-            raise LogError(
-                f"column '{src}' holds non-numeric value {str(raw.iloc[row])[:30]!r} "
-                f"(data row {row + 1}): numbers only, with '.' decimals; fix or remove "
-                "that row (or map another column)",
-                p,
-            )
+            comma = pd.to_numeric(cells.str.replace(",", ".", regex=False), errors="coerce")
+            row, why = _bad_cell(cells, notnum, blank, comma.notna().to_numpy())
+            raise LogError(f"column '{src}' holds non-numeric value {_shown(cells.iloc[row])} "
+                           f"(data row {row + 1}): {why}; fix or remove that row (or map another "
+                           "column)", p)
     return col
+
+
+def _shown(cell: str) -> str:
+    """A cell for a message: its first 30 characters quoted, NUL bytes counted, not printed."""
+    if "\x00" not in cell:
+        return repr(cell[:30])
+    return f"{cell.replace(chr(0), '')[:30]!r} with {cell.count(chr(0))} NUL byte(s)"
+
+
+#: a number grouped in thousands: ``1.234,5`` (decimal comma) or ``1,234.5`` (decimal point)
+_GROUPED = {",": re.compile(r"^[+-]?\d{1,3}(\.\d{3})+(,\d*)?$"),
+            ".": re.compile(r"^[+-]?\d{1,3}(,\d{3})+(\.\d*)?$")}
+
+
+def _bad_cell(cells, notnum: np.ndarray, blank: np.ndarray,
+              comma: np.ndarray) -> tuple[int, str]:
+    """The first cell of text column ``cells`` that is no number in the column's own decimal
+    mark (the mark most of its cells are numbers in: ``comma`` flags those that are numbers with
+    a decimal comma), and what is wrong with it."""
+    mark = "," if comma.sum() > (~notnum & ~blank).sum() else "."
+    bad = ~comma & ~blank if mark == "," else notnum
+    row = int(np.flatnonzero(bad)[0]) if bad.any() else int(np.flatnonzero(notnum)[0])
+    if _GROUPED[mark].match(cells.iloc[row]):
+        sep = "." if mark == "," else ","
+        return row, (f"a thousands separator ('{sep}') in a number with '{mark}' decimals: "
+                     "export numbers without digit grouping")
+    return row, f"numbers only, with '{mark}' decimals"
 
 
 def column_specs(cols: list[str], mapping, canonical, p: str):
     """Spec of each canonical column, and the mapping-file lines skipped for this log."""
-    from pmdcid.io.mapping import ColumnSpec, resolve
-
     have = set(cols)
     specs = {c: ColumnSpec(c, c) for c in canonical if c in have}
+    specs.update(_any_case(cols, canonical, specs, mapping))
     skipped: dict[str, str] = {}
     slashed = [c for c in cols if "/" in c]
     for canon, spec in mapping.specs.items():
@@ -157,12 +313,23 @@ def column_specs(cols: list[str], mapping, canonical, p: str):
     return specs, skipped
 
 
+def _any_case(cols: list[str], canonical, specs: dict, mapping) -> dict:
+    """Specs of the canonical columns a header names in another case (``T``, ``OMEGA``,
+    ``Omega``): where exactly one column matches, no column has the exact name and no mapping
+    names the column or reads that header."""
+    mapped = {r for spec in mapping.specs.values() for r in spec.refs}
+    out = {}
+    for c in canonical:
+        hits = [h for h in cols if h.lower() == c and h not in mapped]
+        if c not in specs and c not in mapping.specs and len(hits) == 1:
+            out[c] = ColumnSpec(c, hits[0], text=f"{c}={hits[0]}")
+    return out
+
+
 def _annotated_specs(cols: list[str], specs: dict, p: str) -> None:
     """Add the canonical columns whose headers say quantity and unit (:mod:`.headers`), with a
     note naming the conversion, where neither a column of that name nor a mapping gives them."""
-    from pmdcid.errors import warn
     from pmdcid.io.headers import claimed
-    from pmdcid.io.mapping import ColumnSpec
 
     used = {r for spec in specs.values() for r in spec.refs}
     said = []

@@ -234,7 +234,7 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
 def read_table(p: str):
     """A CSV log's table (a DataFrame or :class:`~pmdcid.io.plain.PlainFrame`, one-line unique
     column names) and its ``# key: value`` metadata, unchecked."""
-    from pmdcid.io.csvsource import header_names, open_source, sniff
+    from pmdcid.io.csvsource import check_header, header_names, open_source, sniff
 
     if not os.path.exists(p):
         raise LogError("no such log file (check the path)", p)
@@ -246,6 +246,7 @@ def read_table(p: str):
     check_lines(src.handle, p)  # before any parsing: a 50 MB line fails at once
     meta, nskip = _split_comments(src.head, p)
     sniff(src, nskip)
+    check_header(src, nskip, p)
     df = None
     if isinstance(src.handle, str) and (src.sep, src.decimal) == (",", "."):
         from pmdcid.io.plain import read_plain  # plain numbers: no pandas import

@@ -2,16 +2,17 @@
 
 Syntax of one mapping (command line ``-c/--column``, or one line of a mapping file)::
 
-    CANON=SOURCE[*FACTOR...][/DIVISOR...][+OFFSET|-OFFSET]
+    CANON=[-]SOURCE[*FACTOR...][/DIVISOR...][+OFFSET|-OFFSET]
 
-``value_SI = raw * factors / divisors + offset``. Factors may be numbers, ``pi`` or unit names
-(``rpm``, ``deg``, ``rev``, ``ms``, ``us``, ``mA``, ``mV``, ``mNm``, ``mm``, ``krpm``) that
-stand for the factor converting that unit to SI. Examples::
+``value_SI = raw * factors / divisors + offset`` (a leading ``-`` negates ``raw``). Factors may
+be numbers, ``pi`` or unit names (``rpm``, ``deg``, ``rev``, ``ms``, ``us``, ``mA``, ``mV``,
+``mNm``, ``mm``, ``krpm``) that stand for the factor converting that unit to SI. Examples::
 
     omega=speed_rpm*rpm            # rpm -> rad/s
     theta=encoder*2*pi/4096        # encoder counts (4096 per revolution) -> rad
     v=pwm_counts*12/1023           # 10-bit PWM on a 12 V supply -> V
     omega=tacho_V*150*rpm          # tachometer at 1 V per 150 rpm -> rad/s
+    omega=-speed_rpm*rpm           # a sensor counting the other way (a leading minus)
     t=time_ms*ms                   # milliseconds -> s
     i=current_mA*mA-0.002          # mA -> A, minus a 2 mA sensor offset
     theta=angle                    # plain rename
@@ -25,9 +26,11 @@ When the right-hand side holds quotes or parentheses it is read by the expressio
     v=(pwm-128)*12/128                   # offset-binary PWM
 
 A mapping file holds one mapping per line (``#`` starts a comment), or a JSON object
-``{"omega": "speed_rpm*rpm", ...}``. Command-line mappings override the file's. A file line
-whose source column(s) a log lacks is skipped for that log, so one file serves logs with different
-columns; a command that then misses the column names the skipped line.
+``{"omega": "speed_rpm*rpm", ...}``. Command-line mappings override the file's; a column mapped
+twice by the command line, or twice by one file, is an error naming both (the last would
+silently win). A file line whose source column(s) a log lacks is skipped for that log, so one
+file serves logs with different columns; a command that then misses the column names the
+skipped line.
 """
 
 from __future__ import annotations
@@ -206,9 +209,11 @@ def _parse_spec(text: str) -> ColumnSpec:
         expr = expr[: om.start()].strip()
     tokens = re.split(r"([*/])", expr)
     source = tokens[0].strip().strip('"')
+    scale = 1.0
+    if source.startswith("-"):  # a sensor counting the other way: -speed*rpm
+        source, scale = source[1:].strip(), -1.0
     if not source:
         raise LogError(f"column mapping '{text}' names no source column")
-    scale = 1.0
     for op, tok in zip(tokens[1::2], tokens[2::2], strict=True):
         val = _number(tok, text)
         if op == "*":
@@ -249,14 +254,14 @@ def parse_mapping(items: list[str] | tuple[str, ...] = (),
         lines: list[str]
         if text.lstrip().startswith("{"):
             try:
-                obj = json.loads(text)
+                obj = json.loads(text, object_pairs_hook=_Pairs)
             except json.JSONDecodeError as exc:
                 raise LogError(f"mapping file is not valid JSON ({exc.msg})", p) from None
             except (ValueError, RecursionError) as exc:
                 raise LogError(f"mapping file is not usable JSON ({str(exc)[:60]})", p) from None
-            if not isinstance(obj, dict):
+            if not isinstance(obj, _Pairs):
                 raise LogError("mapping file must hold a JSON object {\"omega\": \"...\"}", p)
-            lines = [f"{k}={v}" for k, v in obj.items()]
+            lines = [f"{k}={v}" for k, v in obj]
         else:
             lines = [_strip_comment(ln) for ln in text.splitlines()]
         for k, ln in enumerate(lines):
@@ -266,12 +271,38 @@ def parse_mapping(items: list[str] | tuple[str, ...] = (),
                 except LogError as exc:
                     raise LogError(str(exc), p) from None
                 where = f"{p.name} {'entry' if text.lstrip().startswith('{') else 'line'} {k + 1}"
-                specs[spec.canon] = ColumnSpec(spec.canon, spec.source, spec.scale, spec.offset,
-                                               spec.expr, where, spec.text)
+                spec = ColumnSpec(spec.canon, spec.source, spec.scale, spec.offset, spec.expr,
+                                  where, spec.text)
+                _add_once(specs, spec, p)
+    given: dict[str, ColumnSpec] = {}
     for item in items:
-        spec = parse_spec(item)
-        specs[spec.canon] = spec
-    return ColumnMap(specs)
+        _add_once(given, parse_spec(item))
+    return ColumnMap({**specs, **given})
+
+
+def _add_once(specs: dict[str, ColumnSpec], spec: ColumnSpec, path=None) -> None:
+    """Add ``spec`` to ``specs``; a second, different mapping of the same canonical column (two
+    ``-c omega=...``, or two lines of one mapping file) is refused: the last would silently win.
+    The same mapping given twice is harmless and kept once."""
+    first = specs.get(spec.canon)
+    if first is not None and _meaning(first) != _meaning(spec):
+        raise LogError(f"{spec.canon} is mapped twice, by {_said(first)} and by {_said(spec)}: "
+                       "keep one", path)
+    specs[spec.canon] = spec
+
+
+def _meaning(spec: ColumnSpec) -> tuple:
+    """What a mapping computes, however it is spelt (blanks, ``*1``)."""
+    return spec.source, spec.scale, spec.offset, spec.expr, spec.pending
+
+
+def _said(spec: ColumnSpec) -> str:
+    """Where a mapping was given, for messages: ``-c omega=x`` or ``rig.map line 2 (omega=x)``."""
+    return f"{spec.origin} ({spec.text})" if spec.origin else f"-c {spec.text}"
+
+
+class _Pairs(list):
+    """A JSON object as its (key, value) pairs, in order: a key given twice stays visible."""
 
 
 #: what the front door's ``mapping=`` takes, for its one-line refusal

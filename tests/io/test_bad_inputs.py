@@ -405,8 +405,12 @@ CASES: list[Case] = [
     C("log-trailing-comma", combine(MODEL, text("step.csv", "t,v,\n0,0,\n0.001,1,\n0.002,1,\n")),
       SIM, 0, None),
     C("log-empty-measured-column", combine(MODEL, text("step.csv", "t,v,i\n" + "".join(
-        f"{k * 1e-3:.3f},1,\n" for k in range(100)))), SIM, 1,
-      r"^error: step\.csv: column 'i' has 100 missing/NaN values"),
+        f"{k * 1e-3:.3f},1,\n" for k in range(100)))), SIM, 0,
+      r"^warning: step\.csv: column 'i' is empty \(no number in any row\): ignored",
+      changes=("out.csv",)),
+    C("log-empty-needed-column", combine(MODEL, text("blocked.csv", "t,v,i\n" + "".join(
+        f"{k * 1e-3:.3f},1,\n" for k in range(100)))), FE, 1,
+      r"^error: blocked\.csv: needs column\(s\) i .*; column 'i' is empty; it has v"),
     # ---- column mappings -------------------------------------------------------------------
     C("map-unknown-source", combine(MODEL, STEP), SIM + ["-c", "omega=speed_rpm*rpm"], 1,
       r"^error: step\.csv: column mapping omega=speed_rpm: no column 'speed_rpm'"),
@@ -416,6 +420,11 @@ CASES: list[Case] = [
       r"'furlongs' is neither a number nor a unit"),
     C("map-not-canonical", combine(MODEL, STEP), SIM + ["-c", "speed=omega"], 2,
       r"'speed' is not a canonical column"),
+    C("map-twice", combine(MODEL, STEP), SIM + ["-c", "omega=omega*rpm", "-c", "omega=omega"],
+      2, r"omega is mapped twice, by -c omega=omega\*rpm and by -c omega=omega: keep one"),
+    C("map-file-twice", combine(MODEL, STEP, text("cols.map", "omega=omega*rpm\nomega=omega\n")),
+      SIM + ["--map", "cols.map"], 1, r"^error: cols\.map: omega is mapped twice, by cols\.map "
+      r"line 1 \(omega=omega\*rpm\) and by cols\.map line 2 \(omega=omega\)"),
     C("map-file-missing", combine(MODEL, STEP), SIM + ["--map", "cols.map"], 1,
       r"^error: cols\.map: cannot read column-mapping file"),
     C("map-file-bad-json", combine(MODEL, STEP, text("cols.map", '{"omega": ')),

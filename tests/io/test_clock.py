@@ -166,3 +166,18 @@ def test_lego_ev3_step_reads_as_loop_timed():
     res = stage_mechanical(logs, lumped_if_wanted(logs, Model()))
     assert all(s.moved and s.t0 == 0.0 for s in res.steps)
     assert 0 < res.estimates["J"].value < res.estimates["bv"].value  # tau_m ~ 0.07 s
+
+
+def test_rows_out_of_order_are_told_apart_from_a_counter_wrap():
+    t = np.arange(3000) * 1e-3
+    swapped = t.copy()
+    swapped[[1500, 1501]] = swapped[[1501, 1500]]  # one pair of rows written in the wrong order
+    with pytest.raises(LogError, match=r"time goes back at data row 1502 \(t=1\.5 s\): rows out "
+                                       r"of order at t = 1\.501 s .*: sort the log by time$"):
+        Log.from_arrays(swapped, v=np.ones(3000), omega=np.ones(3000))
+    wrapped = np.mod(np.arange(3000) * 30, 2**16) * 1e-3  # a 16-bit ms counter, 30 ms apart
+    with pytest.raises(LogError, match="a 16-bit millisecond counter that overflows"):
+        Log.from_arrays(wrapped, v=np.ones(3000), omega=np.ones(3000))
+    backwards = t[::-1].copy()
+    with pytest.raises(LogError, match="the rows are in reverse order: sort the log by time"):
+        Log.from_arrays(backwards, v=np.ones(3000), omega=np.ones(3000))

@@ -124,3 +124,31 @@ def test_a_set_point_is_mapped_in_its_unit_and_kept_beside_the_signals(tmp_path)
 ])
 def test_set_point_columns_are_known_by_their_names(name, said):
     assert is_setpoint(name) is said
+
+
+def test_a_column_mapped_twice_is_refused_naming_both(tmp_path):
+    with pytest.raises(LogError, match=r"omega is mapped twice, by -c omega=speed_rpm\*rpm and "
+                                       r"by -c omega=speed_rpm: keep one"):
+        parse_mapping(["omega=speed_rpm*rpm", "omega=speed_rpm"])
+    assert parse_mapping(["omega=w", "omega = w*1"]).specs["omega"].source == "w"  # the same
+    rig = tmp_path / "rig.map"
+    rig.write_text("omega=speed_rpm*rpm\nt=time_ms*ms\nomega=speed\n")
+    with pytest.raises(LogError, match=r"rig\.map: omega is mapped twice, by rig\.map line 1 "
+                                       r"\(omega=speed_rpm\*rpm\) and by rig\.map line 3"):
+        parse_mapping([], rig)
+    rig_json = tmp_path / "rig.json"
+    rig_json.write_text('{"omega": "speed_rpm*rpm", "omega": "speed"}')
+    with pytest.raises(LogError, match=r"rig\.json entry 1 .* rig\.json entry 2"):
+        parse_mapping([], rig_json)
+    rig.write_text("omega=speed_rpm*rpm\n")  # a -c overriding the file is not a conflict
+    assert parse_mapping(["omega=speed"], rig).specs["omega"].source == "speed"
+
+
+def test_a_leading_minus_negates_the_source(tmp_path):
+    s = parse_spec("omega=-speed_rpm*rpm+1")
+    assert (s.source, s.offset) == ("speed_rpm", 1.0)
+    assert s.scale == pytest.approx(-2 * math.pi / 60)
+    p = tmp_path / "rig.csv"
+    write_log(p, np.arange(50) * 1e-3, {"v": np.ones(50), "speed_rpm": np.full(50, 60.0)})
+    log = read_log(p, parse_mapping(["omega=-speed_rpm*rpm"]))
+    assert log["omega"][10] == pytest.approx(-2 * math.pi)

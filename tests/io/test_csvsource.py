@@ -1,0 +1,120 @@
+"""pmdcid/io/csvsource.py: opening a log as rigs and spreadsheets export it."""
+
+import bz2
+import gzip
+
+import numpy as np
+import pytest
+
+from pmdcid.errors import LogError
+from pmdcid.io import parse_mapping, read_log
+
+
+def _euro(rows: int, cell: dict[int, str] | None = None) -> str:
+    """A European export (';' separated, decimal comma); ``cell``: data row (1-based) -> the
+    text of its omega cell."""
+    lines = ["t;v;omega"]
+    for k in range(rows):
+        omega = (cell or {}).get(k + 1, f"{0.5 * np.sin(k / 7):.6f}".replace(".", ","))
+        lines.append(f"{k / 1000:.3f};1;{omega}".replace("0.", "0,"))
+    return "\n".join(lines) + "\n"
+
+
+def test_a_thousands_separator_is_named_with_its_cell_and_row(tmp_path):
+    p = tmp_path / "euro.csv"
+    p.write_text(_euro(40, {30: "1.234,5"}))
+    with pytest.raises(LogError, match=r"column 'omega' holds non-numeric value '1\.234,5' \(data "
+                                       r"row 30\): a thousands separator \('\.'\) in a number "
+                                       r"with ',' decimals"):
+        read_log(p)
+    p.write_text(_euro(40, {12: "ERR"}))  # any other text: named, in the file's decimal mark
+    with pytest.raises(LogError, match=r"'ERR' \(data row 12\): numbers only, with ',' decimals"):
+        read_log(p)
+    p.write_text(_euro(40))
+    assert read_log(p)["omega"][7] == pytest.approx(0.5 * np.sin(1.0), abs=1e-6)
+
+
+def test_a_grouped_number_with_decimal_points_is_named_too(tmp_path):
+    p = tmp_path / "us.csv"
+    rows = [f"{k / 1000:.3f};1;{'1,234.5' if k == 20 else f'{k / 10:.1f}'}" for k in range(40)]
+    p.write_text("t;v;omega\n" + "\n".join(rows) + "\n")
+    with pytest.raises(LogError, match=r"'1,234\.5' \(data row 21\): a thousands separator "
+                                       r"\(','\) in a number with '\.' decimals"):
+        read_log(p)
+
+
+def test_a_first_line_that_is_no_header_is_named_with_the_fix(tmp_path):
+    rows = "".join(f"{k / 1000:.3f},1,{k / 10:.1f}\n" for k in range(40))
+    p = tmp_path / "rig.csv"
+    p.write_text("# kind: step\nLogged by rig 3 on 2024-01-01\nt,v,omega\n" + rows)
+    with pytest.raises(LogError, match=r"line 2 \('Logged by rig 3 on 2024-01-01'\) does not look "
+                                       r"like a header: it has 1 field\(s\) where the rows below "
+                                       r"have 3, and line 3 \('t,v,omega'\) looks like the header; "
+                                       r"start the line\(s\) before it with '#'"):
+        read_log(p)
+    p.write_text("# kind: step\n# Logged by rig 3 on 2024-01-01\nt,v,omega\n" + rows)
+    assert read_log(p).n == 40
+
+
+def test_canonical_names_match_in_any_case_where_unambiguous(tmp_path):
+    rows = "".join(f"{k / 1000:.3f},1,{k / 10:.1f},{k / 5:.1f}\n" for k in range(40))
+    p = tmp_path / "upper.csv"
+    p.write_text("T,V,OMEGA,Omega\n" + rows)  # two speed columns: neither is taken
+    log = read_log(p)
+    assert log.dt == pytest.approx(1e-3) and log.drive == "v" and not log.has("omega")
+    p.write_text("T,V,OMEGA,w\n" + rows)
+    assert read_log(p)["omega"][10] == pytest.approx(1.0)
+    log = read_log(p, parse_mapping(["omega=w"]))  # a mapping wins over the case rule
+    assert log["omega"][10] == pytest.approx(2.0)
+
+
+def test_a_whitespace_separated_log_is_read(tmp_path):
+    rows = "".join(f"{k / 1000:.3f}  1\t{k / 10:.1f}\n" for k in range(40))
+    p = tmp_path / "spaces.csv"
+    p.write_text("t v  omega\n" + rows)
+    log = read_log(p)
+    assert log.dt == pytest.approx(1e-3) and log["omega"][10] == pytest.approx(1.0)
+    p.write_text("t v omega\n" + rows.replace("0.005  1", "0.005 1 7"))  # a ragged row
+    with pytest.raises(LogError, match=r"looks space-separated \(header 't v omega'\) but its "
+                                       r"rows do not have as many separators"):
+        read_log(p)
+
+
+def test_iso_8601_date_times_are_read_as_seconds_from_the_first(tmp_path):
+    start = np.datetime64("2024-03-01T23:59:59.990")  # across midnight
+    stamps = start + np.arange(40) * np.timedelta64(1, "ms")
+    rows = "".join(f"{str(s).replace('T', ' ')},1,{k / 10:.1f}\n" for k, s in enumerate(stamps))
+    p = tmp_path / "wall.csv"
+    p.write_text("timestamp,v,omega\n" + rows)
+    with pytest.warns(UserWarning, match=r"column 'timestamp' holds date-times \(the first "
+                                         r"'2024-03-01 23:59:59\.990'\): read as t, in seconds"):
+        log = read_log(p)
+    assert log.dt == pytest.approx(1e-3) and log.t_file[-1] == pytest.approx(0.039)
+    p.write_text("t,v,omega\n" + rows.replace(" ", "T").replace(",1,", "Z,1,"))  # 'T', UTC 'Z'
+    with pytest.warns(UserWarning, match="column 't' holds date-times"):
+        assert read_log(p).n == 40
+
+
+def test_a_compressed_log_is_named_as_such_with_the_way_out(tmp_path):
+    p = tmp_path / "run.csv"
+    p.write_bytes(gzip.compress(b"t,v\n0,1\n0.001,1\n0.002,1\n"))
+    with pytest.raises(LogError, match=r"is gzip-compressed \(its first bytes are 1f 8b\), not "
+                                       r"CSV text: decompress it first \(zcat FILE > log\.csv\)"):
+        read_log(p)
+    p.write_bytes(bz2.compress(b"t,v\n0,1\n0.001,1\n0.002,1\n"))
+    with pytest.raises(LogError, match=r"is bzip2-compressed"):
+        read_log(p)
+
+
+def test_nul_padding_after_the_last_row_is_ignored(tmp_path):
+    rows = "".join(f"{k / 1000:.3f},1,{k / 10:.1f}\n" for k in range(40))
+    p = tmp_path / "padded.csv"
+    p.write_bytes(("t,v,omega\n" + rows).encode() + b"\x00" * 500)
+    with pytest.warns(UserWarning, match=r"ignored 500 NUL byte\(s\) after the last row"):
+        log = read_log(p)
+    assert log.n == 40 and log["omega"][-1] == pytest.approx(3.9)
+    big = "".join(f"{k / 1000:.3f},1,{k / 10:.1f}\n" for k in range(6000))  # past the head
+    p.write_bytes(("t,v,omega\n" + big).encode() + b"\x00" * 30 + b"\n" + big[:40].encode())
+    with pytest.raises(LogError) as got:  # NULs inside the log: refused, counted, not printed
+        read_log(p)
+    assert "with 30 NUL byte(s)" in str(got.value) and "\\x00" not in str(got.value)
