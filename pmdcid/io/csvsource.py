@@ -183,10 +183,9 @@ def check_header(src: Source, nskip: int, p: str) -> None:
             or any(ln.count('"') % 2 for _, ln in lines[:j + 1])):  # a quoted name across lines
         return
     (k0, first), (kj, header) = lines[0], lines[j]
-    raise LogError(f"line {k0 + 1} ({first.strip()[:40]!r}) does not look like a header: it has "
-                   f"{counts[0]} field(s) where the rows below have {width}, and line {kj + 1} "
-                   f"({header.strip()[:40]!r}) looks like the header; start the line(s) before "
-                   "it with '#' (comments) or delete them", p)
+    raise LogError(f"line {k0 + 1} ({first.strip()[:40]!r}) is no header ({counts[0]} field(s), "
+                   f"the rows {width}); line {kj + 1} ({header.strip()[:40]!r}) is: start the "
+                   "lines above it with '#' or delete them", p)
 
 
 def header_names(src: Source, nskip: int) -> list[str]:
