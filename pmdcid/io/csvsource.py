@@ -288,7 +288,6 @@ def column_specs(cols: list[str], mapping, canonical, p: str):
     """Spec of each canonical column, and the mapping-file lines skipped for this log."""
     have = set(cols)
     specs = {c: ColumnSpec(c, c) for c in canonical if c in have}
-    specs.update(_any_case(cols, canonical, specs, mapping))
     skipped: dict[str, str] = {}
     slashed = [c for c in cols if "/" in c]
     for canon, spec in mapping.specs.items():
@@ -309,18 +308,22 @@ def column_specs(cols: list[str], mapping, canonical, p: str):
                            f"(columns are {short_list(cols)})", p)
         specs[canon] = spec
     _annotated_specs(cols, specs, p)
+    specs.update(_any_case(cols, canonical, specs))
     return specs, skipped
 
 
-def _any_case(cols: list[str], canonical, specs: dict, mapping) -> dict:
+def _any_case(cols: list[str], canonical, specs: dict) -> dict:
     """Specs of the canonical columns a header names in another case (``T``, ``OMEGA``,
-    ``Omega``): where exactly one column matches, no column has the exact name and no mapping
-    names the column or reads that header."""
-    mapped = {r for spec in mapping.specs.values() for r in spec.refs}
+    ``Omega``): last, for a signal nothing else gives (no column of the exact name, no
+    mapping, no header naming its quantity and unit: ``Time (s),v,omega,T`` reads ``Time (s)`` as
+    t and leaves the temperature ``T`` alone; beside a column named ``time...``, ``T`` is never
+    t), where exactly one column matches and nothing reads it."""
+    used = {r for spec in specs.values() for r in spec.refs}
+    timed = any(h.lower().startswith("time") for h in cols)  # then T is a temperature or torque
     out = {}
     for c in canonical:
-        hits = [h for h in cols if h.lower() == c and h not in mapped]
-        if c not in specs and c not in mapping.specs and len(hits) == 1:
+        hits = [h for h in cols if h.lower() == c and h not in used]
+        if c not in specs and len(hits) == 1 and not (c == "t" and timed):
             out[c] = ColumnSpec(c, hits[0], text=f"{c}={hits[0]}")
     return out
 

@@ -67,6 +67,19 @@ def test_canonical_names_match_in_any_case_where_unambiguous(tmp_path):
     assert log["omega"][10] == pytest.approx(2.0)
 
 
+def test_a_column_named_t_in_another_case_never_displaces_the_time(tmp_path):
+    """A temperature (or torque) column 'T' beside the time: a header naming the time's unit
+    is read as t, and beside a bare 'time' column 'T' is not taken for t (the user maps it)."""
+    rows = "".join(f"{k / 1000:.3f},1,{k / 10:.1f},25.0\n" for k in range(40))
+    p = tmp_path / "temp.csv"
+    p.write_text("Time (s),v,omega,T\n" + rows)
+    assert read_log(p).dt == pytest.approx(1e-3)
+    p.write_text("time,v,omega,T\n" + rows)
+    with pytest.raises(LogError, match="has no time column 't'.*-c t=SOURCE"):
+        read_log(p)
+    assert read_log(p, parse_mapping(["t=time"])).dt == pytest.approx(1e-3)
+
+
 def test_a_whitespace_separated_log_is_read(tmp_path):
     rows = "".join(f"{k / 1000:.3f}  1\t{k / 10:.1f}\n" for k in range(40))
     p = tmp_path / "spaces.csv"
