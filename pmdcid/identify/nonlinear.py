@@ -552,6 +552,28 @@ def _valley_restart(logs, work, free, signals, fit, sigma, opts, bounds, priors,
 #: the words beside a dead zone these logs only bound
 DZ_CAVEAT = ("not identifiable from these logs, masked by the Coulomb friction: record fast "
              "reversals or steps down through zero")
+#: the words beside a dead zone the drive only passes through, above the Coulomb friction
+DZ_PASSED_CAVEAT = ("not identifiable from these logs: the drive passes through it too fast for "
+                    "any sample to show it; record slow ramps through zero or small steps from "
+                    "rest")
+
+
+def _masked_dead_zone(est: dict, upper: float, bc: float, warns: list) -> None:
+    """A dead zone the logs only bound, [0, ``upper``] [N m], written as that interval with the
+    reason: below the Coulomb friction ``bc`` [N m] it is masked (the rotor moves only while the
+    torque exceeds bc); above it, the drive's torque only passes through it (a two-level PRBS:
+    no sample dwells there)."""
+    below = upper <= 1.1 * bc  # the profile resolves the bound to a few per cent
+    est["dz"] = bounded("dz", 0.0, upper, "N m", DZ_CAVEAT if below else DZ_PASSED_CAVEAT)
+    why = (f"it is masked by the Coulomb friction bc = {bc:.3g} N m: the rotor only moves while "
+           "the torque exceeds bc" if below else "the drive's torque passes through that range "
+           "without dwelling in it for a sample")
+    warns.append(f"dz is not identifiable from these logs: any dead zone from 0 to {upper:.3g} "
+                 f"N m fits equally ({why}); written as that interval, not as a value with a "
+                 "standard error (a dz other data determined inside it is kept). Slow inputs "
+                 "through zero, fast reversals or steps down reveal it")
+
+
 #: the words beside a dead zone that falls between two levels of a quantised input
 DZ_LEVELS_CAVEAT = ("the input is held at the levels it logged (an integer PWM duty: "
                     "discrete levels): every dead zone between the two around it acts the same "
@@ -811,13 +833,8 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     if not masked:
         _seen_dead_zone(logs, base_vals, held, fit, signals, sigma, est, warns, fits[0])
     if masked:
-        est["dz"] = bounded("dz", 0.0, upper, "N m", DZ_CAVEAT)
-        warns.append(f"dz is not identifiable from these logs: any dead zone from 0 to "
-                     f"{upper:.3g} N m fits equally (it is masked by the Coulomb friction bc = "
-                     f"{est['bc'].value if 'bc' in est else point.get('bc', 0):.3g} N m: the rotor "
-                     "only moves while the torque exceeds bc); written as that interval, not as "
-                     "a value with a standard error (a dz other data determined inside it is "
-                     "kept). Fast reversals or steps down reveal it")
+        _masked_dead_zone(est, upper, est["bc"].value if "bc" in est else point.get("bc", 0.0),
+                          warns)
     if prof:
         est.update(prof.estimates(est.get("J")))
     warns.extend(fit_warnings(fit, est, tscale, masked))
