@@ -21,12 +21,21 @@ Results follow one protocol (:class:`~pmdcid.fit.results.ResultProtocol`): ``str
 the table, ``_repr_html_()``, ``to_dict()``, ``to_pandas()``, ``apply(model)``.
 
 An argument of the wrong type (a scalar for a log, a dict for a Model) raises a TypeError naming
-the argument before any work (:mod:`pmdcid.io.args`); a bad value a ValueError or PmdcidError.
+the argument before any work (:mod:`pmdcid.io.args`); a value out of range (one the command line
+refuses as a usage error) an :class:`~pmdcid.errors.ArgumentError` (a PmdcidError and a
+ValueError) naming it.
 """
 
 from __future__ import annotations
 
+import math
 import os
+
+from pmdcid.errors import ArgumentError
+from pmdcid.io.args import number_arg, path_arg
+
+#: largest budget x rate a plan simulates (samples): 2e7 is 5.5 h at 1 kHz, ~1 GB of sensitivities
+MAX_PLAN_SAMPLES = 2e7
 
 
 def _mapping(mapping):
@@ -73,19 +82,17 @@ def _controller(controller):
 
 def _x0(x0):
     """None, 'measured', a dict of i/omega/theta, or (i, omega, theta): finite numbers."""
-    import math
-
     if x0 is None or (isinstance(x0, str) and x0 == "measured"):
         return x0
     if isinstance(x0, dict):
         vals = dict(x0)
         bad = [k for k in vals if k not in ("i", "omega", "theta")]
         if bad:
-            raise ValueError(f"x0: unknown state {bad[0]!r} (give i, omega, theta)")
+            raise ArgumentError(f"x0: unknown state {bad[0]!r} (give i, omega, theta)")
     elif isinstance(x0, (list, tuple)) or hasattr(x0, "__array__"):
         seq = list(x0)
         if len(seq) != 3:
-            raise ValueError(f"x0 must be (i, omega, theta): 3 numbers, not {len(seq)}")
+            raise ArgumentError(f"x0 must be (i, omega, theta): 3 numbers, not {len(seq)}")
         vals = dict(zip(("i", "omega", "theta"), seq, strict=True))
     else:
         raise TypeError(f"x0 must be None, 'measured', a dict or (i, omega, theta), not "
@@ -94,7 +101,7 @@ def _x0(x0):
         if isinstance(v, bool) or not isinstance(v, (int, float)) and not hasattr(v, "__float__"):
             raise TypeError(f"x0[{k!r}] must be a number, not {type(v).__name__}")
         if not math.isfinite(float(v)):
-            raise ValueError(f"x0[{k!r}] must be finite, got {v!r}")
+            raise ArgumentError(f"x0[{k!r}] must be finite, got {v!r}")
     return x0
 
 
@@ -263,13 +270,26 @@ def simulate_to(inputs, model, output, *, x0=None, noise_i: float = 0.0,
 
     paths = inputs if isinstance(inputs, (list, tuple)) else [inputs]
     paths = [path_arg(p, "inputs") for p in paths]
-    opts = dict(mapping=_mapping(mapping), noise=NoiseSpec(noise_i, noise_omega, encoder),
+    noise = NoiseSpec(number_arg(noise_i, "noise_i", nonneg=True),
+                      number_arg(noise_omega, "noise_omega", nonneg=True), _count(encoder))
+    opts = dict(mapping=_mapping(mapping), noise=noise,
                 seed=seed, blocked=blocked, force=force, x0=_x0(x0),
                 controller=_controller(controller))
     model, output = path_arg(model, "model"), path_arg(output, "output")
     if len(paths) == 1:
         return [simulate_file(paths[0], model, output, **opts)]
     return simulate_files(paths, model, output, **opts)
+
+
+def _count(encoder) -> int:
+    """``encoder`` [counts/rev]: a whole number >= 0 (0: no encoder)."""
+    if isinstance(encoder, bool) or not isinstance(encoder, int) and not (
+            hasattr(encoder, "__index__")):
+        raise TypeError(f"encoder must be a whole number of counts per rev, not "
+                        f"{type(encoder).__name__}")
+    if encoder < 0:
+        raise ArgumentError(f"encoder must be >= 0 counts per rev, got {encoder!r}")
+    return int(encoder)
 
 
 def report(logs, model, out_dir, *, summary=None, before=None, progress=None, mapping=None,
@@ -321,14 +341,25 @@ def plan(model=None, out_dir=None, *, vmax: float | None = None, taumax: float |
 
 
 def _plan_settings(vmax, taumax, speed_max, rate, budget, noise_omega, noise_i):
-    """:class:`~pmdcid.plan.design.Settings` from the plan functions' keyword options."""
-    import math
-
+    """:class:`~pmdcid.plan.design.Settings` from the plan functions' keyword options, checked
+    as ``pmdcid plan`` checks its options (each a finite number > 0)."""
     from pmdcid.errors import PmdcidError
     from pmdcid.plan.design import Settings
 
     if vmax is not None and taumax is not None:
         raise PmdcidError("give vmax or taumax, not both")
+    vmax, taumax, speed_max, noise_omega, noise_i = (
+        number_arg(x, name, positive=True) for x, name in
+        ((vmax, "vmax"), (taumax, "taumax"), (speed_max, "speed_max"),
+         (noise_omega, "noise_omega"), (noise_i, "noise_i")))
+    rate, budget = number_arg(rate, "rate", positive=True), number_arg(budget, "budget",
+                                                                         positive=True)
+    if rate is None or budget is None:
+        raise TypeError(f"{'rate' if rate is None else 'budget'} must be a number, not None")
+    if budget * rate > MAX_PLAN_SAMPLES:
+        raise ArgumentError(f"budget {budget:g} s at rate {rate:g} Hz is {budget * rate:.3g} "
+                            f"samples per profile set: at most {MAX_PLAN_SAMPLES:.0e} (a "
+                            f"shorter budget or a lower rate)")
     return Settings(umax=vmax if vmax is not None else taumax,
                     speed_max=speed_max if speed_max is not None else math.inf, rate=rate,
                     budget=budget, noise_omega=noise_omega, noise_i=noise_i,
@@ -386,12 +417,16 @@ def export(model, to: str, output, *, force: bool = False, note=None) -> list[st
 
     from pmdcid.export import export_model
 
+    if not isinstance(to, str):
+        raise TypeError(f"to must be a format name (str), not {type(to).__name__}")
+    output = path_arg(output, "output")
     if isinstance(model, (str, os.PathLike)):
-        return export_model(str(model), to, str(output), force=force, note=note)
+        return export_model(os.fspath(model), to, output, force=force, note=note)
+    model = _model(model)  # a Model (a copy), or the TypeError naming what it must be
     with tempfile.TemporaryDirectory() as tmp:  # the exporters read a model file
         path = os.path.join(tmp, "model.json")
         model.save(path)
-        return export_model(path, to, str(output), force=force, note=note)
+        return export_model(path, to, output, force=force, note=note)
 
 
 def channels(path) -> list:
@@ -399,7 +434,7 @@ def channels(path) -> list:
     of :class:`~pmdcid.io.formats.Channel` (name, samples, rate, unit)."""
     from pmdcid.io.formats import channels as read_channels
 
-    return read_channels(path)
+    return read_channels(path_arg(path, "path"))
 
 
 def run_demo(out_dir="demo-output", echo=print) -> dict:

@@ -68,6 +68,12 @@ class NoStepError(FitError):
     error) is the stage for such logs, and the message says so."""
 
 
+class ArgumentError(PmdcidError, ValueError):
+    """A front-door argument of the right type with a value out of range (``km=-1``,
+    ``vmax=-12``, ``x0={"speed": 1}``): one line naming the argument. A ValueError too, so code
+    catching either catches it; the command line checks its options before, as usage errors."""
+
+
 class PmdcidWarning(UserWarning):
     """Suspicious but usable data: the tool says so and goes on."""
 

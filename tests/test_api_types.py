@@ -39,6 +39,14 @@ CASES = [
     ("effects", lambda: pmdcid.diagnose(STEP, TRUTH, effects=[1, 2])),
     ("out_dir", lambda: pmdcid.report(STEP, TRUTH, 5)),
     ("before", lambda: pmdcid.report(STEP, TRUTH, "rep", before={"R": 1.0})),
+    ("model", lambda: pmdcid.export({"R": 1.0}, "c", "x.c")),
+    ("model", lambda: pmdcid.export(5, "python-control", "x.py")),
+    ("to", lambda: pmdcid.export(TRUTH, 5, "x.c")),
+    ("output", lambda: pmdcid.export(TRUTH, "c", 5)),
+    ("model", lambda: pmdcid.plan({"R": 1.0})),
+    ("vmax", lambda: pmdcid.plan(vmax="12")),
+    ("path", lambda: pmdcid.api.channels(5)),
+    ("encoder", lambda: pmdcid.api.simulate_to(STEP, TRUTH, "o.csv", encoder=1.5)),
     ("path", lambda: Model.load(5)),
     ("path", lambda: Model().save(None)),
 ]
@@ -94,3 +102,41 @@ def test_mapping_of_another_type_is_one_line(bad):
     with pytest.raises(PmdcidError, match="mapping takes") as exc:
         pmdcid.identify(STEP, mapping=bad, diagnose=False)
     assert "\n" not in str(exc.value)
+
+
+#: values of the right type the command line refuses (as usage errors): the front door refuses
+#: them too, as one line of the library's error family (which is a ValueError too)
+BAD_VALUES = [
+    ("km", lambda: pmdcid.identify(STEP, None, km=-1)),
+    ("km", lambda: pmdcid.fit_mechanical(STEP, TRUTH, km=0.0)),
+    ("x0", lambda: pmdcid.simulate(STEP, TRUTH, x0={"speed": 1.0})),
+    ("x0", lambda: pmdcid.simulate(STEP, TRUTH, x0=[1.0, 2.0])),
+    ("x0", lambda: pmdcid.simulate(STEP, TRUTH, x0=(0.0, math.inf, 0.0))),
+    ("vmax", lambda: pmdcid.plan(vmax=-12)),
+    ("taumax", lambda: pmdcid.plan(taumax=0.0)),
+    ("speed_max", lambda: pmdcid.plan(TRUTH, speed_max=-1.0)),
+    ("rate", lambda: pmdcid.plan(vmax=12, rate=-5)),
+    ("budget", lambda: pmdcid.plan(vmax=12, budget=math.nan)),
+    ("budget", lambda: pmdcid.plan(vmax=12, rate=1e6)),
+    ("noise_omega", lambda: pmdcid.api.check_plan(STEP, TRUTH, noise_omega=-0.1)),
+    ("noise_i", lambda: pmdcid.api.simulate_to(STEP, TRUTH, "o.csv", noise_i=-1.0)),
+    ("encoder", lambda: pmdcid.api.simulate_to(STEP, TRUTH, "o.csv", encoder=-1)),
+]
+
+
+@pytest.mark.parametrize("arg, call", BAD_VALUES,
+                         ids=[f"{a}-{k}" for k, (a, _) in enumerate(BAD_VALUES)])
+def test_values_the_cli_refuses_are_one_pmdcid_error(arg, call, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(pmdcid.PmdcidError) as info:
+        call()
+    assert isinstance(info.value, ValueError)
+    assert str(info.value).startswith(arg) and "\n" not in str(info.value), str(info.value)
+    assert not list(tmp_path.iterdir())  # refused before any work
+
+
+def test_names_as_the_command_line_gives_them():
+    """``free="J,bv"`` is the list ``["J", "bv"]``, as ``--free J,bv`` (and diagnose's
+    ``effects="stribeck"`` one name)."""
+    res = pmdcid.fit_nonlinear(STEP, TRUTH, free="J, bv")
+    assert sorted(res.to_dict()["parameters"]) == ["J", "bv"]

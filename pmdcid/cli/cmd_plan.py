@@ -7,11 +7,9 @@ import sys
 
 import click
 
+from pmdcid.api import MAX_PLAN_SAMPLES
 from pmdcid.cli import echo, main
 from pmdcid.cli.options import INPUT_FILE, FiniteFloat, log_options
-
-#: largest budget x rate a plan simulates (samples): 2e7 is 5.5 h at 1 kHz, ~1 GB of sensitivities
-MAX_PLAN_SAMPLES = 2e7
 
 
 @main.command("plan")

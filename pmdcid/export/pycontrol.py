@@ -7,7 +7,8 @@ step of the stick-slip and LuGre loops, the discretisation, the substep rule; nu
 dropped), run as plain Python; the template is the shell. The discretisation is computed at
 ``make_system`` time for the dt given; LuGre's bristle deflection z is a state. A sensor delay
 is kept as a delay line in the state (the outputs must be a function of the state), and so are
-the past inputs a late input (input_delay) needs.
+the past inputs a late input (input_delay) needs, with a ``started`` state: from the all-zero
+state the first step takes them to be the first input, as simulate and the C export start.
 """
 
 from __future__ import annotations

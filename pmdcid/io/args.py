@@ -9,6 +9,8 @@ import os
 
 import numpy as np
 
+from pmdcid.errors import ArgumentError
+
 
 def _kind(x) -> str:
     return type(x).__name__
@@ -41,11 +43,12 @@ def frame_arg(df, name: str = "df"):
 
 
 def names_arg(x, name: str) -> list[str] | None:
-    """None, a name, or an iterable of names."""
+    """None, a name, names separated by commas (``"J,bv"``, as the command line takes them), or
+    an iterable of names."""
     if x is None:
         return None
     if isinstance(x, str):
-        return [x]
+        return [n.strip() for n in x.split(",") if n.strip()]
     try:
         out = list(x)
     except TypeError:
@@ -57,15 +60,16 @@ def names_arg(x, name: str) -> list[str] | None:
     return out
 
 
-def number_arg(x, name: str, positive: bool = False) -> float | None:
-    """None or a finite number (> 0 when ``positive``)."""
+def number_arg(x, name: str, positive: bool = False, nonneg: bool = False) -> float | None:
+    """None or a finite number (> 0 when ``positive``, >= 0 when ``nonneg``)."""
     if x is None:
         return None
     if isinstance(x, bool) or not isinstance(x, (int, float, np.number)):
         raise TypeError(f"{name} must be a number, not {_kind(x)}")
     v = float(x)
-    if not math.isfinite(v) or (positive and v <= 0):
-        raise ValueError(f"{name} must be a finite number{' > 0' if positive else ''}, got {x!r}")
+    bound = " > 0" if positive else " >= 0" if nonneg else ""
+    if not math.isfinite(v) or (positive and v <= 0) or (nonneg and v < 0):
+        raise ArgumentError(f"{name} must be a finite number{bound}, got {x!r}")
     return v
 
 

@@ -172,18 +172,49 @@ def parse_spec(text: str) -> ColumnSpec:
 def resolve(spec: ColumnSpec, names) -> ColumnSpec:
     """``spec`` read against a file's signal or column ``names``: when its right-hand side starts
     with a name holding ``/`` (longer than the source parsed), that name is the source and the
-    rest is its scale and offset. A pending spec no name matches raises its parse error."""
+    rest is its scale and offset. A pending spec no name matches is, in a file whose names hold
+    ``/``, a name of that kind the file lacks when it reads as one (the source then names it:
+    the reader says the file has no such signal and lists its names); else its parse error, a
+    :class:`~pmdcid.errors.MappingError` (a usage error), as is a scale that does not parse."""
     if spec.expr is not None:
         return spec
     rhs = spec.text.split("=", 1)[1].strip() if "=" in spec.text else spec.source
     best = max((n for n in names if "/" in n and (rhs == n or (
         rhs.startswith(n) and rhs[len(n)] in "*/+-"))), key=len, default=None)
     if best is None or best == spec.source:
-        if spec.pending is not None and spec.source not in names:
+        if spec.pending is None or spec.source in names:
+            return spec
+        absent = _slashed_name(spec, rhs) if any("/" in n for n in names) else None
+        if absent is None:
             raise MappingError(spec.pending)
-        return spec
-    tail = _parse_spec(f"{spec.canon}=x{rhs[len(best):]}")
+        return absent
+    tail = _tail(spec, rhs[len(best):])
+    if tail is None:
+        raise MappingError(f"column mapping '{spec.text}': '{rhs[len(best):]}' after "
+                           f"'{best}' is not a scale or an offset (*K, /K, +K, -K; K a "
+                           f"number or a unit: {', '.join(sorted(UNITS))})")
     return ColumnSpec(spec.canon, best, tail.scale, tail.offset, None, spec.origin, spec.text)
+
+
+def _tail(spec: ColumnSpec, rest: str) -> ColumnSpec | None:
+    """``rest`` (what follows a source name) read as a scale and offset, or None."""
+    try:
+        tail = _parse_spec(f"{spec.canon}=x{rest}")
+    except LogError:
+        return None
+    return tail if tail.source == "x" and tail.expr is None else None
+
+
+def _slashed_name(spec: ColumnSpec, rhs: str) -> ColumnSpec | None:
+    """``rhs`` read as a signal name holding ``/`` (the shortest that a scale and offset
+    follow) that the file lacks, or None when it does not read so."""
+    for k in [k for k, c in enumerate(rhs) if c in "*/+-"] + [len(rhs)]:
+        name = rhs[:k].strip()
+        tail = _tail(spec, rhs[k:]) if "/" in name and "*" not in name else None
+        if tail is not None:
+            return ColumnSpec(spec.canon, name, tail.scale, tail.offset, None, spec.origin,
+                              spec.text)
+    return None
 
 
 def _parse_spec(text: str) -> ColumnSpec:

@@ -62,17 +62,22 @@ def test_python_control_delay_line_in_state(tmp_path):
 
 
 def test_python_control_late_input_line_in_state(tmp_path):
-    """A latency of 2.6 ms at 1 ms needs the last 3 inputs (states u_d1..u_d3); from rest they
-    are 0, and an input that does not start at 0 is reproduced once they hold its first value."""
+    """A latency of 2.6 ms at 1 ms needs the last 3 inputs (states u_d1..u_d3, then
+    ``started``). From python-control's default all-zero state the first step takes the input
+    before t0 to be the first one, as simulate does: a triangle starting at +12 V agrees (with
+    u_d1.. 0 it differed by 0.13 rad/s); u_d1.. given with started = 1 are used as they are."""
     model, out = export(tmp_path, "v", later=("input_delay",))
     sys = load_module(out).make_system(1e-3)
-    assert sys.state_labels[3:6] == ["u_d1", "u_d2", "u_d3"] and sys.nstates == 6 + 2 * 3
-    t = np.arange(1500) * 1e-3
-    u = 0.8 + 0.6 * np.sin(2 * np.pi * t)  # starts at 0.8 V
+    assert sys.state_labels[3:7] == ["u_d1", "u_d2", "u_d3", "started"]
+    assert sys.nstates == 7 + 2 * 3
+    t = np.arange(600) * 1e-3
+    u = 12.0 * (4.0 * np.abs((t / 0.2) % 1.0 - 0.5) - 1.0)  # a triangle from +12 V
+    ref = reference(t, u, model, "v")
+    err = rel_error(control.input_output_response(sys, t, u).outputs.T, ref)
+    assert max(err) < 1e-9, err
     x0 = np.zeros(sys.nstates)
-    x0[3:6] = u[0]
-    res = control.input_output_response(sys, t, u, X0=x0)
-    err = rel_error(res.outputs.T, reference(t, u, model, "v"))
+    x0[3:7] = [u[0], u[0], u[0], 1.0]  # the line given, as a caller continuing a run would
+    err = rel_error(control.input_output_response(sys, t, u, X0=x0).outputs.T, ref)
     assert max(err) < 1e-9, err
 
 

@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from pmdcid.cli import main
-from pmdcid.errors import LogError
+from pmdcid.errors import LogError, MappingError
 from pmdcid.io import Log, parse_mapping, read_log, write_log
 from pmdcid.io.formats import channels
 from pmdcid.model import Model
@@ -332,8 +332,41 @@ def test_slashed_names_in_mappings(tmp_path):
     assert spec.source == "/joint_states.velocity"
     assert spec.scale == pytest.approx(2 * np.pi / 60) and spec.offset == 1.0
     assert parse_spec("v=pwm*12/1023").scale == pytest.approx(12 / 1023)
-    with pytest.raises(LogError, match="'omega' is neither a number nor a unit"):
-        resolve(parse_spec("omega=enc/omega"), ["drive/omega"])
+    # a file whose names hold '/': a name of that kind it lacks (the reader lists its names)
+    spec = resolve(parse_spec("omega=enc/omega*rpm"), ["drive/omega"])
+    assert (spec.source, spec.scale) == ("enc/omega", pytest.approx(2 * np.pi / 60))
+    # a file whose names hold none: '/' divides, and what follows is no number
+    with pytest.raises(MappingError, match="'omega' is neither a number nor a unit"):
+        resolve(parse_spec("omega=enc/omega"), ["enc", "omega"])
+    with pytest.raises(MappingError, match="'\\*rpmm' after 'drive/omega' is not a scale"):
+        resolve(parse_spec("omega=drive/omega*rpmm"), ["drive/omega"])
+
+
+#: a signal the file does not hold, named as the format names them (with a scale)
+ABSENT = {".tdms": ("omega=encoder/nosuch*rpm", "encoder/speed"),
+          "-json.mcap": ("omega=/motor/state.nosuch", "/motor/state.velocity"),
+          "-ros2.mcap": ("omega=/joint_states.nosuch*rpm", "/joint_states.velocity"),
+          ".wpilog": ("omega=/drive/nosuch*rpm", "/drive/speed"),
+          ".mf4": ("omega=nosuch*rpm", "n_mot")}
+
+
+@pytest.mark.parametrize("suffix", list(ABSENT))
+def test_absent_signal_is_the_file_s_problem(suffix, logs, tmp_path):
+    """A well-formed -c naming a signal the file does not hold is exit 1, one line naming the
+    file and listing its signals (a '/' in it was 'neither a number nor a unit', exit 2); a
+    scale that does not parse stays a usage error (exit 2)."""
+    t, cols = logs["step_1V"]
+    p = tmp_path / f"log{suffix}"
+    mapping = WRITERS[suffix](p, t[:200], {k: c[:200] for k, c in cols.items()})
+    v = next(m for m in mapping if m.startswith("v="))
+    bad, listed = ABSENT[suffix]
+    args = ["fit-mechanical", str(p), "-m", str(tmp_path / "m.json"), "-c", v, "-c"]
+    res = CliRunner().invoke(main, [*args, bad])
+    assert res.exit_code == 1, res.output
+    assert res.output.startswith(f"error: {p}: ") and res.output.count("\n") == 1
+    assert "no column" in res.output and listed in res.output, res.output
+    res = CliRunner().invoke(main, [*args, f"omega={listed}*rpmm"])
+    assert res.exit_code == 2 and "rpmm' " in res.output, res.output
 
 
 def _wpilog(path, entries):

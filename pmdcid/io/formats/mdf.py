@@ -8,6 +8,8 @@ group's acquisition name (or its index when it has none or shares it).
 
 from __future__ import annotations
 
+import gc
+import sys
 from collections import Counter
 
 import numpy as np
@@ -40,8 +42,26 @@ def load(path: str, wanted: list[str] | None = None) -> Signals:
     try:
         mdf = asammdf.MDF(path)
     except Exception as exc:  # asammdf raises many types on a foreign file  # noqa: BLE001
-        raise LogError(f"is not a readable MDF file ({type(exc).__name__}: "
-                       f"{str(exc)[:80]})", path) from None
+        why = f"{type(exc).__name__}: {str(exc)[:80]}"
+    else:
+        return _read(mdf)
+    _collect_quietly()  # the exception, gone, held asammdf's half-built object
+    raise LogError(f"is not a readable MDF file ({why})", path)
+
+
+def _collect_quietly() -> None:
+    """Collect what a failed ``asammdf.MDF(path)`` left: its half-built object's ``__del__``
+    fails ('no attribute _file'), which Python would print on stderr after the one-line error."""
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda _unraisable: None
+    try:
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+
+
+def _read(mdf) -> Signals:
+    """The signals of an open MDF file, which it closes."""
     try:
         chans = _channels(mdf)
         groups = _group_names(mdf)
