@@ -184,6 +184,9 @@ def _linear_start(logs, model: Model, source, names) -> LinearStart | str:
     y = np.concatenate([p[2] for p in parts])
     if len(y) < MIN_ROWS:
         raise FitError("the rotor hardly turns: too few moving samples for a linear start", names)
+    if not float(X[:, 1] @ -X[:, 2]) > 0:  # the drive's torque opposes the speed on the whole
+        return ("the speed runs against the drive (the torque opposes it on the moving samples): "
+                "check the sign of the speed against the input")
     dt = float(np.median([p[4] for p in parts]))
     scale = np.maximum(np.sqrt(np.mean(X**2, axis=0)), 1e-300)
     th = np.linalg.lstsq((Z / scale).T @ (X / scale), (Z / scale).T @ y, rcond=None)[0] / scale
