@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "20f17d98674c32eaa39b93f337bc40631a69f2ee"; }
+const char *kernel_digest(void) { return "e144b4d3e0e0365efa1298d725c2d959707982c7"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -407,6 +407,68 @@ static inline double sliding_friction(const double *p, double omega, double dire
     return f;
 }
 
+/* The end of a step (i [A], omega [rad/s], theta [rad]) whose speed would cross zero: at
+ * the crossing (the fraction s = w / (w - w1) of the step, i and theta read there linearly)
+ * the rotor sticks while the torque on it is within the static friction level; else it goes
+ * on the other way for the rest of the step, a step from the crossing under the reversed
+ * friction taken for the remaining fraction 1 - s (linearly). The end state is continuous in
+ * s: a crossing that moves across an internal step's boundary moves the trajectory by a
+ * little, not by the rest of a step (stopping at zero and breaking away only at the next step
+ * lost up to one internal step at every reversal: a cliff in the fits' cost that stopped a
+ * local stage 14 % off in bc on a two-level PRBS).
+ */
+static inline void through_zero(const double *p, double Phi[4][3][3], double Gam[4][3][3], int mode0, int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double i1, double w1, double th1, double *r_0, double *r_1, double *r_2)
+{
+    double s;
+    double ic;
+    double thc;
+    double tm;
+    double td;
+    double tl;
+    double net;
+    double direction;
+    double fric;
+    int m;
+    double fe;
+    double fm;
+    double i2;
+    double w2;
+    double th2;
+    double r;
+    s = w / (w - w1);
+    ic = i + s * (i1 - i);
+    thc = th + s * (th1 - th);
+    if (torque_driven) {
+        tm = tin;
+    } else {
+        tm = p[P_KM] * ic;
+    }
+    td = dead_zone(p, tm);
+    tl = load_torque(p, thc);
+    net = td - tl;
+    if (fabs(net) <= static_friction(p)) {
+        *r_0 = i1;
+        *r_1 = 0.0;
+        *r_2 = thc;
+        return;
+    }
+    direction = sgn(net);
+    fric = sliding_friction(p, 0.0, direction, guarded);
+    forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, ic, 0.0, td, tl, fric, &m, &fe, &fm);
+    linear_step(Phi, Gam, mode0 + m, ic, 0.0, thc, fe, fm, &i2, &w2, &th2);
+    r = 1.0 - s;
+    if (r * w2 * direction <= 0.0) {
+        *r_0 = i1;
+        *r_1 = 0.0;
+        *r_2 = thc;
+        return;
+    }
+    *r_0 = ic + r * (i2 - ic);
+    *r_1 = r * w2;
+    *r_2 = thc + r * (th2 - thc);
+    return;
+}
+
 /* One internal step of the stick-slip loop: (i [A], omega [rad/s], theta [rad]) after it,
  * under the held torque input tin [N m] or drive voltage vin [V].
  *
@@ -478,7 +540,7 @@ static inline void stick_core(const double *p, double Phi[4][3][3], double Gam[4
         return;
     }
     if (fstat > 0.0 && w1 * direction < 0.0) {
-        w1 = 0.0;
+        through_zero(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w, th, i1, w1, th1, &i1, &w1, &th1);
     }
     if (torque_driven) {
         i1 = 0.0;

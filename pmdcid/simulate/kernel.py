@@ -286,11 +286,46 @@ def _stick_core(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w,
     i1, w1, th1 = _linear_step(Phi, Gam, mode0 + m, i, w, th, fe, fm)
     if tentative and w1 * direction <= 0.0:
         return i_stuck, w, th  # did not break free after all: stays at rest
-    if fstat > 0.0 and w1 * direction < 0.0:
-        w1 = 0.0  # the speed would cross zero: stop here, re-test sticking next step
+    if fstat > 0.0 and w1 * direction < 0.0:  # the speed would cross zero within the step
+        i1, w1, th1 = _through_zero(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w,
+                                    th, i1, w1, th1)
     if torque_driven:
         i1 = 0.0
     return i1, w1, th1
+
+
+@njit(cache=True, inline="always")
+def _through_zero(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w, th, i1, w1,
+                  th1):  # pragma: no cover - compiled
+    """The end of a step (i [A], omega [rad/s], theta [rad]) whose speed would cross zero: at
+    the crossing (the fraction s = w / (w - w1) of the step, i and theta read there linearly)
+    the rotor sticks while the torque on it is within the static friction level; else it goes
+    on the other way for the rest of the step, a step from the crossing under the reversed
+    friction taken for the remaining fraction 1 - s (linearly). The end state is continuous in
+    s: a crossing that moves across an internal step's boundary moves the trajectory by a
+    little, not by the rest of a step (stopping at zero and breaking away only at the next step
+    lost up to one internal step at every reversal: a cliff in the fits' cost that stopped a
+    local stage 14 % off in bc on a two-level PRBS)."""
+    s = w / (w - w1)
+    ic = i + s * (i1 - i)
+    thc = th + s * (th1 - th)
+    if torque_driven:
+        tm = tin
+    else:
+        tm = p[KM] * ic
+    td = dead_zone(p, tm)
+    tl = load_torque(p, thc)
+    net = td - tl
+    if abs(net) <= static_friction(p):
+        return i1, 0.0, thc
+    direction = sgn(net)
+    fric = sliding_friction(p, 0.0, direction, guarded)
+    m, fe, fm = _forcing(p, torque_driven, dead_zone_engaged(p, tm), vin, ic, 0.0, td, tl, fric)
+    i2, w2, th2 = _linear_step(Phi, Gam, mode0 + m, ic, 0.0, thc, fe, fm)
+    r = 1.0 - s
+    if r * w2 * direction <= 0.0:
+        return i1, 0.0, thc
+    return ic + r * (i2 - ic), r * w2, thc + r * (th2 - thc)
 
 
 @njit(cache=True, inline="always")
