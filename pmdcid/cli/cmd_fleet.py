@@ -35,13 +35,26 @@ def fleet_cmd(manifest, out_dir, scheduler, workers, km, limits_path, no_diagnos
     """Identify every unit of a fleet on a Dask cluster: DIR/units.parquet, DIR/outliers.csv,
     DIR/fleet.html."""
     from pmdcid import api
+    from pmdcid.fleet.run import FleetError
 
     if scheduler is not None and workers is not None:
         raise click.UsageError("--workers sizes the local cluster; with --scheduler the "
                                "cluster's own workers run the units")
-    res = api.run_fleet(manifest, out_dir, scheduler=scheduler, workers=workers, km=km,
-                        limits=limits_path, diagnose=not no_diagnose, mapping=mapping or None,
-                        force=force)
+    try:
+        res = api.run_fleet(manifest, out_dir, scheduler=scheduler, workers=workers, km=km,
+                            limits=limits_path, diagnose=not no_diagnose,
+                            mapping=mapping or None, force=force)
+    except FleetError as exc:
+        if exc.result is not None:  # every unit failed: DIR's record of why is kept, exit 1
+            from pmdcid.runtime.outputs import keep_written
+
+            _summary(exc.result, out_dir)
+            keep_written()
+        raise
+    _summary(res, out_dir)
+
+
+def _summary(res, out_dir) -> None:
     echo(res.table())
     for w in res.warnings:
         echo(f"warning: {w}", err=True)

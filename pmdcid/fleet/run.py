@@ -31,7 +31,10 @@ OURS = {"units.parquet": is_units_parquet,
 
 
 class FleetError(PmdcidError):
-    """Nothing of the fleet could run."""
+    """Nothing of the fleet could run. ``result``: the :class:`FleetResult` when the fleet ran
+    and every unit failed (its outputs, the record of why, are written), else None."""
+
+    result: FleetResult | None = None
 
 
 @dataclass
@@ -132,7 +135,9 @@ def run_fleet(manifest, out_dir, *, scheduler: str | None = None, workers: int |
     every unit uses; ``limits``: a limits file (:mod:`.limits`); ``bar_stream``: where the
     progress bar goes when it is a terminal (default stderr); ``force``: replace a file under
     an output's name in DIR that a fleet did not write (refused before any work otherwise).
-    Returns a :class:`FleetResult`; raises :class:`FleetError` when nothing could run."""
+    Returns a :class:`FleetResult`; raises :class:`FleetError` when nothing could run: no log
+    of the manifest could be read (nothing written), or every unit failed (DIR's outputs are
+    written, the record of why, and the error's ``result`` is the :class:`FleetResult`)."""
     from pmdcid.fleet.limits import read_limits
 
     if os.path.isdir(str(out_dir)):
@@ -156,7 +161,19 @@ def run_fleet(manifest, out_dir, *, scheduler: str | None = None, workers: int |
                           ran=len(fresh), resumed=len(done), limits=lim)
         analyse(res)
         write_outputs(res)
+    if res.rows and not any(r["status"] == "ok" for r in res.rows):
+        raise _all_failed(res)
     return res
+
+
+def _all_failed(res: FleetResult) -> FleetError:
+    """The one line of a fleet that ran with no unit identified (its result attached)."""
+    first = res.rows[0]
+    exc = FleetError(f"no unit could be identified: all {len(res.rows)} failed "
+                     "(units.parquet says why); first: "
+                     f"{str(first['unit'])[:40]}: {first['error']}")
+    exc.result = res
+    return exc
 
 
 def _ordered(rows: list[dict], measurements: list[Measurement]) -> list[dict]:

@@ -5,7 +5,9 @@ plan (:mod:`.fisher`), each signal weighted by the noise measured on the log its
 from its second difference). A parameter whose predicted relative standard error exceeds
 :data:`POOR` is poorly determined; for each such parameter the candidate profile whose added
 recording lowers its standard error the most is named, with the time it needs to bring it under
-the threshold (within the budget).
+the threshold (within the budget). Logs whose measured speed runs against the model's (a speed
+sensor counting the other way) are said so in the one line diagnose and report give
+(:func:`pmdcid.fit.results.speed_against`), with the mapping that fixes them.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.errors import LogError, ModelError
+from pmdcid.errors import LogError, ModelError, PmdcidError, warn
 from pmdcid.model import Model
 from pmdcid.plan import fisher as fi
 from pmdcid.plan import profiles as pr
@@ -49,6 +51,8 @@ class CheckResult:
     effects: list[dict] = field(default_factory=list)
     #: why the effects were not judged ('' when they were)
     effects_skipped: str = ""
+    #: what the logs show wrong beyond precision (a reversed speed), one line each
+    findings: list[str] = field(default_factory=list)
 
     def relative(self) -> dict[str, float]:
         return {n: (self.stderr[n] / abs(self.values[n]) if self.values[n] else math.inf)
@@ -64,7 +68,8 @@ class CheckResult:
                 "parameters": {n: {"value": self.values[n], "stderr": fin(self.stderr[n]),
                                    "relative": fin(rel[n]), "poor": n in self.poor(),
                                    "fix": self.fixes.get(n)} for n in self.names},
-                "effects": self.effects, "effects_skipped": self.effects_skipped or None}
+                "effects": self.effects, "effects_skipped": self.effects_skipped or None,
+                "findings": self.findings}
 
     def lines(self) -> list[str]:
         rel = self.relative()
@@ -152,11 +157,32 @@ def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
     res = CheckResult(names, {n: vals[n] for n in names},
                       {n: float(s) for n, s in zip(names, se, strict=True)},
                       paths=[str(lg.path) for lg in logs])
+    _speed_against(res, logs, model)
     poor = res.poor()
     if poor:
         res.fixes = fixes(poor, F, logs, vals, names, drive, scales, noises, settings)
     _judge_effects(res, logs, model)
     return res
+
+
+def _speed_against(res: CheckResult, logs, model: Model) -> None:
+    """The logs' measured speed against the model's simulated one, as report and diagnose
+    judge it (:func:`~pmdcid.fit.results.speed_against`): a finding, warned about."""
+    from pmdcid.fit.results import speed_against
+    from pmdcid.report.compare import simulate_for
+
+    pairs = []
+    for lg in logs:
+        if lg.has("omega") and not lg.blocked:
+            try:
+                sim = simulate_for(lg, model)
+            except PmdcidError:  # a log the model cannot simulate: the check says the rest
+                continue
+            pairs.append((sim.omega, np.asarray(lg["omega"], float)))
+    line = speed_against(pairs)
+    if line:
+        res.findings.append(line)
+        warn(line, ", ".join(str(lg.path) for lg in logs))
 
 
 def _judge_effects(res: CheckResult, logs, model: Model) -> None:

@@ -123,6 +123,15 @@ def current() -> Transaction | None:
     return _CURRENT[-1] if _CURRENT else None
 
 
+def keep_written() -> None:
+    """Make what the running command wrote so far final, whatever its exit: a fleet whose every
+    unit failed keeps units.parquet, outliers.csv and fleet.html (the record of why) and then
+    exits 1. No-op outside the command-line edge."""
+    tr = current()
+    if tr is not None:
+        tr.commit()
+
+
 @contextmanager
 def locked(path):
     """Exclusive lock on the folder of ``path`` for the block (no lock file is left behind)."""

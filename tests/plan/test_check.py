@@ -126,3 +126,40 @@ def test_check_of_logs_without_current_still_scores_a_blocked_rotor_fix():
     res = check_logs([log], truth_model(PAPER), Settings(budget=60))
     assert {"R", "L"} <= set(res.poor())
     assert res.fixes["R"]["kind"] == "blocked"
+
+
+def test_check_says_a_reversed_speed_as_diagnose_and_report_do(tmp_path):
+    """A log of the paper motor (fixtures/paper/truth.json as the model) whose speed sensor
+    counts the other way: plan --check says so in speed_against's line, with its fix, and
+    check.json keeps it; the same log the right way round says nothing of it."""
+    import numpy as np
+
+    from pmdcid.fit.results import speed_against
+
+    truth = Path(__file__).resolve().parents[2] / "fixtures" / "paper" / "truth.json"
+    t = np.arange(1500) * 1e-3
+    inp = tmp_path / "in.csv"
+    inp.write_text("t,v\n" + "".join(f"{a:.3f},{1.5 if a >= 0.1 else 0.0}\n" for a in t))
+    _run("simulate", inp, "-m", truth, "-o", tmp_path / "rec.csv", "--noise-i", 0.002,
+         "--noise-omega", 0.05, "--seed", int(np.random.default_rng(5).integers(1000)))
+    rows = (tmp_path / "rec.csv").read_text().splitlines()
+    head = next(k for k, r in enumerate(rows) if not r.startswith("#"))
+    cols = rows[head].split(",")
+    w, th = cols.index("omega"), cols.index("theta")
+    flipped = rows[:head + 1]
+    for r in rows[head + 1:]:
+        cells = r.split(",")
+        cells[w], cells[th] = f"{-float(cells[w])!r}", f"{-float(cells[th])!r}"
+        flipped.append(",".join(cells))
+    (tmp_path / "flip.csv").write_text("\n".join(flipped) + "\n")
+
+    line = speed_against([(np.ones(3) * [1, 2, 3], -np.ones(3) * [1, 2, 3])]).split(" (")[0]
+    res = _run("plan", "--check", tmp_path / "flip.csv", "-m", truth, "-o", tmp_path / "c")
+    said = [x for x in res.stderr.splitlines() if line in x]
+    assert len(said) == 1 and said[0].startswith(f"warning: {tmp_path / 'flip.csv'}: "), \
+        res.stderr
+    assert "-c omega=COLUMN*-1" in said[0]
+    assert json.loads((tmp_path / "c" / "check.json").read_text())["findings"] == \
+        [said[0].split(": ", 2)[2]]
+    res = _run("plan", "--check", tmp_path / "rec.csv", "-m", truth)
+    assert line not in res.stderr

@@ -4,9 +4,14 @@ Every numeric or logical vector is a signal by its variable name; a struct's fie
 ``struct.field`` (nested: ``a.b.c``); the columns of an N x k matrix are ``name[0]`` ...
 ``name[k-1]``. Scalars, text and cells are left out. The vectors as long as the time column
 (``t``, ``time`` or the ``-c t=SOURCE`` mapping) form the log.
+
+A file cut short (a variable's data running past the end of a v5 file; an HDF5 file shorter
+than its superblock says) is refused in one line that says so.
 """
 
 from __future__ import annotations
+
+import os
 
 import numpy as np
 
@@ -46,6 +51,10 @@ def _load_v5(path: str) -> dict[str, Series]:
     try:
         data = sio.loadmat(path, simplify_cells=True)
     except Exception as exc:  # noqa: BLE001 - scipy's MatReadError and others on a foreign file
+        if isinstance(exc, OSError) and "could not read bytes" in str(exc):
+            raise LogError(f"the MATLAB file is cut short (a variable's data runs past its end, "
+                           f"{os.path.getsize(path)} bytes): it was not closed properly or not "
+                           "copied whole", path) from None
         raise LogError(f"is not a readable MATLAB file ({type(exc).__name__}: "
                        f"{str(exc)[:80]})", path) from None
     out: dict[str, Series] = {}
@@ -76,6 +85,10 @@ def _load_v73(path: str) -> dict[str, Series]:
         with h5py.File(path, "r") as fh:
             _walk_h5("", fh, h5py, out)
     except (OSError, ValueError, KeyError, TypeError) as exc:
+        if "truncated file" in str(exc):
+            raise LogError(f"the MATLAB v7.3 (HDF5) file is cut short ({os.path.getsize(path)} "
+                           "bytes, fewer than its header gives): it was not closed properly or "
+                           "not copied whole", path) from None
         raise LogError(f"is not a readable MATLAB v7.3 file ({str(exc)[:100]})", path) from None
     return out
 

@@ -6,6 +6,10 @@ array holds one element: ``/joint_states.velocity`` for a one-joint ``sensor_msg
 a ``builtin_interfaces/Time`` as one value in seconds). Its instants are the messages' log times
 [s from the file's first message]. ROS 2 messages decode through ``mcap-ros2-support``, JSON
 ones with the standard library; topics in other encodings are left out.
+
+An MCAP file ends with its magic bytes after the footer; one that does not was cut short (the
+recorder stopped before closing it) and is refused in one line that says so and how to recover
+its whole records (``mcap recover``), where the reader would report a garbled record length.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from pmdcid.io.formats import Series, Signals, need
 
 EXTENSIONS = (".mcap",)
 EXTRA = "mcap"
+MAGIC = b"\x89MCAP0\r\n"
 #: arrays longer than this are not signals (images, point clouds)
 MAX_ELEMENTS = 16
 
@@ -83,6 +88,19 @@ def _topics(reader, wanted) -> list[str] | None:
     return keep or None
 
 
+def _check_end(fh, path: str) -> None:
+    """Refuse, in one line, a file that starts as MCAP but does not end as one: cut short."""
+    head = fh.read(len(MAGIC))
+    size = fh.seek(0, 2)
+    fh.seek(max(0, size - len(MAGIC)))
+    tail = fh.read(len(MAGIC))
+    fh.seek(0)
+    if head == MAGIC and (tail != MAGIC or size < 2 * len(MAGIC) + 1):
+        raise LogError(f"the MCAP file is cut short ({size} bytes, no footer at its end): it was "
+                       "not closed properly; 'mcap recover FILE -o WHOLE.mcap' keeps its whole "
+                       "records", path)
+
+
 def load(path: str, wanted: list[str] | None = None) -> Signals:
     """The file's signals; with ``wanted`` (the mapped names), only the topics they read are
     decoded (a bag's camera topics are never decoded to read a motor's)."""
@@ -93,6 +111,7 @@ def load(path: str, wanted: list[str] | None = None) -> Signals:
     decoders: dict[int, object] = {}
     try:
         with open(path, "rb") as fh:
+            _check_end(fh, path)
             reader = reader_mod.make_reader(fh)
             topics = _topics(reader, wanted)
             for schema, channel, msg in reader.iter_messages(topics=topics):

@@ -3,6 +3,8 @@
 Every numeric or boolean column is a signal by its name; a struct column's fields are named
 ``column.field``; a timestamp column is in seconds (from 1970: ``t`` then starts where the file
 starts, as a CSV's does); a field's ``unit`` metadata (if the writer stored one) is its unit.
+A file that starts as Parquet but lacks the footer Parquet writes last was cut short: one line
+says so.
 """
 
 from __future__ import annotations
@@ -14,6 +16,16 @@ from pmdcid.io.formats import Series, Signals, need
 
 EXTENSIONS = (".parquet", ".pq")
 EXTRA = "parquet"
+MAGIC = b"PAR1"
+
+
+def _cut_short(path: str) -> bool:
+    """True when ``path`` starts as a Parquet file but does not end as one (no footer)."""
+    with open(path, "rb") as fh:
+        head = fh.read(4)
+        size = fh.seek(0, 2)
+        fh.seek(max(0, size - 4))
+        return head == MAGIC and (size < 12 or fh.read(4) != MAGIC)
 
 
 def _unit(fld) -> str | None:
@@ -54,6 +66,9 @@ def load(path: str, wanted: list[str] | None = None) -> Signals:
     try:
         table = pq.read_table(path)
     except (pa.ArrowException, OSError) as exc:
+        if _cut_short(path):
+            raise LogError("the Parquet file is cut short (no footer at its end): it was not "
+                           "closed properly or not copied whole", path) from None
         msg = str(exc).strip().splitlines()[0][:100] if str(exc).strip() else type(exc).__name__
         raise LogError(f"is not a readable Parquet file ({msg})", path) from None
     out: dict[str, Series] = {}
