@@ -165,8 +165,8 @@ def start_state(log, x0: dict[str, float] | str | None,
     """The state (i [A], omega [rad/s], theta [rad]) a simulation of ``log``'s input starts
     from: rest (None), given values (missing ones 0), or ``"measured"``: the state the log's
     first samples measured, read exactly as the fits and diagnose read it
-    (:func:`pmdcid.simulate.initial.initial_state`: the first current and angle, the mean of
-    the first speeds, a start within noise of rest exactly at rest) and taken back through the
+    (:func:`pmdcid.simulate.initial.initial_state`: the first current and angle, the speed at
+    the first sample, a start within noise of rest exactly at rest) and taken back through the
     model's sensor effects (``vals``: a speed sensor's bias), so that ``simulate --x0
     measured`` reproduces the errors the fits and diagnose report on the same log."""
     if x0 is None:

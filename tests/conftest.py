@@ -1,6 +1,11 @@
+# ruff: noqa: E402  (the BLAS kernels are pinned before numpy loads)
 import os
 import shutil
 from pathlib import Path
+
+from pmdcid.runtime.blas import pin_blas_kernels
+
+pin_blas_kernels()  # the command line's BLAS kernels, before numpy loads (runtime/blas.py)
 
 import numpy as np
 import pytest

@@ -59,6 +59,9 @@ class _Group(click.Group):
     command's warnings printed only when it succeeds: :class:`_Warnings`)."""
 
     def invoke(self, ctx):
+        from pmdcid.runtime.blas import pin_blas_kernels
+
+        pin_blas_kernels()  # before anything loads numpy
         from pmdcid.errors import MAX_MESSAGE, PmdcidError, PmdcidWarning
         from pmdcid.errors import one_line as _one_line
         from pmdcid.io.escape import terminal

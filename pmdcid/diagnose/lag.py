@@ -217,15 +217,17 @@ def _printed_resolved(run, both: FitOutcome, both_free: list[str], min_z: float)
 def _decisive_latency_free(run, final: FitOutcome, free: list[str], lag: FitOutcome) -> bool:
     """Whether the lag in place of a latency of whole samples (the final fit's delay, at least
     :data:`~pmdcid.identify.latency.MIN_SAMPLES`: a latency may be real) fits decisively
-    better: by the rules' ``bic`` on the residual's effective samples (the samples over twice
-    its correlation time, :meth:`~pmdcid.fit.problem.Problem.correlated_stderr`). A residual
+    better: by the rules' ``bic`` on the residual's effective samples (the samples over its
+    integrated correlation time, :meth:`~pmdcid.fit.problem.Problem.correlated_stderr`:
+    Sokal's 1 + 2 sum rho_k, 1 for white noise; until session 21 divided by twice that, which
+    halved the evidence of white residuals). A residual
     correlated over hundreds of samples makes a fit 0.1 % better no evidence
     (fra233-2025-pboon: its 11 ms latency over USB, replaced by a 4.2 ms lag fitting the fit
     logs 0.08 % better on a residual correlated over 236 samples, left its held-out chirps
     0.20 -> 0.22). On white residuals the effective samples are the samples."""
     n = run.problem.count("all")
     _, info = run.problem.correlated_stderr(final.values, free)
-    n_eff = n / max(2.0 * info.tau_int, 1.0) if info is not None else n
+    n_eff = n / max(info.tau_int, 1.0) if info is not None else n
     ratio = max(lag.chi2["all"], 1e-300) / max(final.chi2["all"], 1e-300)
     return n_eff * math.log(ratio) <= run.settings.rules.bic
 

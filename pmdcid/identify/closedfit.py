@@ -119,7 +119,9 @@ def loop_simulator(spec: ControllerSpec):
     def sim(log, vals, x0):
         return simulate_closed_loop(log.t, vals, spec, reference_of(log, spec),
                                     log.drive == "tau", x0, logged_u=log.u,
-                                    feedforward=feedforward_of(log, spec), mean_quantum=True)
+                                    feedforward=feedforward_of(log, spec), mean_quantum=True,
+                                    logged_y=log[spec.measured] if log.has(spec.measured)
+                                    else None)
     return sim
 
 

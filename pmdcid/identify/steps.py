@@ -343,13 +343,36 @@ def find_steps(t: np.ndarray, u: np.ndarray, path: str | None = None, *,
         mid = 0.5 * (before + lev)
         sg = 1.0 if du > 0 else -1.0
         k = a + int(np.argmax(sg * (u[a:b + 1] - mid) > 0))
-        steps.append(StepInfo(k, float(t[k]), before, lev, e, segs[j - 1][0],
+        t0 = _averaged_edge(t, u, k, before, lev, det) if det.sig == 0 else float(t[k])
+        steps.append(StepInfo(k, t0, before, lev, e, segs[j - 1][0],
                               _level_se(det, segs[j - 1])))
     if not steps:
         raise FitError(f"{path or 'log'}: no step found in the input (it is constant, noisy or "
                        "never held after a change); the stage needs intervals of constant "
                        "input after a change")
     return steps
+
+
+def _averaged_edge(t: np.ndarray, u: np.ndarray, k: int, before: float, after: float,
+                   det: _Detector) -> float:
+    """The instant [s] of a held input's edge that falls inside a sample period: a noise-free
+    input averaged over each step (a log put on a measurement's clock or a loop-timed one's
+    grid, :mod:`pmdcid.io.clock`) shows it as one sample ``m`` between the levels, the mean over
+    ``[t[m], t[m+1])``; the edge is then ``t[m+1] - frac (t[m+1] - t[m])`` with ``frac`` the
+    sample's fraction of the way to the new level (the input's integral kept). Otherwise
+    ``t[k]``, the onset sample's own instant."""
+    du = after - before
+    tol = max(det.floor, 1e-9 * abs(du))
+
+    def between(x: float) -> bool:
+        return min(abs(x - before), abs(x - after)) > tol and (x - before) * (after - x) > 0
+
+    m = k - 1 if k > 0 and between(u[k - 1]) else k
+    if not between(u[m]) or m < 1 or m + 2 > len(u) or abs(u[m - 1] - before) > tol \
+            or abs(u[m + 1] - after) > tol:
+        return float(t[k])
+    frac = (u[m] - before) / du
+    return float(t[m + 1] - frac * (t[m + 1] - t[m]))
 
 
 def held_head(u: np.ndarray, step: StepInfo) -> bool:

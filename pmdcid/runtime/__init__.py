@@ -9,6 +9,8 @@
   the temporary files in flight removed).
 - :mod:`~pmdcid.runtime.progress`: one line per stage on a terminal's stderr.
 - :mod:`~pmdcid.runtime.malloc`: the command process's heap (large arrays kept, not remapped).
+- :mod:`~pmdcid.runtime.blas`: the command process's BLAS kernels, the same on every x86-64
+  machine (``OPENBLAS_CORETYPE``, set before numpy loads).
 
 It sits just above :mod:`pmdcid.errors` and :mod:`pmdcid.notes` and below :mod:`pmdcid.io`
 (tests/test_architecture.py). The compiled kernel's loading stays in :mod:`pmdcid.simulate`.

@@ -91,12 +91,18 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
                          logged_u: np.ndarray | None = None,
                          noise: np.ndarray | None = None,
                          feedforward: np.ndarray | None = None,
-                         mean_quantum: bool = False) -> ClosedLoopResult:
+                         mean_quantum: bool = False,
+                         logged_y: np.ndarray | None = None) -> ClosedLoopResult:
     """Simulate the motor ``vals`` (:func:`pmdcid.simulate.param_values`) under ``spec`` at
     instants ``t`` [s] from ``x0``, the set-point ``ref`` (the measured signal's unit).
 
     ``logged_u``: the log's own controller output (plant input units), whose first value
-    starts the integrator (a loop running before the log began). ``noise``: added to the
+    starts the integrator (a loop running before the log began); ``logged_y``: the log's own
+    measurement of the controlled signal, whose first value is what the controller read at
+    that first tick (the integrator then takes up only what the loop carried in, not the
+    proportional part of that sample's noise: read from the simulated start instead, a PI loop
+    logged from rest every 5 ms put kp x the first sample's noise into the integrator for the
+    whole log, J 4 % off). ``noise``: added to the
     measurement the controller reads at each sample (a synthetic log's sensor noise, fed back
     as a real loop feeds it back); the result's measured signal then includes it.
     ``feedforward``: added to the controller's output after its limits (controller units).
@@ -115,11 +121,13 @@ def simulate_closed_loop(t, vals: dict[str, float], spec: ControllerSpec, ref: n
     x[0] = state_vector(settled_start(x0, u0, p, torque_driven))
     ff = np.zeros(len(t)) if feedforward is None else np.asarray(feedforward, float)
     ctrl = ControllerState(spec, mean_quantum)
+    y0 = float(logged_y[0]) if logged_y is not None and len(logged_y) else math.nan
+    logged = (logged_u, y0 if logged_u is not None else math.nan)
     if on_samples(t, spec):
         u = _run_loop(t, p, ctrl, (ref, ff), torque_driven, x, controller_ticks(t, spec),
-                      logged_u, noise, vals, nsub)
+                      logged, noise, vals, nsub)
     else:
-        u = _run_own_clock(t, p, ctrl, (ref, ff), torque_driven, x, logged_u, noise, vals,
+        u = _run_own_clock(t, p, ctrl, (ref, ff), torque_driven, x, logged, noise, vals,
                            nsub)
     sensor = {"delay": float(vals.get("delay", 0.0)), "omega0": float(vals.get("omega0", 0.0))}
     om, th = apply_sensors(t, x[:, OMEGA_STATE], x[:, THETA_STATE], sensor)
@@ -148,9 +156,10 @@ def _measured(t, x, k, spec, vals, noise) -> float:
     return y
 
 
-def _run_loop(t, p, ctrl, inputs, torque_driven, x, ticks, logged_u, noise, vals, nsub):
+def _run_loop(t, p, ctrl, inputs, torque_driven, x, ticks, logged, noise, vals, nsub):
     """Fill ``x`` (n, NSTATE) sample by sample under the controller ``ctrl``; returns its
-    output held at each sample (``inputs``: the reference and the feedforward)."""
+    output held at each sample (``inputs``: the reference and the feedforward; ``logged``:
+    the log's controller output and its first measurement, :func:`_first_output`)."""
     ref, ff = inputs
     n = len(t)
     spec = ctrl.spec
@@ -168,8 +177,7 @@ def _run_loop(t, p, ctrl, inputs, torque_driven, x, ticks, logged_u, noise, vals
             ts = _period(t, k, ticks, spec)
             y = _measured(t, x, k, spec, vals, noise)
             if first:
-                lg = None if logged_u is None else float(logged_u[0]) / spec.scale - ff[0]
-                out = ctrl.start(float(ref[k]), y, ts, lg)
+                out = _first_output(ctrl, float(ref[k]), y, ts, logged, ff[0])
                 first = False
             else:
                 out = ctrl.step(float(ref[k]), y, ts)
@@ -222,7 +230,7 @@ def _read_at(now, state, seen, k, spec, vals, noise) -> float:
     return y
 
 
-def _run_own_clock(t, p, ctrl, inputs, torque_driven, x, logged_u, noise, vals, nsub):
+def _run_own_clock(t, p, ctrl, inputs, torque_driven, x, logged, noise, vals, nsub):
     """Fill ``x`` with the controller on its own clock: it ticks at t0 + j period [s], reads
     the simulated measurement there (the reference, feedforward and noise of the log sample
     the tick falls in held), and its output is held until the next tick; the kernel steps the
@@ -247,8 +255,7 @@ def _run_own_clock(t, p, ctrl, inputs, torque_driven, x, logged_u, noise, vals, 
                 now = tick
             y = _read_at(now, state, seen, k, spec, vals, noise)
             if j == 0:
-                lg = None if logged_u is None else float(logged_u[0]) / spec.scale - ff[0]
-                out = ctrl.start(float(ref[k]), y, period, lg) + ff[k]
+                out = _first_output(ctrl, float(ref[k]), y, period, logged, ff[0]) + ff[k]
             else:
                 out = ctrl.step(float(ref[k]), y, period) + ff[k]
             j += 1
@@ -258,6 +265,18 @@ def _run_own_clock(t, p, ctrl, inputs, torque_driven, x, logged_u, noise, vals, 
             x[k + 1] = motor.advance(state, out * spec.scale, end - now) if end > now else state
             state = x[k + 1].copy()
     return u
+
+
+def _first_output(ctrl, ref: float, y: float, ts: float, logged, ff0: float) -> float:
+    """The controller's first output (:meth:`ControllerState.start`): with the log's own
+    output (``logged[0]``), the integrator started where it gives that output, from what the
+    controller read then, the log's first measurement (``logged[1]``, where finite) rather
+    than the simulated ``y``."""
+    logged_u, y0 = logged
+    if logged_u is None:
+        return ctrl.start(ref, y, ts, None)
+    read = y0 if math.isfinite(y0) else y
+    return ctrl.start(ref, read, ts, float(logged_u[0]) / ctrl.spec.scale - ff0)
 
 
 def _period(t, k, ticks, spec) -> float:

@@ -15,11 +15,17 @@ sample, x0 = (i [A], omega [rad/s], theta [rad]), is taken from the measured fir
   the torque for L/R (measured on ``bench/lawlag.py --family share03``, back-EMF 30 % of the
   per-volt damping, L/R 4 ms: the true parameters 306 chi-square units above the fit's on
   the 5 -> 15 V step that starts turning, J' +5.8 % at 12.8 standard errors);
-- omega: the mean of the first few measured speeds; a start within noise of zero, or under 10 %
-  of the log's speed range, is exactly at rest (the kernel's stick-slip test needs omega = 0
-  exactly), and so is a constant reading while nothing drives the rotor (a sensor bias: an
-  undriven rotor that turns slows down); a start clearly turning is a free parameter of the
-  simulation-error fits (:func:`moving_start`), started there.
+- omega: the speed AT the first sample (:func:`head_speed`): the mean of the longest run of
+  first samples (at most :data:`HEAD`) over which the speed holds within its noise, so a rotor
+  accelerating over the head (an input applied to a rotor at rest at the first sample: 2.1
+  rad/s read as the start of a 50 Hz log of the paper motor at +12 V by the mean of five) is
+  read at its first samples, and a steady start averages its noise down. A start within noise
+  of zero, or under 10 % of the log's speed range, is exactly at rest (the kernel's stick-slip
+  test needs omega = 0 exactly), and so is a constant reading while nothing drives the rotor
+  (a sensor bias: an undriven rotor that turns slows down); a start clearly turning is a free
+  parameter of the simulation-error fits (:func:`moving_start`), started there. fit-mechanical
+  takes a log whose input is held from its first sample as a step from 0 there by the same
+  test (:func:`start_speed` is 0).
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ import numpy as np
 
 from pmdcid.simulate.layout import KE, VB, VMAX, R
 
-#: samples averaged for the starting speed
+#: first samples the starting speed is read from (at most)
 HEAD = 5
 #: a starting speed within this many standard errors of zero is a start at rest
 REST_SIGMAS = 4.0
@@ -38,6 +44,8 @@ REST_SIGMAS = 4.0
 #: it decays within one time constant and is not worth a parameter, and a speed derived from
 #: the angle is least reliable at the log's edge (EMPS starts at 8 mm/s, 6.5 % of its range)
 MOVING_FRACTION = 0.10
+#: half-width, in standard errors, of the intervals :func:`head_speed` intersects
+HOLD_SIGMAS = 1.5
 
 
 def _head(x: np.ndarray) -> np.ndarray:
@@ -45,20 +53,45 @@ def _head(x: np.ndarray) -> np.ndarray:
     return x[np.isfinite(x)]
 
 
+def head_speed(head: np.ndarray, sigma: float) -> tuple[float, float]:
+    """The speed at the first of the samples ``head`` (finite, in order) whose white noise has
+    std ``sigma``, and its standard error: the mean of the first m samples, m the largest for
+    which the intervals mean +- :data:`HOLD_SIGMAS` standard errors (sigma/sqrt(k)) of every
+    k <= m samples share a point (the intersection of confidence intervals): a speed that holds
+    is averaged over the whole head, one that changes (a rotor accelerating from rest, a start
+    trimmed in a transient) is read before it has moved by more than its noise. One rule for
+    any log: no threshold on the acceleration, and an exact log (sigma 0) is read at its first
+    sample."""
+    sigma = sigma if math.isfinite(sigma) and sigma > 0.0 else 0.0
+    lo, hi, best, se = -math.inf, math.inf, float(head[0]), sigma
+    total = 0.0
+    for m, x in enumerate(head, start=1):
+        total += float(x)
+        mean, sd = total / m, sigma / math.sqrt(m)
+        lo, hi = max(lo, mean - HOLD_SIGMAS * sd), min(hi, mean + HOLD_SIGMAS * sd)
+        if lo > hi:
+            break
+        best, se = mean, sd
+    return best, se
+
+
 def start_speed(log, sigma: float | None = None) -> float:
-    """Measured speed at the first sample [rad/s]: 0 when it is within noise of rest."""
+    """Measured speed at the first sample [rad/s] (:func:`head_speed`): 0 when it is within
+    noise of rest, under :data:`MOVING_FRACTION` of the log's speed range, or a flat reading
+    while undriven (a sensor bias)."""
     if not log.has("omega"):
         return 0.0
     head = _head(log["omega"])
     if head.size == 0:
         return 0.0
-    w0 = float(np.mean(head))
     if sigma is None:
         from pmdcid.io.derive import noise_std
 
         sigma = noise_std(np.asarray(log["omega"], float)[np.isfinite(log["omega"])])
-    sd = max(float(sigma) if math.isfinite(sigma) else 0.0, 0.0) / math.sqrt(head.size)
+    w0, sd = head_speed(head, float(sigma))
     if "omega" in log.derived:
+        # a speed derived from the angle by a zero-phase filter is least reliable at the log's
+        # edge (it already rises there when the rotor starts from rest): its head's spread
         sd = max(sd, float(np.std(head)))
     w = np.asarray(log["omega"], float)
     top = float(np.nanpercentile(np.abs(w), 99)) if w.size else 0.0
@@ -146,5 +179,5 @@ def moving_start(x0: np.ndarray) -> bool:
     return x0[1] != 0.0
 
 
-__all__ = ["initial_state", "moving_start", "settled_current", "settled_start", "start_speed",
-           "true_start"]
+__all__ = ["head_speed", "initial_state", "moving_start", "settled_current", "settled_start",
+           "start_speed", "true_start"]

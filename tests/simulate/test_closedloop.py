@@ -236,9 +236,11 @@ def test_controller_route_recovers_the_motor():
 @pytest.mark.slow
 def test_controller_route_on_a_log_slower_than_its_loop():
     """A 1 kHz PI loop logged every 5 ms (--controller with period=0.001: before, 'not a
-    whole number of samples'): the controller route recovers J and bv within 3 %, bc within
-    25 % (a fifth of the samples: its standard error is ~17 %), each within 3 standard
-    errors."""
+    whole number of samples'): the controller route recovers J, bv and bc each within 3 of
+    its standard errors, J's and bv's under 5 % of their values, bc's under 30 % (a fifth of
+    the samples). Over seeds 8-15 J, bv, bc fell within 2.7 standard errors (J -10.5, bc -6.5
+    before the integrator started from the log's first measurement, with the rotor read at
+    rest there; a fixed 3 % bound on J, as this test had, is about one of its errors)."""
     rng = np.random.default_rng(11)
     log, _ = closed_loop_log(rng, n=4000, coloured=False, hold=1000)
     keep = slice(None, None, 5)
@@ -246,9 +248,9 @@ def test_controller_route_on_a_log_slower_than_its_loop():
                extra={"omega_ref": log.extra["omega_ref"][keep]})
     res = _fit(slow, controller=controller_from_dict({**PI, "period": 1e-3}))
     assert res.route.name == "controller"
-    for name, tol in (("J", 0.03), ("bv", 0.03), ("bc", 0.25)):
+    for name, tol in (("J", 0.05), ("bv", 0.05), ("bc", 0.30)):
         e = res.estimates[name]
-        assert abs(e.value / TRUE[name] - 1) < tol, (name, e)
+        assert e.stderr < tol * TRUE[name], (name, e)
         assert abs(e.value - TRUE[name]) < 3 * e.stderr, (name, e)
 
 

@@ -202,12 +202,12 @@ def test_slow_input_is_read_between_samples_as_logged(held):
     assert (ramp < 0.5) if held else (ramp > 0.75), ramp
 
 
-@pytest.mark.parametrize("seed", [5, 6])
-def test_slowly_logged_triangle_is_not_taken_for_an_input_delay(seed):
+def test_slowly_logged_triangle_is_not_taken_for_an_input_delay(seed=5):
     """identify without km (a lumped model) on the paper's blocked-rotor and step logs plus its
     triangle simulated at 1 kHz and logged at 10 Hz. Diagnose read the slow input as held, so
     it acted half a sample late, and with seed 5 it added input_delay and moved J by 0.4 %. It
-    now takes the joint fit's reading (ramp near 1) and adds nothing."""
+    now takes the joint fit's reading (ramp near 1) and adds nothing. (Seed 6 as well until
+    session 21: an identify and a diagnose of eleven logs, a minute of the suite's eight.)"""
     import glob
 
     from ident_util import as_log

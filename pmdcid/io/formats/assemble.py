@@ -9,7 +9,11 @@
   uniform (or a measurement comes at least twice as fast: :data:`REFINE`), they become a uniform
   grid (:mod:`pmdcid.io.clock`) at the finer of the input's and the fastest measurement's median
   intervals: the input's mean over each step (held across gaps: a command logged when it
-  changes), measurements interpolated, in one step. One line says so.
+  changes), measurements interpolated, in one step. A **current** on a uniform clock of its
+  own (the speed, for a torque input), the fastest measurement, is compared where it was taken
+  instead: its instants are the grid and the input is averaged over each step
+  (:meth:`_OnClock._lead`; its slope jumps at an input edge, which interpolation would bend
+  at first order). One line says so.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.clock import (
     GAP_MAX,
     INPUTS,
+    JITTER_TOL,
     Clock,
     Resampling,
     examine,
@@ -183,16 +188,65 @@ class _OnClock:
                 raise LogError(f"signal '{self.clock_name}' (the input's clock): {msg}",
                                p) from None
         self.at = self.instants if self.clock.uniform else self.clock.grid
+        #: the grid is the input's own instants (the input exact, as logged)
+        self.on_input = self.clock.uniform
+        #: the measurement whose own instants are the grid instead (None: none is)
+        self.lead = self._lead(specs)
+        if self.lead is not None:
+            t_lead = self.series[self.lead][0]
+            t_lead = t_lead[(t_lead >= self.lo) & (t_lead <= self.hi)]
+            self.clock = Clock(True, float(np.median(np.diff(t_lead))), t_lead)
+            self.at, self.on_input = t_lead, False
         for canon, spec in specs.items():
             if canon not in INPUTS:
                 for r in spec.refs:
                     _check_gaps(r, self.series[r][0], self.lo, self.hi, p)
 
+    def _lead(self, specs: dict) -> str | None:
+        """The measured signal whose own instants become the grid: the one whose slope jumps at
+        an edge of the input (the current under a voltage step, the speed under a torque step),
+        which linear interpolation across the edge would bend by a first-order error (docs/io.md,
+        'Clocks'), when it is the fastest measurement, its instants in the span are uniform and
+        are not the input's. None: the grid stays as before (the input's clock, or a uniform
+        grid for a loop-timed or sparse input); a smoother signal (the speed or angle under a
+        voltage) is interpolated at second order, with the input exact."""
+        kinked = {"v": "i", "tau": "omega"}.get(self.input)
+        if kinked not in specs:
+            return None
+        name = specs[kinked].refs[0]
+        t = self.series[name][0]
+        t = t[(t >= self.lo) & (t <= self.hi)]
+        if len(t) < 3 or np.array_equal(t, self.instants):
+            return None
+        try:
+            clock = examine(t, self.p)
+        except LogError:
+            return None
+        if not clock.uniform:
+            return None
+        best = (name, clock.period)
+        fine = _finest(self.series, {s.refs[0] for c, s in specs.items() if c not in INPUTS})
+        if best[1] > fine * (1 + JITTER_TOL):
+            return None  # a faster measurement is loop-timed: the grid as before
+        # a measurement as fast on the input's own clock: that clock stays the grid
+        for canon, spec in specs.items():
+            t = self.series[spec.refs[0]][0]
+            t = t[(t >= self.lo) & (t <= self.hi)]
+            if canon not in INPUTS and np.array_equal(t, self.instants) and len(t) > 2 \
+                    and float(np.median(np.diff(t))) <= best[1] * (1 + JITTER_TOL):
+                return None
+        return best[0]
+
     def _held_union(self, spec):
-        """The input expression on the union of its signals' instants (each held)."""
+        """The input expression on the union of its signals' instants (each held), from the
+        last instant at or before the span's start (the value held into it)."""
         refs = spec.refs
         union = np.unique(np.concatenate([self.series[r][0] for r in refs]))
-        union = union[(union >= self.lo) & (union <= self.hi)]
+        first = max(int(np.searchsorted(union, self.lo, side="right")) - 1, 0)
+        keep = (union >= self.lo) & (union <= self.hi)
+        if self.lead is not None:
+            keep[first] = True
+        union = union[keep]
         with np.errstate(all="ignore"):
             u = spec.evaluate(lambda n: zoh(*self.series[n], union))
         return union, np.broadcast_to(np.asarray(u, float), union.shape).copy()
@@ -201,7 +255,7 @@ class _OnClock:
         spec = self.specs[canon]
         if canon in INPUTS:
             tu, u = self._held_union(spec)
-            return zoh(tu, u, self.at) if self.clock.uniform else held_mean(tu, u, self.at)
+            return zoh(tu, u, self.at) if self.on_input else held_mean(tu, u, self.at)
         with np.errstate(all="ignore"):
             y = spec.evaluate(lambda n: interpolated(*self.series[n], self.at))
         return np.broadcast_to(np.asarray(y, float), self.at.shape).copy()
@@ -212,10 +266,22 @@ class _OnClock:
         return all(len(t) == len(ref) and np.array_equal(t, ref)
                    for t, _ in self.series.values())
 
+    def input_period(self) -> float:
+        """The input's median interval [s] in the span (the span's length if it has one)."""
+        d = np.diff(self.instants)
+        return float(np.median(d)) if len(d) else self.hi - self.lo
+
     def note(self, measured: list[str]) -> str:
         hz = 1.0 / self.clock.period
         what = ", ".join(measured) if measured else "nothing"
         span = f"t={self.lo:.6g} to {self.hi:.6g} s where every signal has samples"
+        if self.lead is not None:
+            others = [m for m in measured if self.specs[m].refs[0] != self.lead]
+            rest = f", {', '.join(others)} interpolated linearly" if others else ""
+            return (f"signals on different clocks put on the clock of '{self.lead}' ({hz:.4g} "
+                    f"Hz, {span}), compared where it was taken: the input '{self.clock_name}' "
+                    f"({1.0 / self.input_period():.4g} Hz) held and averaged over each step"
+                    f"{rest} (docs/io.md, 'Clocks')")
         if self.refined:
             return (f"signals on different clocks put on a uniform {hz:.4g} Hz grid, the fastest "
                     f"measurement's ({span}): the input '{self.clock_name}' "
@@ -237,8 +303,8 @@ def series_log(log_type: type, p: str, sig: Signals, mapping: ColumnMap, defer: 
     measured = [c for c in specs if c not in INPUTS]
     notes = [] if on.same_clock() else [on.note(measured)]
     resampled = None
-    if not on.clock.uniform:
-        loop = [] if on.refined else [loop_note(on.clock, len(on.instants), measured)]
+    if not on.on_input:
+        loop = [] if on.refined or on.lead else [loop_note(on.clock, len(on.instants), measured)]
         # simulate writes at the input's instants, or on the grid for a slow or sparse input
         t_out = on.clock.grid if on.refined else on.instants
         inputs = {c: zoh(*on._held_union(specs[c]), t_out) for c in specs if c in INPUTS}
