@@ -112,7 +112,8 @@ def closed_loop_log(log, vals: dict[str, float], spec, noise: NoiseSpec,
     if rng is not None and noise.omega > 0 and spec.measured == "omega":
         fb = rng.normal(0.0, noise.omega, log.n)
     sim = simulate_closed_loop(log.t, vals, spec, ref, torque_driven, x0, logged_u=log.u,
-                               noise=fb, feedforward=feedforward_of(log, spec))
+                               noise=fb, feedforward=feedforward_of(log, spec),
+                               logged_y=log[spec.measured] if log.has(spec.measured) else None)
     meas = {"i": sim.i, "omega": sim.omega, "theta": sim.theta}
     if rng is not None:
         extra = NoiseSpec(noise.i, 0.0 if fb is not None else noise.omega, noise.encoder)

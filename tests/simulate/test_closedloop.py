@@ -379,3 +379,28 @@ def test_bad_controller_option_exit_codes(tmp_path):
     r = CliRunner().invoke(main, ["fit-nonlinear", str(path), "-m", str(model),
                                   "--controller", str(bad)])
     assert r.exit_code == 1 and "bad.json" in r.output and "Traceback" not in r.output
+
+
+def test_simulate_starts_the_loop_as_the_controller_route_fits_it():
+    """``simulate --controller`` (synth.closed_loop_log) and the controller route's simulator
+    (identify/closedfit.py) start the integrator from the same first reading, the log's own
+    measurement: the same model on the same log gives the same loop, so the figures a user
+    simulates are the ones the fit judged. Before, simulate read the simulated start, and the
+    integrator differed by kp times the first sample's noise for the whole log."""
+    from pmdcid.identify.closedfit import loop_simulator
+    from pmdcid.synth import NoiseSpec
+    from pmdcid.synth import closed_loop_log as synth_loop
+
+    loop, spec = closed_loop_log(np.random.default_rng(4), n=1500, coloured=False)
+    # a loop that ran before the log began, its output off the limits at the first sample
+    v = loop["v"].copy()
+    v[0] = 2.0
+    log = Log("loop.csv", loop.t, {"v": v, "omega": loop["omega"]},
+              extra={"omega_ref": np.full(loop.n, 1.0)})
+    torque = log.drive == "tau"
+    vals = param_values(_model(), torque)
+    fit_view = loop_simulator(spec)(log, vals, None)
+    cols, _ = synth_loop(log, vals, spec, NoiseSpec(), None, torque)
+    assert np.array_equal(cols["omega"], fit_view.omega)
+    assert np.array_equal(cols[log.drive], fit_view.u)
+    assert abs(log["omega"][0]) > 0.1  # the first reading is noisy: the test can tell

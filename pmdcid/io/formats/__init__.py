@@ -71,6 +71,11 @@ def reader(path):
     return importlib.import_module(f"pmdcid.io.formats.{READERS[extension(path)]}")
 
 
+def byte_count(n: int) -> str:
+    """``n`` bytes in words, for a message ("1 byte", "24 bytes")."""
+    return "1 byte" if n == 1 else f"{n} bytes"
+
+
 def need(module: str, extra: str, path: str, what: str):
     """Import ``module`` (the format's library) or raise one line naming the extra to install."""
     try:

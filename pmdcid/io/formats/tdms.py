@@ -22,7 +22,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from pmdcid.errors import LogError, warn
-from pmdcid.io.formats import Series, Signals, need
+from pmdcid.io.formats import Series, Signals, byte_count, need
 
 EXTENSIONS = (".tdms",)
 EXTRA = "tdms"
@@ -62,10 +62,6 @@ def _start(ch) -> float | None:
 
 LEAD_IN = 28  # "TDSm", table-of-contents mask, version, next segment offset, raw data offset
 UNWRITTEN = 0xFFFFFFFFFFFFFFFF  # a next segment offset LabVIEW never wrote
-
-
-def _bytes(n: int) -> str:
-    return "1 byte" if n == 1 else f"{n} bytes"
 
 
 def segments(fh, size: int) -> tuple[int, int, int, bool]:
@@ -115,9 +111,9 @@ def _open(nptdms, path: str):
             end, count, missing, unwritten = segments(fh, size)
             if missing:
                 if count == 0:
-                    raise LogError(f"the TDMS file is cut short ({_bytes(missing)} of its first "
-                                   "segment missing): it was not closed properly and holds no "
-                                   "whole segment", path)
+                    raise LogError(f"the TDMS file is cut short ({byte_count(missing)} of its "
+                                   "first segment missing): it was not closed properly and "
+                                   "holds no whole segment", path)
                 fh.seek(0)
                 whole = io.BytesIO(fh.read(end))
         with _quiet():
@@ -125,8 +121,8 @@ def _open(nptdms, path: str):
     except (ValueError, OSError, KeyError, EOFError) as exc:
         raise LogError(f"is not a readable TDMS file ({str(exc)[:100]})", path) from None
     if missing:
-        warn(f"the TDMS file is cut short ({_bytes(missing)} of a segment missing): it was not "
-             f"closed properly; read its {count} whole segments ({end} of {size} bytes), the "
+        warn(f"the TDMS file is cut short ({byte_count(missing)} of a segment missing): it was "
+             f"not closed properly; read its {count} whole segments ({end} of {size} bytes), the "
              "cut one left out", path)
     elif unwritten:
         warn("the TDMS file was not closed properly (its last segment's length was never "

@@ -18,7 +18,7 @@ import json
 import numpy as np
 
 from pmdcid.errors import LogError, warn
-from pmdcid.io.formats import Series, Signals, need
+from pmdcid.io.formats import Series, Signals, byte_count, need
 
 EXTENSIONS = (".wpilog",)
 EXTRA = "wpilog"
@@ -58,10 +58,6 @@ def _record(rec, entry, times, values) -> None:
                 _add(name if len(arr) == 1 else f"{name}[{k}]", ts, v, times, values)
 
 
-def _bytes(n: int) -> str:
-    return "1 byte" if n == 1 else f"{n} bytes"
-
-
 HEADER = 12  # "WPILOG", version (2 bytes), length of the extra header (4 bytes)
 
 
@@ -99,7 +95,7 @@ def load(path: str, wanted: list[str] | None = None) -> Signals:
         raise LogError("is not a WPILib DataLog (.wpilog) file: its header is not one", path)
     end, count, missing = intact_end(data)
     if missing and count == 0:
-        raise LogError(f"the .wpilog file is cut short ({_bytes(missing)} of its first record "
+        raise LogError(f"the .wpilog file is cut short ({byte_count(missing)} of its first record "
                        "missing): it was not closed properly and holds no whole record", path)
     reader = log.DataLogReader(memoryview(data)[:end], path)
     entries: dict[int, tuple[str, str]] = {}
@@ -120,7 +116,7 @@ def load(path: str, wanted: list[str] | None = None) -> Signals:
     if missing:
         last = (max(max(ts) for ts in stamps) - min(min(ts) for ts in stamps)) * 1e-6 \
             if stamps else 0.0
-        warn(f"the .wpilog file is cut short ({_bytes(missing)} of its last record missing: it "
+        warn(f"the .wpilog file is cut short ({byte_count(missing)} of its last record missing: it "
              f"was not closed properly); read the {count} whole records before the cut "
              f"({end} of {len(data)} bytes, {last:.6g} s of data)", path)
     if not times:
