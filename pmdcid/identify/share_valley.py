@@ -60,6 +60,15 @@ DZ_N = 9
 VALLEY_STARTS = 2
 #: shares a dip is read again at, between its two grid neighbours (:func:`refined_dip`)
 FINE_N = 21
+#: shares the local stage is also restarted from, whatever the valley's cost there
+#: (:func:`restart_from_dips`): the valley line is drawn from the fit's own point, whose
+#: linear response is the data's only to within its errors, and the cost across the valley is
+#: steep (tau_e to 0.03 %), so far from the fit the line runs beside the floor and its cost
+#: says little about the floor's. Measured on the +-6 V PRBS of tests/test_pipeline.py
+#: (share 0.35): the line's cost rose monotonically from its lowest at 0.1, while refits
+#: from the line's points at 0.2, 0.35, 0.5 ended 1000, 1150, 980 chi-square units below the
+#: fit (the one from 0.35 at the truth); refits cost 0.1-0.25 s each there
+GRID_STARTS = (0.1, 0.3, 0.5, 0.7, 0.9)
 
 
 def valley_points(point: dict[str, float], shares=SHARES) -> list[dict[str, float]]:
@@ -169,8 +178,9 @@ def refined_dip(cost, point, shares, c, starts, j, n=FINE_N) -> dict[str, float]
 def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = True):
     """The lowest of the refits from the valley's other dips (:data:`VALLEY_STARTS` of them,
     lowest first: the local minima of the cost along :data:`DIP_SHARES`, the dead zone profiled
-    by :func:`valley_floor`, but the grid share nearest ``point``'s); None when ``point`` has
-    no free valley or no refit succeeded. ``cost(sets)``: the chi-square of each set;
+    by :func:`valley_floor`, but the grid share nearest ``point``'s) and from its points at
+    :data:`GRID_STARTS` (those more than a grid step from ``point``'s share); None when
+    ``point`` has no free valley or no refit succeeded. ``cost(sets)``: the chi-square of each set;
     ``point``: the fit's free values (J, tau_e, ke_share, bv; dz when free);
     ``refit(start)``: a fit from the start (None when it failed); ``chi2(fit)``: its
     chi-square; ``fine``: each dip read again between its grid neighbours
@@ -183,12 +193,24 @@ def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = T
         return None
     c, starts = valley_floor(cost, pts, point)
     shares = np.array([p["ke_share"] for p in pts])
+    tries = [refined_dip(cost, point, shares, c, starts, j) if fine else starts[j]
+             for j in dips(shares, c, point["ke_share"])[:VALLEY_STARTS]]
+    tries += grid_starts(point, [p["ke_share"] for p in tries])
     best = None
-    for j in dips(shares, c, point["ke_share"])[:VALLEY_STARTS]:
-        f = refit(refined_dip(cost, point, shares, c, starts, j) if fine else starts[j])
+    for start in tries:
+        f = refit(start)
         if f is not None and (best is None or chi2(f) < chi2(best)):
             best = f
     return best
+
+
+def grid_starts(point: dict[str, float], taken) -> list[dict[str, float]]:
+    """``point`` moved along its valley to each share of :data:`GRID_STARTS` more than a grid
+    step (0.05) from its own share and from each share of ``taken``."""
+    step = SHARES[1] - SHARES[0]
+    near = [point["ke_share"], *taken]
+    shares = [s for s in GRID_STARTS if all(abs(s - x) > step for x in near)]
+    return valley_points(point, shares)
 
 
 def share_range(cost, fit, est: dict[str, Estimate]) -> tuple[float, float] | None:
@@ -268,6 +290,6 @@ def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
     return out, why
 
 
-__all__ = ["DIP_SHARES", "FINE_N", "NAMES", "SHARES", "VALLEY_STARTS", "at_share", "dips",
-           "lower_hull", "refined_dip", "restart_from_dips", "share_interval", "share_range",
+__all__ = ["DIP_SHARES", "FINE_N", "GRID_STARTS", "NAMES", "SHARES", "VALLEY_STARTS", "at_share", "dips",
+           "grid_starts", "lower_hull", "refined_dip", "restart_from_dips", "share_interval", "share_range",
            "valley_floor", "valley_points", "valley_threshold"]

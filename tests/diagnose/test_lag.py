@@ -76,17 +76,20 @@ def test_a_latency_keeps_the_delay():
 
 
 @pytest.mark.slow
-def test_a_latency_beside_the_lag_keeps_both():
-    """A real latency (4 samples) and the armature's lag: diagnose keeps the delay beside the
-    lag, which the held-out part of every log bears out (diagnose/lag.py, ``_pair``). How the
-    late start splits between the two these logs do not pin down (0.9 ms of lag and 6.2 ms of
-    delay here, the same at the commit before the held-out test): their sum within 5 %."""
+def test_a_latency_beside_the_lag_keeps_the_late_start_and_judges_the_lag_beside_it():
+    """A real latency (4 samples) and the armature's lag (3 ms): diagnose keeps the delay, and
+    the lag is judged both in its place and beside it (diagnose/lag.py, ``_pair``). How the late
+    start splits between the two these logs do not pin down: their sum within 5 %. With the
+    kernel's continuous zero crossing (session 22) the lag beside the delay is not decisive on
+    any of seeds 1-8 (delay 6.9-7.2 ms); before, 3 of 8 kept both (seed 7: 0.9 ms of lag and
+    6.2 ms of delay), the sum within 5 % either way."""
     res = diagnose_logs(_logs(LAG, 4e-3, seed=7), _model(), effects=["sensor_delay"])
     new = res.model
-    assert "sensor_delay" in new.effects and new.has("tau_e"), res.summary["notes"]
-    assert new.value("tau_e") + new.value("delay") == pytest.approx(LAG + 4e-3, rel=0.05)
-    assert any("beside the armature's electrical lag" in n and "held-out Δχ²" in n
-               for n in res.summary["notes"])
+    assert "sensor_delay" in new.effects, res.summary["notes"]
+    lag = new.value("tau_e") if new.has("tau_e") else 0.0
+    assert lag + new.value("delay") == pytest.approx(LAG + 4e-3, rel=0.05)
+    judged = [n for n in res.summary["notes"] if n.startswith("sensor_delay (")]
+    assert judged and "in its place" in judged[0] and "beside it" in judged[0], judged
 
 
 class _Run:
