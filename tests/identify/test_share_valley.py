@@ -149,7 +149,24 @@ def test_restart_takes_the_lowest_of_the_other_dips():
 
     share, tried = _restart(shape)
     assert share == pytest.approx(0.2, abs=1e-9)
-    assert len(tried) == 2
+    # the two dips first, lowest first, then the grid's starts away from them and the fit
+    assert tried[:2] == pytest.approx([0.2, 0.6], abs=2.5e-3)
+    assert tried[2:] == pytest.approx([0.1, 0.3, 0.5, 0.7])
+
+
+def test_a_floor_the_valley_line_does_not_show_is_found_from_the_grid_starts():
+    """The valley line's cost rising steadily away from the fit (0.05) shows no other dip, but
+    the refits from the grid's starts end on a lower floor (each refit's chi-square lowest for
+    the start at 0.3: the +-6 V PRBS of tests/test_pipeline.py, where the line drawn from the
+    fit's point runs beside the floor and refits from 0.3 ended 1170 chi-square units below
+    the fit): the lowest refit is returned."""
+    def refit(start):
+        return start
+
+    floor = {0.1: 5.0, 0.3: -50.0, 0.5: -20.0, 0.7: -10.0, 0.9: 0.0}
+    best = restart_from_dips(_cost(lambda s: 100.0 * s), {**POINT, "ke_share": 0.05}, refit,
+                             lambda f: floor.get(round(f["ke_share"], 3), 1e9))
+    assert best["ke_share"] == pytest.approx(0.3)
 
 
 def test_a_minimum_between_grid_shares_keeps_the_local_covariance():
