@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "e144b4d3e0e0365efa1298d725c2d959707982c7"; }
+const char *kernel_digest(void) { return "7250a4788cf34856559373839edca341f0be7920"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -476,7 +476,7 @@ static inline void through_zero(const double *p, double Phi[4][3][3], double Gam
  * friction level. At rest the current moves with omega = 0; if the torque it builds breaks
  * the rotor free within this step, a moving step is tried, accepted only if the rotor then
  * moves in the driving direction (second-order breakaway timing). A speed that would cross
- * zero is stopped there (re-tested for sticking next step). guarded:
+ * zero within the step goes on through the crossing or sticks there (`_through_zero`). guarded:
  * `pmdcid.simulate.terms.friction_guarded` of p. mode0: 0 for a whole internal
  * step, 2 for one of its `EDGE_REFINE` parts (`discretize_into`'s modes).
  */
