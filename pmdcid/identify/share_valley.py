@@ -290,6 +290,6 @@ def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
     return out, why
 
 
-__all__ = ["DIP_SHARES", "FINE_N", "GRID_STARTS", "NAMES", "SHARES", "VALLEY_STARTS", "at_share", "dips",
-           "grid_starts", "lower_hull", "refined_dip", "restart_from_dips", "share_interval", "share_range",
-           "valley_floor", "valley_points", "valley_threshold"]
+__all__ = ["DIP_SHARES", "FINE_N", "GRID_STARTS", "NAMES", "SHARES", "VALLEY_STARTS",
+           "at_share", "dips", "grid_starts", "lower_hull", "refined_dip", "restart_from_dips",
+           "share_interval", "share_range", "valley_floor", "valley_points", "valley_threshold"]

@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "7250a4788cf34856559373839edca341f0be7920"; }
+const char *kernel_digest(void) { return "dcfd6ae0e0f63209dfbf242ad422747b432c21be"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -476,9 +476,10 @@ static inline void through_zero(const double *p, double Phi[4][3][3], double Gam
  * friction level. At rest the current moves with omega = 0; if the torque it builds breaks
  * the rotor free within this step, a moving step is tried, accepted only if the rotor then
  * moves in the driving direction (second-order breakaway timing). A speed that would cross
- * zero within the step goes on through the crossing or sticks there (`_through_zero`). guarded:
- * `pmdcid.simulate.terms.friction_guarded` of p. mode0: 0 for a whole internal
- * step, 2 for one of its `EDGE_REFINE` parts (`discretize_into`'s modes).
+ * zero within the step goes on through the crossing or sticks there (`_through_zero`).
+ * guarded: `pmdcid.simulate.terms.friction_guarded` of p. mode0: 0 for a
+ * whole internal step, 2 for one of its `EDGE_REFINE` parts (`discretize_into`'s
+ * modes).
  */
 static inline void stick_core(const double *p, double Phi[4][3][3], double Gam[4][3][3], int mode0, int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
 {

@@ -254,9 +254,10 @@ def _stick_core(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w,
     friction level. At rest the current moves with omega = 0; if the torque it builds breaks
     the rotor free within this step, a moving step is tried, accepted only if the rotor then
     moves in the driving direction (second-order breakaway timing). A speed that would cross
-    zero within the step goes on through the crossing or sticks there (:func:`_through_zero`). ``guarded``:
-    :func:`pmdcid.simulate.terms.friction_guarded` of ``p``. ``mode0``: 0 for a whole internal
-    step, 2 for one of its :data:`EDGE_REFINE` parts (:func:`discretize_into`'s modes).
+    zero within the step goes on through the crossing or sticks there (:func:`_through_zero`).
+    ``guarded``: :func:`pmdcid.simulate.terms.friction_guarded` of ``p``. ``mode0``: 0 for a
+    whole internal step, 2 for one of its :data:`EDGE_REFINE` parts (:func:`discretize_into`'s
+    modes).
     """
     if torque_driven:
         tm = tin

@@ -91,3 +91,25 @@ def test_whitener_keeps_only_a_sensors_colour():
     assert np.max(np.abs(np.roots(ar_whitener(both, 2)))) > 0.95
     kept = ar_whitener(both, 2, slowest=0.9)
     assert kept is None or np.max(np.abs(np.roots(kept))) <= 0.9, kept
+
+
+def test_a_local_stage_out_of_evaluations_is_run_on_from_where_it_stopped(monkeypatch):
+    """A fit started 30 % off with a budget of 4 evaluations stops short: run on from its end
+    point (CONTINUATIONS), it lowers the chi-square and counts every run's evaluations; with
+    no continuation it ends where the first run stopped."""
+    from pmdcid.fit import simfit
+    from pmdcid.fit.simfit import FitOptions
+
+    rng = np.random.default_rng(4)
+    m = _model(0.0)
+    logs = step_logs(param_values(m), rng, amplitudes=(1.0, 2.0))
+    m.set("J", 1.3 * PAPER["J"])
+    m.set("bv", 0.7 * PAPER["bv"])
+    opts = FitOptions(4)
+    monkeypatch.setattr(simfit, "CONTINUATIONS", 0)
+    once = fit_simulation(logs, m, ["J", "bv"], signals=("omega",), options=opts)
+    monkeypatch.setattr(simfit, "CONTINUATIONS", 2)
+    more = fit_simulation(logs, m, ["J", "bv"], signals=("omega",), options=opts)
+    assert not once.stats.success and once.stats.nfev <= 5
+    assert more.stats.chisqr < once.stats.chisqr
+    assert more.stats.nfev > once.stats.nfev
