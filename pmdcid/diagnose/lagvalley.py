@@ -14,7 +14,9 @@ wrong there (``python bench/lawlag.py --truths none --rates 500 --lags 2,4 --see
   the valley's other dips (:data:`VALLEY_STARTS` of them, lowest first: the local minima of
   the cost along :data:`~pmdcid.identify.share_valley.DIP_SHARES`, the dead zone profiled, but
   the grid share nearest the fit's) and keeps the lowest chi-square where it is lower by more
-  than two standard errors' rise (the correlated residual allowed for);
+  than two standard errors' rise (the correlated residual allowed for). Not from
+  :data:`~pmdcid.identify.share_valley.GRID_STARTS` as well: diagnose starts from
+  fit-nonlinear's model, which restarted from them already;
 - where the valley's floor is flat, the local covariance understates how far J, tau_e and the
   share may move along it. :func:`valley_errors` reads the interval of shares that fit as well
   (:func:`~pmdcid.identify.share_valley.share_range`, fit-nonlinear's reading) and widens
@@ -68,7 +70,7 @@ def valley_restart(run, fo: FitOutcome, free: list[str], notes: list[str] | None
     point = {k: fo.values[k] for k in free}
     best = restart_from_dips(_cost(run, fo.values, part), point,
                              lambda st: run.fit({**fo.values, **st}, free, part),
-                             lambda f: f.chi2[part], fine=False)
+                             lambda f: f.chi2[part], fine=False, grid=False)
     if best is None or best.chi2[part] >= fo.chi2[part]:
         return fo
     if not _decisive(run, fo, best, free, part):

@@ -175,7 +175,8 @@ def refined_dip(cost, point, shares, c, starts, j, n=FINE_N) -> dict[str, float]
     return fine[k] if fc[k] < c[j] else starts[j]
 
 
-def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = True):
+def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = True,
+                      grid: bool = True):
     """The lowest of the refits from the valley's other dips (:data:`VALLEY_STARTS` of them,
     lowest first: the local minima of the cost along :data:`DIP_SHARES`, the dead zone profiled
     by :func:`valley_floor`, but the grid share nearest ``point``'s) and from its points at
@@ -184,8 +185,8 @@ def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = T
     ``point``: the fit's free values (J, tau_e, ke_share, bv; dz when free);
     ``refit(start)``: a fit from the start (None when it failed); ``chi2(fit)``: its
     chi-square; ``fine``: each dip read again between its grid neighbours
-    (:func:`refined_dip`). Whether the lowest is decisively lower than the fit is the
-    caller's to judge (:func:`valley_threshold`)."""
+    (:func:`refined_dip`); ``grid``: the :data:`GRID_STARTS` too. Whether the lowest is
+    decisively lower than the fit is the caller's to judge (:func:`valley_threshold`)."""
     if not all(k in point for k in (*NAMES, "bv")):
         return None
     pts = valley_points(point, DIP_SHARES)
@@ -195,7 +196,8 @@ def restart_from_dips(cost, point: dict[str, float], refit, chi2, fine: bool = T
     shares = np.array([p["ke_share"] for p in pts])
     tries = [refined_dip(cost, point, shares, c, starts, j) if fine else starts[j]
              for j in dips(shares, c, point["ke_share"])[:VALLEY_STARTS]]
-    tries += grid_starts(point, [p["ke_share"] for p in tries])
+    if grid:
+        tries += grid_starts(point, [p["ke_share"] for p in tries])
     best = None
     for start in tries:
         f = refit(start)
