@@ -31,7 +31,7 @@ import numpy as np
 from pmdcid.model.lumped import kernel_values, lag_substeps
 from pmdcid.simulate import compiled, param_vector
 from pmdcid.simulate.initial import settled_start
-from pmdcid.simulate.input_grid import late_input, parts_for, ramp_input
+from pmdcid.simulate.input_grid import fine_input, parts_for
 from pmdcid.simulate.kernel import _run_into, discretize
 from pmdcid.simulate.layout import (
     KM,
@@ -156,7 +156,7 @@ def _read_input(u: np.ndarray, dt: float, nsub: int, reading):
         return u, dt, nsub, 1
     latency, ramp = reading
     q = parts_for(nsub)
-    fine = late_input(u, dt, latency, q) if ramp is None else ramp_input(u, dt, latency, ramp, q)
+    fine = fine_input(u, dt, latency, ramp, q)
     return fine, dt / q, 1, q
 
 

@@ -53,7 +53,7 @@ def check_layout() -> None:
 check_layout()
 
 from pmdcid.simulate.initial import settled_start  # noqa: E402
-from pmdcid.simulate.input_grid import late_input, parts_for, ramp_input  # noqa: E402
+from pmdcid.simulate.input_grid import fine_input, parts_for  # noqa: E402
 from pmdcid.simulate.kernel import run_kernel  # noqa: E402
 from pmdcid.simulate.layout import (  # noqa: E402
     I_STATE,
@@ -201,8 +201,7 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     ramp = vals.get("ramp")
     if latency > 0.0 or ramp is not None:  # input_delay or a ramp reading: on a finer grid
         q = parts_for(choose_substeps(dt, p) if nsub is None else nsub)
-        fine = (late_input(u, dt, latency, q) if ramp is None
-                else ramp_input(u, dt, latency, float(ramp), q))
+        fine = fine_input(u, dt, latency, None if ramp is None else float(ramp), q)
         x = run_kernel(fine, dt / q, p, torque_driven, 1, x0)[::q]
     else:
         x = run_kernel(u, dt, p, torque_driven, nsub, x0, out)

@@ -67,3 +67,21 @@ def test_profile_minimum_and_width():
     assert m == 1.0
     m, w = parabola_minimum(x, np.full(5, 7.0), 1.0)
     assert w == pytest.approx(1 / np.sqrt(12))
+
+
+def test_the_fine_input_is_kept_only_while_the_log_holds_its_values():
+    """fine_input keeps what it built for the next evaluation of the same log, and builds afresh
+    when the logged array changed in place: never a stale input."""
+    from pmdcid.simulate.input_grid import fine_input
+
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=200)
+    first = fine_input(u, 0.01, 0.0, 0.5, 8)
+    assert fine_input(u, 0.01, 0.0, 0.5, 8) is first
+    assert not first.flags.writeable
+    np.testing.assert_array_equal(first, ramp_input(u, 0.01, 0.0, 0.5, 8))
+    u[50] += 1.0
+    again = fine_input(u, 0.01, 0.0, 0.5, 8)
+    np.testing.assert_array_equal(again, ramp_input(u, 0.01, 0.0, 0.5, 8))
+    late = fine_input(u, 0.01, 0.004, None, 8)
+    np.testing.assert_array_equal(late, late_input(u, 0.01, 0.004, 8))

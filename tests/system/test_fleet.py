@@ -294,14 +294,15 @@ TARGET_TOL = {"R": 0.01, "L": 0.02, "J": 0.02, "bv": 0.02, "bc": 0.03, "dz": 0.0
 
 
 @pytest.mark.slow
-def test_the_issue_target_fleet_of_24_units(tmp_path, one_worker):
+def test_the_issue_target_fleet_of_24_units(tmp_path):
+    """(That another scheduler gives the same bits is asserted on the small fleet, by
+    test_one_worker_on_a_separate_scheduler_gives_the_same_bits_as_two_and_a_lone_identify:
+    running these 29 units twice was a quarter of a minute of the suite.)"""
     manifest, truth = write_fleet(str(tmp_path / "fleet"), TARGET, np.random.default_rng(24))
-    out2, out1 = str(tmp_path / "two"), str(tmp_path / "one")
+    out2 = str(tmp_path / "two")
     code, text = run([manifest, "-o", out2, "--km", str(KM), "--workers", "2"])
     assert code == 0, text
-    code, text = run([manifest, "-o", out1, "--km", str(KM), "--scheduler", one_worker])
-    assert code == 0, text
-    rows, rows1 = table(out2), table(out1)
+    rows = table(out2)
     assert len(rows) == len(truth) == 29 and all(r["status"] == "ok" for r in rows)
     for r, t in zip(rows, truth, strict=True):
         for p in PARAMS:
@@ -312,9 +313,6 @@ def test_the_issue_target_fleet_of_24_units(tmp_path, one_worker):
     assert m2["dz_stderr"] is None and m2["dz_low"] <= t2 <= m2["dz_high"]
     assert "dz" in m2["borrowed"].split(",")
     assert abs(m2["dz_pooled"] - t2) < abs(m2["dz"] - t2)
-    cols = [f"{p}{x}" for p in PARAMS for x in ("", "_stderr", "_low", "_high")
-            if f"{p}{x}" in rows[0]]
-    assert [[r[c] for c in cols] for r in rows] == [[r[c] for c in cols] for r in rows1]
     found = {(r["unit"], p) for r in rows for p in r["outlier"].split(",") if p}
     assert {("M002", "bc"), ("M013", "R")} <= found and len(found) <= 3, found
     moving = {(r["unit"], p) for r in rows for p in r["drifting"].split(",") if p}
