@@ -107,6 +107,7 @@ def test_notes_survive_a_model_file_round_trip(tmp_path):
     assert np.isclose(back.value("dz"), 0.004)
 
 
+@pytest.mark.slow
 def test_identify_prints_notes_keeps_them_and_the_report_shows_the_dz_caveat(tmp_path):
     """End to end on voltage + speed steps: the lumped note on stdout, the dead zone's caveat
     as a warning, both in the model file, and the dz row of the report says why."""

@@ -52,6 +52,7 @@ def _model() -> Model:
     return m
 
 
+@pytest.mark.slow
 def test_a_delay_that_is_the_lag_is_written_as_the_lag():
     logs = _logs(LAG, 0.0, seed=5)
     res = diagnose_logs(logs, _model(), effects=["sensor_delay"])
@@ -69,6 +70,7 @@ def test_a_delay_that_is_the_lag_is_written_as_the_lag():
     assert rms == pytest.approx(after, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_a_latency_keeps_the_delay():
     res = diagnose_logs(_logs(0.0, LAG, seed=6), _model(), effects=["sensor_delay"])
     assert "sensor_delay" in res.model.effects and not res.model.has("tau_e")

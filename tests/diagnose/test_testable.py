@@ -69,6 +69,7 @@ def test_one_step_log_adds_nothing_it_cannot_test(rig):
     _says_one_way(res)
 
 
+@pytest.mark.slow
 def test_logs_at_other_operating_points_confirm_the_effect(rig):
     step, stair, model = rig
     res = diagnose([step, stair], model, progress=False)
