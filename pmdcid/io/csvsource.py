@@ -125,6 +125,29 @@ def open_source(p: str) -> Source:
     return Source(p if data is None else io.BytesIO(data), text)
 
 
+#: bytes read from a log's end to find its last line
+TAIL_BYTES = 4096
+
+
+def cut_inside_last_row(src: Source) -> bool:
+    """Whether the log ends inside a data row: its last line, not blank, has no line end after
+    it (NUL padding after the last line end, a logger's, is no row). A logger stopped or a copy interrupted while the file
+    was being written leaves such a row, perhaps cut inside its last number (``2.03712649`` read
+    as ``2.03712``): nothing in the row itself tells."""
+    h = src.handle
+    if isinstance(h, str):
+        with open(h, "rb") as fh:
+            size = fh.seek(0, os.SEEK_END)
+            fh.seek(max(0, size - TAIL_BYTES))
+            tail = fh.read()
+    else:
+        tail = h.getvalue()[-TAIL_BYTES:]
+    if isinstance(tail, str):
+        tail = tail.encode("utf-8", errors="replace")
+    tail = tail.rstrip(b"\x00 \t")
+    return bool(tail) and not tail.endswith((b"\n", b"\r"))
+
+
 def sniff(src: Source, nskip: int) -> Source:
     """Set ``src.sep`` and ``src.decimal`` from the header and the first data rows."""
     lines = [ln for ln in src.head.splitlines()[nskip:] if ln.strip()]

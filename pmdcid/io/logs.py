@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pmdcid.errors import LogError, short_list
+from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.build import (
     as_mapping,
     frame_columns,
@@ -234,7 +234,13 @@ def read_log(path: str | os.PathLike, mapping: ColumnMap | None = None,
 def read_table(p: str):
     """A CSV log's table (a DataFrame or :class:`~pmdcid.io.plain.PlainFrame`, one-line unique
     column names) and its ``# key: value`` metadata, unchecked."""
-    from pmdcid.io.csvsource import check_header, header_names, open_source, sniff
+    from pmdcid.io.csvsource import (
+        check_header,
+        cut_inside_last_row,
+        header_names,
+        open_source,
+        sniff,
+    )
 
     if not os.path.exists(p):
         raise LogError("no such log file (check the path)", p)
@@ -266,6 +272,10 @@ def read_table(p: str):
     df.columns = cols
     if len(df) == 0:
         raise LogError("has a header but no data rows: was the recording saved?", p)
+    if len(df) > 1 and cut_inside_last_row(src):
+        warn("its last row has no line end after it, as in a file cut while it was written: that "
+             "row is not used (end the file with a newline to use it)", p)
+        df = df.head(len(df) - 1)
     return df, meta
 
 

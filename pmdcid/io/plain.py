@@ -50,6 +50,12 @@ class PlainFrame:
             return self._values[self._index[name]]
         return self._values[:, self._index[name]]
 
+    def head(self, n: int) -> PlainFrame:
+        """The first ``n`` rows (as ``DataFrame.head``)."""
+        if isinstance(self._values, list):
+            return PlainFrame(self._columns, [v[:n] for v in self._values])
+        return PlainFrame(self._columns, self._values[:n])
+
 
 def read_plain(path: str, nskip: int) -> PlainFrame | None:
     """The data rows of ``path`` after ``nskip`` comment lines and the header, or None when the

@@ -1,6 +1,7 @@
 """pmdcid/io/csvsource.py: opening a log as rigs and spreadsheets export it."""
 
 import bz2
+import warnings
 import gzip
 
 import numpy as np
@@ -130,3 +131,26 @@ def test_nul_padding_after_the_last_row_is_ignored(tmp_path):
     with pytest.raises(LogError) as got:  # NULs inside the log: refused, counted, not printed
         read_log(p)
     assert "with 30 NUL byte(s)" in str(got.value) and "\\x00" not in str(got.value)
+
+
+@pytest.mark.parametrize("sep", [",", ";"])  # the plain reader and pandas
+def test_a_file_cut_inside_its_last_row_drops_that_row_and_says_so(tmp_path, sep):
+    """A logger stopped mid-write leaves a last row without a line end, perhaps cut inside a
+    number (2.03712649 -> 2.03712): that row is not used, with one warning saying how to use
+    it; a file that ends in a line end, blanks or a logger's NUL padding keeps every row."""
+    from pmdcid.errors import PmdcidWarning
+
+    rows = [f"{k / 1000:.3f}{sep}1{sep}{2.03712649 + k}" for k in range(50)]
+    whole = "t" + sep + "v" + sep + "omega\n" + "\n".join(rows)
+    p = tmp_path / "log.csv"
+    p.write_text(whole[:-3])
+    with pytest.warns(PmdcidWarning, match="last row has no line end after it.*end the file "
+                                           "with a newline"):
+        log = read_log(p)
+    assert len(log.t) == 49 and log.data["omega"][-1] == pytest.approx(2.03712649 + 48)
+    for ending in ("\n", "\r\n", "\n\n  ", "\n\x00\x00"):
+        p.write_bytes((whole + ending).encode())
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            assert len(read_log(p).t) == 50
+        assert not [w for w in seen if "no line end" in str(w.message)], ending
