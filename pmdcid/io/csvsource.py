@@ -131,9 +131,9 @@ TAIL_BYTES = 4096
 
 def cut_inside_last_row(src: Source) -> bool:
     """Whether the log ends inside a data row: its last line, not blank, has no line end after
-    it (NUL padding after the last line end, a logger's, is no row). A logger stopped or a copy interrupted while the file
-    was being written leaves such a row, perhaps cut inside its last number (``2.03712649`` read
-    as ``2.03712``): nothing in the row itself tells."""
+    it (NUL padding after the last line end, a logger's, is no row). A logger stopped or a copy
+    interrupted while the file was being written leaves such a row, perhaps cut inside its last
+    number (``2.03712649`` read as ``2.03712``): nothing in the row itself tells."""
     h = src.handle
     if isinstance(h, str):
         with open(h, "rb") as fh:

@@ -1,8 +1,8 @@
 """pmdcid/io/csvsource.py: opening a log as rigs and spreadsheets export it."""
 
 import bz2
-import warnings
 import gzip
+import warnings
 
 import numpy as np
 import pytest
