@@ -19,8 +19,11 @@ $(STAMP): pyproject.toml
 	$(PIP) install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# then numba's cache of the same kernel filled (identify/jit_cache.py): the JIT's first compile,
+# a minute and more, paid once here rather than by a first command or by the tests
 $(AOT): $(STAMP) $(AOT_SOURCES)
 	$(PY) setup.py -q build_ext --inplace
+	$(PY) -m pmdcid.identify.jit_cache
 	touch $(AOT)
 
 aot: $(AOT)
