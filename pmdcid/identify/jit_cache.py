@@ -12,13 +12,37 @@ directly from Python, with the argument types they take there.
 
 from __future__ import annotations
 
+import importlib
 import os
+
+#: the numba functions called from Python (module, name); what they call (the LuGre loop, the
+#: matrix exponential) is compiled, and cached, with them
+CALLED = (("pmdcid.simulate.kernel", "_run"), ("pmdcid.simulate.kernel", "_run_into"),
+          ("pmdcid.simulate.kernel", "discretize_into"), ("pmdcid.identify.grid", "_batch_cost"),
+          ("pmdcid.simulate.terms", "dead_zone"), ("pmdcid.simulate.terms", "static_friction"),
+          ("pmdcid.simulate.terms", "friction_curve"),
+          ("pmdcid.simulate.terms", "sliding_friction"))
+
+
+def compiled_names() -> list[str]:
+    """The functions of :data:`CALLED` that hold a compiled signature in this process."""
+    return [name for mod, name in CALLED
+            if getattr(importlib.import_module(mod), name).signatures]
 
 
 def fill() -> list[str]:
-    """Compile every kernel function numba serves into its cache; the names compiled."""
-    os.environ["PMDCID_JIT"] = "1"  # before the compiled build is looked for (once a process)
+    """Compile every function of :data:`CALLED` into numba's cache (loaded from it where it
+    holds them); the names that hold a compiled signature afterwards (:func:`compiled_names`).
+    Run in a process that has not simulated yet: the JIT is forced before the compiled build is
+    looked for, which happens once a process."""
+    os.environ["PMDCID_JIT"] = "1"
     import numpy as np
+
+    from pmdcid.simulate import compiled
+
+    if compiled.load() is not None:
+        raise RuntimeError("this process already simulates with the compiled C kernel: run "
+                           "python -m pmdcid.identify.jit_cache in a fresh process")
 
     from pmdcid.identify.grid import batch_cost
     from pmdcid.io import Log
@@ -39,12 +63,15 @@ def fill() -> list[str]:
     terms.static_friction(p)
     terms.friction_curve(p, 0.5)
     terms.sliding_friction(p, 0.5, 1.0)
-    return ["run", "run_into", "discretize_into", "batch_cost", "dead_zone", "static_friction",
-            "friction_curve", "sliding_friction"]  # with the functions they call
+    return compiled_names()
 
 
 def main() -> None:
-    print("pmdcid: numba's cache filled: " + ", ".join(fill()))
+    names = fill()
+    missing = [name for _, name in CALLED if name not in names]
+    if missing:
+        raise SystemExit(f"pmdcid: numba did not compile {', '.join(missing)}")
+    print("pmdcid: numba's cache filled: " + ", ".join(names))
 
 
 if __name__ == "__main__":

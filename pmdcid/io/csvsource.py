@@ -140,6 +140,9 @@ def cut_inside_last_row(src: Source) -> bool:
             size = fh.seek(0, os.SEEK_END)
             fh.seek(max(0, size - TAIL_BYTES))
             tail = fh.read()
+    elif hasattr(h, "getbuffer"):  # a pipe's bytes in memory: no copy of the whole
+        with h.getbuffer() as view:
+            tail = bytes(view[-TAIL_BYTES:])
     else:
         tail = h.getvalue()[-TAIL_BYTES:]
     if isinstance(tail, str):
