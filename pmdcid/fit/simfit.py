@@ -62,7 +62,8 @@ class FitOptions:
     after a first fit each residual block's AR(p) whitening filter is estimated and the fit
     repeated on the filtered residual (prediction error; :func:`ar_whitener`), so that noise
     coloured in time that a controller fed back into the input cannot be explained by the
-    model."""
+    model; ``continuations``: times a stage that ran out of evaluations is run on
+    (:data:`CONTINUATIONS`; 0 for a probe that is meant to stop there)."""
 
     max_nfev: int = 200
     nsub: int | None = None
@@ -70,6 +71,7 @@ class FitOptions:
     cov_step: float = 1e-2
     correlated: bool = True
     noise_model: int = 0
+    continuations: int = CONTINUATIONS
 
 
 def fit_simulation(logs, model: Model, params: Parameters | Sequence[str],
@@ -166,10 +168,10 @@ class _Fit:
 
     def solve(self, z0):
         """The local stage from ``z0``, run on from where it stopped when it ran out of
-        evaluations, at most :data:`CONTINUATIONS` times, while that lowers the chi-square
+        evaluations, at most ``options.continuations`` times, while that lowers the chi-square
         (its ``nfev`` then counts every run)."""
         s = self._solve_once(z0)
-        for _ in range(CONTINUATIONS):
+        for _ in range(self.options.continuations):
             if s.success:
                 break
             more = self._solve_once(s.z)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import numpy as np
@@ -66,6 +66,7 @@ from pmdcid.identify.nonlinear_setup import (  # noqa: F401 - default_signals re
 from pmdcid.identify.offset import offset_evident, offset_note
 from pmdcid.identify.ramp_profile import hold_profile
 from pmdcid.identify.share_valley import (
+    PROBE_NFEV,
     restart_from_dips,
     share_interval,
     valley_points,
@@ -555,22 +556,30 @@ def _valley_restart(logs, work, free, signals, fit, sigma, opts, bounds, priors,
     it is): the local stage again from the back-EMF share's other dips along its valley of
     equal linear response (:func:`.share_valley.restart_from_dips`), kept where its
     chi-square is lower than ``fit``'s by more than two standard errors' rise
-    (:func:`.share_valley.valley_threshold`). The share trades with J and tau_e there, only
+    (:func:`.share_valley.valley_threshold`); each start first probed for
+    :data:`~.share_valley.PROBE_NFEV` evaluations and run on only where that probe is already
+    so much lower (:func:`.share_valley.probed`). The share trades with J and tau_e there, only
     the friction and the dead zone telling its points apart, and the local stage stops in
     any dip of that staircase (diagnose restarts its final fit the same way,
     :mod:`pmdcid.diagnose.lagvalley`)."""
-    def refit(start):
+    def refit(start, options=opts):
         try:
             return fit_simulation(logs, work, _parameters(free, {**point, **start}, bounds,
                                                           DIFF_STEP, priors, held),
-                                  signals, sigma=sigma, options=opts)
+                                  signals, sigma=sigma, options=options)
         except FitError:
             return None
 
+    def probe(start):
+        f = refit(start, replace(opts, max_nfev=PROBE_NFEV, continuations=0))
+        return None if f is None else (f.stats.chisqr, f.values())
+
     point = {k: fit.estimates[k].value for k in free}
+    thr = valley_threshold(fit)
     best = restart_from_dips(lambda sets: _cost(logs, base_vals, sets, signals, sigma), point,
-                             refit, lambda f: f.stats.chisqr)
-    if best is None or not fit.stats.chisqr - best.stats.chisqr > valley_threshold(fit):
+                             refit, lambda f: f.stats.chisqr, probe=probe,
+                             bar=fit.stats.chisqr - thr)
+    if best is None or not fit.stats.chisqr - best.stats.chisqr > thr:
         return fit
     return best
 
@@ -604,6 +613,41 @@ def _masked_dead_zone(est: dict, upper: float, bc: float, warns: list) -> None:
 DZ_LEVELS_CAVEAT = ("the input is held at the levels it logged (an integer PWM duty: "
                     "discrete levels): every dead zone between the two around it acts the same "
                     "on these logs")
+
+
+#: dead zones tried across a masked interval for the value simulations use (:func:`_masked_value`)
+MASKED_N = 9
+
+
+def _masked_value(logs, base_vals, fit, signals, sigma, est, warns) -> None:
+    """The value inside a masked dead zone's interval that simulations use (``est["dz"]``,
+    written by :func:`_masked_dead_zone`): the interval's middle, unless another of
+    :data:`MASKED_N` dead zones across it fits the other estimates as written clearly better
+    (by more than two standard errors' rise, :func:`.share_valley.valley_threshold`).
+
+    The interval is read where the profile walked (the fit's point, or its share's valley's
+    ends, :func:`_unmask`), while a lumped model's J, tau_e and share may then be moved along
+    their valley (:func:`_share_valley`), where the dead zone acts differently: on the paper's
+    motor's 500 Hz step logs per volt (bench/pervolt_coverage.py paper-steps-500 seed 5) the
+    fit stopped at share 1 with dz 0, the interval [0, 0.65] V read at share 0.05, the share
+    moved to 0.48, and the model written with dz at 0.33 V simulated the logs 32 chi-square
+    units worse than the same model with dz 0 (the threshold 11). ``est`` updated in place, a
+    note when the value moved."""
+    e = est["dz"]
+    if e.interval is None:
+        return
+    point = {k: x.value for k, x in est.items() if k in fit.estimates or k == "dz"}
+    dzs = np.linspace(e.interval[0], e.interval[1], MASKED_N)
+    c = np.nan_to_num(_cost(logs, base_vals, [{**point, "dz": float(d)} for d in dzs], signals,
+                            sigma), nan=np.inf)
+    k, mid = int(np.argmin(c)), MASKED_N // 2
+    if not c[mid] - c[k] > valley_threshold(fit):
+        return
+    est["dz"] = bounded("dz", *e.interval, e.unit, e.caveat, float(dzs[k]))
+    warns.append(Note(f"dz is written as its interval; simulations use dz = {dzs[k]:.3g}, the "
+                      "value inside it that fits the other estimates as written best (chi-square "
+                      f"{c[mid] - c[k]:.3g} below the interval's middle, {dzs[mid]:.3g})",
+                      about=("dz",), severity="note"))
 
 
 def input_levels_around(logs, dz: float) -> tuple[float, float] | None:
@@ -861,6 +905,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     if masked:
         _masked_dead_zone(est, upper, est["bc"].value if "bc" in est else point.get("bc", 0.0),
                           warns)
+        _masked_value(logs, base_vals, fit, signals, sigma, est, warns)
     if prof:
         est.update(prof.estimates(est.get("J")))
     warns.extend(fit_warnings(fit, est, tscale, masked))

@@ -93,23 +93,22 @@ def test_whitener_keeps_only_a_sensors_colour():
     assert kept is None or np.max(np.abs(np.roots(kept))) <= 0.9, kept
 
 
-def test_a_local_stage_out_of_evaluations_is_run_on_from_where_it_stopped(monkeypatch):
+def test_a_local_stage_out_of_evaluations_is_run_on_from_where_it_stopped():
     """A fit started 30 % off with a budget of 4 evaluations stops short: run on from its end
-    point (CONTINUATIONS), it lowers the chi-square and counts every run's evaluations; with
-    no continuation it ends where the first run stopped."""
-    from pmdcid.fit import simfit
-    from pmdcid.fit.simfit import FitOptions
+    point (CONTINUATIONS, the default), it lowers the chi-square and counts every run's
+    evaluations; with no continuation (a probe's options) it ends where the first run
+    stopped."""
+    from pmdcid.fit.simfit import CONTINUATIONS, FitOptions
 
     rng = np.random.default_rng(4)
     m = _model(0.0)
     logs = step_logs(param_values(m), rng, amplitudes=(1.0, 2.0))
     m.set("J", 1.3 * PAPER["J"])
     m.set("bv", 0.7 * PAPER["bv"])
-    opts = FitOptions(4)
-    monkeypatch.setattr(simfit, "CONTINUATIONS", 0)
-    once = fit_simulation(logs, m, ["J", "bv"], signals=("omega",), options=opts)
-    monkeypatch.setattr(simfit, "CONTINUATIONS", 2)
-    more = fit_simulation(logs, m, ["J", "bv"], signals=("omega",), options=opts)
+    once = fit_simulation(logs, m, ["J", "bv"], signals=("omega",),
+                          options=FitOptions(4, continuations=0))
+    assert FitOptions(4).continuations == CONTINUATIONS == 2
+    more = fit_simulation(logs, m, ["J", "bv"], signals=("omega",), options=FitOptions(4))
     assert not once.stats.success and once.stats.nfev <= 5
     assert more.stats.chisqr < once.stats.chisqr
     assert more.stats.nfev > once.stats.nfev

@@ -72,6 +72,17 @@ def test_rough_flat_valley_moves_to_the_middle_and_widens():
     assert "ke_share between 0 and 1" in why
 
 
+def test_an_interval_narrower_than_the_grid_at_its_end_is_said_as_one_share():
+    """The fit at share 0.0005, the valley's cost lowest at 0 and rising 500 units by the next
+    grid share: the interval read is share 0 alone (the paper's fixtures, whose motor has no
+    back-EMF), said as such, not as "between 0 and 0"."""
+    fit, est = _fit()
+    est["ke_share"] = Estimate("ke_share", 5e-4, 0.06, "")
+    out, why = share_interval(_cost(lambda s: 1e4 * s), fit, est)
+    assert out["ke_share"].value == pytest.approx(0.0, abs=1e-3)
+    assert "only ke_share = 0 " in why and "between" not in why
+
+
 def test_sharp_valley_keeps_the_local_covariance():
     """A parabola rising 1e4 per 0.1 of share about the fitted 0.9: the grid's neighbours rise
     beyond the threshold on both sides, nothing changes."""
@@ -167,6 +178,36 @@ def test_a_floor_the_valley_line_does_not_show_is_found_from_the_grid_starts():
     best = restart_from_dips(_cost(lambda s: 100.0 * s), {**POINT, "ke_share": 0.05}, refit,
                              lambda f: floor.get(round(f["ke_share"], 3), 1e9))
     assert best["ke_share"] == pytest.approx(0.3)
+
+
+def test_only_the_probes_below_the_bar_are_refitted_and_from_where_they_ended():
+    """The same floor read through short probes (each ending a tenth of the way from its
+    start's share towards 0.3, at that share's floor value): the refit runs only from the
+    probes that end below the bar (the fit's chi-square less the threshold) and starts where
+    the probe ended; with a bar no probe reaches, nothing is refitted."""
+    floor = {0.1: 5.0, 0.3: -50.0, 0.5: -20.0, 0.7: -10.0, 0.9: 0.0}
+    refitted = []
+
+    def probe(start):
+        s = start["ke_share"] + 0.1 * (0.3 - start["ke_share"])
+        return floor.get(round(start["ke_share"], 3), 1e9), {**start, "ke_share": s}
+
+    def refit(start):
+        refitted.append(round(start["ke_share"], 6))
+        return start
+
+    def chi2(f):
+        return floor.get(round(f["ke_share"], 1), 1e9)
+
+    point = {**POINT, "ke_share": 0.05}
+    best = restart_from_dips(_cost(lambda s: 100.0 * s), point, refit, chi2, probe=probe,
+                             bar=-15.0)
+    assert best["ke_share"] == pytest.approx(0.3)
+    assert sorted(refitted) == [0.3, 0.48]  # the probes from 0.3 and 0.5 only, moved
+    refitted.clear()
+    none = restart_from_dips(_cost(lambda s: 100.0 * s), point, refit, chi2, probe=probe,
+                             bar=-60.0)
+    assert none is None and refitted == []
 
 
 def test_a_minimum_between_grid_shares_keeps_the_local_covariance():
