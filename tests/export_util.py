@@ -50,13 +50,15 @@ def write_model(path, kind="v", every_effect=False, later=()):
     return m
 
 
-def inputs(kind="v"):
+def inputs(kind="v", window=(0.0, 30.0)):
     """(name, t, u) pairs: the triangle's first 30 s every 4th sample (4 ms: two internal steps,
-    stick-slip at the reversal) and the 1.5 V step. Torque inputs scaled by km/R."""
+    stick-slip at the reversal) and the 1.5 V step. Torque inputs scaled by km/R. ``window``:
+    the triangle's stretch [s] (Octave steps the exported code a sample at a time: its tests
+    take 8-22 s, the top speed at 10 s and the reversal through zero at 20 s)."""
     tri = read_log(FIX / "triangle.csv")
-    n = int(np.searchsorted(tri.t, 30.0))
+    a, b = (int(np.searchsorted(tri.t, x)) for x in window)
     step = read_log(FIX / "step_1.5V.csv")
-    out = [("triangle", tri.t[:n:4], tri.u[:n:4]), ("step", step.t, step.u)]
+    out = [("triangle", tri.t[a:b:4] - tri.t[a], tri.u[a:b:4]), ("step", step.t, step.u)]
     if kind == "tau":
         out = [(name, t, u * PAPER["km"] / PAPER["R"]) for name, t, u in out]
     return out
