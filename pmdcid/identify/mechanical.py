@@ -50,6 +50,9 @@ from pmdcid.identify.steps import MIN_PLATEAU_SAMPLES, despike, find_steps, held
 from pmdcid.model import Model
 
 STAGE = "fit-mechanical"
+#: Coulomb friction's words where the steady speeds' line would make it negative
+BC_AT_BOUND = ("at its bound 0, no standard error: the steady speeds' line passes above the "
+               "origin, where Coulomb friction would be negative")
 #: what a user can run on step logs fit-mechanical cannot use
 BY_SIMULATION = "fit-nonlinear fits such logs by simulation error"
 
@@ -78,18 +81,21 @@ def speed_from_rest(s, torque, J, bv, bc, t_break, tau_e):
     return sg * np.where(s > sb, w, 0.0)
 
 
-def steady_line(v: np.ndarray, w: np.ndarray, w_se: np.ndarray):
-    """Weighted line |omega_ss| = a |V| + c [rad/s]: returns (a, c, cov 2x2)."""
-    X = np.column_stack([np.abs(v), np.ones(len(v))])
+def steady_line(v: np.ndarray, w: np.ndarray, w_se: np.ndarray, *, origin: bool = False):
+    """Weighted line |omega_ss| = a |V| + c [rad/s]: returns (a, c, cov 2x2). ``origin``: the
+    line through the origin (c = 0, its row and column of ``cov`` zero): the least-squares line
+    under Coulomb friction's bound bc >= 0 when the free line's intercept c is above zero."""
+    X = np.column_stack([np.abs(v), np.ones(len(v))])[:, :1 if origin else 2]
     y = np.abs(w)
     wt = 1.0 / np.where(np.isfinite(w_se) & (w_se > 0), w_se, np.nanmedian(w_se) or 1.0)
     A = X * wt[:, None]
     coef, *_ = np.linalg.lstsq(A, y * wt, rcond=None)
     resid = (y - X @ coef) * wt
-    dof = max(len(y) - 2, 1)
-    s2 = max(float(resid @ resid) / dof, 1.0) if len(y) > 2 else 1.0
-    cov = np.linalg.inv(A.T @ A) * s2
-    return float(coef[0]), float(coef[1]), cov
+    dof = max(len(y) - X.shape[1], 1)
+    s2 = max(float(resid @ resid) / dof, 1.0) if len(y) > X.shape[1] else 1.0
+    cov = np.zeros((2, 2))
+    cov[:X.shape[1], :X.shape[1]] = np.linalg.inv(A.T @ A) * s2
+    return float(coef[0]), float(coef[1]) if not origin else 0.0, cov
 
 
 @dataclass
@@ -118,7 +124,7 @@ class MechanicalResult(ResultProtocol):
         for name in ("b", "bv", "bc", "J", "tau_e"):  # tau_e: a lumped model's lag
             e = self.estimates.get(name)
             if e is not None and e.vary and math.isfinite(e.value):
-                model.set(name, e.value, e.stderr, e.unit, stage=STAGE)
+                model.set(name, e.value, e.stderr, e.unit, stage=STAGE, caveat=e.caveat)
         d = self.estimates.get("delay")  # the steps' latency (lumped: identify/latency.py)
         if d is not None and math.isfinite(d.value):
             model.add_effect("sensor_delay")
@@ -489,6 +495,29 @@ def line_friction(a: float, c: float, cov: np.ndarray, km: float, R: float, b_em
             standard_error(float(g @ cov @ g)))
 
 
+def _line_estimates(v, w, w_se, motor: tuple, est: dict, warns: list) -> tuple:
+    """bv and bc from the steps' steady speeds (levels ``v``, speeds ``w`` and their errors),
+    written into ``est``; ``motor`` = (km, R, b_emf). Returns (d_eff, bv, bv_se)."""
+    km, R, b_emf = motor
+    a, c, cov = steady_line(v, w, w_se)
+    if a <= 0:
+        raise FitError("steady speed does not grow with the input across the steps: check "
+                       "the sign and scale of the speed column")
+    d_eff, bv, bv_se, bc, bc_se = line_friction(a, c, cov, km, R, b_emf)
+    est["bv"] = fitted("bv", bv, bv_se, "N m s/rad")
+    est["bc"] = fitted("bc", bc, bc_se, "N m")
+    if bc < 0:  # bc >= 0: the least-squares line under that bound passes through the origin
+        warns.append(f"the steady-speed line gives a negative Coulomb friction bc = {bc:.3g} N m "
+                     "(intercept above zero: the speed grows less than in proportion to the "
+                     "input, a speed law the model lacks, or noise): bc is written at its bound "
+                     "0 and bv is read on the line through the origin")
+        d_eff, bv, bv_se, _, _ = line_friction(*steady_line(v, w, w_se, origin=True), km, R,
+                                               b_emf)
+        est["bv"] = fitted("bv", bv, bv_se, "N m s/rad")
+        est["bc"] = Estimate("bc", 0.0, math.nan, "N m", caveat=BC_AT_BOUND)
+    return d_eff, bv, bv_se
+
+
 def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=0.0):
     """Means over steps, the steady-speed line, J. ``b_emf`` = km ke/R [N m s/rad]: the damping
     the back-EMF adds (model effect back_emf), taken out of the line's damping to give bv."""
@@ -514,17 +543,7 @@ def _combine(moving, steps, km, R, tau_e, km_given, ndata, chisqr, warns, b_emf=
            "b": Estimate("b", b, b_se, "N m s/rad"),
            "J_paper": Estimate("J_paper", jp, jp_se, "kg m^2")}
     if len(np.unique(np.round(np.abs(v), 9))) >= 2:
-        a, c, cov = steady_line(v, w, w_se)
-        if a <= 0:
-            raise FitError("steady speed does not grow with the input across the steps: check "
-                           "the sign and scale of the speed column")
-        d_eff, bv, bv_se, bc, bc_se = line_friction(a, c, cov, km, R, b_emf)
-        if bc < 0:
-            warns.append(f"the steady-speed line gives a negative Coulomb friction bc = {bc:.3g} "
-                         "N m (intercept above zero): bc set to 0")
-            bc = 0.0
-        est["bv"] = fitted("bv", bv, bv_se, "N m s/rad")
-        est["bc"] = fitted("bc", bc, bc_se, "N m")
+        d_eff, bv, bv_se = _line_estimates(v, w, w_se, (km, R, b_emf), est, warns)
     else:
         warns.append("all steps have the same amplitude: Coulomb friction cannot be separated "
                      "from viscous; bv = b (paper) and bc = 0 are written")
