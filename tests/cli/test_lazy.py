@@ -46,3 +46,12 @@ def test_unknown_command_is_a_usage_error():
     res = CliRunner().invoke(main, ["no-such-command"])
     assert res.exit_code == 2
     assert "No such command" in res.output
+
+
+def test_python_dash_m_pmdcid_is_the_command_line():
+    """``python -m pmdcid`` runs the same command line as the ``pmdcid`` script, named so in
+    its usage (fuzzing found "No module named pmdcid.__main__")."""
+    res = subprocess.run([sys.executable, "-m", "pmdcid", "no-such-command"],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and "Usage: pmdcid " in res.stderr, res.stderr
+    assert "No such command" in res.stderr
