@@ -11,6 +11,9 @@
 - :func:`check_input_range`: the same gate on the input and the current: a voltage beyond
   :data:`MAX_VOLTAGE`, a torque (force) beyond :data:`MAX_TORQUE`, a current beyond
   :data:`MAX_CURRENT` is no DC motor's: a raw ADC or PWM column, or a scale applied twice.
+- :func:`check_angle_wrap`: a measured angle that jumps back by about a turn in one sample,
+  against its motion, is a wrapped angle (0 to 2 pi, 0 to 360 deg, a counter that overflows):
+  its derivative, the speed every stage fits, would hold a spike of a turn per sample there.
 """
 
 from __future__ import annotations
@@ -81,6 +84,9 @@ def check_log(log) -> list[str]:
                 check_input_range(log.data[col], col, log.path)
         if "omega" in log.data and "theta" in log.data and not log.derived & {"omega", "theta"}:
             check_speed_units(log.data["omega"], log.data["theta"], log.dt, log.path)
+        if "theta" in log.data and "theta" not in log.derived:
+            t = log.t_file if log.t_file is not None else log.t
+            check_angle_wrap(log.data["theta"], t, log.path)
     prefix = f"{log.path}: "
     return [str(w.message).removeprefix(prefix) for w in caught
             if issubclass(w.category, PmdcidWarning)]
@@ -202,6 +208,41 @@ def check_speed_units(omega: np.ndarray, theta: np.ndarray, dt: float, path: str
                 "check the units and scales of both columns")
     warn(f"omega is {k:.4g} x d(theta)/dt, where it should equal it: {hint}", path)
     return k
+
+
+#: an angle step of at least this much [rad] in one sample (a wrap of 2 pi put on a loop-timed
+#: log's grid is split between two steps: one of them keeps more than 2 rad) ...
+WRAP_MIN_STEP = 2.0
+#: ... and this many times the median step, against the motion around it, is a wrap
+WRAP_RATIO = 20.0
+#: samples on each side of a step that tell the motion around it
+WRAP_WINDOW = 10
+
+
+def check_angle_wrap(theta: np.ndarray, t: np.ndarray, path: str) -> bool:
+    """Warn (True) when the angle ``theta`` [rad] wraps: it steps by :data:`WRAP_MIN_STEP` or
+    more in one sample, :data:`WRAP_RATIO` times its median step, against the way it moves in
+    the :data:`WRAP_WINDOW` samples around (an angle kept within one turn, or an encoder
+    counter that overflows). Its derivative, the speed the stages fit, would hold a spike of
+    about a turn per sample at every wrap, and the fits a wrong model."""
+    d = np.diff(np.asarray(theta, float))
+    if len(d) < 2 * WRAP_WINDOW:
+        return False
+    a = np.abs(d)
+    big = (a >= WRAP_MIN_STEP) & (a > WRAP_RATIO * float(np.median(a)))
+    if not big.any():
+        return False
+    c = np.concatenate(([0.0], np.cumsum(np.where(big, 0.0, d))))
+    k = np.flatnonzero(big)
+    around = c[np.minimum(k + WRAP_WINDOW + 1, len(d))] - c[np.maximum(k - WRAP_WINDOW, 0)]
+    wraps = k[np.sign(d[k]) == -np.sign(around)]
+    if not len(wraps):
+        return False
+    j = int(wraps[0])
+    warn(f"theta jumps by {d[j]:.4g} rad in one sample at t = {t[j + 1]:.6g} s against its "
+         f"motion ({len(wraps)} time(s)): a wrapped angle (within 2*pi or 360 deg, or a counter "
+         "that overflows): log the multi-turn angle or unwrap it (numpy.unwrap)", path)
+    return True
 
 
 #: an input sample this many times the rest's range beyond it (in a run of at most
