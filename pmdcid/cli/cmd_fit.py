@@ -5,11 +5,16 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main
-from pmdcid.cli.options import INPUT_FILE, FiniteFloat, controller_option, log_options, model_option
-from pmdcid.model.spec import BASE_PARAMS
+from pmdcid.cli.options import (
+    INPUT_FILE,
+    controller_option,
+    km_type,
+    log_options,
+    model_option,
+)
 
 #: --km within the bounds the model file accepts (a model the tool writes it must read back)
-KM = FiniteFloat(min=0.0, min_open=True, max=BASE_PARAMS["km"].upper)
+KM = km_type()
 FORCE = click.option("--force", is_flag=True,
                      help="Write the model even when the logs look implausible (a unit left "
                           "unmapped, a saturated sensor): the refusal becomes a warning.")

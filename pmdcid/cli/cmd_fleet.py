@@ -6,7 +6,7 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main
-from pmdcid.cli.options import INPUT_FILE, FiniteFloat, log_options
+from pmdcid.cli.options import INPUT_FILE, km_type, log_options
 
 
 @main.command("fleet")
@@ -19,7 +19,7 @@ from pmdcid.cli.options import INPUT_FILE, FiniteFloat, log_options
                    "default: a local cluster started and stopped here.")
 @click.option("--workers", type=click.IntRange(min=1, max=4096), default=None, metavar="N",
               help="Worker processes of the local cluster (default: the CPUs).")
-@click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
+@click.option("--km", type=km_type(), default=None, metavar="X",
               help="Torque constant [N m/A] (datasheet) every unit uses.")
 @click.option("--limits", "limits_path", type=INPUT_FILE, default=None,
               metavar="FILE", help='End-of-line limits, JSON {"R": [min, max], ...}: adds '

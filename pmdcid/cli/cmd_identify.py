@@ -5,7 +5,13 @@ from __future__ import annotations
 import click
 
 from pmdcid.cli import echo, main, progress_lines
-from pmdcid.cli.options import INPUT_FILE, FiniteFloat, controller_option, log_options, model_option
+from pmdcid.cli.options import (
+    INPUT_FILE,
+    controller_option,
+    km_type,
+    log_options,
+    model_option,
+)
 
 
 @main.command("identify")
@@ -14,7 +20,7 @@ from pmdcid.cli.options import INPUT_FILE, FiniteFloat, controller_option, log_o
 @click.option("-o", "--output", "out_dir", type=click.Path(), default=None, metavar="DIR",
               help="Write the report (report.html, metrics.json, figures) into DIR.")
 @click.option("--no-diagnose", is_flag=True, help="Skip the effect search after the joint fit.")
-@click.option("--km", type=FiniteFloat(min=0.0, min_open=True), default=None, metavar="X",
+@click.option("--km", type=km_type(), default=None, metavar="X",
               help="Torque constant [N m/A] (datasheet); default: km from MODEL.")
 @click.option("--no-prior", is_flag=True,
               help="Later stages use their own logs alone (default: combined with what the "

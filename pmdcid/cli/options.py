@@ -15,13 +15,14 @@ INPUT_FILE = click.Path(readable=False)
 
 
 class FiniteFloat(click.ParamType):
-    """A finite number (no nan/inf) not below ``min`` (or above it, when ``min_open``)."""
+    """A finite number (no nan/inf) not below ``min`` (or above it, when ``min_open``), nor
+    below ``least`` or above ``max``, the smallest and largest values pmdcid accepts."""
 
     name = "number"
 
     def __init__(self, min: float = 0.0, min_open: bool = False,  # noqa: A002 - as click's
-                 max: float = float("inf")):  # noqa: A002
-        self.min, self.min_open, self.max = min, min_open, max
+                 max: float = float("inf"), least: float = -float("inf")):  # noqa: A002
+        self.min, self.min_open, self.max, self.least = min, min_open, max, least
 
     def convert(self, value, param, ctx):
         import math
@@ -33,10 +34,22 @@ class FiniteFloat(click.ParamType):
         if not math.isfinite(x) or x < self.min or (self.min_open and x == self.min):
             need = f"{'>' if self.min_open else '>='} {self.min:g}"
             self.fail(f"{value!r} is not a finite number {need}", param, ctx)
+        if x < self.least:
+            self.fail(f"{value!r} is below {self.least:g}, the smallest value pmdcid accepts "
+                      "(check the unit: SI)", param, ctx)
         if x > self.max:
             self.fail(f"{value!r} is above {self.max:g}, the largest value pmdcid accepts "
                       "(check the unit: SI)", param, ctx)
         return x
+
+
+def km_type() -> FiniteFloat:
+    """``--km X``: a torque constant [N m/A] within the model's bounds for km (a value outside
+    them is a usage error naming the bound, not a fit that fails on it)."""
+    from pmdcid.model.spec import BASE_PARAMS
+
+    km = BASE_PARAMS["km"]
+    return FiniteFloat(min=0.0, min_open=True, least=km.lower, max=km.upper)
 
 
 def log_options(f):

@@ -82,3 +82,17 @@ def test_a_mapping_naming_an_absent_column_stays_exit_1(paper_step):
     res = CliRunner().invoke(main, ["fit-mechanical", "step.csv", "-m", "m.json",
                                     "-c", "omega=speed_rpm*rpm"])
     _one_error(res, "step.csv", "no column 'speed_rpm'")
+
+
+@pytest.mark.parametrize("command", ["fit-mechanical", "identify"])
+@pytest.mark.parametrize("km, said", [("1e-300", "is below 1e-09, the smallest value"),
+                                      ("1e300", "is above 1000, the largest value")])
+def test_a_km_outside_the_models_bounds_is_a_usage_error(paper_step, command, km, said):
+    """fuzz: --km 1e-300 passed fit-mechanical's option and failed as 'the fit gives parameter
+    km = 1e-300 ... the logs do not behave as this motor model's'; identify took 1e300 and
+    blamed the log's speed. Both bounds are the model's, said at the option (exit 2), every
+    command that takes --km."""
+    res = CliRunner().invoke(main, [command, "step.csv", "-m", "m.json", "--km", km])
+    assert res.exit_code == 2, res.stderr
+    assert "Invalid value for '--km'" in res.stderr and said in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr
