@@ -10,6 +10,7 @@ from scipy.special import chdtrc  # scipy.stats.chi2.sf without scipy.stats' 0.4
 
 from pmdcid.fit.problem import Problem
 from pmdcid.fit.results import nrmse
+from pmdcid.io.derive import log_cutoff
 from pmdcid.model.residual import LogResidual, ResidualContext
 from pmdcid.simulate import SimResult
 
@@ -105,7 +106,8 @@ def context(problem: Problem, vals: dict[str, float], sims: list[SimResult]) -> 
             log.t, log.u, log.drive == "tau", blocked,
             None if blocked or not log.has("omega") else np.asarray(log["omega"], float),
             None if blocked or not log.has("theta") else np.asarray(log["theta"], float),
-            sims[k].omega_true, resid))
+            sims[k].omega_true, resid,
+            log_cutoff(log) if "omega" in log.derived else math.inf))
     speeds = [np.abs(lg.omega) for lg in logs if lg.omega is not None]
     speed = float(np.percentile(np.concatenate(speeds), 95)) if speeds else 0.0
     if not speed > 0:

@@ -9,6 +9,7 @@ hands the coefficients back to the effect's ``guess`` to get a starting point fo
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,7 +22,9 @@ class LogResidual:
     ``u`` is the input (V, or N m when ``torque_driven``); ``omega``/``theta`` the measured speed
     [rad/s] and angle [rad] (None when the log has none, e.g. blocked rotor); ``omega_sim`` the
     model's speed; ``resid`` maps signal name -> measured minus simulated (NaN where the sample is
-    not used for fitting).
+    not used for fitting); ``bandwidth`` [Hz] the highest frequency the speed can show: the
+    cut-off of the low-pass a speed derived from the angle went through (inf: a measured speed,
+    up to the sampling's own Nyquist frequency).
     """
 
     t: np.ndarray
@@ -32,6 +35,7 @@ class LogResidual:
     theta: np.ndarray | None
     omega_sim: np.ndarray
     resid: dict[str, np.ndarray] = field(default_factory=dict)
+    bandwidth: float = math.inf
 
     @property
     def dt(self) -> float:

@@ -44,3 +44,19 @@ def test_an_order_a_slow_log_resolves_is_found_beside_a_fast_one():
     rng = np.random.default_rng(4)
     ctx = _ctx([_log(rng, 50.0, 300, 0.5), _log(rng, 2.0, 12, 0.05)])
     assert _orders(ctx)[0] == 12
+
+
+def test_a_speed_derived_through_a_low_pass_resolves_orders_only_below_its_cut_off():
+    """A speed derived from the angle through a low-pass at f_c shows n periods per revolution
+    only where n |omega| < 2 pi f_c: at 2 rad/s and 10 ms samples order 12 is under Nyquist
+    (n < 157) but its ripple, 3.8 Hz, is above a 2 Hz cut-off. bench/newrigs.py lego seed 7
+    (angle only, 11 ms samples, a 9 Hz cut-off): an order 71 read where the derived speed
+    cannot show it was added as cogging and raised the held-out sines 17-30 %."""
+    rng = np.random.default_rng(4)
+    measured = _log(rng, 2.0, 12, 0.05)
+    assert _orders(_ctx([measured]))[0] == 12
+    derived = _log(rng, 2.0, 12, 0.05)
+    derived.bandwidth = 2.0
+    assert angle_spectrum(_ctx([derived]))[4:].max() == 0.0  # 2 pi 2 Hz / 2 rad/s = 6.3
+    derived.bandwidth = 5.0  # 3.8 Hz ripple under a 5 Hz cut-off: read
+    assert _orders(_ctx([derived]))[0] == 12

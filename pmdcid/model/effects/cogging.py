@@ -29,7 +29,12 @@ def angle_spectrum(ctx: ResidualContext) -> np.ndarray:
     bin (empty bins 0) is Fourier-transformed. An order is read only from the samples that
     resolve it: between two samples the rotor turns |omega| dt, and n periods per revolution
     are sampled above their Nyquist rate only where n |omega| dt < pi (faster, a speed measured
-    over a sample averages the ripple out and the samples alias it; so does the kernel's step).
+    over a sample averages the ripple out and the samples alias it; so does the kernel's step),
+    and a speed derived from the angle through a low-pass at f_c shows them only where
+    n |omega| < 2 pi f_c (bench/newrigs.py lego seed 7, 11 ms loop-timed samples and a 9 Hz
+    derivation filter: order 71 read from the starts from rest, where every log turns its first
+    few degrees from the angle 0 through the gear's play, was added and raised the held-out
+    sines 17-30 %).
     Each octave of orders is read from the samples resolving its top order, its |c_n|^2 over
     the power white noise would give there (sum over bins of variance / count), so that
     octaves read from fewer samples are not favoured.
@@ -45,8 +50,8 @@ def angle_spectrum(ctx: ResidualContext) -> np.ndarray:
         bins.append((np.mod(lg.theta[ok], 2 * math.pi) / (2 * math.pi) * ANGLE_BINS)
                     .astype(int).clip(0, ANGLE_BINS - 1))
         resid.append(r[ok] - np.mean(r[ok]))
-        step = np.abs(lg.omega_sim[ok]) * lg.dt  # rad turned per sample
-        reach.append(math.pi / np.maximum(step, 1e-300))
+        w = np.maximum(np.abs(lg.omega_sim[ok]), 1e-300)
+        reach.append(np.minimum(math.pi / (w * lg.dt), 2 * math.pi * lg.bandwidth / w))
     out = np.zeros(ANGLE_BINS // 2 + 1)
     if not bins:
         return out
