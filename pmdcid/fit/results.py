@@ -222,7 +222,14 @@ def bounded(name: str, low: float, high: float, unit: str, caveat: str,
 def write_estimate(model, e: Estimate, stage: str) -> None:
     """Write ``e`` into ``model``: an estimate with its standard error, or a bounded one as an
     interval that keeps a value other data determined inside it
-    (:meth:`pmdcid.model.params.Model.set_bounded`)."""
+    (:meth:`pmdcid.model.params.Model.set_bounded`). An estimate these logs do not determine
+    (:data:`NOT_DETERMINED`: no variance) leaves a value other data determined, with its
+    standard error, as it was (fuzzing: fit-nonlinear on a log whose input stayed at 0 while
+    the rotor turned wrote such bv and bc over fit-mechanical's)."""
+    old = model.parameters.get(e.name)
+    if (e.interval is None and e.caveat == NOT_DETERMINED and old is not None
+            and old.determined and math.isfinite(old.stderr)):
+        return
     if e.interval is not None:
         model.set_bounded(e.name, *e.interval, e.value, unit=e.unit, stage=stage,
                           caveat=e.caveat)

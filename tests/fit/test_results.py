@@ -103,3 +103,25 @@ def test_a_speed_that_runs_against_the_model_on_every_log_is_said(rng):
     assert speed_against([(sim, np.zeros_like(sim))]) is None
     assert speed_against([]) is None
 
+
+
+def test_an_estimate_the_logs_do_not_determine_leaves_what_other_data_determined():
+    """fuzzing: fit-nonlinear on a log whose input stayed at 0 while the rotor turned wrote bv
+    and bc 'not determined' (no variance) over fit-mechanical's estimates. Such an estimate
+    leaves a value another stage determined; it is written where the model has none, or only
+    a start value or an interval."""
+    from pmdcid.fit.results import fitted, write_estimate
+    from pmdcid.model import Model
+
+    m = Model()
+    m.set("bv", 0.01, 1e-4, stage="fit-mechanical")
+    m.set("J", 1e-3, stage="start")  # a start value: no data determined it
+    undetermined = fitted("bv", 0.5, math.nan, "N m s/rad")
+    write_estimate(m, undetermined, "fit-nonlinear")
+    assert (m.value("bv"), m.parameters["bv"].stage) == (0.01, "fit-mechanical")
+    write_estimate(m, fitted("J", 2e-3, math.nan, "kg m^2"), "fit-nonlinear")
+    assert m.value("J") == 2e-3 and m.parameters["J"].stage == "fit-nonlinear"
+    write_estimate(m, fitted("bc", 0.2, math.nan, "N m"), "fit-nonlinear")
+    assert m.value("bc") == 0.2  # none before
+    write_estimate(m, fitted("bv", 0.02, 2e-4, "N m s/rad"), "fit-nonlinear")
+    assert m.value("bv") == 0.02  # determined here: written
