@@ -335,7 +335,28 @@ def column_specs(cols: list[str], mapping, canonical, p: str):
         specs[canon] = spec
     _annotated_specs(cols, specs, p)
     specs.update(_any_case(cols, canonical, specs))
-    return specs, skipped
+    return one_input(specs, set(mapping.specs), p), skipped
+
+
+def one_input(specs: dict, mapped: set, p: str) -> dict:
+    """``specs`` with one input column: where a log holds both ``v`` and ``tau``, the one the
+    mapping names (``mapped``: the canonical names of ``-c``/``--map``), else ``v`` as before,
+    the other left out with a warning (its source stays among the extra columns). Both mapped
+    is refused: a log drives the motor by one of them. (Fuzzing: ``-c tau=COLUMN`` on a log
+    with a ``v`` column fitted the voltage and never said the torque went unused.)"""
+    if not {"v", "tau"} <= set(specs):
+        return specs
+    named = [c for c in ("v", "tau") if c in mapped]
+    if len(named) == 2:
+        raise LogError("both 'v' and 'tau' are mapped: a log has one input, the voltage or the "
+                       "torque; map only the one that drives the motor", p)
+    keep = named[0] if named else "v"
+    drop = "tau" if keep == "v" else "v"
+    why = "mapped" if named else "the voltage, as a log with both is read"
+    hint = "" if named else "; map -c tau=tau to drive it by the torque"
+    warn(f"holds both 'v' and 'tau': '{keep}' is the input ({why}), '{drop}' (column "
+         f"'{specs[drop].source}') is not used{hint}", p)
+    return {c: s for c, s in specs.items() if c != drop}
 
 
 def _any_case(cols: list[str], canonical, specs: dict) -> dict:

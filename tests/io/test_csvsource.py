@@ -154,3 +154,28 @@ def test_a_file_cut_inside_its_last_row_drops_that_row_and_says_so(tmp_path, sep
             warnings.simplefilter("always")
             assert len(read_log(p).t) == 50
         assert not [w for w in seen if "no line end" in str(w.message)], ending
+
+
+def test_a_log_with_both_v_and_tau_has_one_input_and_says_which(tmp_path, rng):
+    """Fuzzing: ``-c tau=COLUMN`` on a log that also holds a ``v`` column fitted the voltage
+    and never said the torque went unused. The mapped one is the input; unmapped, ``v`` as
+    before; both mapped is refused; every case says so in one line."""
+    from pmdcid.errors import PmdcidWarning
+
+    n = 200
+    t = np.arange(n) * 1e-3
+    cols = {"t": t, "v": np.full(n, 6.0), "cur": np.full(n, 0.5), "tau": np.full(n, 0.01),
+            "omega": rng.normal(10.0, 0.1, n)}
+    f = tmp_path / "both.csv"
+    np.savetxt(f, np.column_stack(list(cols.values())), delimiter=",",
+               header=",".join(cols), comments="")
+    with pytest.warns(PmdcidWarning, match=r"both 'v' and 'tau': 'tau' is the input \(mapped\)"
+                                           r", 'v' \(column 'v'\) is not used"):
+        log = read_log(f, parse_mapping(["tau=cur*0.02"], None))
+    assert log.drive == "tau" and np.allclose(log.u, 0.01) and "v" not in log.data
+    with pytest.warns(PmdcidWarning, match=r"'v' is the input \(the voltage, as a log with "
+                                           r"both is read\), 'tau' \(column 'tau'\) is not used"):
+        log = read_log(f)
+    assert log.drive == "v" and "tau" not in log.data
+    with pytest.raises(LogError, match="both 'v' and 'tau' are mapped"):
+        read_log(f, parse_mapping(["tau=cur*0.02", "v=v*1"], None))
