@@ -34,7 +34,14 @@ import numpy as np
 
 from pmdcid.errors import FitError, NoStepError
 from pmdcid.fit.covariance import standard_error
-from pmdcid.fit.results import Estimate, FitStats, ResultProtocol, fitted, format_estimates
+from pmdcid.fit.results import (
+    Estimate,
+    FitStats,
+    ResultProtocol,
+    fitted,
+    format_estimates,
+    write_estimate,
+)
 from pmdcid.identify.inductance import carry_inductance_error
 from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-exported
     MOVE_SIGMAS,
@@ -95,7 +102,8 @@ def steady_line(v: np.ndarray, w: np.ndarray, w_se: np.ndarray, *, origin: bool 
     s2 = max(float(resid @ resid) / dof, 1.0) if len(y) > X.shape[1] else 1.0
     cov = np.zeros((2, 2))
     cov[:X.shape[1], :X.shape[1]] = np.linalg.inv(A.T @ A) * s2
-    return float(coef[0]), float(coef[1]) if not origin else 0.0, cov
+    c = 0.0 if origin else float(coef[1])
+    return float(coef[0]), c, cov
 
 
 @dataclass
@@ -124,7 +132,7 @@ class MechanicalResult(ResultProtocol):
         for name in ("b", "bv", "bc", "J", "tau_e"):  # tau_e: a lumped model's lag
             e = self.estimates.get(name)
             if e is not None and e.vary and math.isfinite(e.value):
-                model.set(name, e.value, e.stderr, e.unit, stage=STAGE, caveat=e.caveat)
+                write_estimate(model, e, STAGE)
         d = self.estimates.get("delay")  # the steps' latency (lumped: identify/latency.py)
         if d is not None and math.isfinite(d.value):
             model.add_effect("sensor_delay")
