@@ -25,6 +25,7 @@ from pmdcid.fit.results import Estimate, bounded
 from pmdcid.identify.dead_zone import dead_zone_interval
 from pmdcid.identify.nonlinear import DZ_CAVEAT, crossing_upper
 from pmdcid.model import EFFECTS
+from pmdcid.model.effects import effect_param_specs
 from pmdcid.model.lumped import LUMPED_ONLY, is_lumped, lumped_unit
 from pmdcid.runtime.cpus import pmap
 
@@ -195,9 +196,8 @@ def sub_sample_masked(run, final: FitOutcome, free: list[str]) -> float | None:
     b2:viscous_asymmetry seed 11: bc 0 and dz masked at 0 without the asymmetry, 0.19 and
     0.068 +- 0.004 V with it)."""
     par = run.model.parameters.get("dz")
-    effects = {p for e in EFFECTS.values() for p in e.param_names}
     if (not lag_refits(run, free) or par is None or par.interval is None
-            or effects & set(free)):
+            or effect_param_specs().keys() & set(free)):
         return None
     dt = min(log.dt for log in run.problem.logs)
     return float(par.interval[1]) if final.values.get("tau_e", 0.0) < dt else None
