@@ -92,6 +92,11 @@ def table_log(log_type: type, p: str, sig: Signals, mapping: ColumnMap, defer: b
 def _sorted(sig: Signals, name: str, p: str):
     """Signal ``name``'s instants and values in time order (stable)."""
     s = sig.series[name]
+    if s.t is None:  # a TDMS channel without waveform timing or a time channel of its length
+        raise LogError(f"signal '{name}' has no time stamps of its own in the file (a TDMS "
+                       "channel needs the waveform properties wf_increment and wf_start_offset, "
+                       "or a time channel as long as it in its group): export the channels "
+                       "with their timing", p)
     t, x = np.asarray(s.t, float), np.asarray(s.x, float)
     if len(t) < 2:
         raise LogError(f"signal '{name}' has {len(t)} sample(s): too few to use", p)
