@@ -42,7 +42,9 @@ def _column(arr, typ, pa) -> np.ndarray | None:
         return ns.astype(float) * unit
     if pa.types.is_integer(typ) or pa.types.is_floating(typ) or pa.types.is_boolean(typ) \
             or pa.types.is_decimal(typ):
-        return np.asarray(arr.cast(pa.float64()).to_numpy(zero_copy_only=False), dtype=float)
+        # safe=False: an int64 beyond 2**53 (a time stamp in ns) is rounded, as numpy rounds it
+        return np.asarray(arr.cast(pa.float64(), safe=False).to_numpy(zero_copy_only=False),
+                          dtype=float)
     return None
 
 
