@@ -54,14 +54,21 @@ MAX_DROP_FACTOR = 30.0
 MAX_BACK_EMF_RATIO = 2.0
 
 
+#: (largest sample period in the unit, its name, symbol, the factor as -c writes it, factor):
+#: the first unit whose row takes the period is named (ns: time stamps since 1970 in ns)
+TIME_UNITS = ((50.0, "milliseconds", "ms", "ms", 1e-3),
+              (2e4, "microseconds", "us", "us", 1e-6),
+              (2e8, "nanoseconds", "ns", "1e-9", 1e-9))
+
+
 def _time_unit_hint(dt: float) -> str:
-    if dt > 1e7:  # no unit makes this a motor log's period
+    hit = next((u for u in TIME_UNITS if dt < u[0]), None)
+    if hit is None:  # no unit makes this a motor log's period
         return (f"the sample period {dt:.3g} s is no motor log's: check the time column (its "
                 "unit, or another column mapped to t with -c t=COLUMN)")
-    unit, factor = ("ms", 1e-3) if dt < 50 else ("us", 1e-6)
-    return (f"t looks like {'milliseconds' if unit == 'ms' else 'microseconds'} (a sample "
-            f"period of {dt:g}; {unit} would make it {dt * factor:g} s): map it with "
-            f"-c t=COLUMN*{unit}")
+    _, name, symbol, written, factor = hit
+    return (f"t looks like {name} (a sample period of {dt:g}; {symbol} would make it "
+            f"{dt * factor:g} s): map it with -c t=COLUMN*{written}")
 
 
 def time_unit_issue(log) -> str | None:

@@ -43,3 +43,18 @@ def test_int64_nanoseconds_beyond_2_53_are_read(tmp_path):
     log = read_log(p, parse_mapping(["t=t_ns*1e-9"]))
     assert log.n == N and log.dt == pytest.approx(1e-3, rel=1e-3)
     np.testing.assert_array_equal(log["v"], v)
+
+
+def test_time_in_nanoseconds_is_named_so(tmp_path):
+    """The same column left unmapped: before, 't looks like microseconds (... us would make it
+    0.999936 s): map it with -c t=COLUMN*us', a fix that gives a 1 s sample period; now it names
+    nanoseconds and the factor that gives 1 ms."""
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    t, v, w = _motor(3)
+    p = tmp_path / "log.parquet"
+    pq.write_table(pa.table({"t": EPOCH_NS + np.round(t * 1e9).astype(np.int64), "v": v,
+                             "omega": w}), p)
+    code, _, err = _run(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05"])
+    assert code == 1 and len(err) == 1, err
+    assert "t looks like nanoseconds" in err[0] and "-c t=COLUMN*1e-9" in err[0], err
