@@ -43,18 +43,24 @@ def as_mapping(columns=None, map_file=None, cutoff_hz: float | None = None) -> C
     return out
 
 
-def frame_columns(df, mapping: ColumnMap, path: str):
+def frame_columns(df, mapping: ColumnMap, path: str, units: dict | None = None):
     """Canonical SI columns (name -> float array), the other numeric columns of ``df`` (at most
     :data:`MAX_EXTRA`), and the mapping-file lines skipped because their sources are absent.
 
     A canonical column comes from the column of that name or from ``mapping`` (renames, units,
     expressions: :mod:`pmdcid.io.csvsource`); raises :class:`LogError` naming the column for a
-    missing source, a text cell, or no time column.
+    missing source, a text cell, or no time column. ``units``: column -> the unit a file stores
+    with it (Parquet), applied where the mapping reads a column as it stands
+    (:mod:`pmdcid.io.formats.units`).
     """
     cols = [str(c) for c in df.columns]
     specs, skipped = column_specs(cols, mapping, CANONICAL, path)
     if "t" not in specs:
         specs["t"] = _time_spec(df, cols, specs, skipped, path)
+    if units:
+        from pmdcid.io.formats.units import apply_stored_units
+
+        specs = apply_stored_units(specs, units, path)
     cache: dict[str, np.ndarray] = {}
     times = set(specs["t"].refs)
 

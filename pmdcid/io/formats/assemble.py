@@ -34,6 +34,7 @@ from pmdcid.io.clock import (
     zoh,
 )
 from pmdcid.io.formats import Signals, extension
+from pmdcid.io.formats.units import apply_stored_units
 from pmdcid.io.mapping import CANONICAL, ColumnMap
 
 #: a measurement sampled this many times faster than a uniform input (or more) sets the grid:
@@ -82,7 +83,8 @@ def table_log(log_type: type, p: str, sig: Signals, mapping: ColumnMap, defer: b
     if n == 0:
         raise LogError("has no data rows", p)
     frame = PlainFrame(names, [np.asarray(sig.series[k].x, dtype=float) for k in names])
-    data, extra, skipped = frame_columns(frame, mapping, p)
+    data, extra, skipped = frame_columns(frame, mapping, p,
+                                         units={k: sig.series[k].unit for k in names})
     log = validated_log(log_type, p, data, extra, sig.meta, mapping.cutoff_hz, skipped=skipped,
                         defer=defer)
     log.sources = mapping.sources(data)
@@ -130,6 +132,7 @@ def _specs(p: str, sig: Signals, mapping: ColumnMap):
         raise LogError(f"-c t=...: the signals of a {extension(p)} file carry their own time "
                        "stamps; map the signals only", p)
     specs.pop("t", None)
+    specs = apply_stored_units(specs, {k: s.unit for k, s in sig.series.items()}, p)
     if not specs:
         raise LogError(f"no signal is mapped to a canonical column: name them with e.g. "
                        f"-c v=SOURCE -c omega=SOURCE (signals: {short_list(names)}; "
