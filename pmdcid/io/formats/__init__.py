@@ -54,6 +54,9 @@ class Signals:
     series: dict[str, Series]
     table: bool = False
     meta: dict[str, str] = field(default_factory=dict)
+    #: other names ``-c`` may give a signal -> its name in ``series`` (MDF: ``group/channel``
+    #: for a channel named by its own name)
+    aliases: dict[str, str] = field(default_factory=dict)
 
 
 def extension(path) -> str:
@@ -111,9 +114,33 @@ def read(log_type: type, path, mapping=None, defer: bool = False):
     wanted = [s.text.split("=", 1)[1].strip() if "=" in s.text else s.source
               for s in mapping.specs.values()]
     sig = load(p, wanted)
+    mapping = dealiased(mapping, sig.aliases)
     if sig.table:
         return table_log(log_type, p, sig, mapping, defer)
     return series_log(log_type, p, sig, mapping, defer)
+
+
+def dealiased(mapping, aliases: dict[str, str]):
+    """``mapping`` with each right-hand side that starts with an alias of a signal (followed by
+    its end or a scale) naming the signal by its own name (``motor/n_mot*rpm`` -> ``n_mot*rpm``)."""
+    from dataclasses import replace
+
+    from pmdcid.io.mapping import ColumnMap, parse_spec
+
+    if not aliases:
+        return mapping
+    specs = {}
+    for canon, spec in mapping.specs.items():
+        rhs = (spec.text.split("=", 1)[1] if "=" in spec.text else spec.source).strip()
+        sign, body = ("-", rhs[1:].lstrip()) if rhs.startswith("-") else ("", rhs)
+        hit = max((a for a in aliases if body == a or (body.startswith(a)
+                                                       and body[len(a)] in "*/+-")),
+                  key=len, default=None)
+        if spec.expr is None and hit is not None:
+            new = parse_spec(f"{canon}={sign}{aliases[hit]}{body[len(hit):]}")
+            spec = replace(new, origin=spec.origin)
+        specs[canon] = spec
+    return ColumnMap(specs, mapping.cutoff_hz)
 
 
 @dataclass

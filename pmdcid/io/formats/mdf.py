@@ -3,7 +3,8 @@
 Each channel group has its own master (time) channel: its channels are series on that clock,
 in physical values (the file's conversions applied), with the unit the file stores. A channel
 is named by its own name where that is unique in the file, else ``group/channel`` with the
-group's acquisition name (or its index when it has none or shares it).
+group's acquisition name (or its index when it has none or shares it). A channel named by its
+own name may be named ``group/channel`` too (:attr:`Signals.aliases`).
 """
 
 from __future__ import annotations
@@ -67,14 +68,17 @@ def _read(mdf) -> Signals:
         groups = _group_names(mdf)
         count = Counter(name for _, _, name in chans)
         out: dict[str, Series] = {}
+        aliases: dict[str, str] = {}
         for gi, ci, name in chans:
             sig = mdf.get(name, group=gi, index=ci)
             x = np.asarray(sig.samples)
             if x.dtype.kind not in "biuf" or x.ndim != 1 or len(x) < 1:
                 continue
             key = name if count[name] == 1 else f"{groups[gi]}/{name}"
+            if key == name:  # docs/io.md: '-c omega=motor/n_mot' names it by its group too
+                aliases[f"{groups[gi]}/{name}"] = name
             out[key] = Series(x.astype(float), np.asarray(sig.timestamps, dtype=float),
                               sig.unit or None)
     finally:
         mdf.close()
-    return Signals(out)
+    return Signals(out, aliases={a: n for a, n in aliases.items() if a not in out})
