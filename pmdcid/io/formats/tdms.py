@@ -1,9 +1,10 @@
 """LabVIEW TDMS logs (``.tdms``) through nptdms: series named ``group/channel``.
 
-A channel's instants come from its waveform properties (``wf_increment``, ``wf_start_offset``,
-``wf_start_time``: channels started at different absolute times are aligned) or, without them,
-from its group's time channel (one named ``t``, ``time``, ``Time``, ``timestamp`` or a
-timestamp-typed channel: the group is then a table). The unit is the ``unit_string`` property.
+A channel's instants come from its waveform properties (``wf_increment``, ``wf_start_offset``
+in the unit of ``wf_xunit_string``, ``wf_start_time``: channels started at different absolute
+times are aligned) or, without them, from its group's time channel (one named ``t``, ``time``,
+``Time``, ``timestamp`` or a timestamp-typed channel, in its ``unit_string``: the group is then a
+table). The unit is the ``unit_string`` property.
 
 A TDMS file is a run of segments, each with a lead-in giving its length. nptdms reads a file cut
 short within its last segment to the end of what is there, channels of unequal lengths, with
@@ -37,20 +38,32 @@ def _seconds(x: np.ndarray) -> np.ndarray:
     return x.astype(float)
 
 
+def _time_factor(unit) -> float:
+    """Seconds per unit of a time unit the file names (``ms``, ``us``, ``s``); 1 for none."""
+    from pmdcid.io.headers import UNIT_TABLE
+
+    factor, dim = UNIT_TABLE.get(str(unit or "s").replace(" ", ""), (1.0, "time"))
+    return factor if dim == "time" else 1.0
+
+
 def _group_time(group) -> tuple[str | None, np.ndarray | None]:
+    """The group's time channel [s]: numbers in its ``unit_string`` (s when none), datetimes."""
     for ch in group.channels():
         if ch.name in TIME_NAMES or np.asarray(ch[:]).dtype.kind == "M":
-            return ch.name, _seconds(ch[:])
+            return ch.name, _seconds(ch[:]) * _time_factor(ch.properties.get("unit_string"))
     return None, None
 
 
 def _wave_time(ch) -> np.ndarray | None:
+    """A waveform channel's instants [s]: ``wf_increment`` and ``wf_start_offset`` are in its
+    ``wf_xunit_string`` (s when none; LabVIEW writes ms for a chart in ms)."""
     if "wf_increment" not in ch.properties:
         return None
     try:
-        return np.asarray(ch.time_track(), dtype=float)
+        t = np.asarray(ch.time_track(), dtype=float)
     except (KeyError, ValueError):
         return None
+    return t * _time_factor(ch.properties.get("wf_xunit_string"))
 
 
 def _start(ch) -> float | None:

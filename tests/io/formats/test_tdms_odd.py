@@ -42,3 +42,31 @@ def test_channel_without_time_is_one_line(tmp_path, time_len):
     assert code == 1 and len(err) == 1, err
     assert err[0].startswith(f"error: {p}: signal 'data/speed' has no time stamps of its own"), err
     assert "wf_increment" in err[0]
+
+
+@pytest.mark.parametrize("how", ["wf_xunit_string", "time channel unit_string"])
+def test_time_in_ms_by_the_file_s_own_words(tmp_path, how):
+    """A waveform whose x unit is ms (wf_increment 1, wf_xunit_string 'ms'), or a time channel
+    whose unit_string is 'ms': before, refused with 't looks like milliseconds ... map it with
+    -c t=COLUMN*ms', a mapping a series file refuses ('carry their own time stamps'); now read
+    in seconds."""
+    nptdms = pytest.importorskip("nptdms")
+    from pmdcid.io import parse_mapping, read_log
+
+    t, v, w = _motor(2)
+    if how == "wf_xunit_string":
+        wf = {"wf_increment": 1.0, "wf_start_offset": 0.0, "wf_xunit_string": "ms"}
+        chans = [nptdms.ChannelObject("data", "voltage", v, properties=wf),
+                 nptdms.ChannelObject("data", "speed", w, properties=wf)]
+    else:
+        chans = [nptdms.ChannelObject("data", "time", t * 1e3, properties={"unit_string": "ms"}),
+                 nptdms.ChannelObject("data", "voltage", v),
+                 nptdms.ChannelObject("data", "speed", w)]
+    p = tmp_path / "log.tdms"
+    with nptdms.TdmsWriter(p) as wr:
+        wr.write_segment(chans)
+    log = read_log(p, parse_mapping(["v=data/voltage", "omega=data/speed"]))
+    assert log.dt == pytest.approx(1e-3) and log.n == N
+    code, out, err = _run(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05",
+                           "-c", "v=data/voltage", "-c", "omega=data/speed"])
+    assert "looks like milliseconds" not in " ".join(err), err
