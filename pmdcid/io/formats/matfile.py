@@ -2,7 +2,8 @@
 
 Every numeric or logical vector is a signal by its variable name; a struct's fields are named
 ``struct.field`` (nested: ``a.b.c``); the columns of an N x k matrix are ``name[0]`` ...
-``name[k-1]``. Scalars, text and cells are left out. The vectors as long as the time column
+``name[k-1]`` (a k x N matrix, one signal a row, is read the same: signals run along its
+longer side). Scalars, text and cells are left out. The vectors as long as the time column
 (``t``, ``time`` or the ``-c t=SOURCE`` mapping) form the log.
 
 A file cut short (a variable's data running past the end of a v5 file; an HDF5 file shorter
@@ -25,12 +26,14 @@ MAX_COLUMNS = 64
 
 
 def _add_array(name: str, a: np.ndarray, out: dict[str, Series]) -> None:
-    """A numeric array as signals: a vector -> ``name``, an N x k matrix -> ``name[j]``."""
+    """A numeric array as signals: a vector -> ``name``, an N x k (k x N) matrix -> ``name[j]``."""
     if a.dtype.kind not in "biuf" or a.size < 2:
         return
     a = np.asarray(a, dtype=float)
     if a.ndim == 2 and 1 in a.shape:
         a = a.ravel()
+    elif a.ndim == 2 and a.shape[0] < a.shape[1]:  # k x N: one signal a row (MATLAB's habit)
+        a = a.T
     if a.ndim == 1:
         out[name] = Series(a)
     elif a.ndim == 2 and a.shape[1] <= MAX_COLUMNS:
