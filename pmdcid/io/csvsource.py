@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pmdcid.errors import LogError, short_list, warn
+from pmdcid.io.formats import sniffed
 from pmdcid.io.mapping import ColumnSpec, resolve
 from pmdcid.io.text import BOMS_16, decode
 
@@ -119,7 +120,11 @@ def open_source(p: str) -> Source:
     if packed:
         raise LogError(f"is {packed[1]} (its first bytes are {packed[0].hex(' ')}), not CSV "
                        f"text: {packed[2]}", p)
-    if b"\x00" in head:
+    if b"\x00" in head or sniffed(head):
+        kind = sniffed(head)
+        if kind is not None:  # a log of a format pmdcid reads, under another name
+            raise LogError(f"is {kind[0]} (its first bytes say so), not CSV text: name it "
+                           f"{kind[1]} to read it", p)
         raise LogError("is not a text CSV file (binary content): export the log as CSV", p)
     text = head.decode("utf-8", errors="replace").lstrip("\ufeff")
     return Source(p if data is None else io.BytesIO(data), text)

@@ -59,6 +59,42 @@ class Signals:
     aliases: dict[str, str] = field(default_factory=dict)
 
 
+#: first bytes of each format -> (what the file is, the extension that reads it)
+MAGICS: tuple[tuple[bytes, str, str], ...] = (
+    (b"\x89MCAP0\r\n", "an MCAP file", ".mcap"), (b"WPILOG", "a WPILib DataLog", ".wpilog"),
+    (b"MDF     ", "an ASAM MDF file", ".mf4"), (b"UnFinMF ", "an ASAM MDF file", ".mf4"),
+    (b"TDSm", "a LabVIEW TDMS file", ".tdms"), (b"PAR1", "a Parquet file", ".parquet"),
+    (b"MATLAB ", "a MATLAB .mat file", ".mat"))
+
+
+def sniffed(head: bytes) -> tuple[str, str] | None:
+    """(what the file is, its extension) when ``head`` (its first bytes) starts as a format
+    this package reads, else None."""
+    return next(((what, ext) for magic, what, ext in MAGICS if head.startswith(magic)), None)
+
+
+def _check_kind(p: str) -> None:
+    """An empty file, or one whose first bytes are another format's (a CSV named .mf4, an MDF
+    named .tdms), refused in one line that says what it is and what to name it."""
+    ext = extension(p)
+    with open(p, "rb") as fh:
+        head = fh.read(512)
+    if not head:
+        raise LogError(f"is empty (0 bytes): no {ext} file was written into it", p)
+    kind = sniffed(head)
+    if kind is not None and READERS.get(kind[1]) != READERS[ext]:
+        raise LogError(f"is {kind[0]} (its first bytes say so), not a {ext} file: name it "
+                       f"{kind[1]} to read it", p)
+    line = head.split(b"\n", 1)[0].strip()
+    if kind is None and b"\x00" not in head and line and any(c in line for c in b",;\t"):
+        try:
+            first = line.decode("utf-8")
+        except UnicodeDecodeError:
+            return
+        raise LogError(f"is text (its first line {first[:40]!r}), not a {ext} file: a CSV log? "
+                       "name it .csv to read it", p)
+
+
 def extension(path) -> str:
     """The lower-case extension of ``path`` ('' for none)."""
     return os.path.splitext(str(path))[1].lower()
@@ -96,6 +132,7 @@ def load(path, wanted: list[str] | None = None) -> Signals:
         raise LogError("no such log file (check the path)", p)
     if os.path.isdir(p):
         raise LogError("is a folder, not a log file", p)
+    _check_kind(p)
     sig = reader(p).load(p, wanted)
     if not sig.series:
         raise LogError(f"holds no numeric signal a motor log could use ({extension(p)} file)", p)

@@ -42,3 +42,37 @@ def test_unique_channel_named_by_its_group(tmp_path):
                                     "omega=-motor/n_mot*rpm"])
     assert res.exit_code == 1, res.output  # the model file is missing: past the mapping
     assert "no such model file" in res.stderr, res.stderr
+
+
+def _mdf_bytes(tmp_path):
+    asammdf = pytest.importorskip("asammdf")
+    t, v, w = _motor(12)
+    p = tmp_path / "w.mf4"
+    m = asammdf.MDF(version="4.10")
+    m.append([asammdf.Signal(v, t, name="u_arm"), asammdf.Signal(w, t, name="n_mot")])
+    m.save(p, overwrite=True)
+    m.close()
+    return p.read_bytes()
+
+
+def test_file_under_the_wrong_extension_says_what_it_is(tmp_path):
+    """An MDF file named .csv: before, 'is not a text CSV file (binary content): export the log
+    as CSV' (it needs only its name); an MDF named .tdms: 'is not a readable TDMS file (Segment
+    does not start with b'TDSm' ...)'; a CSV named .mf4: 'is not a readable MDF file
+    (MdfException: ... magic)'; an empty .mf4: '... magic head'. Now each says what the file is
+    and the name that reads it."""
+    data = _mdf_bytes(tmp_path)
+    t, v, w = _motor(13)
+    text = "t,v,omega\n" + "".join(f"{a},{b},{c}\n" for a, b, c in zip(t, v, w, strict=True))
+    cases = {"log.csv": (data, "is an ASAM MDF file (its first bytes say so), not CSV text: "
+                               "name it .mf4 to read it"),
+             "log.tdms": (data, "is an ASAM MDF file (its first bytes say so), not a .tdms "
+                                "file: name it .mf4 to read it"),
+             "csv.mf4": (text.encode(), "is text (its first line 't,v,omega'), not a .mf4 file: "
+                                        "a CSV log? name it .csv to read it"),
+             "empty.mf4": (b"", "is empty (0 bytes): no .mf4 file was written into it")}
+    for name, (content, said) in cases.items():
+        p = tmp_path / name
+        p.write_bytes(content)
+        res = CliRunner().invoke(main, ["channels", str(p)])
+        assert res.exit_code == 1 and res.stderr == f"error: {p}: {said}\n", res.stderr
