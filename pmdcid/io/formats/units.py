@@ -19,8 +19,9 @@ from dataclasses import replace
 from pmdcid.errors import LogError, warn
 from pmdcid.io.headers import DIMENSION, UNIT_TABLE
 
-#: spellings loggers write for units of UNIT_TABLE (spaces removed)
-ALIASES = {"rad/sec": "rad/s", "1/s": "rad/s", "U/min": "rpm", "1/min": "rpm", "min^-1": "rpm",
+#: spellings loggers write for units of UNIT_TABLE (spaces removed); not "1/s", which one
+#: logger writes for rad/s and another (a rotational frequency, DIN 1301) for rev/s
+ALIASES = {"rad/sec": "rad/s", "U/min": "rpm", "1/min": "rpm", "min^-1": "rpm",
            "min-1": "rpm", "rev/min": "rpm", "rev/s": "rps", "volt": "V", "volts": "V",
            "amp": "A", "amps": "A", "seconds": "s", "degree": "deg", "degrees": "deg"}
 #: stored units that say "no unit"
