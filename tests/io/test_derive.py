@@ -172,3 +172,15 @@ def test_lowpass_is_scipys_sosfiltfilt_bit_for_bit(n, cutoff):
                       padlen=min(3 * ORDER, n - 1))
     for _ in range(2):  # designed, then kept
         np.testing.assert_array_equal(lowpass(x, 1e-3, cutoff), ref)
+
+
+@pytest.mark.parametrize("n", [2, 14, 400])
+def test_both_filter_passes_give_the_same_bits(monkeypatch, n):
+    """lowpass runs scipy's compiled sections loop without sosfilt's checks where that private
+    name answers as sosfilt does, else sosfilt itself: either way the same bits."""
+    from pmdcid.io import derive
+
+    x = np.random.default_rng(n).normal(size=n).cumsum()
+    chosen = derive.lowpass(x, 1e-3, 40.0)
+    monkeypatch.setattr(derive, "_sos_pass", lambda: derive._public_sos_pass)
+    np.testing.assert_array_equal(derive.lowpass(x, 1e-3, 40.0), chosen)
