@@ -1,7 +1,8 @@
 """Opening a log as rigs and spreadsheets export it: encoding, pipes, separator, decimal mark.
 
 - A UTF-8 byte-order mark is dropped (also before ``#`` comments); a UTF-16 file with its BOM is
-  decoded as UTF-16 (Excel's "Unicode text").
+  decoded as UTF-16 (Excel's "Unicode text"). A file whose head is not UTF-8 (a rig writing
+  ``°`` or ``µ`` as one byte) is decoded as Windows-1252, a superset of Latin-1, with a warning.
 - A pipe or process substitution (``<(zcat log.csv.gz)``) is read once, into memory: it cannot
   be read twice or sized.
 - European exports (Excel with a comma decimal mark) separate fields with ``;`` and write
@@ -13,6 +14,7 @@
 
 from __future__ import annotations
 
+import codecs
 import io
 import os
 import re
@@ -126,8 +128,52 @@ def open_source(p: str) -> Source:
             raise LogError(f"is {kind[0]} (its first bytes say so), not CSV text: name it "
                            f"{kind[1]} to read it", p)
         raise LogError("is not a text CSV file (binary content): export the log as CSV", p)
+    legacy = _not_utf8(p, data, head)
+    if legacy is not None:
+        return legacy
     text = head.decode("utf-8", errors="replace").lstrip("\ufeff")
     return Source(p if data is None else io.BytesIO(data), text)
+
+
+def _not_utf8(p: str, data: bytes | None, head: bytes) -> Source | None:
+    """Log ``p`` decoded as Windows-1252 (Latin-1 where a byte is undefined in it: every byte
+    is a character there) when its head is not UTF-8, with one warning naming the byte and the
+    line it makes (none when only ``#`` comments are not UTF-8: they are no data); None for
+    UTF-8 (read as before). A rig on Windows writes ``°`` and ``µ`` as one byte: read as UTF-8
+    they became replacement characters, and a header's unit (``time [µs]``) or a mapped name
+    was lost, the refusal never naming the encoding."""
+    if _bad_byte(head) is None:
+        return None
+    if data is None:
+        with open(p, "rb") as fh:
+            data = fh.read()
+    text = _windows_1252(data)
+    lines = head.split(b"\n")
+    bad = ((k, _bad_byte(ln)) for k, ln in enumerate(lines) if not ln.lstrip().startswith(b"#"))
+    k, byte = next(((k, b) for k, b in bad if b is not None), (None, None))
+    if k is not None:
+        warn(f"is not UTF-8 text (byte 0x{byte:02x} in line {k + 1}): read as Windows-1252 "
+             f"(Latin-1), which makes line {k + 1} {_windows_1252(lines[k]).strip()[:60]!r}; save "
+             "the log as UTF-8 to read it without this warning", p)
+    return Source(io.StringIO(text), text[:HEAD_BYTES])
+
+
+def _windows_1252(raw: bytes) -> str:
+    """``raw`` decoded as Windows-1252, or Latin-1 where a byte is undefined in it."""
+    try:
+        return raw.decode("cp1252")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _bad_byte(raw: bytes) -> int | None:
+    """The first byte of ``raw`` that makes it no UTF-8, None where it is UTF-8 (a character
+    cut at its end is no error: a head is cut)."""
+    try:
+        codecs.getincrementaldecoder("utf-8")().decode(raw)
+    except UnicodeDecodeError as exc:
+        return raw[exc.start]
+    return None
 
 
 #: bytes read from a log's end to find its last line

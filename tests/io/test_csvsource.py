@@ -179,3 +179,48 @@ def test_a_log_with_both_v_and_tau_has_one_input_and_says_which(tmp_path, rng):
     assert log.drive == "v" and "tau" not in log.data
     with pytest.raises(LogError, match="both 'v' and 'tau' are mapped"):
         read_log(f, parse_mapping(["tau=cur*0.02", "v=v*1"], None))
+
+
+@pytest.mark.parametrize("encoding", ["latin-1", "cp1252"])
+def test_a_latin_1_header_is_read_as_such_and_said(tmp_path, encoding):
+    """A rig writing Windows-1252 / Latin-1 (``time [µs]``, ``speed [°/s]``, one byte each):
+    before, decoded as UTF-8 with replacement characters, the header's units were lost
+    (``time [�s]``) and every command refused the log with ``has no time column 't' (columns
+    are time [�s], ...)``, never naming the encoding. Now read as Windows-1252, one warning
+    saying so; the same file in UTF-8 reads as before, without it."""
+    from click.testing import CliRunner
+
+    from pmdcid.cli import main
+
+    rng = np.random.default_rng(31)
+    n = 1000
+    t = np.arange(n) * 1e-3
+    v = np.where(t >= 0.1, 6.0, 0.0)
+    w = np.where(t >= 0.1, 20.0 * (1 - np.exp(-np.clip(t - 0.1, 0, None) / 0.1)), 0.0)
+    w = w + rng.normal(0, 0.02, n)
+    text = "time [µs];voltage [V];speed [°/s]\n" + "".join(
+        f"{a * 1e6:.1f};{b:.4f};{np.degrees(c):.5f}\n".replace(".", ",")
+        for a, b, c in zip(t, v, w, strict=True))
+    p = tmp_path / "rig.csv"
+    p.write_bytes(text.encode(encoding))
+    res = CliRunner().invoke(main, ["channels", str(p)])
+    assert res.exit_code == 0 and "time [µs]" in res.stdout and "°/s" in res.stdout, res.output
+    model = tmp_path / "m.json"
+    res = CliRunner().invoke(main, ["fit-mechanical", str(p), "-m", str(model)])
+    assert res.exit_code == 0, res.stderr
+    said = [ln for ln in res.stderr.splitlines() if "UTF-8" in ln]
+    assert said == [f"warning: {p}: is not UTF-8 text (byte 0xb5 in line 1): read as "
+                    "Windows-1252 (Latin-1), which makes line 1 'time [µs];voltage [V];speed "
+                    "[°/s]'; save the log as UTF-8 to read it without this warning"], res.stderr
+    res = CliRunner().invoke(main, ["plan", "--check", str(p), "-m", str(model), "-o",
+                                    str(tmp_path / "plan")])
+    assert res.exit_code == 0, res.stderr
+    p.write_bytes(text.encode("utf-8"))
+    res = CliRunner().invoke(main, ["fit-mechanical", str(p), "-m", str(tmp_path / "u.json")])
+    assert res.exit_code == 0 and "UTF-8" not in res.stderr, res.stderr
+    log = read_log(p)
+    p.write_bytes(text.encode(encoding))
+    with pytest.warns(UserWarning, match="is not UTF-8 text"):
+        same = read_log(p)
+    np.testing.assert_array_equal(same["omega"], log["omega"])
+    np.testing.assert_array_equal(same.t, log.t)
