@@ -72,13 +72,7 @@ def table_log(log_type: type, p: str, sig: Signals, mapping: ColumnMap, defer: b
     tname = _time_source(sig, mapping)
     n = len(sig.series[tname].x) if tname is not None else \
         max((len(s.x) for s in sig.series.values()), default=0)
-    refs = {r for spec in mapping.specs.values() for r in spec.refs}
-    for r in sorted(refs):
-        s = sig.series.get(r)
-        if s is not None and len(s.x) != n:
-            raise LogError(f"'{r}' has {len(s.x)} samples where the time column "
-                           f"'{tname or 't'}' has {n}: the columns of a {extension(p)} log share "
-                           "its time column", p)
+    _check_lengths(sig, mapping, tname, n, p)
     names = [k for k, s in sig.series.items() if len(s.x) == n]
     if n == 0:
         raise LogError("has no data rows", p)
@@ -89,6 +83,21 @@ def table_log(log_type: type, p: str, sig: Signals, mapping: ColumnMap, defer: b
                         defer=defer)
     log.sources = mapping.sources(data)
     return log
+
+
+def _check_lengths(sig: Signals, mapping: ColumnMap, tname: str | None, n: int, p: str) -> None:
+    """Refuse a column the log would use, mapped or by its canonical name (``omega`` with no
+    ``-c omega=...``), whose length is not the time column's ``n``: left out, the command would
+    say it lacks that column, as if the file held none."""
+    used = {r for spec in mapping.specs.values() for r in spec.refs}
+    used |= {c for c in CANONICAL if c not in mapping.specs}
+    for r in sorted(used):
+        s = sig.series.get(r)
+        if s is not None and len(s.x) != n:
+            raise LogError(f"'{r}' has {len(s.x)} samples where the time column "
+                           f"'{tname or 't'}' has {n}: the columns of a {extension(p)} log share "
+                           f"its time column, so it cannot be used as it is (save '{r}' at the "
+                           "time column's instants)", p)
 
 
 def _sorted(sig: Signals, name: str, p: str):
