@@ -61,19 +61,30 @@ TIME_UNITS = ((50.0, "milliseconds", "ms", "ms", 1e-3),
               (2e8, "nanoseconds", "ns", "1e-9", 1e-9))
 
 
-def _time_unit_hint(dt: float) -> str:
+def _time_unit_hint(dt: float, path: str = "") -> str:
+    """What the time looks like, and the fix: ``-c t=COLUMN*UNIT`` for a table (CSV, Parquet,
+    .mat); for a series file (``path``: TDMS, MDF, MCAP, wpilog), whose signals carry their own
+    time stamps and refuse ``-c t=``, what its format lets a user do instead."""
+    from pmdcid.io.formats import extension, own_time_fix
+
+    fix = own_time_fix(path)
     hit = next((u for u in TIME_UNITS if dt < u[0]), None)
     if hit is None:  # no unit makes this a motor log's period
-        return (f"the sample period {dt:.3g} s is no motor log's: check the time column (its "
-                "unit, or another column mapped to t with -c t=COLUMN)")
+        where = (f"the time stamps the {extension(path)} file holds" if fix else
+                 "the time column (its unit, or another column mapped to t with -c t=COLUMN)")
+        return f"the sample period {dt:.3g} s is no motor log's: check {where}"
     _, name, symbol, written, factor = hit
-    return (f"t looks like {name} (a sample period of {dt:g}; {symbol} would make it "
-            f"{dt * factor:g} s): map it with -c t=COLUMN*{written}")
+    said = (f"t looks like {name} (a sample period of {dt:g}; {symbol} would make it "
+            f"{dt * factor:g} s)")
+    if fix:
+        fix = fix.format(unit=symbol)
+        return f"{said}, and a {extension(path)} file carries its own time: {fix}"
+    return f"{said}: map it with -c t=COLUMN*{written}"
 
 
 def time_unit_issue(log) -> str | None:
     """The time-unit rule: a sample period of :data:`MAX_SAMPLE_PERIOD` or more (None: none)."""
-    return _time_unit_hint(log.dt) if log.dt >= MAX_SAMPLE_PERIOD else None
+    return _time_unit_hint(log.dt, str(log.path)) if log.dt >= MAX_SAMPLE_PERIOD else None
 
 
 def log_issues(log) -> list[str]:

@@ -110,6 +110,15 @@ def reader(path):
     return importlib.import_module(f"pmdcid.io.formats.{READERS[extension(path)]}")
 
 
+def own_time_fix(path) -> str | None:
+    """How a user gives the time of a series file (its signals carry their own time stamps, so
+    ``-c t=COLUMN*UNIT`` cannot rescale them) in seconds: its reader's ``TIME_UNIT_FIX``, a
+    sentence with ``{unit}`` for the unit the time looks like; None for CSV and tables."""
+    if not is_other_format(path):
+        return None
+    return getattr(reader(path), "TIME_UNIT_FIX", None)
+
+
 def byte_count(n: int) -> str:
     """``n`` bytes in words, for a message ("1 byte", "24 bytes")."""
     return "1 byte" if n == 1 else f"{n} bytes"

@@ -23,6 +23,8 @@ from pmdcid.io.formats import Series, Signals, need
 
 EXTENSIONS = (".mcap",)
 EXTRA = "mcap"
+#: a time that looks like ms, us or ns (:func:`pmdcid.io.formats.own_time_fix`)
+TIME_UNIT_FIX = "write each message's log_time in nanoseconds, MCAP's unit"
 MAGIC = b"\x89MCAP0\r\n"
 #: arrays longer than this are not signals (images, point clouds)
 MAX_ELEMENTS = 16

@@ -20,6 +20,8 @@ from pmdcid.io.formats import Series, Signals, need
 
 EXTENSIONS = (".mf4", ".mdf")
 EXTRA = "mdf"
+#: a time that looks like ms, us or ns (:func:`pmdcid.io.formats.own_time_fix`)
+TIME_UNIT_FIX = "write its master (time) channels in seconds, MDF's unit"
 
 
 def _group_names(mdf) -> list[str]:

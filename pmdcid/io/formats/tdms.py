@@ -28,6 +28,9 @@ from pmdcid.io.formats import Series, Signals, byte_count, need
 EXTENSIONS = (".tdms",)
 EXTRA = "tdms"
 TIME_NAMES = ("t", "time", "Time", "timestamp", "Timestamp", "timestamps")
+#: a time that looks like ms, us or ns (:func:`pmdcid.io.formats.own_time_fix`)
+TIME_UNIT_FIX = ("write wf_xunit_string '{unit}' on its channels (unit_string on a time channel), "
+                 "which pmdcid reads")
 
 
 def _seconds(x: np.ndarray) -> np.ndarray:
@@ -39,10 +42,12 @@ def _seconds(x: np.ndarray) -> np.ndarray:
 
 
 def _time_factor(unit) -> float:
-    """Seconds per unit of a time unit the file names (``ms``, ``us``, ``s``); 1 for none."""
+    """Seconds per unit of a time unit the file names (``ms``, ``us``, ``ns``, ``s``); 1 for
+    none."""
     from pmdcid.io.headers import UNIT_TABLE
 
-    factor, dim = UNIT_TABLE.get(str(unit or "s").replace(" ", ""), (1.0, "time"))
+    table = {**UNIT_TABLE, "ns": (1e-9, "time")}
+    factor, dim = table.get(str(unit or "s").replace(" ", ""), (1.0, "time"))
     return factor if dim == "time" else 1.0
 
 

@@ -22,6 +22,8 @@ from pmdcid.io.formats import Series, Signals, byte_count, need
 
 EXTENSIONS = (".wpilog",)
 EXTRA = "wpilog"
+#: a time that looks like ms, us or ns (:func:`pmdcid.io.formats.own_time_fix`)
+TIME_UNIT_FIX = "write each record's time stamp in microseconds, a DataLog's unit"
 #: entry type -> the record's getter
 SCALARS = {"double": "getDouble", "float": "getFloat", "int64": "getInteger",
            "boolean": "getBoolean"}

@@ -70,3 +70,35 @@ def test_time_in_ms_by_the_file_s_own_words(tmp_path, how):
     code, out, err = _run(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05",
                            "-c", "v=data/voltage", "-c", "omega=data/speed"])
     assert "looks like milliseconds" not in " ".join(err), err
+
+
+def test_time_in_ms_not_said_by_the_file_names_a_fix_that_applies(tmp_path, monkeypatch):
+    """A waveform in ms that does not say so (``wf_increment`` 1, no ``wf_xunit_string``):
+    before, refused with 't looks like milliseconds ...: map it with -c t=COLUMN*ms', a mapping
+    a series file refuses in turn ('carry their own time stamps'). Now the line says what a
+    user of a TDMS file can do: write its time unit into the file (or --force)."""
+    nptdms = pytest.importorskip("nptdms")
+    from repo_paths import FIXTURES
+
+    t, v, w = _motor(3)
+    wf = {"wf_increment": 1.0, "wf_start_offset": 0.0}
+    monkeypatch.chdir(tmp_path)  # a short path: the line keeps its whole fix
+    p = "log.tdms"
+    with nptdms.TdmsWriter(p) as wr:
+        wr.write_segment([nptdms.ChannelObject("data", "voltage", v, properties=wf),
+                          nptdms.ChannelObject("data", "speed", w, properties=wf)])
+    said = ("error: log.tdms: t looks like milliseconds (a sample period of 1; ms would make it "
+            "0.001 s), and a .tdms file carries its own time: write wf_xunit_string 'ms' on its "
+            "channels (unit_string on a time channel), which pmdcid reads")
+    maps = ["-c", "v=data/voltage", "-c", "omega=data/speed"]
+    code, _, err = _run(["fit-mechanical", p, "-m", "m.json", "--km", "0.05", *maps])
+    assert code == 1 and err == [said + " (or --force to fit anyway)"], err
+    code, _, err = _run(["plan", "--check", p, "-m", FIXTURES / "paper" / "truth.json",
+                         "-o", "pl", *maps])
+    assert code == 1 and err == [said], err
+    wf["wf_xunit_string"] = "ms"  # the fix it names
+    with nptdms.TdmsWriter(p) as wr:
+        wr.write_segment([nptdms.ChannelObject("data", "voltage", v, properties=wf),
+                          nptdms.ChannelObject("data", "speed", w, properties=wf)])
+    code, _, err = _run(["fit-mechanical", p, "-m", "m.json", "--km", "0.05", *maps])
+    assert not [e for e in err if "looks like" in e], err
