@@ -48,8 +48,10 @@ class Series:
 
 @dataclass
 class Signals:
-    """What a reader found: ``series`` name -> :class:`Series`; ``table`` True when they are
-    columns sharing a time column; ``meta`` file-level metadata (``# key: value`` as in CSV)."""
+    """What a reader found: ``series`` name -> :class:`Series` (one with 0 samples too, a
+    channel that recorded nothing: listed, and refused where a mapping uses it); ``table`` True
+    when they are columns sharing a time column; ``meta`` file-level metadata (``# key:
+    value`` as in CSV)."""
 
     series: dict[str, Series]
     table: bool = False
@@ -143,7 +145,7 @@ def load(path, wanted: list[str] | None = None) -> Signals:
         raise LogError("is a folder, not a log file", p)
     _check_kind(p)
     sig = reader(p).load(p, wanted)
-    if not sig.series:
+    if not any(len(s.x) for s in sig.series.values()):
         raise LogError(f"holds no numeric signal a motor log could use ({extension(p)} file)", p)
     return sig
 

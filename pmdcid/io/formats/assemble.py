@@ -103,6 +103,9 @@ def _check_lengths(sig: Signals, mapping: ColumnMap, tname: str | None, n: int, 
 def _sorted(sig: Signals, name: str, p: str):
     """Signal ``name``'s instants and values in time order (stable)."""
     s = sig.series[name]
+    if len(s.x) == 0:
+        raise LogError(f"signal '{name}' is in the file but has 0 samples (nothing was recorded "
+                       "in it): map a signal that has samples, or record it again", p)
     if s.t is None:  # a TDMS channel without waveform timing or a time channel of its length
         raise LogError(f"signal '{name}' has no time stamps of its own in the file (a TDMS "
                        "channel needs the waveform properties wf_increment and wf_start_offset, "

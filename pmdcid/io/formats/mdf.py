@@ -74,7 +74,7 @@ def _read(mdf) -> Signals:
         for gi, ci, name in chans:
             sig = mdf.get(name, group=gi, index=ci)
             x = np.asarray(sig.samples)
-            if x.dtype.kind not in "biuf" or x.ndim != 1 or len(x) < 1:
+            if x.dtype.kind not in "biuf" or x.ndim != 1:
                 continue
             key = name if count[name] == 1 else f"{groups[gi]}/{name}"
             if key == name:  # docs/io.md: '-c omega=motor/n_mot' names it by its group too

@@ -160,7 +160,7 @@ def load(path: str, wanted: list[str] | None = None) -> Signals:
         tname, tcol = _group_time(g)
         for ch in g.channels():
             x = np.asarray(ch[:])
-            if ch.name == tname or x.dtype.kind not in "biuf" or len(x) < 1:
+            if ch.name == tname or x.dtype.kind not in "biuf":
                 continue
             t = _wave_time(ch)
             if t is not None and _start(ch) is not None:

@@ -76,3 +76,25 @@ def test_file_under_the_wrong_extension_says_what_it_is(tmp_path):
         p.write_bytes(content)
         res = CliRunner().invoke(main, ["channels", str(p)])
         assert res.exit_code == 1 and res.stderr == f"error: {p}: {said}\n", res.stderr
+
+
+@pytest.mark.parametrize("name", ["speed", "motor/speed", "speed*rpm", "motor/speed*rpm"])
+def test_empty_channel_group_named_by_a_mapping_says_it_has_no_samples(tmp_path, name):
+    """A channel group with 0 samples (a measurement started, never triggered), its channel
+    named by ``-c``: before, 'no column 'speed' (columns are u_arm)', or for ``motor/speed`` a
+    usage error, exit 2: "'speed' is neither a number nor a unit". Now one line, exit 1: the
+    signal is in the file but has 0 samples."""
+    asammdf = pytest.importorskip("asammdf")
+    t, v, _ = _motor(14)
+    p = tmp_path / "bench.mf4"
+    m = asammdf.MDF(version="4.10")
+    m.append([asammdf.Signal(v, t, name="u_arm")], acq_name="drive")
+    m.append([asammdf.Signal(np.array([], float), np.array([], float), name="speed")],
+             acq_name="motor")
+    m.save(p, overwrite=True)
+    m.close()
+    res = CliRunner().invoke(main, ["fit-mechanical", str(p), "-m", str(tmp_path / "m.json"),
+                                    "--km", "0.05", "-c", "v=u_arm", "-c", f"omega={name}"])
+    assert res.exit_code == 1 and res.stderr.splitlines() == [
+        f"error: {p}: signal 'speed' is in the file but has 0 samples (nothing was recorded in "
+        "it): map a signal that has samples, or record it again"], res.stderr

@@ -102,3 +102,26 @@ def test_time_in_ms_not_said_by_the_file_names_a_fix_that_applies(tmp_path, monk
                           nptdms.ChannelObject("data", "speed", w, properties=wf)])
     code, _, err = _run(["fit-mechanical", p, "-m", "m.json", "--km", "0.05", *maps])
     assert not [e for e in err if "looks like" in e], err
+
+
+def test_empty_channel_named_by_a_mapping_says_it_has_no_samples(tmp_path):
+    """A channel written with 0 samples (a sensor that never delivered), named by ``-c``:
+    before, 'no column 'data/speed' (columns are data/voltage)', as if the name were wrong,
+    and ``channels`` did not list it. Now it is listed with 0 samples, and a mapping naming it
+    is one line, exit 1, saying it is in the file but empty."""
+    nptdms = pytest.importorskip("nptdms")
+    _, v, _ = _motor(4)
+    wf = {"wf_increment": 1e-3, "wf_start_offset": 0.0}
+    p = tmp_path / "log.tdms"
+    with nptdms.TdmsWriter(p) as wr:
+        wr.write_segment([nptdms.ChannelObject("data", "voltage", v, properties=wf),
+                          nptdms.ChannelObject("data", "speed", np.array([], float),
+                                               properties=wf)])
+    code, out, _ = _run(["channels", p])
+    assert code == 0 and [ln.split()[:2] for ln in out.splitlines()[1:]] == [
+        ["data/voltage", str(N)], ["data/speed", "0"]], out
+    code, _, err = _run(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05",
+                         "-c", "v=data/voltage", "-c", "omega=data/speed*rpm"])
+    assert code == 1 and err == [f"error: {p}: signal 'data/speed' is in the file but has 0 "
+                                 "samples (nothing was recorded in it): map a signal that has "
+                                 "samples, or record it again"], err
