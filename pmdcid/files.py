@@ -25,7 +25,7 @@ import math
 import os
 from pathlib import Path
 
-from pmdcid.errors import LogError, ModelError
+from pmdcid.errors import LogError, ModelError, warn
 from pmdcid.model import load_model, save_model
 from pmdcid.runtime.outputs import check_overwrite, input_at, locked, same_file
 
@@ -346,6 +346,7 @@ def simulate_file(input_path, model_path, output, mapping=None, noise=None, seed
     _refuse_foreign(output, force)
     log = read_log(input_path, mapping)
     log.drive  # noqa: B018 - raises a clear error when neither v nor tau is present
+    _say_time_unit(log, input_path)
     model = load_model(model_path)
     noise = noise or NoiseSpec()
     with bounded_for(model_path):
@@ -355,6 +356,17 @@ def simulate_file(input_path, model_path, output, mapping=None, noise=None, seed
             "model": os.path.basename(str(model_path)), **meta}
     write_log(output, t_out, cols, meta)
     return str(output)
+
+
+def _say_time_unit(log, input_path) -> None:
+    """A warning where the input's time looks like ms, us or ns (the fit commands' time-unit
+    rule, :func:`~pmdcid.identify.plausibility.time_unit_issue`): simulate has no gate to
+    refuse it, and a log in ms simulated as seconds runs a thousand times too long, exit 0."""
+    from pmdcid.identify.plausibility import time_unit_issue
+
+    issue = time_unit_issue(log)
+    if issue:
+        warn(f"{issue}; simulated with t as it stands, in seconds", str(input_path))
 
 
 def _refuse_blown_up(cols, noise, output) -> None:

@@ -7,8 +7,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -116,6 +118,26 @@ def test_simulate_into_a_folder_checks_every_output_first(tmp_path):
     shutil.copy(ins[0], twice[1])
     with pytest.raises(LogError, match="two INPUTs are named step_1.0V.csv"):
         simulate_files(twice, str(PAPER_DIR / "truth.json"), str(out))
+
+
+def test_simulate_says_when_the_inputs_time_looks_like_milliseconds(tmp_path):
+    """simulate has no plausibility gate: an input whose t is in ms (a sample period of 1) ran
+    a thousand times too long with exit 0 and no word; it now runs with one warning naming the
+    unit the fit commands name, and the input's time as the fit commands read it."""
+    from pmdcid.errors import PmdcidWarning
+    from pmdcid.files import simulate_file
+
+    t = np.arange(3000.0)
+    write_log(tmp_path / "ms.csv", t, {"v": np.where(t > 500, 1.0, 0.0)})
+    with pytest.warns(PmdcidWarning, match=r"t looks like milliseconds .*simulated with t as it "
+                                           r"stands, in seconds"):
+        simulate_file(str(tmp_path / "ms.csv"), str(PAPER_DIR / "truth.json"),
+                      str(tmp_path / "out.csv"))
+    write_log(tmp_path / "s.csv", t * 1e-3, {"v": np.where(t > 500, 1.0, 0.0)})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PmdcidWarning)
+        simulate_file(str(tmp_path / "s.csv"), str(PAPER_DIR / "truth.json"),
+                      str(tmp_path / "out_s.csv"))
 
 
 @pytest.mark.parametrize("second", ["./step.csv", "step.csv", "copy.csv"],
