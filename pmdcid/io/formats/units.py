@@ -24,6 +24,16 @@ from pmdcid.io.headers import DIMENSION, UNIT_TABLE
 ALIASES = {"rad/sec": "rad/s", "U/min": "rpm", "1/min": "rpm", "min^-1": "rpm",
            "min-1": "rpm", "rev/min": "rpm", "rev/s": "rps", "volt": "V", "volts": "V",
            "amp": "A", "amps": "A", "seconds": "s", "degree": "deg", "degrees": "deg"}
+#: units written by name (WPILib's units library: ``Volts.name()`` is "Volt",
+#: ``RotationsPerSecond.name()`` "Rotation per Second"; SysIdRoutineLog stores these in its
+#: entries' metadata), compared in lower case with single spaces, a plural "s" allowed
+NAMES = {"volt": "V", "millivolt": "mV", "amp": "A", "ampere": "A", "milliamp": "mA",
+         "milliampere": "mA", "second": "s", "millisecond": "ms", "microsecond": "us",
+         "radian": "rad", "rotation": "rev", "revolution": "rev", "turn": "rev", "degree": "deg",
+         "radian per second": "rad/s", "rotation per second": "rps",
+         "revolution per second": "rps", "rotation per minute": "rpm",
+         "revolution per minute": "rpm", "degree per second": "deg/s", "meter": "m",
+         "millimeter": "mm", "meter per second": "m/s", "newton meter": "Nm", "newton": "N"}
 #: stored units that say "no unit"
 NO_UNIT = {"", "-", "1", "none", "n/a", "na"}
 #: canonical column -> its SI unit and what it is, for messages
@@ -39,9 +49,19 @@ def _bare(spec) -> bool:
     return rhs.strip().lstrip("-").strip().strip('"') == spec.source
 
 
+def _named(unit: str) -> str | None:
+    """The UNIT_TABLE key of a unit written by name (:data:`NAMES`), or None."""
+    words = " ".join(unit.lower().replace("-", " ").split()).split(" per ")
+    singular = [w[:-1] if w.endswith("s") and w[:-1] in NAMES else w for w in words]
+    return NAMES.get(" per ".join(singular))
+
+
 def _lookup(unit: str) -> tuple[float, str] | None:
     key = unit.replace(" ", "")
-    return UNIT_TABLE.get(ALIASES.get(key, key))
+    hit = UNIT_TABLE.get(ALIASES.get(key, key))
+    if hit is None and (name := _named(unit)) is not None:
+        hit = UNIT_TABLE[name]
+    return hit
 
 
 def apply_stored_units(specs: dict, units: dict, p: str) -> dict:

@@ -2,8 +2,12 @@
 
 Every numeric entry (``double``, ``float``, ``int64``, ``boolean``) is a series named by the
 entry's name (``/drive/voltage``); the elements of a numeric array entry are ``name[k]``. Its
-instants are the records' time stamps [s from the file's first record]. An entry's metadata,
-when it is JSON with a ``unit`` (or ``units``) key, gives the unit.
+instants are the records' time stamps [s from the file's first record]. An entry's metadata
+gives the unit when it is JSON with a ``unit`` (or ``units``) key, or when it is plain text, as
+WPILib's own ``SysIdRoutineLog`` writes it: the unit's name (``Volt``, ``Rotation``, ``Rotation
+per Second``: the entries ``voltage-shooter-Shooter``, ``velocity-shooter-Shooter`` SysId reads).
+Ignoring those had a bare ``-c omega=velocity-shooter-Shooter`` read rotations per second as
+rad/s, 2 pi too slow, with no word.
 
 A DataLog has no footer: a robot that loses power leaves a file whose last record is cut short,
 which the reader would pass over without a word. :func:`intact_end` walks the records' framing
@@ -32,11 +36,17 @@ ARRAYS = {"double[]": "getDoubleArray", "float[]": "getFloatArray",
 MAX_ELEMENTS = 16
 
 
+#: longest plain-text metadata read as a unit's name (longer text is a note, not a unit)
+PLAIN_UNIT = 40
+
+
 def _unit(metadata: str) -> str | None:
     try:
         obj = json.loads(metadata)
     except (ValueError, TypeError):
-        return None
+        text = metadata.strip() if isinstance(metadata, str) else ""
+        # plain text, as SysIdRoutineLog writes Volts.name(): a unit's name, not a sentence
+        return text if 0 < len(text) <= PLAIN_UNIT and "\n" not in text else None
     if isinstance(obj, dict):
         u = obj.get("unit", obj.get("units"))
         return str(u) if u is not None else None
