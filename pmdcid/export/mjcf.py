@@ -4,8 +4,13 @@ One body ``rotor`` (inertia J about z) on one hinge joint ``shaft`` (axis z, dam
 frictionloss = bc), driven by one actuator named ``motor`` whose control is the voltage [V] (the
 torque [N m] for a torque-driven model, the per-volt input for a lumped one):
 
-- a voltage model with back-EMF (ke > 0): MuJoCo's ``dcmotor`` (resistance R, inductance L,
-  motorconst "km ke", cogging, LuGre, ctrlrange = +-vmax); its current is ``data.act``;
+- a voltage model with back-EMF (ke > 0): MuJoCo's ``dcmotor`` (cogging, LuGre, ctrlrange =
+  +-vmax). dcmotor has one motor constant K for torque and back-EMF (two given: their geometric
+  mean), so the motor is written in its exact equivalent with K = ke: resistance R ke/km,
+  inductance L ke/km, its current ``data.act`` = (km/ke) i, which gives torque K (km/ke) i = km i
+  and the back-EMF ke omega. Before, "km ke" gave K = sqrt(km ke) for both: exact only for
+  km = ke, and a lumped model with a lag (km = 1, ke the back-EMF's share of bv per volt, 0.03)
+  ran 7 times too slow in MuJoCo;
 - a voltage model without back-EMF (the paper's): a ``general`` actuator with exact first-order
   dynamics (``filterexact``, time constant L/R) and gain km/R, because ``dcmotor`` always adds a
   back-EMF (its K is sqrt(Kt Ke), or the one given); its activation is R i [V];
@@ -87,9 +92,6 @@ def approximations(spec: ExportSpec) -> list[str]:
         unit = "V (per-volt model)" if spec.drive == "lumped" else "N m"
         out.append(f"dead_zone: MuJoCo has no dead zone on the motor torque; omitted (torque "
                    f"below dz = {v['dz']:.4g} {unit} passes, not zero)")
-    if uses_dcmotor(spec) and v["km"] != v["ke"]:
-        out.append(f"back_emf: dcmotor has one motor constant K = sqrt(km ke) = "
-                   f"{math.sqrt(v['km'] * v['ke']):.6g} for torque and back-EMF")
     if _on(spec, "fs") and not _on(spec, "sigma0"):
         out.append("stribeck: no speed-dependent friction on a joint; frictionloss carries "
                    "the sliding level bc (the static peak bc + fs is lost)")
@@ -120,9 +122,9 @@ def _unrepresented(spec: ExportSpec) -> list[str]:
 def _motor(spec: ExportSpec) -> ET.Element:
     v = spec.values
     if uses_dcmotor(spec):
-        el = ET.Element("dcmotor", name="motor", joint="shaft", resistance=num(v["R"]),
-                        motorconst=f"{num(v['km'])} {num(v['ke'])}",
-                        inductance=f"{num(v['L'])} 0")
+        scale = v["ke"] / v["km"]   # current scaled by km/ke: K = ke for both (module doc)
+        el = ET.Element("dcmotor", name="motor", joint="shaft", resistance=num(v["R"] * scale),
+                        motorconst=num(v["ke"]), inductance=f"{num(v['L'] * scale)} 0")
         el.attrib.update(_load_attrs(spec))
     elif spec.drive == "v":
         el = ET.Element("general", name="motor", joint="shaft", dyntype="filterexact",
