@@ -151,6 +151,27 @@ def parameter_table(model: Model) -> dict:
     return out
 
 
+def _comparable(logs, model: Model) -> list:
+    """The logs the model can be compared on: a blocked-rotor log measures only the current,
+    which a lumped (per-volt) model does not simulate; such logs are left out with a warning
+    (all of them: an error saying so)."""
+    from pmdcid.report.compare import predicts_current
+
+    if predicts_current(model):
+        return list(logs)
+    kept = [lg for lg in logs if not lg.blocked]
+    left = [str(lg.path) for lg in logs if lg.blocked]
+    if not kept:
+        raise LogError("are blocked-rotor logs (current only), and the model is lumped (per "
+                       "volt: it simulates no current): nothing to compare; give logs where the "
+                       "rotor turns, or a model in SI (--km)", ", ".join(left))
+    if left:
+        warn("blocked-rotor log(s) left out of the report: the model is lumped (per volt) and "
+             "simulates no current, all they measure (give --km for an SI model)",
+             ", ".join(left))
+    return kept
+
+
 def _before_after(logs, names, model: Model, before_model: Model | None) -> dict | None:
     from pmdcid.report.compare import mean_errors, model_errors
 
@@ -194,6 +215,7 @@ def make_report(logs, model: Model, out_dir, summary: dict | None = None,
 
     if not logs:
         raise LogError("no log files given")
+    logs = _comparable(logs, model)
     names = check_report_outputs(out_dir, logs, force)  # before the work, and again below
     say = progress or (lambda msg: None)
     # started before the simulations: the workers' imports overlap them (report/parallel.py)

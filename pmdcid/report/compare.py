@@ -85,12 +85,22 @@ def logged_units(log, signals) -> dict:
             for c, (src, k, b) in getattr(log, "sources", {}).items() if c in cols and k != 0}
 
 
-def compared_signals(log) -> list[str]:
+def predicts_current(model: Model | None) -> bool:
+    """A lumped (per-volt) model simulates no current: a log's current is not compared with it.
+    Before, a log with a current column (a lab rig's, identified without --km beside
+    blocked-rotor steps) stopped report, and identify -o after all its fits, with 'the model's
+    simulated i is not finite on this log'."""
+    from pmdcid.model.lumped import is_lumped
+
+    return model is None or not is_lumped(model)
+
+
+def compared_signals(log, model: Model | None = None) -> list[str]:
     """The measured signals the model predicts: speed and angle (not for a blocked rotor), and
-    current unless the log is torque-driven."""
+    current unless the log is torque-driven or the model lumped (:func:`predicts_current`)."""
     blocked = log.blocked
     out = [s for s in ("omega", "theta") if log.compares(s) and not blocked]
-    if log.compares("i"):
+    if log.compares("i") and predicts_current(model):
         out.append("i")
     if not out:
         raise LogError("has nothing to compare the model with: it needs omega, theta or "
@@ -102,7 +112,7 @@ def compare_log(log, model: Model, name: str) -> LogComparison:
     """Simulate and compute the metrics of :mod:`pmdcid.report.metrics` for every signal."""
     if log.n < 4:
         raise LogError(f"has only {log.n} samples: too short to compare", log.path)
-    signals = compared_signals(log)
+    signals = compared_signals(log, model)
     sim = simulate_for(log, model)
     blocked = log.blocked
     low = threshold = None
@@ -140,7 +150,7 @@ def model_errors(logs, model: Model) -> list[dict[str, float | None]]:
     for log in logs:
         sim = simulate_for(log, model)
         row = {}
-        for s in compared_signals(log):
+        for s in compared_signals(log, model):
             sd = float(np.std(log[s]))
             e = float(np.sqrt(np.mean((sim.get(s) - log[s]) ** 2)))
             v = e / sd if sd > 0 else math.nan
