@@ -184,20 +184,3 @@ def test_both_filter_passes_give_the_same_bits(monkeypatch, n):
     chosen = derive.lowpass(x, 1e-3, 40.0)
     monkeypatch.setattr(derive, "_sos_pass", lambda: derive._public_sos_pass)
     np.testing.assert_array_equal(derive.lowpass(x, 1e-3, 40.0), chosen)
-
-
-def test_noise_of_a_quantised_speed_ignores_rounding_steps():
-    """A speed from encoder differences (quantum q) at rest half the log: the second
-    difference's MAD is 0 and the floor quantum/sqrt(12) must come from q, not from the steps
-    of one ulp an interpolation onto a grid leaves (a ROS 2 joint's velocity put on the
-    command's clock): before, 1.5e-12 rad/s, a reduced chi-square of 4e21 in identify and
-    standard errors of 1e-13 % in plan --check."""
-    from pmdcid.io.derive import noise_std
-
-    rng = np.random.default_rng(4)
-    q = 0.19
-    level = np.r_[np.zeros(3000), np.full(3000, 150.0)]
-    x = (np.round(level / q) + rng.integers(-1, 2, 6000) * (level > 0)) * q
-    x = x * (1 + rng.integers(-1, 2, 6000) * np.finfo(float).eps)   # a few ulps of arithmetic
-    assert np.mean(np.diff(x) == 0) > 0.4
-    assert noise_std(x) == pytest.approx(q / np.sqrt(12), rel=0.05)   # before: ~1e-14
