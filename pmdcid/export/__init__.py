@@ -59,6 +59,8 @@ class ExportSpec:
     delay: float
     omega0: float
     source: str
+    #: a per-volt (lumped) model: its torques and dead zone are in volts, whatever ``drive``
+    per_volt: bool = False
 
     @property
     def torque_path(self) -> bool:
@@ -99,7 +101,8 @@ def spec_of(model: Model) -> ExportSpec:
     return ExportSpec({n: float(vals[n]) for n in NAMES}, drive,
                       float(vals.get("delay", 0.0)),
                       float(vals.get("omega0", 0.0)),
-                      os.path.basename(model.path) if model.path else "a model")
+                      os.path.basename(model.path) if model.path else "a model",
+                      per_volt=drive_of(model) == "lumped")
 
 
 def template(name: str) -> str:

@@ -89,7 +89,7 @@ def approximations(spec: ExportSpec) -> list[str]:
     v = spec.values
     out = []
     if _on(spec, "dz", "dz_offset") or (_on(spec, "dz_slope") and uses_dcmotor(spec)):
-        unit = "V (per-volt model)" if spec.drive == "lumped" else "N m"
+        unit = "V (per-volt model)" if spec.per_volt else "N m"
         out.append(f"dead_zone: MuJoCo has no dead zone on the motor torque; omitted (torque "
                    f"below dz = {v['dz']:.4g} {unit} passes, not zero)")
     if _on(spec, "fs") and not _on(spec, "sigma0"):

@@ -229,3 +229,20 @@ def test_lumped_model_with_a_lag_and_a_back_emf_share(tmp_path):
     assert np.abs(ref[:, 0]).max() > 200   # about (15 - 0.333) / 0.061 rad/s
     omega, theta = nrmse(run(render(spec_of(model))[0], t, u, 4), ref)
     assert omega < 0.01 and theta < 0.01, (omega, theta)   # before: 1.0 and 1.5
+
+
+def test_a_per_volt_models_dead_zone_is_said_in_volts(tmp_path):
+    """A lumped model's dead zone is per volt, with its electrical lag (written as a voltage
+    model, R = km = 1) or without it (a torque path): the line saying MuJoCo omits it names
+    volts, not N m (it said N m for the model with the lag)."""
+    from pmdcid.export.mjcf import approximations
+
+    par = {"J": (1.3e-3, "V s^2/rad"), "bv": (0.061, "V s/rad"), "bc": (0.333, "V"),
+           "dz": (0.6, "V")}
+    for extra in ({}, {"tau_e": (1.0e-3, "s"), "ke_share": (0.5, "1")}):
+        p = tmp_path / "lumped.json"
+        p.write_text(json.dumps({"format": 1, "lumped": True, "effects": [], "parameters": {
+            k: {"value": v, "stderr": None, "unit": u, "stage": "fit-nonlinear"}
+            for k, (v, u) in {**par, **extra}.items()}}))
+        said = [a for a in approximations(spec_of(load_model(p))) if a.startswith("dead_zone")]
+        assert len(said) == 1 and "dz = 0.6 V (per-volt model)" in said[0], said
