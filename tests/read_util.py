@@ -1,12 +1,36 @@
-"""Shared helpers of the reader tests (tests/io/test_plain.py, test_chunked.py): the logs and
-text cases read by more than one path, and the bit-for-bit comparison of two reads."""
+"""Shared helpers of the reader tests (tests/io/test_plain.py, test_chunked.py, the odd files of
+tests/io/formats/): the logs and text cases read by more than one path, the bit-for-bit
+comparison of two reads, a motor step log to write in each format, and the CLI run on it."""
 
 from __future__ import annotations
 
+import numpy as np
+from click.testing import CliRunner
 from repo_paths import FIXTURES
 
+from pmdcid.cli import main
 from pmdcid.errors import PmdcidError
 from pmdcid.io import read_log
+
+#: samples of :func:`step_motor`'s log
+STEP_N = 400
+
+
+def step_motor(seed: int, n: int = STEP_N):
+    """(t [s], v [V], omega [rad/s]) of a 0 -> 6 V step at 0.1 s into a first-order motor
+    (20 rad/s, 0.1 s), 1 kHz, speed noise 0.02 rad/s from ``seed``."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 1e-3
+    v = np.where(t >= 0.1, 6.0, 0.0)
+    w = np.where(t >= 0.1, 20.0 * (1 - np.exp(-np.clip(t - 0.1, 0, None) / 0.1)), 0.0)
+    return t, v, w + rng.normal(0, 0.02, n)
+
+
+def run_cli(args) -> tuple[int, str, list[str]]:
+    """(exit code, stdout, stderr lines) of ``pmdcid ARGS`` run in process."""
+    res = CliRunner().invoke(main, [str(a) for a in args])
+    return res.exit_code, res.stdout, res.stderr.strip().splitlines()
+
 
 #: every CSV log of the repository's fixtures
 FIXTURE_CSVS = sorted(FIXTURES.glob("*/*.csv"))

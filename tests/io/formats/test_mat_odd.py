@@ -5,16 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from read_util import STEP_N, step_motor
 
-N = 400
+N = STEP_N
 
-
-def _motor(seed):
-    rng = np.random.default_rng(seed)
-    t = np.arange(N) * 1e-3
-    v = np.where(t >= 0.1, 6.0, 0.0)
-    w = np.where(t >= 0.1, 20.0 * (1 - np.exp(-np.clip(t - 0.1, 0, None) / 0.1)), 0.0)
-    return t, v, w + rng.normal(0, 0.02, N)
 
 
 @pytest.mark.parametrize("rows", [False, True])
@@ -25,7 +19,7 @@ def test_matrix_one_signal_a_row(tmp_path, rows):
     sio = pytest.importorskip("scipy.io")
     from pmdcid.io import parse_mapping, read_log
 
-    t, v, w = _motor(21)
+    t, v, w = step_motor(21)
     data = np.vstack([t, v, w]) if rows else np.column_stack([t, v, w])
     p = tmp_path / "log.mat"
     sio.savemat(p, {"data": data})

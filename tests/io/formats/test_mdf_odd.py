@@ -6,18 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from read_util import step_motor
 
 from pmdcid.cli import main
-
-N = 400
-
-
-def _motor(seed):
-    rng = np.random.default_rng(seed)
-    t = np.arange(N) * 1e-3
-    v = np.where(t >= 0.1, 6.0, 0.0)
-    w = np.where(t >= 0.1, 20.0 * (1 - np.exp(-np.clip(t - 0.1, 0, None) / 0.1)), 0.0)
-    return t, v, w + rng.normal(0, 0.02, N)
 
 
 def test_unique_channel_named_by_its_group(tmp_path):
@@ -27,7 +18,7 @@ def test_unique_channel_named_by_its_group(tmp_path):
     asammdf = pytest.importorskip("asammdf")
     from pmdcid.io import parse_mapping, read_log
 
-    t, v, w = _motor(11)
+    t, v, w = step_motor(11)
     p = tmp_path / "bench.mf4"
     m = asammdf.MDF(version="4.10")
     m.append([asammdf.Signal(v, t, name="u_arm"),
@@ -46,7 +37,7 @@ def test_unique_channel_named_by_its_group(tmp_path):
 
 def _mdf_bytes(tmp_path):
     asammdf = pytest.importorskip("asammdf")
-    t, v, w = _motor(12)
+    t, v, w = step_motor(12)
     p = tmp_path / "w.mf4"
     m = asammdf.MDF(version="4.10")
     m.append([asammdf.Signal(v, t, name="u_arm"), asammdf.Signal(w, t, name="n_mot")])
@@ -62,7 +53,7 @@ def test_file_under_the_wrong_extension_says_what_it_is(tmp_path):
     (MdfException: ... magic)'; an empty .mf4: '... magic head'. Now each says what the file is
     and the name that reads it."""
     data = _mdf_bytes(tmp_path)
-    t, v, w = _motor(13)
+    t, v, w = step_motor(13)
     text = "t,v,omega\n" + "".join(f"{a},{b},{c}\n" for a, b, c in zip(t, v, w, strict=True))
     cases = {"log.csv": (data, "is an ASAM MDF file (its first bytes say so), not CSV text: "
                                "name it .mf4 to read it"),
@@ -85,7 +76,7 @@ def test_empty_channel_group_named_by_a_mapping_says_it_has_no_samples(tmp_path,
     usage error, exit 2: "'speed' is neither a number nor a unit". Now one line, exit 1: the
     signal is in the file but has 0 samples."""
     asammdf = pytest.importorskip("asammdf")
-    t, v, _ = _motor(14)
+    t, v, _ = step_motor(14)
     p = tmp_path / "bench.mf4"
     m = asammdf.MDF(version="4.10")
     m.append([asammdf.Signal(v, t, name="u_arm")], acq_name="drive")

@@ -5,25 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
+from read_util import STEP_N, run_cli, step_motor
 
-from pmdcid.cli import main
-
-N = 400
+N = STEP_N
 EPOCH_NS = 1_700_000_000_000_000_000
 
 
-def _motor(seed):
-    rng = np.random.default_rng(seed)
-    t = np.arange(N) * 1e-3
-    v = np.where(t >= 0.1, 6.0, 0.0)
-    w = np.where(t >= 0.1, 20.0 * (1 - np.exp(-np.clip(t - 0.1, 0, None) / 0.1)), 0.0)
-    return t, v, w + rng.normal(0, 0.02, N)
-
-
-def _run(args):
-    res = CliRunner().invoke(main, [str(a) for a in args])
-    return res.exit_code, res.stdout, res.stderr.strip().splitlines()
 
 
 def test_int64_nanoseconds_beyond_2_53_are_read(tmp_path):
@@ -34,11 +21,11 @@ def test_int64_nanoseconds_beyond_2_53_are_read(tmp_path):
     pq = pytest.importorskip("pyarrow.parquet")
     from pmdcid.io import parse_mapping, read_log
 
-    t, v, w = _motor(2)
+    t, v, w = step_motor(2)
     ns = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
     p = tmp_path / "log.parquet"
     pq.write_table(pa.table({"t_ns": ns, "v": v, "omega": w}), p)
-    code, out, err = _run(["channels", p])
+    code, out, err = run_cli(["channels", p])
     assert code == 0 and "t_ns" in out, err
     log = read_log(p, parse_mapping(["t=t_ns*1e-9"]))
     assert log.n == N and log.dt == pytest.approx(1e-3, rel=1e-3)
@@ -51,10 +38,10 @@ def test_time_in_nanoseconds_is_named_so(tmp_path):
     nanoseconds and the factor that gives 1 ms."""
     pa = pytest.importorskip("pyarrow")
     pq = pytest.importorskip("pyarrow.parquet")
-    t, v, w = _motor(3)
+    t, v, w = step_motor(3)
     p = tmp_path / "log.parquet"
     pq.write_table(pa.table({"t": EPOCH_NS + np.round(t * 1e9).astype(np.int64), "v": v,
                              "omega": w}), p)
-    code, _, err = _run(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05"])
+    code, _, err = run_cli(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05"])
     assert code == 1 and len(err) == 1, err
     assert "t looks like nanoseconds" in err[0] and "-c t=COLUMN*1e-9" in err[0], err

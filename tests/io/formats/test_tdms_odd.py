@@ -5,24 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
+from read_util import STEP_N, run_cli, step_motor
 
-from pmdcid.cli import main
-
-N = 400
+N = STEP_N
 
 
-def _motor(seed):
-    rng = np.random.default_rng(seed)
-    t = np.arange(N) * 1e-3
-    v = np.where(t >= 0.1, 6.0, 0.0)
-    w = np.where(t >= 0.1, 20.0 * (1 - np.exp(-np.clip(t - 0.1, 0, None) / 0.1)), 0.0)
-    return t, v, w + rng.normal(0, 0.02, N)
-
-
-def _run(args):
-    res = CliRunner().invoke(main, [str(a) for a in args])
-    return res.exit_code, res.stdout, res.stderr.strip().splitlines()
 
 
 @pytest.mark.parametrize("time_len", [None, N - 100])
@@ -30,14 +17,14 @@ def test_channel_without_time_is_one_line(tmp_path, time_len):
     """No waveform properties and no time channel (or one of another length): before, 'internal
     error TypeError: len() of unsized object'; now one line naming the signal and the fix."""
     nptdms = pytest.importorskip("nptdms")
-    t, v, w = _motor(1)
+    t, v, w = step_motor(1)
     chans = [nptdms.ChannelObject("data", "voltage", v), nptdms.ChannelObject("data", "speed", w)]
     if time_len is not None:
         chans.insert(0, nptdms.ChannelObject("data", "t", t[:time_len]))
     p = tmp_path / "log.tdms"
     with nptdms.TdmsWriter(p) as wr:
         wr.write_segment(chans)
-    code, _, err = _run(["simulate", p, "-m", tmp_path / "m.json", "-o", tmp_path / "s.csv",
+    code, _, err = run_cli(["simulate", p, "-m", tmp_path / "m.json", "-o", tmp_path / "s.csv",
                          "-c", "v=data/voltage", "-c", "omega=data/speed"])
     assert code == 1 and len(err) == 1, err
     assert err[0].startswith(f"error: {p}: signal 'data/speed' has no time stamps of its own"), err
@@ -53,7 +40,7 @@ def test_time_in_ms_by_the_file_s_own_words(tmp_path, how):
     nptdms = pytest.importorskip("nptdms")
     from pmdcid.io import parse_mapping, read_log
 
-    t, v, w = _motor(2)
+    t, v, w = step_motor(2)
     if how == "wf_xunit_string":
         wf = {"wf_increment": 1.0, "wf_start_offset": 0.0, "wf_xunit_string": "ms"}
         chans = [nptdms.ChannelObject("data", "voltage", v, properties=wf),
@@ -67,7 +54,7 @@ def test_time_in_ms_by_the_file_s_own_words(tmp_path, how):
         wr.write_segment(chans)
     log = read_log(p, parse_mapping(["v=data/voltage", "omega=data/speed"]))
     assert log.dt == pytest.approx(1e-3) and log.n == N
-    code, out, err = _run(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05",
+    code, out, err = run_cli(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05",
                            "-c", "v=data/voltage", "-c", "omega=data/speed"])
     assert "looks like milliseconds" not in " ".join(err), err
 
@@ -80,7 +67,7 @@ def test_time_in_ms_not_said_by_the_file_names_a_fix_that_applies(tmp_path, monk
     nptdms = pytest.importorskip("nptdms")
     from repo_paths import FIXTURES
 
-    t, v, w = _motor(3)
+    t, v, w = step_motor(3)
     wf = {"wf_increment": 1.0, "wf_start_offset": 0.0}
     monkeypatch.chdir(tmp_path)  # a short path: the line keeps its whole fix
     p = "log.tdms"
@@ -91,16 +78,16 @@ def test_time_in_ms_not_said_by_the_file_names_a_fix_that_applies(tmp_path, monk
             "0.001 s), and a .tdms file carries its own time: write wf_xunit_string 'ms' on its "
             "channels (unit_string on a time channel), which pmdcid reads")
     maps = ["-c", "v=data/voltage", "-c", "omega=data/speed"]
-    code, _, err = _run(["fit-mechanical", p, "-m", "m.json", "--km", "0.05", *maps])
+    code, _, err = run_cli(["fit-mechanical", p, "-m", "m.json", "--km", "0.05", *maps])
     assert code == 1 and err == [said + " (or --force to fit anyway)"], err
-    code, _, err = _run(["plan", "--check", p, "-m", FIXTURES / "paper" / "truth.json",
+    code, _, err = run_cli(["plan", "--check", p, "-m", FIXTURES / "paper" / "truth.json",
                          "-o", "pl", *maps])
     assert code == 1 and err == [said], err
     wf["wf_xunit_string"] = "ms"  # the fix it names
     with nptdms.TdmsWriter(p) as wr:
         wr.write_segment([nptdms.ChannelObject("data", "voltage", v, properties=wf),
                           nptdms.ChannelObject("data", "speed", w, properties=wf)])
-    code, _, err = _run(["fit-mechanical", p, "-m", "m.json", "--km", "0.05", *maps])
+    code, _, err = run_cli(["fit-mechanical", p, "-m", "m.json", "--km", "0.05", *maps])
     assert not [e for e in err if "looks like" in e], err
 
 
@@ -110,17 +97,17 @@ def test_empty_channel_named_by_a_mapping_says_it_has_no_samples(tmp_path):
     and ``channels`` did not list it. Now it is listed with 0 samples, and a mapping naming it
     is one line, exit 1, saying it is in the file but empty."""
     nptdms = pytest.importorskip("nptdms")
-    _, v, _ = _motor(4)
+    _, v, _ = step_motor(4)
     wf = {"wf_increment": 1e-3, "wf_start_offset": 0.0}
     p = tmp_path / "log.tdms"
     with nptdms.TdmsWriter(p) as wr:
         wr.write_segment([nptdms.ChannelObject("data", "voltage", v, properties=wf),
                           nptdms.ChannelObject("data", "speed", np.array([], float),
                                                properties=wf)])
-    code, out, _ = _run(["channels", p])
+    code, out, _ = run_cli(["channels", p])
     assert code == 0 and [ln.split()[:2] for ln in out.splitlines()[1:]] == [
         ["data/voltage", str(N)], ["data/speed", "0"]], out
-    code, _, err = _run(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05",
+    code, _, err = run_cli(["fit-mechanical", p, "-m", tmp_path / "m.json", "--km", "0.05",
                          "-c", "v=data/voltage", "-c", "omega=data/speed*rpm"])
     assert code == 1 and err == [f"error: {p}: signal 'data/speed' is in the file but has 0 "
                                  "samples (nothing was recorded in it): map a signal that has "

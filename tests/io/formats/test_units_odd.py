@@ -10,20 +10,14 @@ import warnings
 
 import numpy as np
 import pytest
+from read_util import STEP_N, step_motor
 
 from pmdcid.errors import LogError
 from pmdcid.io import parse_mapping, read_log
 
-N = 400
+N = STEP_N
 RPM = 60 / (2 * np.pi)
 
-
-def _motor(seed):
-    rng = np.random.default_rng(seed)
-    t = np.arange(N) * 1e-3
-    v = np.where(t >= 0.1, 6.0, 0.0)
-    w = np.where(t >= 0.1, 20.0 * (1 - np.exp(-np.clip(t - 0.1, 0, None) / 0.1)), 0.0)
-    return t, v, w + rng.normal(0, 0.02, N)
 
 
 def _read(p, mapping):
@@ -84,7 +78,7 @@ WRITERS = {".mf4": _mdf, ".tdms": _tdms, ".parquet": _parquet, ".wpilog": _wpilo
 
 @pytest.mark.parametrize("ext", list(WRITERS))
 def test_stored_rpm_is_applied(tmp_path, ext):
-    t, v, w = _motor(5)
+    t, v, w = step_motor(5)
     p = tmp_path / f"log{ext}"
     mapping = WRITERS[ext](p, t, v, w * RPM, "rpm")
     log, said = _read(p, mapping)
@@ -100,7 +94,7 @@ def test_stored_rpm_is_applied(tmp_path, ext):
 @pytest.mark.parametrize("ext", [".mf4", ".tdms"])
 def test_stored_unit_of_another_quantity_is_refused(tmp_path, ext):
     """A tachometer channel in V mapped bare to omega: the values are volts, not rad/s."""
-    t, v, w = _motor(6)
+    t, v, w = step_motor(6)
     p = tmp_path / f"log{ext}"
     mapping = WRITERS[ext](p, t, v, w / 150, "V")
     with pytest.raises(LogError, match=r"is stored in V \(the file says so\), which is no speed: "
@@ -109,7 +103,7 @@ def test_stored_unit_of_another_quantity_is_refused(tmp_path, ext):
 
 
 def test_unknown_stored_unit_is_said(tmp_path):
-    t, v, w = _motor(7)
+    t, v, w = step_motor(7)
     p = tmp_path / "log.tdms"
     mapping = _tdms(p, t, v, w, "counts/100ms")
     log, said = _read(p, mapping)
@@ -123,7 +117,7 @@ def test_parquet_time_in_ms_by_its_metadata(tmp_path):
     milliseconds') or, for a slow log, read 1000 x too slow; now converted to s."""
     pa = pytest.importorskip("pyarrow")
     pq = pytest.importorskip("pyarrow.parquet")
-    t, v, w = _motor(8)
+    t, v, w = step_motor(8)
     schema = pa.schema([pa.field("t", pa.float64(), metadata={"unit": "ms"}),
                         pa.field("v", pa.float64()), pa.field("omega", pa.float64())])
     p = tmp_path / "log.parquet"
