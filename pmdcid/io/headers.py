@@ -4,8 +4,11 @@ Rigs and spreadsheets export a column's quantity and unit in its header. When a 
 canonical column by name and no mapping names it, a header of the form ``QUANTITY [UNIT]`` or
 ``QUANTITY (UNIT)`` is taken as that canonical column, converted to SI, provided
 
-- QUANTITY is the canonical name or a plain word for it (:data:`WORDS`, any case), and
-- UNIT is a unit of that quantity (:data:`UNIT_TABLE`: its SI factor and its dimension).
+- QUANTITY is the canonical name or a plain word for it (:data:`WORDS`, any case; English,
+  and the words German, French and Spanish lab software writes: ``Drehzahl [U/min]``,
+  ``Vitesse (tr/min)``), and
+- UNIT is a unit of that quantity (:data:`UNIT_TABLE`: its SI factor and its dimension, or a
+  spelling of one, :data:`ALIASES` and :data:`NAMES`: :func:`unit_of`).
 
 Only one header may claim a column (two speed columns: neither is taken; the user maps one), and
 the rule never overrides a column of the canonical name or a ``-c``/``--map`` mapping. A bare word
@@ -21,13 +24,17 @@ import re
 
 #: plain words for each canonical column (compared in lower case)
 WORDS: dict[str, tuple[str, ...]] = {
-    "t": ("t", "time"),
-    "v": ("v", "u", "voltage", "volt", "armature voltage", "supply voltage", "applied voltage"),
-    "tau": ("tau", "torque", "force"),
-    "i": ("i", "current", "armature current"),
+    "t": ("t", "time", "zeit", "temps", "tiempo"),
+    "v": ("v", "u", "voltage", "volt", "armature voltage", "supply voltage", "applied voltage",
+          "spannung", "ankerspannung", "motorspannung", "tension", "voltaje", "tensión"),
+    "tau": ("tau", "torque", "force", "drehmoment", "moment", "kraft", "couple", "par"),
+    "i": ("i", "current", "armature current", "strom", "ankerstrom", "motorstrom", "courant",
+          "corriente"),
     "omega": ("omega", "w", "speed", "velocity", "angular speed", "angular velocity",
-              "rotor speed", "motor speed"),
-    "theta": ("theta", "angle", "position", "rotor angle", "motor angle", "pos"),
+              "rotor speed", "motor speed", "drehzahl", "geschwindigkeit",
+              "winkelgeschwindigkeit", "vitesse", "velocidad"),
+    "theta": ("theta", "angle", "position", "rotor angle", "motor angle", "pos", "winkel",
+              "drehwinkel", "ángulo", "angulo", "posición", "posicion"),
 }
 
 #: what each canonical column measures
@@ -54,6 +61,41 @@ UNIT_TABLE: dict[str, tuple[float, str]] = {
     "m": (1.0, "length"), "mm": (1e-3, "length"),
 }
 
+#: spellings loggers write for units of UNIT_TABLE (spaces removed); not "1/s", which one
+#: logger writes for rad/s and another (a rotational frequency, DIN 1301) for rev/s
+ALIASES = {"rad/sec": "rad/s", "U/min": "rpm", "1/min": "rpm", "min^-1": "rpm",
+           "min-1": "rpm", "rev/min": "rpm", "tr/min": "rpm", "rev/s": "rps", "U/s": "rps",
+           "tr/s": "rps", "volt": "V", "volts": "V", "amp": "A", "amps": "A",
+           "seconds": "s", "degree": "deg", "degrees": "deg"}
+#: units written by name (WPILib's units library: ``Volts.name()`` is "Volt",
+#: ``RotationsPerSecond.name()`` "Rotation per Second"; SysIdRoutineLog stores these in its
+#: entries' metadata), compared in lower case with single spaces, a plural "s" allowed
+NAMES = {"volt": "V", "millivolt": "mV", "amp": "A", "ampere": "A", "milliamp": "mA",
+         "milliampere": "mA", "second": "s", "millisecond": "ms", "microsecond": "us",
+         "radian": "rad", "rotation": "rev", "revolution": "rev", "turn": "rev", "degree": "deg",
+         "radian per second": "rad/s", "rotation per second": "rps",
+         "revolution per second": "rps", "rotation per minute": "rpm",
+         "revolution per minute": "rpm", "degree per second": "deg/s", "meter": "m",
+         "millimeter": "mm", "meter per second": "m/s", "newton meter": "Nm", "newton": "N"}
+
+
+def _named(unit: str) -> str | None:
+    """The UNIT_TABLE key of a unit written by name (:data:`NAMES`), or None."""
+    words = " ".join(unit.lower().replace("-", " ").split()).split(" per ")
+    singular = [w[:-1] if w.endswith("s") and w[:-1] in NAMES else w for w in words]
+    return NAMES.get(" per ".join(singular))
+
+
+def unit_of(unit: str) -> tuple[float, str] | None:
+    """(SI factor, dimension) of a unit as a file writes it (``rpm``, ``U/min``, ``Rotation
+    per Second``), or None when it is none the tool knows."""
+    key = unit.replace(" ", "")
+    hit = UNIT_TABLE.get(ALIASES.get(key, key))
+    if hit is None and (name := _named(unit)) is not None:
+        hit = UNIT_TABLE[name]
+    return hit
+
+
 _HEADER_RE = re.compile(r"^\s*([^\[\]()]+?)\s*[\[(]\s*([^\[\]()]+?)\s*[\])]\s*$")
 
 
@@ -63,10 +105,10 @@ def annotated(header: str) -> tuple[str, float] | None:
     if not m:
         return None
     word = " ".join(m.group(1).lower().replace("_", " ").split())
-    unit = m.group(2).replace(" ", "")
-    if unit not in UNIT_TABLE:
+    hit = unit_of(m.group(2))
+    if hit is None:
         return None
-    factor, dim = UNIT_TABLE[unit]
+    factor, dim = hit
     for canon, words in WORDS.items():
         if word in words and dim in DIMENSION[canon]:
             return canon, factor
@@ -84,4 +126,4 @@ def claimed(cols: list[str], taken) -> dict[str, tuple[str, float]]:
     return {canon: hits[0] for canon, hits in found.items() if len(hits) == 1}
 
 
-__all__ = ["UNIT_TABLE", "WORDS", "annotated", "claimed"]
+__all__ = ["ALIASES", "NAMES", "UNIT_TABLE", "WORDS", "annotated", "claimed", "unit_of"]

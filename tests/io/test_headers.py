@@ -87,3 +87,33 @@ def test_a_mapping_or_a_canonical_column_wins(tmp_path, rng):
     np.testing.assert_allclose(log["omega"], si["omega"], rtol=1e-12)
     with pytest.raises(LogError):
         read_log(_write(tmp_path / "e.csv", {"T (s)x": si["t"], "v": si["v"]}))
+
+
+def test_a_german_lab_csv_reads_without_a_mapping(tmp_path, rng):
+    """A lab CSV as German software writes it (semicolons, decimal commas, ``Zeit [ms]``,
+    ``Strom [mA]``, ``Drehzahl [U/min]``) reads as the canonical SI log, to the printed digits;
+    before, its words and ``U/min`` were unknown and the command asked for a mapping."""
+    si = _si(rng)
+    heads = {"Zeit [ms]": ("t", 1e3), "Spannung [V]": ("v", 1.0), "Strom [mA]": ("i", 1e3),
+             "Drehzahl [U/min]": ("omega", RPM)}
+    rows = np.column_stack([si[c] * k for c, k in heads.values()])
+    lines = [";".join(heads)] + [";".join(f"{x:.6f}".replace(".", ",") for x in r) for r in rows]
+    p = tmp_path / "messung.csv"
+    p.write_text("\n".join(lines) + "\n")
+    log = read_log(p)
+    for c, k in heads.values():
+        ref = si[c] - si[c][0] if c == "t" else si[c]
+        np.testing.assert_allclose(log.t if c == "t" else log[c], ref, rtol=0, atol=1e-6 / k)
+
+
+@pytest.mark.parametrize("header, canon, factor", [
+    ("Vitesse (tr/min)", "omega", 2 * math.pi / 60), ("Temps (s)", "t", 1.0),
+    ("Courant (mA)", "i", 1e-3), ("velocidad [1/min]", "omega", 2 * math.pi / 60),
+    ("Drehwinkel [deg]", "theta", math.pi / 180), ("Drehmoment [Nm]", "tau", 1.0)])
+def test_other_languages_words_and_unit_spellings(header, canon, factor):
+    assert annotated(header) == (canon, pytest.approx(factor))
+
+
+def test_a_foreign_word_with_a_unit_of_another_quantity_is_not_taken():
+    for h in ("Drehzahl [V]", "Strom (U/min)", "vitesse (1/s)"):
+        assert annotated(h) is None, h

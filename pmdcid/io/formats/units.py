@@ -3,13 +3,13 @@ field metadata ``unit``, wpilog metadata ``{"unit": ...}``), applied where the m
 signal's unit to the file.
 
 A canonical column read from a signal as it stands (``-c omega=speed``, or a signal named
-``omega``) whose stored unit is one of :data:`pmdcid.io.headers.UNIT_TABLE` (or a spelling of
-one, :data:`ALIASES`) is converted to SI, with one warning naming the conversion: an MDF speed
-channel in ``rpm`` was read as rad/s, a J 9.5 times too small with no word. A stored unit of
-another quantity (a tachometer's ``V`` mapped to omega) is refused: the mapping must give its
-scale. A stored unit the tool does not know is read as it stands, and a warning says so. A
-mapping with a scale, an offset or an expression (``-c omega=speed*rpm``) is the whole
-conversion: the stored unit is not applied on top of it.
+``omega``) whose stored unit is one of :data:`pmdcid.io.headers.UNIT_TABLE` (or a spelling
+of one: :func:`pmdcid.io.headers.unit_of`) is converted to SI, with one warning naming the
+conversion: an MDF speed channel in ``rpm`` was read as rad/s, a J 9.5 times too small with no
+word. A stored unit of another quantity (a tachometer's ``V`` mapped to omega) is refused: the
+mapping must give its scale. A stored unit the tool does not know is read as it stands, and a
+warning says so. A mapping with a scale, an offset or an expression (``-c omega=speed*rpm``)
+is the whole conversion: the stored unit is not applied on top of it.
 """
 
 from __future__ import annotations
@@ -17,23 +17,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 from pmdcid.errors import LogError, warn
-from pmdcid.io.headers import DIMENSION, UNIT_TABLE
+from pmdcid.io.headers import DIMENSION, unit_of
 
-#: spellings loggers write for units of UNIT_TABLE (spaces removed); not "1/s", which one
-#: logger writes for rad/s and another (a rotational frequency, DIN 1301) for rev/s
-ALIASES = {"rad/sec": "rad/s", "U/min": "rpm", "1/min": "rpm", "min^-1": "rpm",
-           "min-1": "rpm", "rev/min": "rpm", "rev/s": "rps", "volt": "V", "volts": "V",
-           "amp": "A", "amps": "A", "seconds": "s", "degree": "deg", "degrees": "deg"}
-#: units written by name (WPILib's units library: ``Volts.name()`` is "Volt",
-#: ``RotationsPerSecond.name()`` "Rotation per Second"; SysIdRoutineLog stores these in its
-#: entries' metadata), compared in lower case with single spaces, a plural "s" allowed
-NAMES = {"volt": "V", "millivolt": "mV", "amp": "A", "ampere": "A", "milliamp": "mA",
-         "milliampere": "mA", "second": "s", "millisecond": "ms", "microsecond": "us",
-         "radian": "rad", "rotation": "rev", "revolution": "rev", "turn": "rev", "degree": "deg",
-         "radian per second": "rad/s", "rotation per second": "rps",
-         "revolution per second": "rps", "rotation per minute": "rpm",
-         "revolution per minute": "rpm", "degree per second": "deg/s", "meter": "m",
-         "millimeter": "mm", "meter per second": "m/s", "newton meter": "Nm", "newton": "N"}
 #: stored units that say "no unit"
 NO_UNIT = {"", "-", "1", "none", "n/a", "na"}
 #: canonical column -> its SI unit and what it is, for messages
@@ -49,21 +34,6 @@ def _bare(spec) -> bool:
     return rhs.strip().lstrip("-").strip().strip('"') == spec.source
 
 
-def _named(unit: str) -> str | None:
-    """The UNIT_TABLE key of a unit written by name (:data:`NAMES`), or None."""
-    words = " ".join(unit.lower().replace("-", " ").split()).split(" per ")
-    singular = [w[:-1] if w.endswith("s") and w[:-1] in NAMES else w for w in words]
-    return NAMES.get(" per ".join(singular))
-
-
-def _lookup(unit: str) -> tuple[float, str] | None:
-    key = unit.replace(" ", "")
-    hit = UNIT_TABLE.get(ALIASES.get(key, key))
-    if hit is None and (name := _named(unit)) is not None:
-        hit = UNIT_TABLE[name]
-    return hit
-
-
 def apply_stored_units(specs: dict, units: dict, p: str) -> dict:
     """``specs`` (canonical column -> :class:`~pmdcid.io.mapping.ColumnSpec`) with the file's
     stored ``units`` (signal -> unit or None) applied where the mapping is bare (module doc)."""
@@ -74,7 +44,7 @@ def apply_stored_units(specs: dict, units: dict, p: str) -> dict:
         if base not in SI or unit is None or unit.strip().lower() in NO_UNIT or not _bare(spec):
             continue
         si, what = SI[base]
-        hit = _lookup(unit)
+        hit = unit_of(unit)
         if hit is None:
             unknown.append(f"'{spec.source}' is stored in '{unit}'")
             continue
