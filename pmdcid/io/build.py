@@ -20,6 +20,7 @@ from pmdcid.errors import LogError, short_list, warn
 from pmdcid.io.checks import held_glitches
 from pmdcid.io.clock import INPUTS
 from pmdcid.io.csvsource import column_specs, is_datetime_column, numeric_column
+from pmdcid.io.headers import unit_of
 from pmdcid.io.mapping import CANONICAL, SETPOINTS, ColumnMap, ColumnSpec, parse_mapping
 
 
@@ -56,7 +57,7 @@ def frame_columns(df, mapping: ColumnMap, path: str, units: dict | None = None):
     cols = [str(c) for c in df.columns]
     specs, skipped = column_specs(cols, mapping, CANONICAL, path)
     if "t" not in specs:
-        specs["t"] = _time_spec(df, cols, specs, skipped, path)
+        specs["t"] = _time_spec(df, cols, specs, skipped, path, units)
     if units:
         from pmdcid.io.formats.units import apply_stored_units
 
@@ -83,13 +84,30 @@ def frame_columns(df, mapping: ColumnMap, path: str, units: dict | None = None):
     return data, extra, skipped
 
 
-def _time_spec(df, cols: list[str], specs: dict, skipped: dict, path: str) -> ColumnSpec:
-    """The time column of a table without a ``t`` column or mapping: the one column of ISO 8601
-    date-times, if there is one; else a :class:`LogError` saying why there is none."""
+def _stored_time(units: dict | None, name: str) -> bool:
+    """True when the file stores column ``name`` with a unit of time (a Parquet timestamp)."""
+    unit = (units or {}).get(name)
+    hit = unit_of(unit) if unit else None
+    return hit is not None and hit[1] == "time"
+
+
+def _time_spec(df, cols: list[str], specs: dict, skipped: dict, path: str,
+               units: dict | None = None) -> ColumnSpec:
+    """The time column of a table without a ``t`` column or mapping: the one column that holds
+    times as such (ISO 8601 date-times, pandas date-times or durations, a column the file
+    stores in a unit of time), if there is one; else a :class:`LogError` saying why there is
+    none."""
     used = {r for spec in specs.values() for r in spec.refs}
-    dates = [c for c in cols if c not in used and is_datetime_column(df, c)]
+    dates = [c for c in cols if c not in used
+             and (is_datetime_column(df, c) or _stored_time(units, c))]
     if len(dates) == 1:
+        kind = getattr(getattr(df[dates[0]], "dtype", None), "kind", "")
+        if _stored_time(units, dates[0]) or kind == "m":  # (date-time text says so itself)
+            warn(f"column '{dates[0]}' is stored as times: read as t, in seconds", path)
         return ColumnSpec("t", dates[0], text=f"t={dates[0]}")
+    if len(dates) > 1:
+        raise LogError(f"has no time column 't' and several columns of times "
+                       f"({short_list(dates)}): map one with -c t=SOURCE", path)
     seps = [(";", "semicolon"), ("\t", "tab"), ("|", "bar"), (" ", "space")]
     sep = next((w for c, w in seps if len(cols) == 1 and c in cols[0]), None)
     if sep:
@@ -224,11 +242,31 @@ def log_from_frame(log_type: type, df, mapping: ColumnMap | None = None,
         raise LogError(f"names column(s) {', '.join(dups)} more than once: rename one", path)
     if len(df) == 0:
         raise LogError("has no data rows", path)
-    df = df.set_axis(cols, axis=1)
+    df = _index_as_column(df.set_axis(cols, axis=1), mapping)
     data, extra, skipped = frame_columns(df, mapping, path)
     log = validated_log(log_type, path, data, extra, meta, mapping.cutoff_hz, skipped=skipped)
     log.sources = mapping.sources(data)
     return log
+
+
+def _index_as_column(df, mapping: ColumnMap):
+    """``df`` with its index as a column where the index holds the time, as pandas keeps time
+    series: date-times, durations, or numbers under a name (``t``, ``time [ms]``); the index
+    is then read as any column (a date-time column is the time unless another is mapped).
+    Unchanged when ``df`` has a ``t`` column or ``t`` is mapped, or the index is pandas'
+    default row numbering."""
+    import pandas as pd
+
+    idx = df.index
+    if "t" in df.columns or "t" in mapping.specs or isinstance(idx, pd.MultiIndex):
+        return df
+    timed = isinstance(idx, (pd.DatetimeIndex, pd.TimedeltaIndex))
+    if not timed and (idx.name is None or idx.dtype.kind not in "iuf"):
+        return df
+    name = str(idx.name) if idx.name is not None else "time"
+    if name in df.columns:
+        return df
+    return df.reset_index(names=name)
 
 
 def log_from_arrays(log_type: type, t, name: str = "<arrays>", cutoff_hz: float | None = None,

@@ -285,9 +285,14 @@ _DATETIME = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}([.,]\d+)?)?\s*
 
 
 def is_datetime_column(df, name: str) -> bool:
-    """True when column ``name`` of ``df`` is text whose first cell is an ISO 8601 date-time."""
+    """True when column ``name`` of ``df`` holds times as such: text whose first cell is an ISO
+    8601 date-time, or pandas date-times or durations (``datetime64``, ``timedelta64``)."""
     raw = df[name]
-    if isinstance(raw, np.ndarray) or raw.dtype.kind in "biufcmM":
+    if isinstance(raw, np.ndarray):
+        return False
+    if raw.dtype.kind in "mM":
+        return True
+    if raw.dtype.kind in "biufc":
         return False
     k = raw.first_valid_index()
     return k is not None and bool(_DATETIME.match(str(raw.loc[k]).strip()))
@@ -317,9 +322,14 @@ def numeric_column(df, src: str, p: str, strict: bool = True, times: bool = Fals
         return np.array(raw, dtype=float)  # a copy: no view keeps the whole table alive
     import pandas as pd
 
+    if times and raw.dtype.kind == "m":  # durations: elapsed seconds as they stand
+        return raw.dt.total_seconds().to_numpy(dtype=float)
     if times and is_datetime_column(df, src):
-        stamps = pd.to_datetime(raw, format="ISO8601", utc=True, errors="coerce")
-        return _seconds(stamps, str(raw.loc[raw.first_valid_index()]).strip(), src, p)
+        text = raw.dtype.kind != "M"
+        stamps = pd.to_datetime(raw, format="ISO8601" if text else None, utc=True,
+                                errors="coerce")
+        first = raw.loc[raw.first_valid_index()] if raw.first_valid_index() is not None else ""
+        return _seconds(stamps, str(first).strip(), src, p)
     col = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
     if strict and not pd.api.types.is_numeric_dtype(raw.dtype):  # text cells (object or str)
         cells = raw.astype(str).str.strip()

@@ -1,4 +1,7 @@
-"""pmdcid/io/build.py: filling short NaN gaps, and columns that hold no numbers at all."""
+"""pmdcid/io/build.py: filling short NaN gaps, columns that hold no numbers at all, and a
+DataFrame's time in its index or in a date-time column."""
+
+import warnings
 
 import numpy as np
 import pytest
@@ -51,3 +54,43 @@ def test_an_empty_column_is_as_if_absent(tmp_path):
     with pytest.raises(LogError, match=r"needs column\(s\) i for R; column 'i' is empty; "
                                        r"it has v, omega, theta"):
         log.require("i", purpose="R")
+
+
+def _frame_parts(rng, n=600):
+    t = np.arange(n) * 1e-3
+    v = np.where(t > 0.1, 2.0, 0.0)
+    return t, v, np.cumsum(v) * 0.01 + rng.normal(0, 1e-3, n)
+
+
+@pytest.mark.parametrize("index", ["datetime", "timedelta", "named t", "named time [ms]"])
+def test_a_dataframe_whose_time_is_its_index(rng, index):
+    """pandas keeps a time series' time in its index: before, every such frame was refused
+    ('has no time column t'); now the index is read as a column of that name, so a date-time
+    or duration index is the time, and a numeric one is read by its name as any column."""
+    import pandas as pd
+
+    from pmdcid.io.logs import Log
+
+    t, v, w = _frame_parts(rng)
+    idx = {"datetime": pd.date_range("2026-01-01 12:00", periods=len(t), freq="1ms"),
+           "timedelta": pd.to_timedelta(t, unit="s"), "named t": pd.Index(t, name="t"),
+           "named time [ms]": pd.Index(t * 1e3, name="time [ms]")}[index]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        log = Log.from_dataframe(pd.DataFrame({"v": v, "omega": w}, index=idx))
+    assert log.n == len(t) and log.dt == pytest.approx(1e-3, rel=1e-9)
+    np.testing.assert_array_equal(log["v"], v)
+
+
+def test_a_datetime64_column_is_the_time_and_a_default_index_is_not(rng):
+    import pandas as pd
+
+    from pmdcid.io.logs import Log
+
+    t, v, w = _frame_parts(rng)
+    stamps = pd.date_range("2026-01-01 23:59:59.5", periods=len(t), freq="1ms", tz="UTC")
+    with pytest.warns(UserWarning, match="column 'stamp' holds date-times"):
+        log = Log.from_dataframe(pd.DataFrame({"stamp": stamps, "v": v, "omega": w}))
+    np.testing.assert_allclose(log.t, t, atol=1e-9)
+    with pytest.raises(LogError, match="has no time column 't'"):
+        Log.from_dataframe(pd.DataFrame({"v": v, "omega": w}))  # a RangeIndex is no time

@@ -2,7 +2,8 @@
 
 Every numeric or boolean column is a signal by its name; a struct column's fields are named
 ``column.field``; a timestamp column is in seconds (from 1970: ``t`` then starts where the file
-starts, as a CSV's does); a field's ``unit`` metadata (if the writer stored one) is its unit.
+starts, as a CSV's does), and is the time when the file has no ``t`` and no other column of
+times; a field's ``unit`` metadata (if the writer stored one) is its unit.
 A file that starts as Parquet but lacks the footer Parquet writes last was cut short: one line
 says so.
 """
@@ -58,7 +59,8 @@ def _flatten(name: str, arr, fld, pa, out: dict[str, Series]) -> None:
         return
     x = _column(arr, typ, pa)
     if x is not None:
-        out[name] = Series(x, None, _unit(fld))
+        timed = pa.types.is_timestamp(typ) or pa.types.is_duration(typ)
+        out[name] = Series(x, None, _unit(fld) or ("s" if timed else None))
 
 
 def load(path: str, wanted: list[str] | None = None) -> Signals:
