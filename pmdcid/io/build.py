@@ -242,23 +242,23 @@ def log_from_frame(log_type: type, df, mapping: ColumnMap | None = None,
         raise LogError(f"names column(s) {', '.join(dups)} more than once: rename one", path)
     if len(df) == 0:
         raise LogError("has no data rows", path)
-    df = _index_as_column(df.set_axis(cols, axis=1), mapping)
+    df = _index_as_column(df.set_axis(cols, axis=1))
     data, extra, skipped = frame_columns(df, mapping, path)
     log = validated_log(log_type, path, data, extra, meta, mapping.cutoff_hz, skipped=skipped)
     log.sources = mapping.sources(data)
     return log
 
 
-def _index_as_column(df, mapping: ColumnMap):
+def _index_as_column(df):
     """``df`` with its index as a column where the index holds the time, as pandas keeps time
     series: date-times, durations, or numbers under a name (``t``, ``time [ms]``); the index
     is then read as any column (a date-time column is the time unless another is mapped).
-    Unchanged when ``df`` has a ``t`` column or ``t`` is mapped, or the index is pandas'
-    default row numbering."""
+    A mapping may name it (``columns={"t": "stamp"}`` for an index named ``stamp``). Unchanged
+    when a column has the index's name, or the index is pandas' default row numbering."""
     import pandas as pd
 
     idx = df.index
-    if "t" in df.columns or "t" in mapping.specs or isinstance(idx, pd.MultiIndex):
+    if isinstance(idx, pd.MultiIndex):
         return df
     timed = isinstance(idx, (pd.DatetimeIndex, pd.TimedeltaIndex))
     if not timed and (idx.name is None or idx.dtype.kind not in "iuf"):

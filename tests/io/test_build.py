@@ -94,3 +94,14 @@ def test_a_datetime64_column_is_the_time_and_a_default_index_is_not(rng):
     np.testing.assert_allclose(log.t, t, atol=1e-9)
     with pytest.raises(LogError, match="has no time column 't'"):
         Log.from_dataframe(pd.DataFrame({"v": v, "omega": w}))  # a RangeIndex is no time
+
+
+def test_a_mapping_names_the_index(rng):
+    import pandas as pd
+
+    from pmdcid.io.logs import Log
+
+    t, v, w = _frame_parts(rng)
+    df = pd.DataFrame({"v": v, "omega": w}, index=pd.Index(t * 1e3, name="stamp"))
+    log = Log.from_dataframe(df, columns={"t": "stamp*ms"})
+    np.testing.assert_allclose(log.t, t, atol=1e-12)
