@@ -141,7 +141,7 @@ def repeat_floor(runs) -> list[float]:
 
 # -- the models ---------------------------------------------------------------------------------
 def predict(model, log) -> float:
-    from pmdcid.report.compare import simulate_for
+    from pmdcid.simulate.measured import simulate_for
 
     return nrmse(simulate_for(log, model).omega, log["omega"])
 
@@ -245,7 +245,7 @@ def lag_drift(rig: Rig, model) -> list[str]:
     (:mod:`pmdcid.diagnose.timing`), one description each."""
     from pmdcid.diagnose.timing import describe_lag, lag_profile
     from pmdcid.io.derive import noise_std
-    from pmdcid.report.compare import simulate_for
+    from pmdcid.simulate.measured import simulate_for
 
     out = []
     for names in rig.heldout.values():

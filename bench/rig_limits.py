@@ -41,7 +41,7 @@ from bench import closedloop, realdata  # noqa: E402
 def _refit(model, names, logs, free_sign=()):
     """``model`` with ``names`` refitted by speed simulation error (each log's NRMSE squared,
     summed) on ``logs``: a copy. Every parameter is kept >= 0 but those of ``free_sign``."""
-    from pmdcid.report.compare import simulate_for
+    from pmdcid.simulate.measured import simulate_for
 
     work = model.copy()
     x0 = np.array([work.value(n) for n in names])
@@ -73,7 +73,7 @@ def micromouse() -> None:
     from pmdcid.identify.runners import per_volt, stage_nonlinear
     from pmdcid.model import Model
     from pmdcid.model.lumped import mark_lumped
-    from pmdcid.report.compare import simulate_for
+    from pmdcid.simulate.measured import simulate_for
 
     fit = [closedloop.uniform_log(closedloop.MICROMOUSE / n) for n in closedloop.FIT]
     held = [closedloop.uniform_log(closedloop.MICROMOUSE / n) for n in closedloop.HELD]

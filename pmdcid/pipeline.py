@@ -226,6 +226,7 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         work.set("km", km, stage="datasheet")
     plan = [classify(lg) for lg in logs]
     res = IdentifyResult(work, plan)
+    res.fitted_on(logs, model)
     groups = {k: [lg for lg, p in zip(logs, plan, strict=True) if p.kind == k]
               for k in ("blocked", "step", "rich")}
     if groups["blocked"]:

@@ -507,7 +507,7 @@ def test_an_aprbs_whose_levels_do_not_settle_is_fitted_as_rich_not_as_steps():
     gave a latency that the joint fit kept (at c558e30: sensor_delay, another APRBS predicted
     at NRMSE 0.40). Sorted as rich: no latency, another APRBS predicted to the noise's level."""
     from pmdcid.pipeline import identify
-    from pmdcid.report.compare import simulate_for
+    from pmdcid.simulate.measured import simulate_for
 
     def aprbs_log(seed):
         rng = np.random.default_rng(seed)

@@ -15,6 +15,7 @@ def diagnose_logs(logs, model, effects=None, **opts):
     res = diagnose(logs_for(logs, model), model, effects=effects, **opts)
     if is_lumped(model):
         mark_lumped(res.model)
+    res.fitted_on(logs, model)
     return res
 
 

@@ -69,6 +69,47 @@ class ResultProtocol:
 
         return rows_frame(self.rows())
 
+    def plot(self, logs=None, *, model=None):
+        """The fitted model beside the measurements, one panel per log (matplotlib Figure): the
+        speed (a blocked rotor's current) measured and simulated from each log's measured
+        start, with its NRMSE. ``logs``: default the logs the result was fitted on;
+        ``model``: default the model the result makes (:meth:`fitted_model`)."""
+        from pmdcid.errors import PmdcidError
+        from pmdcid.io.plot import plot_fit
+        from pmdcid.simulate.measured import fit_rows
+
+        logs = getattr(self, "_fitted_on", (None, None))[0] if logs is None else logs
+        if logs is None:
+            raise PmdcidError("this result does not hold the logs it was fitted on: give them, "
+                              "result.plot(logs)")
+        rows, left = fit_rows(list(logs) if isinstance(logs, list | tuple) else [logs],
+                              self.fitted_model() if model is None else model)
+        labelled = [(f"{name}: {signal} NRMSE {nrmse_text(nrmse(sim, meas), 3)}", t, signal,
+                     meas, sim) for name, t, signal, meas, sim in rows]
+        return plot_fit(labelled, type(self).__name__, left)
+
+    def fitted_model(self):
+        """The model this result makes: its own ``model`` (identify, diagnose), else the model
+        it was fitted from with the result applied (a stage's result)."""
+        from pmdcid.errors import PmdcidError
+        from pmdcid.model import Model
+
+        own = getattr(self, "model", None)
+        if isinstance(own, Model):
+            return own
+        base = getattr(self, "_fitted_on", (None, None))[1]
+        if base is None:
+            raise PmdcidError("this result does not hold the model it was fitted from: give "
+                              "one, result.plot(logs, model=...)")
+        out = base.copy()
+        self.apply(out)
+        return out
+
+    def fitted_on(self, logs, model) -> None:
+        """Keep the logs this result was fitted on and the model it started from (references:
+        nothing is copied), for :meth:`plot` and :meth:`fitted_model`."""
+        self._fitted_on = (list(logs), model)
+
     def table(self) -> str:  # pragma: no cover - every result defines its own
         raise NotImplementedError
 

@@ -24,9 +24,12 @@ def fit_stage(fit, logs, model):
     a per-volt model (:func:`lumped_if_wanted`), the result relabelled per volt
     (:func:`per_volt`) when it was fitted so. ``model`` is not modified."""
     work = lumped_if_wanted(logs, model.copy())
+    start = work.copy()
     result = fit(logs, work)
     if is_lumped(work):
         per_volt(result)
+    if hasattr(result, "fitted_on"):  # result.plot(): these logs, from this model
+        result.fitted_on(logs, start)
     return result
 
 

@@ -1,4 +1,5 @@
-"""Quick looks for a notebook: ``Log.plot()`` and ``SimResult.plot()`` (matplotlib).
+"""Quick looks for a notebook: ``Log.plot()``, ``SimResult.plot()`` and a fit result's
+``plot()`` (matplotlib).
 
 One panel per signal sharing the time axis, the input (``v`` or ``tau``) on top; each returns
 the matplotlib Figure (drawn with pyplot, so a notebook shows it and a script can ``show()``
@@ -44,6 +45,36 @@ def plot_columns(t, columns: dict[str, np.ndarray], title: str, styles: dict | N
     return fig
 
 
+#: at most this many logs drawn by :func:`plot_fit` (the report draws every log)
+MAX_FIT_PANELS = 8
+
+
+def plot_fit(rows: list[tuple], title: str, left: list[str] | None = None):
+    """A fit at a glance, one panel per log: ``rows`` of (label, t [s], signal, measured,
+    simulated), the measurement in black and the model in red, each panel titled by its label;
+    logs beyond :data:`MAX_FIT_PANELS` and ``left`` (logs not drawn, with why) are named under
+    the figure."""
+    import matplotlib.pyplot as plt
+
+    shown = rows[:MAX_FIT_PANELS]
+    fig, axes = plt.subplots(max(len(shown), 1), 1, squeeze=False,
+                             figsize=(9, 1.9 * max(len(shown), 1) + 0.8))
+    for ax, (label, t, signal, meas, sim) in zip(axes[:, 0], shown, strict=False):
+        ax.plot(t, meas, color="k", lw=1.0, label="measured")
+        ax.plot(t, sim, color="tab:red", lw=1.2, alpha=0.85, label="model")
+        ax.set_ylabel(LABELS.get(signal, signal))
+        ax.set_title(label, fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.suptitle(title, fontsize=10)
+    unshown = [r[0] for r in rows[MAX_FIT_PANELS:]] + list(left or [])
+    if unshown:
+        fig.text(0.01, 0.005, "not drawn: " + ", ".join(unshown)[:300], fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
 def describe(t: np.ndarray) -> str:
     """``12000 samples, 0-12 s at 1000 Hz`` for a repr."""
     n = len(t)
@@ -54,4 +85,4 @@ def describe(t: np.ndarray) -> str:
     return f"{n} samples, {t[0]:.4g}-{t[-1]:.4g} s{rate}"
 
 
-__all__ = ["LABELS", "ORDER", "describe", "plot_columns"]
+__all__ = ["LABELS", "MAX_FIT_PANELS", "ORDER", "describe", "plot_columns", "plot_fit"]

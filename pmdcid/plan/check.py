@@ -169,7 +169,7 @@ def _speed_against(res: CheckResult, logs, model: Model) -> None:
     """The logs' measured speed against the model's simulated one, as report and diagnose
     judge it (:func:`~pmdcid.fit.results.speed_against`): a finding, warned about."""
     from pmdcid.fit.results import speed_against
-    from pmdcid.report.compare import simulate_for
+    from pmdcid.simulate.measured import simulate_for
 
     pairs = []
     for lg in logs:

@@ -155,7 +155,7 @@ def _comparable(logs, model: Model) -> list:
     """The logs the model can be compared on: a blocked-rotor log measures only the current,
     which a lumped (per-volt) model does not simulate; such logs are left out with a warning
     (all of them: an error saying so)."""
-    from pmdcid.report.compare import predicts_current
+    from pmdcid.simulate.measured import predicts_current
 
     if predicts_current(model):
         return list(logs)

@@ -10,13 +10,8 @@ import numpy as np
 from pmdcid.errors import LogError
 from pmdcid.model import Model
 from pmdcid.report.metrics import lag_step_for, signal_metrics, speed_threshold
-from pmdcid.simulate import (
-    SimResult,
-    blocked_rotor,
-    input_is_torque,
-    param_values,
-    simulate_values,
-)
+from pmdcid.simulate import SimResult, param_values
+from pmdcid.simulate.measured import compared_signals, simulate_for
 
 #: signals compared, in display order, with their units
 SIGNALS = {"omega": "rad/s", "theta": "rad", "i": "A"}
@@ -52,23 +47,6 @@ def figure_view(cmp: LogComparison) -> tuple[LogComparison, int]:
     return dataclasses.replace(cmp, log=slim, sim=sim, low=None), size
 
 
-def simulate_for(log, model: Model) -> SimResult:
-    """Simulate ``model`` on the log's input from the state its first samples measured
-    (:mod:`pmdcid.simulate.initial`: rest unless it starts turning); a blocked rotor is held
-    still; a lumped model takes the voltage through the torque path."""
-    from pmdcid.simulate.initial import initial_state, true_start
-
-    torque = input_is_torque(log, model)
-    blocked = log.blocked
-    vals = param_values(model, torque)
-    if blocked:
-        vals = blocked_rotor(vals)
-    x0 = true_start(initial_state(log), vals)
-    if blocked:
-        x0[1] = 0.0
-    return simulate_values(log.t, log.u, vals, torque, x0=x0)
-
-
 def start_of(sim: SimResult) -> dict:
     """The state a simulation started from (its first sample): i [A] (None for a torque-driven
     one), the rotor's omega [rad/s] and theta [rad]."""
@@ -83,29 +61,6 @@ def logged_units(log, signals) -> dict:
     cols = [*signals, log.drive]
     return {c: {"source": src, "scale": k, "offset": b}
             for c, (src, k, b) in getattr(log, "sources", {}).items() if c in cols and k != 0}
-
-
-def predicts_current(model: Model | None) -> bool:
-    """A lumped (per-volt) model simulates no current: a log's current is not compared with it.
-    Before, a log with a current column (a lab rig's, identified without --km beside
-    blocked-rotor steps) stopped report, and identify -o after all its fits, with 'the model's
-    simulated i is not finite on this log'."""
-    from pmdcid.model.lumped import is_lumped
-
-    return model is None or not is_lumped(model)
-
-
-def compared_signals(log, model: Model | None = None) -> list[str]:
-    """The measured signals the model predicts: speed and angle (not for a blocked rotor), and
-    current unless the log is torque-driven or the model lumped (:func:`predicts_current`)."""
-    blocked = log.blocked
-    out = [s for s in ("omega", "theta") if log.compares(s) and not blocked]
-    if log.compares("i") and predicts_current(model):
-        out.append("i")
-    if not out:
-        raise LogError("has nothing to compare the model with: it needs omega, theta or "
-                       "(voltage-driven) i", log.path)
-    return out
 
 
 def compare_log(log, model: Model, name: str) -> LogComparison:

@@ -125,3 +125,66 @@ def test_an_estimate_the_logs_do_not_determine_leaves_what_other_data_determined
     assert m.value("bc") == 0.2  # none before
     write_estimate(m, fitted("bv", 0.02, 2e-4, "N m s/rad"), "fit-nonlinear")
     assert m.value("bv") == 0.02  # determined here: written
+
+
+def _motor_logs(rng):
+    """A blocked-rotor step and a free step of one SI motor, simulated by pmdcid with noise."""
+    import pmdcid
+    from pmdcid.model import Model
+    from pmdcid.simulate import blocked_rotor, param_values, simulate_values
+
+    truth = Model()
+    for k, v in dict(R=2.0, L=4e-3, km=0.05, J=2e-5, bv=1e-5, bc=2e-3, dz=0.0).items():
+        truth.set(k, v)
+    t = np.arange(3000) * 1e-3
+    v = np.where(t >= 0.1, 3.0, 0.0)
+    vals = param_values(truth)
+    free = simulate_values(t, v, vals)
+    held = simulate_values(t[:400], v[:400], blocked_rotor(vals))
+    blocked = pmdcid.Log.from_arrays(t[:400], v=v[:400],
+                                     i=held.i + rng.normal(0, 5e-3, 400), name="blocked")
+    step = pmdcid.Log.from_arrays(t, v=v, i=free.i + rng.normal(0, 5e-3, t.size),
+                                  omega=free.omega + rng.normal(0, 0.05, t.size), name="step")
+    return truth, blocked, step
+
+
+def test_a_stage_result_plots_its_fitted_model_beside_each_log(rng):
+    """``result.plot()`` (as lmfit's): one panel per log the result was fitted on, the
+    measurement and the simulation of the model the result makes (the model it was fitted
+    from, the result applied) from the log's measured start; a log the model cannot simulate
+    yet is named under the figure, not drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import pmdcid
+    from pmdcid.simulate.measured import simulate_for
+
+    truth, blocked, step = _motor_logs(rng)
+    start = truth.copy()
+    start.set("J", 3e-5)
+    res = pmdcid.fit_nonlinear([step], start, free=["J"], priors=False)
+    fitted = res.fitted_model()
+    assert fitted.value("J") == res.estimates["J"].value != start.value("J")
+    fig = res.plot()
+    (ax,) = fig.axes
+    meas, model = (line.get_ydata() for line in ax.lines)
+    np.testing.assert_array_equal(meas, step["omega"])
+    np.testing.assert_array_equal(model, simulate_for(step, fitted).omega)
+    assert "NRMSE" in ax.get_title()
+    plt.close(fig)
+    elec = pmdcid.fit_electrical([blocked])  # R, L alone: the held rotor's current is drawn
+    fig = elec.plot([blocked, step])
+    assert len(fig.axes) == 1 and any("not drawn: step" in x.get_text() for x in fig.texts)
+    np.testing.assert_array_equal(fig.axes[0].lines[0].get_ydata(), blocked["i"])
+    plt.close(fig)
+
+
+def test_a_result_without_its_logs_says_what_to_give():
+    from pmdcid.errors import PmdcidError
+    from pmdcid.identify.linstart import LinearStart
+
+    res = LinearStart.__new__(LinearStart)
+    with pytest.raises(PmdcidError, match=r"give them, result.plot\(logs\)"):
+        res.plot()
