@@ -48,10 +48,31 @@ def logs_of(logs, name: str = "logs", mapping=None, defer: bool = False) -> list
         if not isinstance(lg, (Log, str, os.PathLike)):
             raise TypeError(f"{name}[{k}] must be a Log or a log file's path, not "
                             f"{type(lg).__name__}")
+    logs = matched(logs)
     if not logs:
         raise LogError("no logs given")
     refuse_repeated_logs(logs)
     return [lg if isinstance(lg, Log) else read_log(lg, mapping, defer) for lg in logs]
+
+
+def matched(logs) -> list:
+    """``logs`` with each path that is a pattern (``*``, ``?``, ``[``) and names no file itself
+    replaced by the files it matches, sorted: a notebook's ``"logs/step_*.csv"``, or a shell
+    that does not expand patterns (Windows' cmd and PowerShell pass them as written). A
+    pattern that matches nothing is one line."""
+    import glob
+
+    out = []
+    for lg in logs:
+        p = os.fspath(lg) if isinstance(lg, (str, os.PathLike)) else None
+        if p is None or not any(c in p for c in "*?[") or os.path.lexists(p):
+            out.append(lg)
+            continue
+        hits = sorted(glob.glob(p))
+        if not hits:
+            raise LogError("no log file matches this pattern (check the path)", p)
+        out += hits
+    return out
 
 
 def _content_hash(path: str) -> str | None:

@@ -167,3 +167,24 @@ def test_the_same_log_object_twice_is_refused():
 
     refuse_repeated_logs([lg, other, str(PAPER_DIR / "step_1.0V.csv"),
                           str(PAPER_DIR / "step_2.0V.csv")])
+
+
+def test_a_pattern_the_shell_did_not_expand_reads_the_files_it_matches(tmp_path):
+    """``"blocked_*.csv"`` as written (a notebook, Windows' cmd and PowerShell pass patterns
+    unexpanded): before, 'no such log file'; now the files it matches, sorted, exactly as if
+    listed. A pattern that matches nothing says so; a file whose name holds '[' is itself."""
+    for v in ("1.0", "2.0"):
+        shutil.copy(PAPER_DIR / f"blocked_{v}V.csv", tmp_path / f"blocked_{v}V.csv")
+    listed = api.fit_electrical(sorted(str(p) for p in tmp_path.glob("blocked_*.csv")))
+    by_pattern = api.fit_electrical(str(tmp_path / "blocked_*.csv"))
+    assert by_pattern.estimates["R"].value == listed.estimates["R"].value
+    assert by_pattern.estimates["L"].value == listed.estimates["L"].value
+    out = CliRunner().invoke(main, ["fit-electrical", str(tmp_path / "blocked_*.csv"), "-m",
+                                    str(tmp_path / "m.json")])
+    assert out.exit_code == 0, out.output
+    assert _params(tmp_path / "m.json")["R"] == listed.estimates["R"].value
+    with pytest.raises(LogError, match="no log file matches this pattern"):
+        api.fit_electrical(str(tmp_path / "step_*.csv"))
+    odd = tmp_path / "blocked[1].csv"
+    shutil.copy(PAPER_DIR / "blocked_1.0V.csv", odd)
+    assert api.fit_electrical(str(odd)).estimates["R"].value > 0
