@@ -52,7 +52,7 @@ from pmdcid.identify.mechsteps import (  # noqa: F401 - paper_mechanical re-expo
     paper_mechanical,
     speed_noise,
 )
-from pmdcid.identify.nonlinear_setup import MIN_SAMPLES
+from pmdcid.identify.nonlinear_setup import MIN_SAMPLES, require_km
 from pmdcid.identify.steps import MIN_PLATEAU_SAMPLES, despike, find_steps, held_head, lsq
 from pmdcid.model import Model
 
@@ -278,7 +278,7 @@ def _fit_mechanical(logs, model: Model, km, joint) -> MechanicalResult:
     model.require("R", "L", stage="fit-mechanical")
     km_given = km is not None
     if km is None:
-        model.require("km", stage="fit-mechanical")
+        require_km(model, logs, "fit-mechanical")
         km = model.value("km")
     elif not (math.isfinite(km) and km > 0):
         raise FitError(f"--km must be a positive torque constant in N m/A, got {km:g}")

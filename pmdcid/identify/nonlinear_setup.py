@@ -226,6 +226,22 @@ def check_logs(logs) -> None:
                            f"least {MIN_SAMPLES})", lg.path)
 
 
+def require_km(model: Model, logs, stage: str) -> None:
+    """The model's torque constant km, which a voltage-driven fit of the mechanics needs: where
+    it lacks one and these logs hold the armature current of a turning rotor, the message says
+    that fit-electrical gives it from them (ke, km = ke in SI), besides a datasheet's --km."""
+    if model.has("km"):
+        return
+    turning = [str(lg.path) for lg in logs if lg.drive == "v" and lg.has("i") and not lg.blocked]
+    if not turning:
+        model.require("km", stage=stage)
+    raise ModelError(f"model lacks km for {stage}: give --km (datasheet torque constant), or "
+                     f"run fit-electrical on {turning[0]}"
+                     f"{f' (and {len(turning) - 1} more)' if len(turning) > 1 else ''}: it "
+                     "logs the current of a turning rotor, which gives the back-EMF constant "
+                     "ke and km = ke in SI", model.path)
+
+
 def free_parameters(logs, model: Model, free, dead_zone: bool, warns=None,
                     offset: bool = True) -> list[str]:
     """The parameters fitted: given, or J, bv, bc, dz (voltage logs; R, L, km required) or
@@ -233,7 +249,8 @@ def free_parameters(logs, model: Model, free, dead_zone: bool, warns=None,
     ways, :func:`both_directions`, and ``offset``, a note in ``warns`` when left out)."""
     any_v = any(lg.drive == "v" for lg in logs)
     if any_v:
-        model.require("R", "L", "km", stage="fit-nonlinear")
+        model.require("R", "L", stage="fit-nonlinear")
+        require_km(model, logs, "fit-nonlinear")
     if free is None:
         free = list(FREE_V if any_v else FREE_TAU)
         if "tau0" in free and not (offset and both_directions(logs)):

@@ -64,6 +64,28 @@ def test_km_from_option_is_stored_as_datasheet(rng, paper_values):
     assert m.value("km") == PAPER["km"]
 
 
+def test_without_km_the_logs_current_is_named_as_its_source(rng, paper_values):
+    """No km and step logs that log the current of the turning rotor: fit-electrical gives ke
+    (km = ke) from them, and the refusal says so (before: only '--km'); without a current
+    logged, the refusal asks for --km alone."""
+    import dataclasses
+
+    from pmdcid.identify.nonlinear import fit_nonlinear
+
+    logs = step_logs(paper_values, rng, amplitudes=(1.0, 2.0))
+    assert all(lg.has("i") for lg in logs)
+    m = _electrical(paper_values, km=False)
+    for fit in (fit_mechanical, fit_nonlinear):
+        with pytest.raises(ModelError, match=r"--km .*, or run fit-electrical on step_1.0V "
+                                             r"\(and 1 more\)"):
+            fit(logs, m)
+    bare = [dataclasses.replace(lg, data={k: a for k, a in lg.data.items() if k != "i"})
+            for lg in logs]
+    with pytest.raises(ModelError, match="give --km") as exc:
+        fit_mechanical(bare, m)
+    assert "fit-electrical" not in str(exc.value)
+
+
 def test_needs_fit_electrical_first(rng, paper_values):
     logs = step_logs(paper_values, rng, amplitudes=(1.0,))
     with pytest.raises(ModelError, match="fit-electrical"):
