@@ -10,8 +10,8 @@ import numpy as np
 from pmdcid.errors import LogError
 from pmdcid.model import Model
 from pmdcid.report.metrics import lag_step_for, signal_metrics, speed_threshold
-from pmdcid.simulate import SimResult, param_values
-from pmdcid.simulate.measured import compared_signals, simulate_for
+from pmdcid.simulate import SimResult
+from pmdcid.simulate.measured import compared_signals, simulate_for, values_for
 
 #: signals compared, in display order, with their units
 SIGNALS = {"omega": "rad/s", "theta": "rad", "i": "A"}
@@ -74,7 +74,7 @@ def compare_log(log, model: Model, name: str) -> LogComparison:
     if log.has("omega") and not blocked:
         threshold = speed_threshold(log["omega"])
         low = np.abs(log["omega"]) < threshold
-    step = lag_step_for(param_values(model, log.drive == "tau"), log.dt, electrical=blocked)
+    step = lag_step_for(values_for(log, model), log.dt, electrical=blocked)
     per = {}
     for s in signals:
         simv = sim.get(s)

@@ -20,16 +20,21 @@ from pmdcid.simulate import (
 from pmdcid.simulate.initial import initial_state, true_start
 
 
+def values_for(log, model: Model) -> dict[str, float]:
+    """The simulation values of ``model`` on ``log`` (:func:`~pmdcid.simulate.param_values`);
+    a rotor held still needs no inertia and no torque constant, so fit-electrical's R and L
+    alone simulate a blocked-rotor log's current (J and km stand at 1 there, unused)."""
+    held = {n: 1.0 for n in ("J", "km") if log.blocked and not model.has(n)}
+    return param_values(model, input_is_torque(log, model), held or None)
+
+
 def simulate_for(log, model: Model) -> SimResult:
     """Simulate ``model`` on the log's input from the state its first samples measured
     (:mod:`pmdcid.simulate.initial`: rest unless it starts turning); a blocked rotor is held
     still; a lumped model takes the voltage through the torque path."""
     torque = input_is_torque(log, model)
     blocked = log.blocked
-    # a rotor held still needs no inertia and no torque constant: fit-electrical's R and L
-    # alone simulate its current
-    held = {n: 1.0 for n in ("J", "km") if blocked and not model.has(n)}
-    vals = param_values(model, torque, held or None)
+    vals = values_for(log, model)
     if blocked:
         vals = blocked_rotor(vals)
     x0 = true_start(initial_state(log), vals)
@@ -77,4 +82,4 @@ def fit_rows(logs, model: Model) -> tuple[list[tuple], list[str]]:
     return rows, left
 
 
-__all__ = ["compared_signals", "fit_rows", "predicts_current", "simulate_for"]
+__all__ = ["compared_signals", "fit_rows", "predicts_current", "simulate_for", "values_for"]

@@ -86,3 +86,24 @@ def test_identify_report_holds_a_rotor_sorted_blocked_by_content(tmp_path):
     shown = _as_sorted(log, "blocked")
     assert shown.blocked and not log.blocked    # the log read stays as it was
     assert _as_sorted(log, "step") is log
+
+
+def test_fit_electricals_model_alone_reports_its_blocked_rotor(tmp_path):
+    """A model of fit-electrical alone (R, L: no J, no km) on the blocked-rotor log it was fitted
+    on: the held rotor's current needs neither, so the report shows it (before: 'model lacks
+    km, J needed to simulate'); beside a free-running log the same model says what it lacks."""
+    _blocked_log(tmp_path / "blocked.csv")
+    _free_log(tmp_path / "free.csv")
+    m = tmp_path / "m.json"
+    out = CliRunner().invoke(main, ["fit-electrical", str(tmp_path / "blocked.csv"), "-m", str(m)])
+    assert out.exit_code == 0, out.output
+    out = CliRunner().invoke(main, ["report", str(tmp_path / "blocked.csv"), "-m", str(m),
+                                    "-o", str(tmp_path / "rep")])
+    assert out.exit_code == 0, out.output
+    metrics = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    # L/R is 2.5 samples here: L is written as an interval, its middle simulated
+    assert metrics["logs"][0]["signals"]["i"]["nrmse"] < 0.15, metrics["logs"][0]
+    out = CliRunner().invoke(main, ["report", str(tmp_path / "blocked.csv"),
+                                    str(tmp_path / "free.csv"), "-m", str(m), "-o",
+                                    str(tmp_path / "rep2")])
+    assert out.exit_code == 1 and "model lacks km, J" in out.output
