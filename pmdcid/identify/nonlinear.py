@@ -462,21 +462,36 @@ def _parameters(free, start, bounds, steps, priors, held: dict[str, float]) -> P
     return params
 
 
-#: relative finite-difference steps of the polishing fits of a lumped model with an electrical
-#: lag (:func:`_polish`)
+#: relative finite-difference steps of the polishing fits (:func:`_polish`)
 POLISH_STEPS = (3e-2, 1e-1)
 
 
-def _polish(logs, work, free, signals, fit, sigma, opts, bounds, priors, held):
-    """A lumped model with an electrical lag (tau_e, ke_share free; else ``fit`` as it is):
-    local fits again from the
-    solution with wider finite-difference steps (:data:`POLISH_STEPS`), the lowest chi-square
-    kept. The dead zone's events move with tau_e and ke_share on the scale of an internal step,
+def _polish(logs, work, free, signals, fit, sigma, opts, bounds, priors, held, wide=False):
+    """Local fits again from the solution with wider finite-difference steps
+    (:data:`POLISH_STEPS`): on a lumped model with an electrical lag (tau_e, ke_share free) the
+    lowest chi-square kept; elsewhere only with ``wide`` (the stage's own local stage, not the
+    ramp profile's), kept where lower than ``fit``'s by more than two standard errors' rise
+    (:func:`.share_valley.valley_threshold`; the wider step tried only after the first was
+    kept), else ``fit`` as it is: one more local fit where the first had stopped well.
+
+    The dead zone's events move with tau_e and ke_share on the scale of an internal step,
     and the first local stage stops on that staircase: measured on voltage + speed logs of
     motors with L/R = 2-4 ms at 0.5-1 kHz (bench/lumped_coverage.py), it stopped hundreds of
-    chi-square units above the truth's with J 3 % and tau_e 7 % off; polished, below it."""
+    chi-square units above the truth's with J 3 % and tau_e 7 % off; polished, below it.
+    The SI model's cost is a staircase in J and bv too (every stick and breakaway moves by
+    whole internal steps with them): on a 2 kHz rig with current logged (steps, steps while
+    turning, a triangle; docs/identification.md, "A joint fit stopped on the staircase") the
+    cost jumps by ~1000 units (3 % of it) between bv's 1e-4 steps, the local stage's
+    forward differences over 1e-3 read those jumps as its slope, and its trust region shrank
+    to nothing (scipy's xtol) across a valley along which the cost still fell by half: the
+    joint fit stopped at bv -16 %, bc +7 % (8 of their standard errors), reduced chi-square
+    2.48; polished, 1.24 (the same fit started at the truth: 1.26)."""
+    lumped = "tau_e" in free
+    if not (lumped or wide):
+        return fit
+    top = fit.stats.chisqr - (0.0 if lumped else valley_threshold(fit))
     best = fit
-    for step in POLISH_STEPS if "tau_e" in free else ():
+    for step in POLISH_STEPS:
         try:
             params = _parameters(free, best.values(), bounds,
                                  {k: max(step, DIFF_STEP.get(k, 0.0)) for k in free}, priors,
@@ -484,8 +499,10 @@ def _polish(logs, work, free, signals, fit, sigma, opts, bounds, priors, held):
             f = fit_simulation(logs, work, params, signals, sigma=sigma, options=opts)
         except FitError:
             continue
-        if f.stats.chisqr < best.stats.chisqr:
+        if f.stats.chisqr < min(top, best.stats.chisqr):
             best = f
+        elif not lumped:  # no clear drop at this step: the wider one is not tried
+            break
     return best
 
 
@@ -915,7 +932,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     filters = fit.noise_filters  # what the noise model did, said by the route line
     # the same criterion as the fit they may replace (its noise model included)
     fit = _polish(logs, work, ls_free, signals, fit, sigma, opts, bounds,
-                  prior_terms(prior), held)
+                  prior_terms(prior), held, wide=True)
     for _ in range(SCAN_ROUNDS):  # each restart may stop on the next step of a rough cost
         scanned = _scan_inertia(logs, work, ls_free, signals, fit, sigma, opts, bounds,
                                 prior_terms(prior), held, base_vals)
