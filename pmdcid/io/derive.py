@@ -49,9 +49,70 @@ def mad_std(x: np.ndarray) -> float:
     return 1.4826 * float(np.median(np.abs(x - np.median(x))))
 
 
+#: two samples closer than this many units in the last place of the signal's largest value are
+#: equal: the rounding of a linear interpolation between equal samples (a few ulp), far below
+#: any sensor's resolution
+HELD_ULPS = 1000.0
+
+
+def held_samples(x: np.ndarray) -> np.ndarray:
+    """Boolean mask of the samples of ``x`` equal (up to rounding, :data:`HELD_ULPS`) to a
+    neighbour: a signal held still there (a quantised speed at rest, a held input)."""
+    x = np.asarray(x, dtype=float)
+    tol = HELD_ULPS * float(np.spacing(np.max(np.abs(x)))) if x.size else 0.0
+    same = np.abs(np.diff(x)) <= tol
+    out = np.zeros(x.size, dtype=bool)
+    out[:-1] |= same
+    out[1:] |= same
+    return out
+
+
+def moving_noise_std(x: np.ndarray) -> float:
+    """Robust white-noise std of ``x`` from the MAD of its second differences taken only where
+    none of their three samples is held (:func:`held_samples`); 0 where there are none.
+
+    A signal held exactly still has no noise to read there, and when it holds still for half
+    the log (a quantised speed at rest) the MAD over every sample is 0. The ends of a held
+    stretch are left out too: an edge put on another clock by interpolation makes a partial
+    first step there, no noise.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.size < 5:
+        return 0.0
+    h = held_samples(x)
+    free = ~(h[:-2] | h[1:-1] | h[2:])
+    if not free.any():
+        return 0.0
+    # RMS over the log: none where it is held (reduced chi-square 1 for a model that fits)
+    return mad_std(np.diff(x, 2)[free]) / math.sqrt(6.0) * math.sqrt(float(np.mean(free)))
+
+
+#: a change within this fraction of the smallest one of a whole number of it is on the lattice
+LATTICE_TOL = 1e-3
+
+
+def on_lattice(x: np.ndarray) -> bool:
+    """Whether every change of ``x`` above rounding (:data:`HELD_ULPS`) is a whole number of
+    its smallest one (:data:`LATTICE_TOL`): a quantised signal read on its own clock (encoder
+    counts times a scale). One put on another clock by linear interpolation is not."""
+    x = np.asarray(x, dtype=float)
+    tol = HELD_ULPS * float(np.spacing(np.max(np.abs(x)))) if x.size else 0.0
+    steps = np.abs(np.diff(x))
+    steps = steps[steps > tol]
+    if not steps.size:
+        return True
+    r = steps / float(np.min(steps))
+    return bool(np.all(np.abs(r - np.round(r)) <= LATTICE_TOL))
+
+
 def noise_std(x: np.ndarray) -> float:
     """Robust white-noise std of a signal (its unit) from the MAD of its second difference,
-    at least quantum/sqrt(12) for a quantised signal (encoder angle)."""
+    at least quantum/sqrt(12) for a quantised signal (encoder angle).
+
+    A signal off a lattice (:func:`on_lattice`: a quantised speed interpolated onto another
+    clock) shows no quantum, and where it holds still for half the log (at rest) the MAD is 0:
+    its noise is then read where it moves (:func:`moving_noise_std`).
+    """
     x = np.asarray(x, dtype=float)
     if len(x) < 5:
         return 0.0
@@ -61,6 +122,8 @@ def noise_std(x: np.ndarray) -> float:
     steps = steps[steps > 0]
     if len(steps):
         s = max(s, float(np.min(steps)) / math.sqrt(12.0))
+    if not on_lattice(x):
+        s = max(s, moving_noise_std(x))
     return s
 
 

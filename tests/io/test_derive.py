@@ -1,6 +1,8 @@
 """Speed from angle (zero-phase filter + derivative), angle from speed, --cutoff, units mapping."""
 
 
+import math
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -12,6 +14,7 @@ from pmdcid.io import ColumnMap, parse_mapping, read_log, write_log
 from pmdcid.io.derive import (
     check_cutoff,
     default_cutoff,
+    noise_std,
     position_from_speed,
     speed_from_position,
 )
@@ -188,3 +191,57 @@ def test_both_filter_passes_give_the_same_bits(monkeypatch, n):
         monkeypatch.setattr(derive, "_sos_pass", lambda one=one: one)
         got[one.__name__] = derive.lowpass(x, 1e-3, 40.0)
     np.testing.assert_array_equal(got["_core_sos_pass"], got["_public_sos_pass"])
+
+
+def _on_another_clock(rng, tk_values, fs: float, n: int):
+    """Samples ``values`` taken at jittered instants (up to a fifth of a period late), put on
+    the uniform clock ``k/fs`` by linear interpolation, as the MCAP reader puts a measured
+    signal on the fastest measurement's grid."""
+    tk = np.arange(n) / fs + rng.uniform(0.0, 0.2 / fs, n)
+    return np.interp(np.arange(1, n - 1) / fs, tk, tk_values(tk))
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_noise_of_an_interpolated_quantised_speed_at_rest_half_the_log(seed):
+    """A speed read to q = 0.1 rad/s, exactly 0 for the first half (at rest), then moving
+    (40 + 30 sin(2 pi t) rad/s, several quanta per sample: its rounding error is white, std
+    q/sqrt(12)), sampled late by up to 0.4 ms and interpolated onto a 500 Hz clock. Its noise
+    level, the RMS over the log (none at rest), is q/sqrt(12)/sqrt(2) within 20 % (0.92 of it
+    measured against the true speed: the interpolation averages neighbours). Before, the MAD
+    of the second difference was 0 (the rest) and the smallest step a rounding artefact:
+    1e-12 rad/s, which weighed the log 1e20 times (rig1 of the new-user walkthrough: reduced
+    chi-square 2e6)."""
+    q, fs, n = 0.1, 500.0, 4000
+
+    def speed(t):
+        return q * np.round(np.where(t < n / (2 * fs), 0.0, 40 + 30 * np.sin(2 * np.pi * t)) / q)
+
+    x = _on_another_clock(np.random.default_rng(seed), speed, fs, n)
+    assert noise_std(x) == pytest.approx(q / math.sqrt(24.0), rel=0.2)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_an_interpolated_held_input_gets_no_noise_from_its_edges(seed):
+    """A command held at levels 3 V apart (0, 3, 6, -6, 12 V for 0.2 s each), sampled at 100 Hz
+    and interpolated onto a 500 Hz clock: an edge becomes one or more partial steps beside the
+    held stretches, which are no noise (an earlier rule read 0.19-1.06 V off such a command)."""
+    fs, n = 500.0, 4000
+    rng = np.random.default_rng(seed)
+    levels = np.repeat(rng.choice([0.0, 3.0, 6.0, -6.0, 12.0], 20), 100)
+    tk = np.arange(n // 5) * 5 / fs + rng.uniform(0.0, 0.5 / fs, n // 5)
+    x = np.interp(np.arange(1, n - 10) / fs, tk, levels[: tk.size])
+    assert noise_std(x) < 0.01 * 3.0
+
+
+def test_a_quantised_speed_on_its_own_clock_keeps_its_quantum():
+    """An encoder-difference speed (4096 counts/rev at 500 Hz: q = 1.53 rad/s) on its own
+    clock, at rest for half the log, then 40 + 20 sin(pi t) rad/s: every value is a whole
+    number of counts, its noise the quantum's q/sqrt(12). Reading it only where it changes at
+    every sample would pick the samples where it jumps (about 3 times as much)."""
+    fs, n, cpr = 500.0, 4000, 4096
+    t = np.arange(n) / fs
+    w = np.where(t < n / (2 * fs), 0.0, 40 + 20 * np.sin(np.pi * t))
+    counts = np.floor(np.cumsum(w) / fs / (2 * np.pi) * cpr)
+    q = 2 * np.pi / cpr * fs
+    x = np.r_[0.0, np.diff(counts)] * 2 * np.pi / cpr * fs
+    assert noise_std(x) == pytest.approx(q / math.sqrt(12.0), rel=0.01)
