@@ -243,6 +243,8 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         return res
     if not groups["blocked"] and not res.model.has("R"):
         _free_running_electrical(res, moving, say)
+    elif groups["blocked"] and res.model.has("R") and not res.model.has("km"):
+        _back_emf_beside_blocked(res, moving, say)
     if wants_lumped(moving, res.model) and not is_lumped(res.model):
         mark_lumped(res.model)
         res.notes.append("no current and no R: the model is lumped (per-volt parameters; "
@@ -471,6 +473,25 @@ def _free_running_electrical(res: IdentifyResult, moving, say) -> None:
     m = res.model
     if m.has("km") and m.parameters["km"].stage == KM_FROM_KE:
         res.notes.append(KM_FROM_KE_NOTE.format(ke=m.value("km")))
+
+
+def _back_emf_beside_blocked(res: IdentifyResult, moving, say) -> None:
+    """Blocked-rotor logs gave R and L, no datasheet km, and moving logs log the current: the
+    back-EMF constant ke from those logs (the free-running fit), km = ke as without blocked
+    logs; R and L stay the blocked rotor's (an L it did not resolve, written as an interval,
+    takes the moving logs' where they resolve it). Before, such a rig (the usual lab set: blocked
+    steps, free steps, current logged) was identified per volt, 'no current' said, and its
+    report stopped on the current it logged."""
+    keep = {n: res.model.parameters[n] for n in ("R", "L") if res.model.has(n)
+            and res.model.parameters[n].interval is None}   # an L not resolved: the new fit's
+    before = len(res.stages)
+    _free_running_electrical(res, moving, say)
+    if len(res.stages) == before or not res.model.has("km"):
+        return
+    for name, par in keep.items():
+        res.model.parameters[name] = par
+    res.notes.append(f"{' and '.join(keep) or 'nothing'} from the blocked-rotor logs, ke (and "
+                     "km = ke) from the moving logs' current")
 
 
 def _has_mech(model: Model) -> bool:

@@ -687,3 +687,42 @@ def test_identify_s_error_keeps_each_stage_s_whole_reason(tmp_path):
     assert "(-c omega=COLUMN*-1), the input's offset, and km; " in line  # fit-mechanical's fix
     assert line.endswith("run fit-mechanical first")  # the last stage's reason, whole
     assert "...;" not in line and not (tmp_path / "m.json").exists()
+
+
+def test_blocked_steps_and_moving_logs_with_current_give_km_not_a_lumped_model():
+    """A lab rig's usual set: blocked-rotor current steps, free steps with the current logged, no
+    datasheet km. identify took R and L from the blocked rotor and then, with no km, identified
+    the mechanics per volt ('no current and no datasheet'), though the moving logs carry the
+    current that gives ke; its report then stopped on that current. Now ke (km = ke) comes from
+    the moving logs, as without blocked logs, R stays the blocked rotor's."""
+    from pmdcid.identify.freerun import KM_FROM_KE
+    from pmdcid.identify.runners import stage_electrical
+    from pmdcid.pipeline import IdentifyResult, _back_emf_beside_blocked, _stage, classify
+
+    rng = np.random.default_rng(11)
+    vals = {**neutral_values(), **PAPER, "ke": PAPER["km"]}
+    tb = np.arange(1500) / 5000.0
+    blocked = []
+    for a in (1.0, 2.0):
+        cols, _ = synth_log(tb, step(tb, a, 0.05), vals, PAPER_NOISE, rng, blocked=True)
+        blocked.append(Log(path=f"blocked_{a}", t=tb, data=cols, meta={"kind": "blocked-rotor"}))
+    t = np.arange(3000) / 1000.0
+    v = np.select([t < 0.5, t < 1.5, t < 2.2], [0.0, 2.0, 1.0], -2.0)
+    cols, _ = synth_log(t, v, vals, PAPER_NOISE, rng)
+    moving = [Log(path="steps", t=t, data=cols, meta={"kind": "steps"})]
+    res = IdentifyResult(Model(), [classify(lg) for lg in blocked + moving])
+    _stage(res, "fit-electrical", blocked, stage_electrical)
+    r_blocked = res.model.parameters["R"]
+    _back_emf_beside_blocked(res, moving, lambda msg: None)
+    m = res.model
+    assert m.has("km") and m.parameters["km"].stage == KM_FROM_KE   # before: no km, lumped next
+    km = m.parameters["km"]
+    assert abs(km.value - PAPER["km"]) < 3 * km.stderr < 0.5 * PAPER["km"]
+    assert "back_emf" in m.effects
+    assert m.parameters["R"] is r_blocked
+    # an L the blocked rotor did not resolve (an interval) takes the moving logs' estimate
+    res.model.parameters["L"].interval = (0.0, 0.03)
+    res.model.parameters.pop("km")
+    _back_emf_beside_blocked(res, moving, lambda msg: None)
+    assert res.model.parameters["L"].interval is None
+    assert res.model.value("L") == pytest.approx(PAPER["L"], rel=0.05)
