@@ -87,21 +87,27 @@ def moving_noise_std(x: np.ndarray) -> float:
     return mad_std(np.diff(x, 2)[free]) / math.sqrt(6.0) * math.sqrt(float(np.mean(free)))
 
 
-#: a change within this fraction of the smallest one of a whole number of it is on the lattice
-LATTICE_TOL = 1e-3
+#: a change within this fraction of the quantum of a whole number of quanta is on the lattice:
+#: wide enough for the rounding of printed values (a quantum read as 0.76690 where it is
+#: 0.766990, its multiples printed to five decimals), far narrower than the arbitrary
+#: fractions of a quantum an interpolated edge leaves
+LATTICE_TOL = 0.05
 
 
 def on_lattice(x: np.ndarray) -> bool:
     """Whether every change of ``x`` above rounding (:data:`HELD_ULPS`) is a whole number of
-    its smallest one (:data:`LATTICE_TOL`): a quantised signal read on its own clock (encoder
-    counts times a scale). One put on another clock by linear interpolation is not."""
+    one quantum (:data:`LATTICE_TOL`), the quantum read as the median of the smallest changes
+    (those within 1.5 times the smallest): a quantised signal read on its own clock (encoder
+    counts times a scale, printed or not). One put on another clock by linear interpolation
+    is not."""
     x = np.asarray(x, dtype=float)
     tol = HELD_ULPS * float(np.spacing(np.max(np.abs(x)))) if x.size else 0.0
     steps = np.abs(np.diff(x))
     steps = steps[steps > tol]
     if not steps.size:
         return True
-    r = steps / float(np.min(steps))
+    quantum = float(np.median(steps[steps <= 1.5 * float(np.min(steps))]))
+    r = steps / quantum
     return bool(np.all(np.abs(r - np.round(r)) <= LATTICE_TOL))
 
 
@@ -109,20 +115,24 @@ def noise_std(x: np.ndarray) -> float:
     """Robust white-noise std of a signal (its unit) from the MAD of its second difference,
     at least quantum/sqrt(12) for a quantised signal (encoder angle).
 
-    A signal off a lattice (:func:`on_lattice`: a quantised speed interpolated onto another
-    clock) shows no quantum, and where it holds still for half the log (at rest) the MAD is 0:
-    its noise is then read where it moves (:func:`moving_noise_std`).
+    Where that reading fails, and only there, the noise is read where the signal moves
+    (:func:`moving_noise_std`): a signal that holds still for half the log (a quantised speed
+    at rest) has a MAD of rounding's size, and once put on another clock by interpolation it is
+    off its lattice (:func:`on_lattice`), so its smallest step is an interpolation's rounding,
+    no quantum. Elsewhere the MAD stands: where a quantised signal's repeats are its noise (a
+    steady speed between two counts), reading only where it moves would overstate it.
     """
     x = np.asarray(x, dtype=float)
     if len(x) < 5:
         return 0.0
     d2 = np.diff(x, 2)
     s = mad_std(d2) / math.sqrt(6.0)
+    degenerate = s <= HELD_ULPS * float(np.spacing(np.max(np.abs(x))))
     steps = np.abs(np.diff(x))
     steps = steps[steps > 0]
     if len(steps):
         s = max(s, float(np.min(steps)) / math.sqrt(12.0))
-    if not on_lattice(x):
+    if degenerate and not on_lattice(x):
         s = max(s, moving_noise_std(x))
     return s
 
