@@ -27,7 +27,7 @@ from pathlib import Path
 
 from pmdcid.errors import LogError, ModelError, warn
 from pmdcid.model import load_model, save_model
-from pmdcid.runtime.outputs import check_overwrite, input_at, locked, same_file
+from pmdcid.runtime.outputs import check_overwrite, input_at, locked, matched, same_file
 
 
 def logs_of(logs, name: str = "logs", mapping=None, defer: bool = False) -> list:
@@ -53,26 +53,6 @@ def logs_of(logs, name: str = "logs", mapping=None, defer: bool = False) -> list
         raise LogError("no logs given")
     refuse_repeated_logs(logs)
     return [lg if isinstance(lg, Log) else read_log(lg, mapping, defer) for lg in logs]
-
-
-def matched(logs) -> list:
-    """``logs`` with each path that is a pattern (``*``, ``?``, ``[``) and names no file itself
-    replaced by the files it matches, sorted: a notebook's ``"logs/step_*.csv"``, or a shell
-    that does not expand patterns (Windows' cmd and PowerShell pass them as written). A
-    pattern that matches nothing is one line."""
-    import glob
-
-    out = []
-    for lg in logs:
-        p = os.fspath(lg) if isinstance(lg, (str, os.PathLike)) else None
-        if p is None or not any(c in p for c in "*?[") or os.path.lexists(p):
-            out.append(lg)
-            continue
-        hits = sorted(glob.glob(p))
-        if not hits:
-            raise LogError("no log file matches this pattern (check the path)", p)
-        out += hits
-    return out
 
 
 def _content_hash(path: str) -> str | None:

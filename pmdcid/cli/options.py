@@ -114,7 +114,7 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
     every output (and the model a stage writes) passes the one output guard first
     (:func:`pmdcid.runtime.outputs.check_target`: no FIFO, device or symlink loop).
     """
-    from pmdcid.runtime.outputs import check_target, input_at
+    from pmdcid.runtime.outputs import check_target, input_at, matched
 
     ctx = ctx or click.get_current_context(silent=True)
     if ctx is None:
@@ -131,6 +131,10 @@ def guard_outputs(ctx: click.Context | None = None) -> None:
             inputs += vals
     if ctx.command.name in WRITES_MODEL and isinstance(ctx.params.get("model_path"), str):
         outputs.append((ctx.params["model_path"], "-m"))
+    try:  # a LOG pattern the shell left as written: the files the command will read
+        inputs = [str(x) for x in matched(inputs)]
+    except LogError:
+        pass  # nothing matches: the command says so, before any output is written
     for out, opt in outputs:
         check_target(out, option=opt)
         inp = input_at(out, inputs)

@@ -163,6 +163,28 @@ def same_file(a, b, planned: bool = False) -> bool:
     return planned and os.path.realpath(a) == os.path.realpath(b)
 
 
+def matched(paths) -> list:
+    """``paths`` with each one that is a pattern (``*``, ``?``, ``[``) and names no file itself
+    replaced by the files it matches, sorted: a notebook's ``"logs/step_*.csv"``, or a shell
+    that does not expand patterns (Windows' cmd and PowerShell pass them as written); other
+    items (a :class:`~pmdcid.io.Log`) as they are. A pattern that matches nothing is one
+    :class:`LogError` line. The logs a command reads and the inputs its output guard compares
+    are both read through this."""
+    import glob
+
+    out = []
+    for item in paths:
+        p = os.fspath(item) if isinstance(item, (str, os.PathLike)) else None
+        if p is None or not any(c in p for c in "*?[") or os.path.lexists(p):
+            out.append(item)
+            continue
+        hits = sorted(glob.glob(p))
+        if not hits:
+            raise LogError("no log file matches this pattern (check the path)", p)
+        out += hits
+    return out
+
+
 def input_at(output, inputs, planned: bool = False) -> str | None:
     """The first of ``inputs`` that writing ``output`` would overwrite (:func:`same_file`), or
     None: the one output-is-an-input guard, asked by every writer before any work (each caller

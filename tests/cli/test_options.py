@@ -96,3 +96,23 @@ def test_a_km_outside_the_models_bounds_is_a_usage_error(paper_step, command, km
     assert res.exit_code == 2, res.stderr
     assert "Invalid value for '--km'" in res.stderr and said in res.stderr, res.stderr
     assert "Traceback" not in res.stderr
+
+
+def test_an_output_a_log_pattern_matches_is_refused_before_any_work(tmp_path):
+    """``diagnose "logs/*.csv" -o logs/old.csv`` from a shell that passes the pattern as written:
+    the guard compares the output with the files the pattern matches, so the user's log
+    old.csv is not overwritten by the new model (before, the guard saw only the pattern and the
+    command read old.csv as a log, then wrote its model over it)."""
+    from pathlib import Path
+
+    paper = Path(__file__).resolve().parents[2] / "fixtures" / "paper"
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for name in ("step_1.0V.csv", "step_2.0V.csv"):
+        shutil.copy(paper / name, logs / name)
+    shutil.copy(paper / "truth.json", tmp_path / "m.json")
+    before = (logs / "step_2.0V.csv").read_bytes()
+    res = CliRunner().invoke(main, ["diagnose", str(logs / "*.csv"), "-m", str(tmp_path / "m.json"),
+                                    "-o", str(logs / "step_2.0V.csv")])
+    _one_error(res, "output would overwrite the input")
+    assert (logs / "step_2.0V.csv").read_bytes() == before
