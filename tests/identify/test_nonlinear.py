@@ -6,7 +6,15 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from ident_util import as_log, blocked_logs, perturbed_truth, step_logs, triangle_log
+from ident_util import (
+    SMALL_MOTOR,
+    as_log,
+    blocked_logs,
+    perturbed_truth,
+    small_motor_logs,
+    step_logs,
+    triangle_log,
+)
 
 from pmdcid.fit.results import nrmse
 from pmdcid.fit.simfit import FitOptions
@@ -379,35 +387,6 @@ def test_a_masked_dead_zones_refitted_points_widen_what_moves_with_it():
     assert len(warns) == 1 and "J x2.2" in str(warns[0]) and "bv" not in str(warns[0])
 
 
-#: a small lab motor with back-EMF (the rig of docs/identification.md, "A joint fit stopped on
-#: the staircase"): at 2 kHz its mechanical time constant over 50 (0.84 ms) exceeds the sample
-#: period, so the fit's kernel takes one internal step a sample and every stick and breakaway
-#: moves by whole samples with J and bv: the cost is a staircase in them too
-SMALL_MOTOR = {"R": 3.2, "L": 4e-3, "km": 0.03, "ke": 0.03, "J": 1.2e-5, "bv": 6e-6,
-               "bc": 2.5e-3, "dz": 4e-3}
-
-
-def _small_motor_logs(vals, rng, rate=2000.0, hold=0.3):
-    """Steps from rest, steps from the 8 V steady state (turning at the first sample) and a
-    10 V triangle of 4 s, current and speed logged (4 mA, 0.3 rad/s of noise); simulated with
-    32 internal steps a sample, so that the truth is no point of the fit's own staircase."""
-    from pmdcid.synth import NoiseSpec
-
-    noise = NoiseSpec(i=4e-3, omega=0.3)
-    w = (vals["km"] * 8 / vals["R"] - vals["bc"]) / (
-        vals["bv"] + vals["km"] * vals["ke"] / vals["R"])
-    runs = (("steps", np.repeat([0.0, 3, 6, 9, 4, 0, -5, -10, -2, 0], int(hold * rate)), None),
-            ("steps_turning", np.repeat([8.0, 3, 11, 5, -6, 0], int(hold * rate)),
-             ((8 - vals["ke"] * w) / vals["R"], w, 0.0)),
-            ("triangle", triangle(np.arange(int(4 * rate)) / rate, 10.0, 4.0), None))
-    out = []
-    for name, v, x0 in runs:
-        t = np.arange(len(v)) / rate
-        cols, _ = synth_log(t, v, vals, noise, rng, nsub=32, x0=x0)
-        out.append(as_log(name, t, cols))
-    return out
-
-
 def test_a_local_stage_stopped_on_the_staircase_is_polished():
     """The SI fit started where fit-nonlinear's triangle-only stage left a 2 kHz lab rig (bv
     -21 %, bc +8 %): the local stage's forward differences over 1e-3 of bv read the
@@ -418,7 +397,7 @@ def test_a_local_stage_stopped_on_the_staircase_is_polished():
     +0.34, -0.14, -0.05 % (within 3 standard errors; seeds 1, 3, 4 too)."""
     rng = np.random.default_rng(2)
     vals = {**neutral_values(), **SMALL_MOTOR}
-    logs = _small_motor_logs(vals, rng)
+    logs = small_motor_logs(vals, rng)
     m = Model()
     m.add_effect("back_emf")
     for k in ("R", "L", "km", "ke"):
