@@ -55,12 +55,17 @@ def mad_std(x: np.ndarray) -> float:
 HELD_ULPS = 1000.0
 
 
+def rounding(x: np.ndarray) -> float:
+    """The size of rounding in ``x`` [its unit]: :data:`HELD_ULPS` units in the last place of
+    its largest value (0 for an empty signal)."""
+    return HELD_ULPS * float(np.spacing(np.max(np.abs(x)))) if x.size else 0.0
+
+
 def held_samples(x: np.ndarray) -> np.ndarray:
     """Boolean mask of the samples of ``x`` equal (up to rounding, :data:`HELD_ULPS`) to a
     neighbour: a signal held still there (a quantised speed at rest, a held input)."""
     x = np.asarray(x, dtype=float)
-    tol = HELD_ULPS * float(np.spacing(np.max(np.abs(x)))) if x.size else 0.0
-    same = np.abs(np.diff(x)) <= tol
+    same = np.abs(np.diff(x)) <= rounding(x)
     out = np.zeros(x.size, dtype=bool)
     out[:-1] |= same
     out[1:] |= same
@@ -101,9 +106,8 @@ def on_lattice(x: np.ndarray) -> bool:
     counts times a scale, printed or not). One put on another clock by linear interpolation
     is not."""
     x = np.asarray(x, dtype=float)
-    tol = HELD_ULPS * float(np.spacing(np.max(np.abs(x)))) if x.size else 0.0
     steps = np.abs(np.diff(x))
-    steps = steps[steps > tol]
+    steps = steps[steps > rounding(x)]
     if not steps.size:
         return True
     quantum = float(np.median(steps[steps <= 1.5 * float(np.min(steps))]))
@@ -127,7 +131,7 @@ def noise_std(x: np.ndarray) -> float:
         return 0.0
     d2 = np.diff(x, 2)
     s = mad_std(d2) / math.sqrt(6.0)
-    degenerate = s <= HELD_ULPS * float(np.spacing(np.max(np.abs(x))))
+    degenerate = s <= rounding(x)
     steps = np.abs(np.diff(x))
     steps = steps[steps > 0]
     if len(steps):
