@@ -32,9 +32,10 @@ def test_the_lag_holds_against_a_delay_it_cannot_be_told_from():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("rate, truth", [(100.0, "none"), (100.0, "friction_curve"),
-                                         (1000.0, "friction_curve")])
+@pytest.mark.parametrize("rate, truth", [(100.0, "none"), (100.0, "friction_curve")])
 def test_no_delay_is_added_where_there_is_none(rate, truth):
+    # (and at 1 kHz with a friction curve until session 28: the same seed at 1 kHz with a friction
+    # curve and an L/R of 4 ms, asserted more closely, is the test after the next)
     fit, _, _ = scenario(1, 1e3 * LAG, rate, truth)
     model = identify(fit, diagnose=True, progress=False).model
     assert not [e for e in DELAYS if e in model.effects], model.effects

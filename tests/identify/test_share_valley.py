@@ -313,7 +313,7 @@ def _edge_motor_logs(seed: int, rate: float = 500.0, lag: float = 2e-3):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [1, 2, 6])
+@pytest.mark.parametrize("seed", [2, 6])
 def test_edge_motor_J_bv_bc_within_their_errors(seed):
     """identify on voltage + speed logs (500 Hz, L/R 4 ms) of a motor whose back-EMF is 99.6 %
     of its per-volt damping: J', bv', bc' within 3 of their printed standard errors of the
@@ -322,7 +322,7 @@ def test_edge_motor_J_bv_bc_within_their_errors(seed):
     0.996-0.998, the fit's own point left out) read as flat from about 0.8 to 1 and J, tau_e
     and the share were moved to its middle, bv and bc held where the minimum had put them:
     seed 2 bv' -4.1, bc' +3.6, seed 6 J' -6.0 of their standard errors (bench/lawlag.py
-    --truths none, docs/identification.md)."""
+    --truths none, docs/identification.md). The suite runs seeds 2 and 6, the two that failed."""
     from pmdcid.model import Model
     from pmdcid.pipeline import identify
 

@@ -207,9 +207,8 @@ def test_slowly_logged_triangle_is_not_taken_for_an_input_delay(seed=5):
     triangle simulated at 1 kHz and logged at 10 Hz. Diagnose read the slow input as held, so
     it acted half a sample late, and with seed 5 it added input_delay and moved J by 0.4 %. It
     now takes the joint fit's reading (ramp near 1) and adds nothing. (Seed 6 as well until
-    session 21: an identify and a diagnose of eleven logs, a minute of the suite's eight.)"""
-    import glob
-
+    session 21, and all five blocked and step logs until session 28: the slow triangle's stage
+    and the joint fit's ramp profile are what is tested, and two of each serve the joint fit.)"""
     from ident_util import as_log
 
     from pmdcid.io import read_log, read_logs
@@ -218,8 +217,8 @@ def test_slowly_logged_triangle_is_not_taken_for_an_input_delay(seed=5):
     from pmdcid.simulate import simulate_log
 
     paper = FIXTURES / "paper"
-    logs = read_logs(sorted(glob.glob(str(paper / "blocked_*.csv")))
-                     + sorted(glob.glob(str(paper / "step_*.csv"))))
+    logs = read_logs([paper / f"{kind}_{v}V.csv" for kind in ("blocked", "step")
+                      for v in ("1.0", "2.5")])
     tri = read_log(paper / "triangle.csv")
     sim = simulate_log(tri, load_model(paper / "truth.json"))
     rng = np.random.default_rng(seed)
@@ -231,3 +230,4 @@ def test_slowly_logged_triangle_is_not_taken_for_an_input_delay(seed=5):
     assert res.diagnose is not None
     assert res.diagnose.summary["added"] == []
     assert _ramp_note(res.diagnose.summary) > 0.75
+    assert any("from identify's joint fit" in n for n in res.diagnose.summary["notes"])
