@@ -910,6 +910,9 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
             ls_free.remove("dz")
             best["dz"] = 0.0
             work.set("dz", 0.0, stage="start")
+            # and in the values every later cost is read with (the secant check, the restarts,
+            # the share's valley): left at its start, they read a model the fit never had
+            base_vals = [{**b, "dz": 0.0} for b in base_vals]
     for k in ("bc", "dz", "tau0"):
         # the local stage scales each parameter by its start: a start at exactly 0 would make
         # its finite-difference step as large as 1 N m
