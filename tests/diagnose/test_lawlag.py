@@ -35,7 +35,8 @@ def test_the_lag_holds_against_a_delay_it_cannot_be_told_from():
 @pytest.mark.parametrize("rate, truth", [(100.0, "none"), (100.0, "friction_curve")])
 def test_no_delay_is_added_where_there_is_none(rate, truth):
     # (and at 1 kHz with a friction curve until session 28: the same seed at 1 kHz with a friction
-    # curve and an L/R of 4 ms, asserted more closely, is the test after the next)
+    # curve and an L/R of 4 ms, asserted more closely, is
+    # test_fit_mechanicals_latency_gives_way_to_the_lag_beside_a_friction_curve)
     fit, _, _ = scenario(1, 1e3 * LAG, rate, truth)
     model = identify(fit, diagnose=True, progress=False).model
     assert not [e for e in DELAYS if e in model.effects], model.effects
