@@ -2,6 +2,7 @@
 
 import json
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,8 +17,9 @@ from ident_util import (
     triangle_log,
 )
 
-from pmdcid.fit.results import nrmse
+from pmdcid.fit.results import Estimate, nrmse
 from pmdcid.fit.simfit import FitOptions
+from pmdcid.identify import nonlinear
 from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.mechanical import fit_mechanical
@@ -444,3 +446,48 @@ def test_a_local_stage_stopped_on_the_staircase_is_polished():
     res = fit_nonlinear(logs, m, priors=False)
     for k, rel in {"J": 1e-3, "bv": 7e-3, "bc": 3e-3, "dz": 3e-3}.items():
         assert res.estimates[k].value == pytest.approx(vals[k], rel=rel), k
+
+
+
+def _fake_fit(values, stderrs):
+    """The parts of a local stage's result the secant check reads: uncorrelated estimates, a
+    reduced chi-square of 1, no residual inflation."""
+    est = {k: Estimate(k, values[k], stderrs[k]) for k in values}
+    return SimpleNamespace(estimates=est, correlation=lambda a, b: 0.0,
+                           covariance=SimpleNamespace(inflation=1.0),
+                           stats=SimpleNamespace(redchi=1.0))
+
+
+def test_the_secant_check_stops_its_lines_at_the_physical_edge(monkeypatch):
+    """The secant check reads the cost's rise along each line only inside the physical region.
+    The cost here is the covariance's own bowl (nothing should widen) inside it, and flat past a
+    back-EMF share of 1, where no motor is: read at +4 standard errors (share 1.03), the rise
+    would be 6.25 against 16 and widen the share's error 1.6 times. Stopped at the edge (5/8 of
+    the way), it is 6.25 against 16 x (5/8)^2: exactly the bowl. A dead zone whose -4 standard
+    errors leave the region within the first half of the way is read on its other side only."""
+    vals = {"J": 1e-3, "tau_e": 3e-3, "ke_share": 0.95, "dz": 0.005}
+    se = {"J": 1e-6, "tau_e": 1e-4, "ke_share": 0.02, "dz": 0.004}
+
+    def bowl(logs, base_vals, sets, signals, sigma):
+        return np.array([sum(((min(s[k], 1.0) if k == "ke_share" else max(s[k], 0.0)) - vals[k])
+                             ** 2 / se[k] ** 2 for k in vals) for s in sets])
+
+    monkeypatch.setattr(nonlinear, "_cost", bowl)
+    fit = _fake_fit(vals, se)
+    out = nonlinear.secant_errors([], [], fit, ["omega"], [], [], {"tau_e": (1e-5, 1.0)})
+    assert {k: e.stderr for k, e in out.items()} == {"tau_e": se["tau_e"]}  # its caveat only
+    # the same cost read as far as +-4 standard errors wherever they lead (the check before):
+    # the share and the dead zone widened for points no motor has
+    monkeypatch.setattr(nonlinear, "_reach", lambda center, point, bounds: 1.0)
+    out = nonlinear.secant_errors([], [], fit, ["omega"], [], [], {"tau_e": (1e-5, 1.0)})
+    assert out["ke_share"].stderr == pytest.approx(1.6 * se["ke_share"])
+    assert out["dz"].stderr > 1.2 * se["dz"]
+
+
+def test_reach_of_a_line_is_where_it_leaves_the_physical_region():
+    c = {"ke_share": 0.9, "dz": 0.01, "tau0": 0.0}
+    assert nonlinear._reach(c, {"ke_share": 1.1, "dz": 0.02, "tau0": -1.0}, {}) == pytest.approx(0.5)
+    assert nonlinear._reach(c, {"ke_share": 0.8, "dz": -0.03, "tau0": 1.0}, {}) == pytest.approx(0.25)
+    assert nonlinear._reach(c, {"ke_share": 0.8, "dz": 0.0, "tau0": 1.0},
+                            {"tau0": (-1.0, 0.5)}) == 0.5
+    assert nonlinear._reach({**c, "dz": 0.0}, {"ke_share": 0.9, "dz": -0.01}, {}) == 0.0
