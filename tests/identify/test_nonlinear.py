@@ -486,8 +486,9 @@ def test_the_secant_check_stops_its_lines_at_the_physical_edge(monkeypatch):
 
 def test_reach_of_a_line_is_where_it_leaves_the_physical_region():
     c = {"ke_share": 0.9, "dz": 0.01, "tau0": 0.0}
-    assert nonlinear._reach(c, {"ke_share": 1.1, "dz": 0.02, "tau0": -1.0}, {}) == pytest.approx(0.5)
-    assert nonlinear._reach(c, {"ke_share": 0.8, "dz": -0.03, "tau0": 1.0}, {}) == pytest.approx(0.25)
+    up, down = {"ke_share": 1.1, "dz": 0.02, "tau0": -1.0}, {"ke_share": 0.8, "dz": -0.03}
+    assert nonlinear._reach(c, up, {}) == pytest.approx(0.5)
+    assert nonlinear._reach(c, down, {}) == pytest.approx(0.25)
     assert nonlinear._reach(c, {"ke_share": 0.8, "dz": 0.0, "tau0": 1.0},
                             {"tau0": (-1.0, 0.5)}) == 0.5
     assert nonlinear._reach({**c, "dz": 0.0}, {"ke_share": 0.9, "dz": -0.01}, {}) == 0.0
