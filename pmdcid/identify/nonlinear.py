@@ -810,7 +810,7 @@ def secant_errors(logs, base_vals, fit, signals, sigma, warns,
         if factor > 1.0:
             e = fit.estimates[k]
             out[k] = Estimate(k, e.value, e.stderr * factor, e.unit)
-            wide.append(f"{k} x{factor:.2g}")
+            wide.append(f"{k} x{factor:.3g}")
     e = out.get("tau_e", fit.estimates["tau_e"])
     out["tau_e"] = Estimate("tau_e", e.value, e.stderr, e.unit, e.vary, caveat=TAU_E_CAVEAT)
     warns.append("tau_e's standard error is a lower bound: on synthetic voltage + speed logs "

@@ -69,7 +69,7 @@ class CheckResult:
                                    "relative": fin(rel[n]), "poor": n in self.poor(),
                                    "fix": self.fixes.get(n)} for n in self.names},
                 "effects": self.effects, "effects_skipped": self.effects_skipped or None,
-                "findings": self.findings}
+                "findings": self.findings, "notes": fi.bound_notes(self.names)}
 
     def lines(self) -> list[str]:
         rel = self.relative()
@@ -87,6 +87,7 @@ class CheckResult:
                            f"{fx['amplitude']:.3g} ({pr.PURPOSES[fx['kind']]}){done}")
             else:
                 out.append(f"{n}: no candidate profile helps: {fx.get('why', '')}")
+        out += fi.bound_notes(self.names)
         if not self.poor():
             out.append(f"every parameter is determined within {100 * POOR:.0f} %")
         return out + self.effect_lines()

@@ -410,7 +410,7 @@ def plan_for_model(model: Model, settings: Settings) -> Plan:
     plan = Plan(profiles, drive, names, {n: vals[n] for n in names},
                 {n: float(s) for n, s in zip(names, se, strict=True)}, noise, umax,
                 umax_default, settings.speed_max, sens=sens)
-    plan.notes += blocked_current_notes(profiles, vals, drive)
+    plan.notes += blocked_current_notes(profiles, vals, drive) + fi.bound_notes(names)
     if settings.effects:
         plan.effects = effect_table(profiles, sens, F, vals, names, drive, noise, scales, model)
     if plan.seconds > settings.budget + 1e-6:
