@@ -140,7 +140,7 @@ def check_logs(logs, model: Model, settings: Settings) -> CheckResult:
     speed = max([float(np.max(np.abs(lg["omega"]))) for lg in logs if lg.has("omega")]
                 + [1e-6])
     scales = parameter_scales(vals, drive, speed)
-    F = np.zeros((len(names), len(names)))
+    F = fi.range_information(names)
     noises = []
     for lg in logs:
         blocked = lg.blocked

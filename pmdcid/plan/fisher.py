@@ -184,6 +184,21 @@ def information(sens: dict[str, np.ndarray], noise: dict[str, float]) -> np.ndar
     return F
 
 
+def range_information(names: list[str]) -> np.ndarray:
+    """The information a parameter's range [lower, upper] alone holds (``BASE_PARAMS``): that
+    of a uniform distribution over it, 12 / (upper - lower)^2 on the diagonal, 0 for an
+    unbounded range. Negligible wherever the profiles determine a parameter; where they leave
+    one free within a narrow range (a lumped model's back-EMF share, in [0, 1], on steps
+    alone), it keeps the linearised covariance from sending the parameters that trade with it
+    (J, tau_e) across values the range forbids."""
+    d = []
+    for n in names:
+        spec = BASE_PARAMS.get(n)
+        width = spec.upper - spec.lower if spec is not None else math.inf
+        d.append(12.0 / width ** 2 if math.isfinite(width) and width > 0 else 0.0)
+    return np.diag(d)
+
+
 def stderr(F: np.ndarray) -> np.ndarray:
     """Predicted standard errors sqrt(diag(inv F)); inf for a parameter F leaves free."""
     p = F.shape[0]
@@ -239,7 +254,9 @@ def stage_information(sens: list[dict[str, np.ndarray]], blocked: list[bool],
 
 
 def staged_from(F_el: np.ndarray, F_sp: np.ndarray, names: list[str]) -> np.ndarray:
-    """:func:`staged_stderr` from the two stages' information matrices."""
+    """:func:`staged_stderr` from the two stages' information matrices (the free profiles'
+    with the parameters' ranges, :func:`range_information`)."""
+    F_sp = F_sp + range_information(names)
     e = [k for k, n in enumerate(names) if n in ELECTRICAL]
     m = [k for k, n in enumerate(names) if n not in ELECTRICAL]
     out = np.full(len(names), math.inf)
@@ -273,6 +290,6 @@ def relative(se: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["Drive", "ELECTRICAL", "LAG_REL_STEP", "REL_STEP", "TAU_E_BOUND", "bound_notes",
-           "drive_of", "identified",
-           "information", "model_values", "relative", "sensitivities", "signals_of",
-           "simulate_profile", "stage_information", "staged_from", "staged_stderr", "stderr"]
+           "drive_of", "identified", "information", "model_values", "range_information",
+           "relative", "sensitivities", "signals_of", "simulate_profile", "stage_information",
+           "staged_from", "staged_stderr", "stderr"]

@@ -15,6 +15,7 @@ from click.testing import CliRunner
 from pmdcid.cli import main
 from pmdcid.io import Log
 from pmdcid.model import Model, load_model, save_model
+from pmdcid.model.lumped import mark_lumped
 from pmdcid.pipeline import identify
 from pmdcid.plan.check import check_logs
 from pmdcid.plan.design import Settings
@@ -205,3 +206,23 @@ def test_check_of_a_lumped_model_with_its_lag_predicts_the_fits_errors():
         ratio = res.stderr[k] / model.parameters[k].stderr
         assert (1 / 3 if k != "tau_e" else 0.05) < ratio < 3, (k, ratio)
     assert TAU_E_BOUND in res.lines() and res.as_dict()["notes"] == [TAU_E_BOUND]
+
+
+def test_check_keeps_a_share_the_steps_leave_free_within_its_range():
+    """Steps alone leave a lumped model's back-EMF share free (it trades with J and tau_e along
+    a valley of equal linear response; the fits say "not determined by these logs"). Linearised
+    without its range, the share's freedom sent J's and tau_e's predicted errors past 200 %
+    where the fits give 5 %; with the range [0, 1] as information (that of a uniform
+    distribution), the share is poorly determined at its range's own 0.29 and J, tau_e within
+    10 %."""
+    logs = [lg for lg in _lumped_logs(np.random.default_rng(10_002))
+            if lg.path.startswith("step")]
+    model = Model()
+    mark_lumped(model)
+    for k, v in {"J": 7.664e-4, "bv": 0.022327, "bc": 0.35384, "dz": 0.42898, "tau_e": 3.9e-3,
+                 "ke_share": 0.9}.items():
+        model.set(k, v)
+    res = check_logs(logs, model, Settings())
+    rel = res.relative()
+    assert "ke_share" in res.poor() and res.stderr["ke_share"] == pytest.approx(12 ** -0.5, 0.02)
+    assert rel["J"] < 0.1 and rel["tau_e"] < 0.1 and rel["bv"] < 0.01
