@@ -226,3 +226,23 @@ def test_check_keeps_a_share_the_steps_leave_free_within_its_range():
     rel = res.relative()
     assert "ke_share" in res.poor() and res.stderr["ke_share"] == pytest.approx(12 ** -0.5, 0.02)
     assert rel["J"] < 0.1 and rel["tau_e"] < 0.1 and rel["bv"] < 0.01
+
+
+def test_check_names_no_fix_for_a_dead_zone_no_profile_can_show():
+    """A lumped model without its lag feels its dead zone on the applied voltage: below the
+    Coulomb friction, every input passes it at once and no profile shows it. plan --check says
+    that no candidate helps, with the best one's figure, where it named a recording that
+    determines nothing ("record 119 s of steps (still 2.4e+08 % within the budget)")."""
+    vals = {"J": 0.036, "bv": 0.47, "bc": 0.25, "dz": 0.12}
+    t = np.arange(4000) * 0.005
+    u = triangle(t, 7.0, 10.0)
+    w = simulate_values(t, u, {**neutral_values(), **vals}, True).omega
+    w = w + np.random.default_rng(1).normal(0, 0.01 * np.ptp(w), w.size)
+    model = Model()
+    mark_lumped(model)
+    for k, v in vals.items():
+        model.set(k, v)
+    res = check_logs([Log("tri.csv", t, {"v": u, "omega": w})], model, Settings())
+    assert res.poor() == ["dz"] and "kind" not in res.fixes["dz"]
+    assert "the best (" in res.fixes["dz"]["why"]
+    assert any(line.startswith("dz: no candidate profile helps: ") for line in res.lines())
