@@ -260,13 +260,15 @@ def _fix_or_why(best) -> dict:
     """The best candidate's fix, or why there is none: the budget is shorter than any unit, or
     the best still leaves the parameter's error larger than its value (a dead zone below the
     Coulomb friction, which no profile within the limits shows: "record 119 s of steps (still
-    1.6e+08 %)" named a recording that determines nothing)."""
+    inf %)" named a recording that determines nothing)."""
     if best is None:
         return {"why": "the budget is shorter than one profile unit"}
     fix = best[1]
-    if not fix["reaches"] and not fix["relative_after"] <= 1.0:
+    rel = fix["relative_after"]
+    if not fix["reaches"] and not rel <= 1.0:
+        left = f"at {100 * rel:.2g} %" if math.isfinite(rel) else "free"
         return {"why": f"within the budget and the input limit, the best ({fix['seconds']:.3g} "
-                       f"s of {fix['kind']}) leaves it at {100 * fix['relative_after']:.2g} %"}
+                       f"s of {fix['kind']}) leaves it {left}"}
     return fix
 
 

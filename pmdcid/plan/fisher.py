@@ -184,18 +184,22 @@ def information(sens: dict[str, np.ndarray], noise: dict[str, float]) -> np.ndar
     return F
 
 
+#: parameters whose range is physical (a share of a whole), not a cap set far beyond any motor
+RANGED = ("ke_share",)
+
+
 def range_information(names: list[str]) -> np.ndarray:
-    """The information a parameter's range [lower, upper] alone holds (``BASE_PARAMS``): that
-    of a uniform distribution over it, 12 / (upper - lower)^2 on the diagonal, 0 for an
-    unbounded range. Negligible wherever the profiles determine a parameter; where they leave
-    one free within a narrow range (a lumped model's back-EMF share, in [0, 1], on steps
-    alone), it keeps the linearised covariance from sending the parameters that trade with it
-    (J, tau_e) across values the range forbids."""
+    """The information a :data:`RANGED` parameter's range [lower, upper] alone holds
+    (``BASE_PARAMS``): that of a uniform distribution over it, 12 / (upper - lower)^2 on the
+    diagonal (0 for every other parameter: their bounds are caps, and one the profiles leave
+    free stays ``free``). Negligible wherever the profiles determine the parameter; where they
+    leave it free (a lumped model's back-EMF share, in [0, 1], on steps alone), it keeps the
+    linearised covariance from sending the parameters that trade with it (J, tau_e) across
+    values the range forbids."""
     d = []
     for n in names:
-        spec = BASE_PARAMS.get(n)
-        width = spec.upper - spec.lower if spec is not None else math.inf
-        d.append(12.0 / width ** 2 if math.isfinite(width) and width > 0 else 0.0)
+        spec = BASE_PARAMS.get(n) if n in RANGED else None
+        d.append(12.0 / (spec.upper - spec.lower) ** 2 if spec is not None else 0.0)
     return np.diag(d)
 
 
@@ -289,7 +293,8 @@ def relative(se: np.ndarray, values: np.ndarray) -> np.ndarray:
         return np.where(values != 0, se / np.abs(values), math.inf)
 
 
-__all__ = ["Drive", "ELECTRICAL", "LAG_REL_STEP", "REL_STEP", "TAU_E_BOUND", "bound_notes",
+__all__ = ["Drive", "ELECTRICAL", "LAG_REL_STEP", "RANGED", "REL_STEP", "TAU_E_BOUND",
+           "bound_notes",
            "drive_of", "identified", "information", "model_values", "range_information",
            "relative", "sensitivities", "signals_of", "simulate_profile", "stage_information",
            "staged_from", "staged_stderr", "stderr"]
