@@ -11,9 +11,12 @@ Two measurements on bench/lumped_coverage.py's motors (SI, back-EMF 90 % of the 
   within 2 of the fit's own, and the median ratio predicted / fit.
 - ``--trip-seeds N``: the plan's own round trip on seed 1's motor. Its lumped model is
   identified from seed 1's logs, ``plan`` designs its profiles (defaults: 120 s at 1 kHz), each
-  is recorded by the kernel on the SI truth with the plan's speed noise
+  is recorded by the kernel (64 internal steps a sample, as bench/lumped_coverage.py's logs)
+  on the SI truth with the plan's speed noise
   (``numpy.random.default_rng(100 * seed + k)``, no current), and ``identify`` (no diagnose)
-  fits them. The z-scores against the plan's predicted errors and the fit's, and their ratio.
+  fits them from the model the plan was made for (``pmdcid identify rec/*.csv -m model.json``:
+  from an empty model, identify frees no lag on a triangle and a PRBS alone, docs/plan.md).
+  The z-scores against the plan's predicted errors and the fit's, and their ratio.
 
 Not a test: it prints; docs/plan.md quotes its figures.
 """
@@ -29,17 +32,18 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.lumped_coverage import logs_for_seed  # noqa: E402
+from bench.lumped_coverage import NSUB, logs_for_seed  # noqa: E402
 from pmdcid.io.kinds import canonical  # noqa: E402
 
 PARAMS = ("J", "bv", "bc", "dz", "tau_e", "ke_share")
 
 
-def _identified(logs):
+def _identified(logs, start=None):
+    """identify's model (no diagnose) of ``logs`` from ``start`` (default: an empty model)."""
     from pmdcid.model import Model
     from pmdcid.pipeline import identify
 
-    return identify(logs, Model(), run_diagnose=False).model
+    return identify(logs, start if start is not None else Model(), run_diagnose=False).model
 
 
 def _row(model, truth: dict, predicted: dict) -> dict:
@@ -72,17 +76,18 @@ def trip_rows(seeds) -> list[dict]:
     from pmdcid.simulate import neutral_values, simulate_values
 
     tr, logs = logs_for_seed(1)
-    plan = plan_for_model(_identified(logs), Settings())
+    model = _identified(logs)
+    plan = plan_for_model(model, Settings())
     vals = {**neutral_values(), **tr["si"]}
     rows = []
     for seed in seeds:
         rec = []
         for k, p in enumerate(plan.profiles):
-            w = simulate_values(p.t, p.u, vals).omega
+            w = simulate_values(p.t, p.u, vals, nsub=NSUB).omega  # recorded finer than fitted
             noise = np.random.default_rng(100 * seed + k).normal(0.0, plan.noise["omega"], w.size)
             rec.append(Log(f"{p.name}.csv", p.t, {"v": p.u, "omega": w + noise},
                            meta={"kind": canonical(p.kind)}))  # as plan writes it
-        rows.append(_row(_identified(rec), tr["per_volt"], plan.stderr))
+        rows.append(_row(_identified(rec, model), tr["per_volt"], plan.stderr))
         _print(f"round trip seed {seed}", rows[-1])
     return rows
 
