@@ -567,13 +567,16 @@ def _profile_lines(fit, steps) -> list[dict[str, float]]:
 NONNEGATIVE = ("J", "bv", "bc", "dz", "tau_e", "ke_share", "fs", "ws", "bq")
 
 
+def _limits(name: str, bounds: dict) -> tuple[float, float]:
+    """(lower, upper) a scan's point may take for parameter ``name``: its ``bounds``, else 0
+    below for the :data:`NONNEGATIVE` ones; a back-EMF share at most 1 whatever they say."""
+    lo, hi = bounds.get(name, (0.0 if name in NONNEGATIVE else -math.inf, math.inf))
+    return (lo, min(hi, 1.0)) if name == "ke_share" else (lo, hi)
+
+
 def _inside(point: dict[str, float], bounds: dict) -> bool:
-    """Whether ``point`` lies within ``bounds`` and its physical parameters are not negative."""
-    for k, v in point.items():
-        lo, hi = bounds.get(k, (0.0 if k in NONNEGATIVE else -math.inf, math.inf))
-        if not lo <= v <= hi:
-            return False
-    return not ("ke_share" in point and point["ke_share"] > 1.0)
+    """Whether ``point`` lies within ``bounds`` and the physical region (:func:`_limits`)."""
+    return all(lo <= v <= hi for k, v in point.items() for lo, hi in [_limits(k, bounds)])
 
 
 def _valley_restart(logs, work, free, signals, fit, sigma, opts, bounds, priors, held,
@@ -746,14 +749,11 @@ SECANT_MIN_REACH = 0.5
 
 def _reach(center: dict[str, float], point: dict[str, float], bounds: dict) -> float:
     """The largest fraction t in [0, 1] of the way from ``center`` to ``point`` that stays
-    within ``bounds`` and the physical region of :func:`_inside` (nothing negative that cannot
-    be, a back-EMF share of at most 1): 0 where ``center`` itself lies on a bound the line
-    leaves through."""
+    within ``bounds`` and the physical region (:func:`_limits`): 0 where ``center`` itself
+    lies on a bound the line leaves through."""
     t = 1.0
     for k, v in point.items():
-        lo, hi = bounds.get(k, (0.0 if k in NONNEGATIVE else -math.inf, math.inf))
-        if k == "ke_share":
-            hi = min(hi, 1.0)
+        lo, hi = _limits(k, bounds)
         c, d = center[k], v - center[k]
         if d > 0 and c + d > hi:
             t = min(t, max(hi - c, 0.0) / d)
