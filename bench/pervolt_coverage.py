@@ -9,9 +9,11 @@ Cases (columns t, v, omega only: the lumped path of ``pmdcid identify``):
   the paper's motor (back-EMF ke = km, L/R = 7.5 ms) at 1 kHz or 500 Hz, speed noise 0.2 rad/s,
   the voltage as commanded, simulated :data:`NSUB` internal steps a sample;
 - ``paper-tri-1k``, ``paper-tri-500``: the same steps plus a +-12 V triangle (period 4 s, 8 s);
+  ``paper-tri-only-1k``: the triangle alone (the paper's fit-nonlinear log);
 - ``lr-steps``, ``lr-tri``: bench/lumped_coverage.py's motors (L/R 2-4 ms, 0.5 or 1 kHz
   alternating, back-EMF 90 % of the damping): its four steps from rest, with and without its
-  triangle.
+  triangle; ``lr-tri-only``: its triangle alone (no step: identify starts from a first-order
+  fit and tests the lag in the joint fit, :func:`pmdcid.identify.runners.lag_untested`).
 
 ``--drag BQ``: a true quadratic drag bq [N m s^2/rad^2] (SI) in every motor; ``--diagnose``:
 identify runs diagnose, and the row is the final model's. Per-volt truth: J' = J R/km,
@@ -40,7 +42,7 @@ import numpy as np
 NSUB = 64
 PARAMS = ("J", "bv", "bc", "dz", "tau_e", "ke_share", "bq")
 CASES = ("paper-steps-1k", "paper-steps-500", "paper-tri-1k", "paper-tri-500", "lr-steps",
-         "lr-tri")
+         "lr-tri", "lr-tri-only", "paper-tri-only-1k")
 
 
 def _paper_truth(rate: float) -> dict:
@@ -70,6 +72,8 @@ def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2):
         _, logs = logs_for_seed(seed, si if bq else None)
         if case == "lr-steps":
             logs = [lg for lg in logs if lg.path.startswith("step")]
+        elif case == "lr-tri-only":
+            logs = [lg for lg in logs if lg.path == "triangle"]
         return _per_volt(si), logs
     rate = 1000.0 if case.endswith("1k") else 500.0
     si = {**_paper_truth(rate)["si"], "bq": bq}
@@ -77,7 +81,7 @@ def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2):
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, 4.0, 1.0 / rate)
     logs = []
-    for low, high in ((0.0, 6.0), (3.0, 9.0), (0.0, 12.0)):
+    for low, high in () if "-only-" in case else ((0.0, 6.0), (3.0, 9.0), (0.0, 12.0)):
         v = np.where((t >= 1.0) & (t < 2.5), high, low)
         w = simulate_values(t, v, vals, False, nsub=NSUB).omega
         w = w + rng.normal(0, noise, t.size)

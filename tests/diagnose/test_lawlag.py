@@ -47,12 +47,14 @@ def test_no_delay_is_added_where_there_is_none(rate, truth):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("rate", [100.0, 500.0])
+@pytest.mark.parametrize("rate", [100.0])
 def test_a_real_delay_is_not_taken_for_the_lag(rate):
     # a 2-sample latency beside the 2 ms L/R: fit-mechanical's lag takes both (tau_e about
     # their sum, no delay); diagnose refits the lag with a delay and keeps the delay. On voltage
     # and speed the two trade off, so the split is asserted loosely, their sum closely. (At
-    # 1 kHz, a 2 ms latency beside the 2 ms lag, it is split in some seeds only: docs/effects.md)
+    # 1 kHz, a 2 ms latency beside the 2 ms lag, it is split in some seeds only: docs/effects.md.
+    # At 500 Hz, where the steps resolve both, the split is asserted closely, J within its
+    # errors: test_a_real_delay_beside_the_lag_is_kept_with_it, which this case repeated)
     fit, _, vals = scenario(1, 1e3 * LAG, rate, "sensor_delay")
     model = identify(fit, diagnose=True, progress=False).model
     assert "sensor_delay" in model.effects, model.effects
