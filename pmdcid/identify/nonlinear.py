@@ -872,7 +872,8 @@ def _profile_dead_zone(logs, base_vals, fit, signals, sigma, est, warns, refit) 
 
 def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool = False,
                   grid: bool = True, max_nfev: int = 200,
-                  priors: bool = True, noise_model: int = 0) -> NonlinearResult:
+                  priors: bool = True, noise_model: int = 0,
+                  local_only: bool = False) -> NonlinearResult:
     """Fit J, bv, bc, dz (voltage logs) or J, bv, bc, tau0 (torque logs) by simulation error.
 
     ``free``: parameters to fit (subset of J, bv, bc, dz, tau0); ``signals``: measured signals
@@ -880,11 +881,14 @@ def fit_nonlinear(logs, model: Model, free=None, signals=None, dead_zone: bool =
     torque-driven logs. R, L, km (voltage logs) and the model's other parameters are held.
     ``priors``: combine with the estimates earlier stages wrote (:func:`stage_priors`); False
     lets these logs alone decide. ``noise_model``: the local stage's AR noise model order (0:
-    white; closed-loop logs, :func:`pmdcid.fit.simfit.fit_simulation`).
+    white; closed-loop logs, :func:`pmdcid.fit.simfit.fit_simulation`). ``local_only``: the
+    local stage alone, none of the checks after it (the dead zone's, the inertia's and the
+    share's restarts, the secant check): a start compared with others by its chi-square
+    (:func:`pmdcid.identify.runners.stage_nonlinear`'s lag), never a result to write.
     The model is not modified: call :meth:`NonlinearResult.apply`.
     """
     run = partial(_best_start, logs, model, free, signals, dead_zone, grid, max_nfev, priors,
-                  noise_model)
+                  noise_model, local_only=local_only)
     with blas_single_thread():
         res = run()
         if free is None and not offset_shown(res.estimates.get("tau0"), res.stats.ndata):
@@ -906,13 +910,25 @@ def offset_shown(e: Estimate | None, ndata: int) -> bool:
     return offset_evident(e.value, e.stderr, ndata)
 
 
-def _best_start(*args, offset: bool = True) -> NonlinearResult:
+def _local_bounds(logs, free, start: dict, guessed) -> dict[str, tuple[float, float]]:
+    """The local stage's bounds: J and bv within :data:`REFINE_RANGE` of their start (cubed
+    for a guessed one), a lumped model's lag above its floor (it stays a lag: tau_e = 0 is the
+    model without it)."""
+    bounds = {k: (start[k] / REFINE_RANGE ** (3 if k in guessed else 1),
+                  start[k] * REFINE_RANGE)
+              for k in ("J", "bv") if k in free and start[k] > 0}
+    if "tau_e" in free:
+        bounds["tau_e"] = (TAU_E_FLOOR * min(lg.dt for lg in logs), 1.0)
+    return bounds
+
+
+def _best_start(*args, offset: bool = True, local_only: bool = False) -> NonlinearResult:
     """The fit from each start the logs give (:func:`.nonlinear_setup.competing_starts`:
     torque-driven logs), the lowest chi-square kept; a start that fails to fit is passed over."""
-    best = _fit_nonlinear(*args, offset=offset)
+    best = _fit_nonlinear(*args, offset=offset, local_only=local_only)
     for pick in range(1, best.starts):
         try:
-            other = _fit_nonlinear(*args, offset=offset, pick=pick)
+            other = _fit_nonlinear(*args, offset=offset, pick=pick, local_only=local_only)
         except FitError:
             continue
         if other.stats.chisqr < best.stats.chisqr:
@@ -921,7 +937,8 @@ def _best_start(*args, offset: bool = True) -> NonlinearResult:
 
 
 def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
-                   priors=True, noise_model=0, offset=True, pick=0) -> NonlinearResult:
+                   priors=True, noise_model=0, offset=True, pick=0,
+                   local_only=False) -> NonlinearResult:
     t_start = time.perf_counter()
     check_logs(logs)
     prior = stage_priors(model, KNOWN_FREE, STAGE) if priors else {}
@@ -958,11 +975,7 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
         # its finite-difference step as large as 1 N m
         if k in ls_free and best[k] == 0.0:
             best[k] = 1e-3 * tscale
-    bounds = {k: (start[k] / REFINE_RANGE ** (3 if k in guessed else 1),
-                  start[k] * REFINE_RANGE)
-              for k in ("J", "bv") if k in free and start[k] > 0}
-    if "tau_e" in free:  # a lumped model's lag stays a lag: tau_e = 0 is the model without it
-        bounds["tau_e"] = (TAU_E_FLOOR * min(lg.dt for lg in logs), 1.0)
+    bounds = _local_bounds(logs, free, start, guessed)
     # how a slow log's input varied between samples, when it matters (.ramp_profile)
     prof = hold_profile(logs, start, free, partial(
         _chisqr_and_J, logs, work, ls_free, signals, best, sigma, max_nfev, bounds, prior))
@@ -976,6 +989,10 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
     # the same criterion as the fit they may replace (its noise model included)
     fit = _polish(logs, work, ls_free, signals, fit, sigma, opts, bounds,
                   prior_terms(prior), held, wide=True)
+    if local_only:
+        return NonlinearResult(dict(fit.estimates), fit, signals, [lg.path for lg in logs], start,
+                               best, nsets, time.perf_counter() - t_start, warns,
+                               {n: prior[n][0] for n in fit.priors}, starts=nstarts)
     for _ in range(SCAN_ROUNDS):  # each restart may stop on the next step of a rough cost
         scanned = _scan_inertia(logs, work, ls_free, signals, fit, sigma, opts, bounds,
                                 prior_terms(prior), held, base_vals)
