@@ -60,6 +60,22 @@ def test_held_mean_is_exact_for_a_held_input(rng):
     np.testing.assert_allclose(got[:-1], ref, atol=2e-3 * np.abs(u).max())
 
 
+def test_held_mean_keeps_a_held_level_exactly(rng):
+    """A duty held at one level (a step applied at the first sample, loop-timed instants 4-18 ms
+    apart): every step of the grid holds exactly that level, so the log's input never changes
+    (the running area's difference had left 1e-16 ripples: the step read as an input that
+    varies between its samples). Where the level changes inside a step, its mean lies between."""
+    ts = np.cumsum(rng.uniform(0.004, 0.018, 400))
+    grid = ts[0] + 0.00509 * np.arange(int((ts[-1] - ts[0]) / 0.00509))
+    held = held_mean(ts, np.full(400, 0.729), grid)
+    assert np.all(held == 0.729)
+    u = np.where(np.arange(400) < 200, 0.729, -0.3)
+    got = held_mean(ts, u, grid)
+    change = np.searchsorted(grid, ts[200]) - 1
+    assert np.all(got[:change] == 0.729) and np.all(got[change + 1:] == -0.3)
+    assert -0.3 <= got[change] <= 0.729
+
+
 def test_loop_timed_state_error_is_small(rng, paper_values):
     """The kernel on the ~5 ms grid (the input's mean per step) against the exact simulation
     with the input held from each loop instant (4-18 ms apart), read back at the loop instants:
