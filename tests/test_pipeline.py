@@ -314,7 +314,8 @@ def test_blocked_rotor_logs_alone_end_the_same_with_and_without_a_report(tmp_pat
 
 def test_a_step_applied_at_the_first_sample_is_used_not_called_unchanging(tmp_path):
     """A duty held from the first sample with the rotor starting at rest (an EV3 run: no rest
-    recorded before the step), angle only: the joint fit uses it; a flat log stays unused."""
+    recorded before the step), angle only: a step log (fit-mechanical reads a step from rest at
+    the first sample); a flat log stays unused."""
     from pmdcid.io import read_log
     from pmdcid.pipeline import classify
 
@@ -325,7 +326,7 @@ def test_a_step_applied_at_the_first_sample_is_used_not_called_unchanging(tmp_pa
     q = 2 * np.pi / 360  # a 1-degree encoder
     write_log(tmp_path / "run.csv", t, {"v": u, "theta": np.round(theta / q) * q})
     write_log(tmp_path / "flat.csv", t, {"v": u, "theta": np.zeros(len(t))})
-    assert classify(read_log(tmp_path / "run.csv")).kind == "rich"
+    assert classify(read_log(tmp_path / "run.csv")).kind == "step"
     assert classify(read_log(tmp_path / "flat.csv")).kind == "unused"
 
 

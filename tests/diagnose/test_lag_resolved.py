@@ -104,7 +104,10 @@ def test_identify_keeps_the_masked_dead_zone_through_a_sub_sample_lag(tmp_path):
     """LEGO-like rig seed 6 through ``identify`` with diagnose: the lag taken (about 2.5 ms on
     an 11 ms grid; L/R 0.7 ms, 2 degrees of backlash) moved the masked dead zone (0 to 1.03 V,
     the model's 0.51) to 1.81 +- 0.44 V, read from starts from rest delayed by a fraction of a
-    sample, and the held-out sines rose 0.019 -> 0.047. The interval is kept now."""
+    sample, and the held-out sines rose 0.019 -> 0.047. The interval is kept now. (Since its
+    duty steps, applied at the first sample, are read as steps by fit-mechanical, the lag comes
+    from the steps and diagnose no longer meets the case through identify: the held-out sines
+    and the interval are asserted here, sub_sample_masked's note by the test above.)"""
     rig = lego(6)
     fit = [read_mapped(p, rig.maps) for p in write(tmp_path, rig.steps)]
     held = [read_mapped(p, rig.maps)
@@ -115,4 +118,3 @@ def test_identify_keeps_the_masked_dead_zone_through_a_sub_sample_lag(tmp_path):
     assert np.all(errs[:, 1] <= (1 + MAX_RISE) * errs[:, 0]), errs
     dz = res.model.parameters["dz"]
     assert dz.interval is not None and dz.value == pytest.approx(before.value("dz"))
-    assert [n for n in res.all_notes() if "dz kept as the earlier fit's interval" in str(n)]
