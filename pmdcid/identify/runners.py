@@ -137,12 +137,12 @@ def _fit_nonlinear(logs, model, controller, opts):
     return res
 
 
-#: the electrical lags a lumped fit whose lag no stage examined starts from [sample periods],
-#: the lowest BIC kept: along tau_e a slow input's cost is flat and rough, and from one start
-#: the fit stopped short (bench/pervolt_coverage.py lr-tri-only seed 8 at 1 kHz from 2 samples:
-#: tau_e -76 %, chi-square 8196; from 6: -22 %, 8158; over 20 seeds J', bv', bc' within 2
-#: standard errors 15, 15, 19 from 2 samples alone, 18, 15, 17 from 4, 20, 15, 15 from 6, and
-#: 19, 18, 20 from both). The two fits run on two CPUs where there are (runtime/cpus.py)
+#: the electrical lags a lumped fit whose lag no stage examined starts from [sample periods]
+#: (:func:`_with_lag_if_better`): along tau_e a slow input's cost is flat and rough, and from one
+#: start the fit stopped short (bench/pervolt_coverage.py lr-tri-only seed 8 at 1 kHz from 2
+#: samples: tau_e -76 %, chi-square 8196; from 6: -22 %, 8158; over 20 seeds J', bv', bc' within
+#: 2 standard errors 15, 15, 19 from 2 samples alone, 18, 15, 17 from 4, 20, 15, 15 from 6, and
+#: 19, 18, 20 from both). Their local stages run on two CPUs where there are (runtime/cpus.py)
 LAG_START_SAMPLES = (2.0, 6.0)
 
 
@@ -163,15 +163,17 @@ def lag_untested(model, logs) -> bool:
 
 def _with_lag_if_better(logs, model, opts, plain):
     """``plain`` (the fit without a lag) or the same fit with the electrical lag tau_e and the
-    back-EMF's share free, started from ``plain``'s values and each lag of
-    :data:`LAG_START_SAMPLES`: the lowest BIC kept, said in a note.
+    back-EMF's share free: the local stage from ``plain``'s values and each lag of
+    :data:`LAG_START_SAMPLES`, the whole fit from the one that ends lower, kept where its BIC
+    is below ``plain``'s; said in a note either way.
 
     Every armature has its L/R; per volt the lag rounds each change of the torque and moves
     the dead zone onto v - ke w (:mod:`pmdcid.model.lumped`). Without it, on a triangle alone
     (bench/pervolt_coverage.py ``lr-tri-only``, L/R 2-4 ms at 0.5-1 kHz) J came out 12-17 % low
-    and bc 32-53 % high, 4-6 standard errors off; with it every one within 2. The test is the
-    likelihood's (BIC), not tau_e's own standard error: a slow input tells that a lag of some
-    milliseconds is there (BIC thousands lower) long before it tells how long."""
+    and bc 32-53 % high, 4-6 standard errors off (J', bv', bc', dz' within 2 in 0, 1, 0, 0 of
+    20 seeds); with it 19, 18, 20, 18. The test is the likelihood's (BIC), not tau_e's own
+    standard error: a slow input tells that a lag of some milliseconds is there (BIC thousands
+    lower) long before it tells how long."""
     dt = min(lg.dt for lg in logs)
 
     def from_start(samples):  # its local stage alone: (chi-square, the model it ends at)
