@@ -301,8 +301,11 @@ def _moved(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
     dead zone masked, shares 0-0.95 fitting as well: J' ± 0.032 V s^2/rad, 430 %, where the
     valley's J' spans 0.0068-0.0077). The valley's reading replaces that part, the rest (the
     error with the share held) kept."""
-    lo, hi = valley_points(point, found)[0], valley_points(point, found)[-1]
-    mid = valley_points(point, [0.5 * (found[0] + found[1])])[0]
+    ends = valley_points(point, found)
+    middle = valley_points(point, [0.5 * (found[0] + found[1])])
+    if len(ends) < 2 or not middle:  # a share no (J, tau_e) of equal response reaches: the
+        return {}, ""  # local covariance stands (bench/fuzz_cli.py negative-only: IndexError)
+    lo, hi, mid = ends[0], ends[-1], middle[0]
     out = {}
     for k in NAMES:
         e = est[k]

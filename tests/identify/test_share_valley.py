@@ -16,6 +16,7 @@ import pytest
 from pmdcid.fit.results import Estimate
 from pmdcid.identify.share_valley import (
     SHARES,
+    _moved,
     dips,
     lower_hull,
     restart_from_dips,
@@ -372,3 +373,13 @@ def test_poorly_determined_share_takes_the_valley_not_the_linearisation():
     assert out["J"].stderr == pytest.approx(np.hypot(local, span / np.sqrt(12.0)), rel=1e-6)
     assert out["J"].stderr < span  # within what the valley spans
     assert out["ke_share"].stderr == pytest.approx(0.95 / np.sqrt(12.0), rel=0.05)
+
+
+def test_a_valley_that_cannot_be_walked_to_the_interval_leaves_the_local_errors():
+    """A share interval reaching shares that no (J, tau_e) of equal linear response reaches from
+    the fit's point (a tiny J beside a long lag: only shares near 1): the local covariance stands
+    ({}, no words), where the walk raised IndexError (bench/fuzz_cli.py's negative-only log)."""
+    point = {"J": 1e-6, "tau_e": 0.01, "bv": 1.0, "ke_share": 0.99, "bc": 0.1}
+    assert not valley_points(point, [0.3]) and valley_points(point, [0.99])
+    est = {k: Estimate(k, v, 0.1 * v, "") for k, v in point.items()}
+    assert _moved(point, est, (0.0, 0.6), {}) == ({}, "")
