@@ -101,7 +101,9 @@ def stage_nonlinear(logs, model, controller=None, **opts):
     (:func:`~pmdcid.simulate.logs_for`), J, bv, bc, dz free unless ``free`` says otherwise.
     Closed-loop logs (:mod:`pmdcid.identify.closedfit`): with ``controller`` (a
     :class:`~pmdcid.simulate.controller.ControllerSpec`) the loop is simulated from the logged
-    reference; without, the logged output is fitted with a noise model."""
+    reference; without, the logged output is fitted with a noise model. A lumped model whose
+    lag no step tested (:func:`lag_untested`) is fitted with the lag too, the lower BIC kept
+    (:func:`_with_lag_if_better`)."""
     start = _linear_start_if_needed(logs, model)
     untested = controller is None and not opts.get("free") and lag_untested(model, logs)
     res = _fit_nonlinear(logs, model, controller, dict(opts))
@@ -113,7 +115,8 @@ def stage_nonlinear(logs, model, controller=None, **opts):
 
 
 def _fit_nonlinear(logs, model, controller, opts):
-    """:func:`stage_nonlinear`'s one fit of ``model`` (module imports: see there)."""
+    """:func:`stage_nonlinear`'s one fit of ``model`` with ``opts`` (fit-nonlinear's or the
+    controller route's): a lumped model's lag and share freed where it has a lag."""
     from pmdcid.identify.closedfit import (
         closed_loop_logs,
         fit_closed_loop,
