@@ -13,7 +13,9 @@ Cases (columns t, v, omega only: the lumped path of ``pmdcid identify``):
 - ``lr-steps``, ``lr-tri``: bench/lumped_coverage.py's motors (L/R 2-4 ms, 0.5 or 1 kHz
   alternating, back-EMF 90 % of the damping): its four steps from rest, with and without its
   triangle; ``lr-tri-only``: its triangle alone (no step: identify starts from a first-order
-  fit and tests the lag in the joint fit, :func:`pmdcid.identify.runners.lag_untested`).
+  fit and tests the lag in the joint fit, :func:`pmdcid.identify.runners.lag_untested`);
+  ``lr-aprbs``, ``lr-chirp``: the same motors on one log of random levels, or one swept sine,
+  alone (:func:`_lr_rich`).
 
 ``--drag BQ``: a true quadratic drag bq [N m s^2/rad^2] (SI) in every motor; ``--diagnose``:
 identify runs diagnose, and the row is the final model's. Per-volt truth: J' = J R/km,
@@ -42,7 +44,7 @@ import numpy as np
 NSUB = 64
 PARAMS = ("J", "bv", "bc", "dz", "tau_e", "ke_share", "bq")
 CASES = ("paper-steps-1k", "paper-steps-500", "paper-tri-1k", "paper-tri-500", "lr-steps",
-         "lr-tri", "lr-tri-only", "paper-tri-only-1k")
+         "lr-tri", "lr-tri-only", "paper-tri-only-1k", "lr-aprbs", "lr-chirp")
 
 
 def _paper_truth(rate: float) -> dict:
@@ -74,6 +76,8 @@ def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2):
             logs = [lg for lg in logs if lg.path.startswith("step")]
         elif case == "lr-tri-only":
             logs = [lg for lg in logs if lg.path == "triangle"]
+        elif case in ("lr-aprbs", "lr-chirp"):
+            logs = [_lr_rich(case, seed, si, tr["rate"])]
         return _per_volt(si), logs
     rate = 1000.0 if case.endswith("1k") else 500.0
     si = {**_paper_truth(rate)["si"], "bq": bq}
@@ -92,6 +96,27 @@ def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2):
         w = simulate_values(tt, u, vals, False, nsub=NSUB).omega
         logs.append(Log("triangle.csv", tt, {"v": u, "omega": w + rng.normal(0, noise, tt.size)}))
     return _per_volt(si), logs
+
+
+def _lr_rich(case: str, seed: int, si: dict, rate: float):
+    """``lr-aprbs``: 8 s of random levels in +-8 V, each held 0.05-0.3 s (one to ten of the
+    motor's time constants); ``lr-chirp``: an 8 V sine swept 0.5 -> 10 Hz over 8 s. Speed
+    noise 0.3 % of the speed's range, as bench/lumped_coverage.py's."""
+    from pmdcid.io import Log
+    from pmdcid.simulate import neutral_values, simulate_values
+
+    rng = np.random.default_rng(20_000 + seed)
+    t = np.arange(int(8.0 * rate)) / rate
+    if case == "lr-aprbs":
+        edges = np.cumsum(rng.uniform(0.05, 0.3, 80))
+        levels = rng.uniform(-8.0, 8.0, edges.size + 1)
+        u = levels[np.searchsorted(edges, t, side="right")]
+    else:
+        u = 8.0 * np.sin(2 * np.pi * (0.5 * t + (10.0 - 0.5) * t * t / (2 * 8.0)))
+    w = simulate_values(t, u, {**neutral_values(), **si}, nsub=NSUB).omega
+    sigma = 0.003 * float(np.ptp(w))
+    return Log(path=case, t=t, data={"v": u, "omega": w + rng.normal(0.0, sigma, t.size)},
+               meta={})
 
 
 def _entry(par, true: float) -> dict:

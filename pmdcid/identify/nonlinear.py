@@ -92,6 +92,9 @@ KE_SHARES = (0.0, 0.1, 0.25, 0.5, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 0.99, 0.995, 
 #: internal step on a slow triangle)
 DIFF_STEP = {"J": 1e-3, "bv": 1e-3, "bc": 1e-2, "dz": 1e-2, "tau0": 1e-2, "tau_e": 1e-2,
              "ke_share": 1e-2}
+#: a friction or offset start below this fraction of the logs' torque scale is taken as 0
+#: (and the local stage starts it at 1e-3 of the scale)
+ZERO_START = 1e-9
 #: points of the dz profile that tests whether the dead zone is visible at all
 DZ_PROFILE_N = 25
 #: a dead zone must lower the chi-square by more than this fraction to count as identified
@@ -973,8 +976,11 @@ def _fit_nonlinear(logs, model, free, signals, dead_zone, grid, max_nfev,
             base_vals = [{**b, "dz": 0.0} for b in base_vals]
     for k in ("bc", "dz", "tau0"):
         # the local stage scales each parameter by its start: a start at exactly 0 would make
-        # its finite-difference step as large as 1 N m
-        if k in ls_free and best[k] == 0.0:
+        # its finite-difference step as large as 1 N m, and one within rounding of 0 (an
+        # earlier fit's value at its bound, 1e-17) a step of 1e-19, from which it never moves
+        # (bench/pervolt_coverage.py lr-chirp seed 7: the lag's fit kept bc at 3e-20 from the
+        # fit without a lag, chi-square 7103 against the truth's 4089)
+        if k in ls_free and abs(best[k]) <= ZERO_START * tscale:
             best[k] = 1e-3 * tscale
     bounds = _local_bounds(logs, free, start, guessed)
     # how a slow log's input varied between samples, when it matters (.ramp_profile)
