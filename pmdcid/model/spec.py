@@ -45,6 +45,32 @@ def spans_range(value: float, stderr: float, lower: float, upper: float) -> bool
             and value - RANGE_SE * stderr <= lower and value + RANGE_SE * stderr >= upper)
 
 
+#: a value within this fraction of its standard error of a finite bound sits at the bound: the
+#: fit stopped there, and the curvature it was read from is one-sided
+AT_BOUND_SE = 0.01
+
+
+def bound_reach(value: float, stderr: float, lower: float,
+                upper: float) -> tuple[float, float] | None:
+    """[unit] (the bound, the value :data:`RANGE_SE` standard errors into the range) for a
+    ``value`` at a finite bound (:data:`AT_BOUND_SE`) with a finite positive ``stderr``: a
+    fit that ends at 0 friction prints no ``4e-14 +- 0.0098`` (half of that interval lies where
+    the parameter cannot go), but the interval the logs leave it in. None otherwise."""
+    if not (math.isfinite(stderr) and stderr > 0 and math.isfinite(value)):
+        return None
+    if math.isfinite(lower) and value - lower <= AT_BOUND_SE * stderr:
+        return lower, min(value + RANGE_SE * stderr, upper)
+    if math.isfinite(upper) and upper - value <= AT_BOUND_SE * stderr:
+        return max(value - RANGE_SE * stderr, lower), upper
+    return None
+
+
+def bound_words(bound: float) -> str:
+    """The words a parameter at its bound (:func:`bound_reach`) carries with its interval."""
+    return (f"at its bound {bound:g}: the fit stops there, where its curvature gives no "
+            "standard error; the interval reaches two of it into the range")
+
+
 def range_words(lower: float, upper: float, unit: str) -> str:
     """The words a parameter carries in place of a standard error that spans its whole range
     (:func:`spans_range`)."""
@@ -77,4 +103,5 @@ BASE_PARAMS: dict[str, ParamSpec] = {
     ]
 }
 
-__all__ = ["BASE_PARAMS", "RANGE_SE", "ParamSpec", "range_words", "spans_range"]
+__all__ = ["AT_BOUND_SE", "BASE_PARAMS", "RANGE_SE", "ParamSpec", "bound_reach", "bound_words",
+           "range_words", "spans_range"]

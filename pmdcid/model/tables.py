@@ -28,6 +28,7 @@ COLUMNS = ("parameter", "value", "stderr", "unit", "low", "high", "caveat")
 def in_words(interval, unit: str, caveat: str = "") -> str:
     """``between LOW and HIGH UNIT (CAVEAT)``: a bounded parameter said as what it is."""
     why = f" ({caveat})" if caveat else ""
+    unit = "" if unit == "1" else unit  # a share, a ratio: no unit to print
     return f"between {interval[0]:.3g} and {interval[1]:.3g} {unit}".rstrip() + why
 
 

@@ -58,3 +58,26 @@ def test_open_or_wide_ranges_keep_their_standard_errors():
     for name in ("J", "bv", "R", "tau0", "omega0"):
         assert not range_only(name, 1.0, 1e3)
     assert range_only("J", 1.0, 1e6)
+
+
+def test_a_value_at_its_bound_is_written_as_the_interval_it_leaves():
+    """A fit that stops at a bound (bc at 0, the share at 1) reads a one-sided curvature: its
+    ``4e-14 +- 0.0098`` would put half of the 95 % interval where the parameter cannot go. It
+    is written and shown as the interval from the bound two standard errors into the range,
+    with the words; a value a hundredth of a standard error or more inside is an estimate."""
+    from pmdcid.fit.results import Estimate, shown
+    from pmdcid.model.spec import AT_BOUND_SE, bound_reach
+
+    assert bound_reach(4e-14, 0.0098, 0.0, 1e6) == (0.0, pytest.approx(0.0196))
+    assert bound_reach(1.0, 0.1, 0.0, 1.0) == (pytest.approx(0.8), 1.0)
+    assert bound_reach(2 * AT_BOUND_SE * 0.0098, 0.0098, 0.0, 1e6) is None
+    assert bound_reach(0.0, math.nan, 0.0, 1e6) is None  # no error: nothing to replace
+    m = Model()
+    m.set("bc", 3e-20, 4.9e-15, caveat="kept")
+    p = m.parameters["bc"]
+    assert math.isnan(p.stderr) and p.interval == (0.0, pytest.approx(9.8e-15))
+    assert p.caveat.startswith("at its bound 0") and p.caveat.endswith("; kept")
+    s = str(shown(Estimate("ke_share", 1.0, 0.1, "1")))
+    assert s.startswith("ke_share: between 0.8 and 1 (at its bound 1")
+    assert shown(Estimate("ke_share", 0.5, 0.1, "1")).interval is None
+    assert shown(Estimate("ke_share", 1e-4, 0.58, "1")).interval is None  # spans [0, 1]: none

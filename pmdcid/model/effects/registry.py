@@ -19,7 +19,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from pmdcid.model.spec import BASE_PARAMS, ParamSpec, range_words
+from pmdcid.model.spec import BASE_PARAMS, ParamSpec, bound_reach, bound_words, range_words
 
 
 @dataclass(frozen=True)
@@ -105,6 +105,22 @@ def bounds_of(name: str) -> tuple[float, float]:
     """(lower, upper) bounds of any parameter (unbounded for an unknown name)."""
     spec = param_spec(name)
     return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
+
+
+def at_bound(name: str, value: float, stderr: float) -> tuple[tuple[float, float], str] | None:
+    """(interval, words) for ``name`` whose ``value`` sits at a declared bound with a finite
+    standard error (:func:`pmdcid.model.spec.bound_reach`), to write in place of the standard
+    error; None for any other (an unknown name, a value inside its range, a standard error that
+    spans the range: :func:`range_only` first). Applied where :func:`range_only` is."""
+    spec = param_spec(name)
+    if spec is None or spec.spanned(value, stderr):
+        return None
+    reach = bound_reach(value, stderr, spec.lower, spec.upper)
+    if reach is None:
+        return None
+    side = spec.lower if reach[0] == spec.lower and value - spec.lower <= spec.upper - value \
+        else spec.upper
+    return reach, bound_words(side)
 
 
 def range_only(name: str, value: float, stderr: float) -> str:
