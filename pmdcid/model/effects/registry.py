@@ -118,9 +118,7 @@ def at_bound(name: str, value: float, stderr: float) -> tuple[tuple[float, float
     reach = bound_reach(value, stderr, spec.lower, spec.upper)
     if reach is None:
         return None
-    side = spec.lower if reach[0] == spec.lower and value - spec.lower <= spec.upper - value \
-        else spec.upper
-    return reach, bound_words(side)
+    return reach, bound_words(spec.lower if reach[0] == spec.lower else spec.upper)
 
 
 def range_only(name: str, value: float, stderr: float) -> str:
