@@ -111,7 +111,8 @@ def _value_cells(p: Page, base: str, par: dict) -> str:
     the three cells ("between 0 and 0.25 N m"), never as a standard error."""
     if par.get("interval") is not None:
         return (f"<td colspan='3'>between {p.span(base + '.interval.0', 3)} and "
-                f"{p.span(base + '.interval.1', 3)} {_esc(par['unit'])} (not identified)</td>")
+                f"{p.span(base + '.interval.1', 3)} {_esc(par['unit'])} (only bounded: no "
+                "standard error)</td>")
     return (f"{p.num(base + '.value', 6)}{p.num(base + '.stderr', 3)}"
             f"{p.num(base + '.rel_stderr_percent', 3)}")
 
