@@ -171,7 +171,7 @@ def _with_lag_if_better(logs, model, opts, plain):
     :data:`LAG_START_SAMPLES`, the whole fit from the one that ends lower (its grid over the
     share and the dead zone too: where the share sets what the dead zone acts on, the local
     stage does not cross between their valleys; without it, on a swept sine alone,
-    bench/pervolt_coverage.py ``lr-chirp``, the dead zone stayed masked below bc on 5 of 20
+    bench/pervolt_coverage.py ``lr-chirp``, the dead zone stayed masked below bc on 7 of 20
     seeds, its interval short of the truth on 3), kept where its BIC is below ``plain``'s;
     said in a note either way.
 
