@@ -209,13 +209,15 @@ def _with_lag_if_better(logs, model, opts, plain):
                                     about=["tau_e"], severity="note"))
         return res
     wide = _fold_reach(plain.estimates, res.estimates) if res is not None else []
+    if wide:
+        plain.warnings.insert(0, Note(
+            "standard errors widened so that two reach the fit with an electrical lag's own "
+            "two (the lag these logs leave open moves them): " + ", ".join(wide),
+            about=[w.split()[0] for w in wide], severity="note"))
     plain.warnings.insert(0, Note(
         "no electrical lag: the fit with one (tau_e and the back-EMF share free) is no better "
         "in BIC; the lumped model has none (tau_e = 0), the lag is folded into J and the dead "
-        "zone acts on the applied voltage" + (
-            "; standard errors widened so that two reach the fit with the lag's own two (the "
-            "lag these logs leave open moves them): " + ", ".join(wide) if wide else ""),
-        about=["tau_e", *(w.split()[0] for w in wide)], severity="note"))
+        "zone acts on the applied voltage", about=["tau_e"], severity="note"))
     return plain
 
 

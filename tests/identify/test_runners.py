@@ -166,7 +166,9 @@ def test_a_lag_the_triangle_leaves_open_widens_what_it_folds():
     truth, log = _paper_triangle(2)
     res = fit_stage(stage_nonlinear, [log], Model())
     assert "tau_e" not in res.estimates
-    assert any(w.startswith("no electrical lag") and "widened" in w for w in res.warnings)
+    assert any(w.startswith("no electrical lag") for w in res.warnings), res.warnings
+    assert any(w.startswith("standard errors widened so that two reach the fit with an "
+                            "electrical lag") and "J x" in w for w in res.warnings)
     for k, v in truth.items():
         e = res.estimates[k]
         assert abs(e.value - v) <= 2.5 * e.stderr, (k, e.value, e.stderr, v)
