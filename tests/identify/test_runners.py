@@ -158,6 +158,7 @@ def _paper_triangle(seed: int):
     return {"J": si["J"] * g, "bv": si["bv"] * g + si["ke"], "bc": si["bc"] * g}, log
 
 
+@pytest.mark.slow
 def test_a_lag_the_triangle_leaves_open_widens_what_it_folds():
     """The paper's motor (L/R 7.5 ms) on its triangle alone: the fit with the lag is no better
     in BIC and the plain fit is kept, J' folding tau_e bv' (+7.5 %). Its errors, conditional on
@@ -193,6 +194,7 @@ def _chirp(seed: int):
             "bc": CHIRPED["bc"] * g, "dz": CHIRPED["dz"] * g}, log
 
 
+@pytest.mark.slow
 def test_a_chirp_alone_finds_the_lag_and_the_dead_zone_above_the_friction():
     """A swept sine alone, voltage and speed: the fit without a lag ends at bc = 0 (1e-17: its
     bound) and, before, the fit with the lag started from there without the grid over the
@@ -209,6 +211,7 @@ def test_a_chirp_alone_finds_the_lag_and_the_dead_zone_above_the_friction():
         assert abs(e.value - v) <= 2.5 * e.stderr, (k, e.value, e.stderr, v)
 
 
+@pytest.mark.slow
 def test_a_friction_start_within_rounding_of_zero_still_moves():
     """The local stage scales each parameter by its start; the fit without a lag ends with bc
     at its bound, 1e-17 or so, and from there bc's finite-difference step was 1e-19 V: the
