@@ -262,6 +262,7 @@ def _lumped_logs(tmp_path, rng, speed_per_volt=50.0, scale=1.0, name="omega"):
     return paths
 
 
+@pytest.mark.slow
 def test_speed_in_deg_per_s_on_voltage_logs_is_refused_naming_the_mapping(tmp_path):
     paths = _lumped_logs(tmp_path, np.random.default_rng(8), scale=180 / math.pi,
                          name="speed_degps")

@@ -51,6 +51,7 @@ def test_steps_latency_is_kept_as_sensor_delay(delay):
     assert abs(m.parameters["delay"].value - delay) <= DT
 
 
+@pytest.mark.slow
 def test_no_latency_no_sensor_delay():
     m = _lumped()
     res = _mechanical(_steps(0.0, seed=12), m)

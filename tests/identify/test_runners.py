@@ -81,6 +81,7 @@ def _lagged_triangle(seed: int):
     return {"J": LAGGED["J"] * g, "bv": bv, "bc": LAGGED["bc"] * g, "dz": LAGGED["dz"] * g}, log
 
 
+@pytest.mark.slow
 def test_fit_nonlinear_tests_the_lag_no_step_log_tested():
     """A triangle alone, voltage and speed: no step tells L/R, so fit-nonlinear fits with the
     lag free beside the fit without and keeps the lower BIC, said in a note. Without the lag

@@ -189,6 +189,7 @@ def _lumped_logs(rng):
                 meta={}) for n, t_, u, w in sims]
 
 
+@pytest.mark.slow
 def test_check_of_a_lumped_model_with_its_lag_predicts_the_fits_errors():
     """A lumped model with its electrical lag: plan --check predicts the errors of tau_e and the
     back-EMF share as well (the fits free them, and they trade with J), from sensitivities over

@@ -181,6 +181,7 @@ def test_velocity_form_quantised_as_an_integer_pwm():
 
 
 # -- the two routes on synthetic closed-loop logs --------------------------------------------
+@pytest.mark.slow
 def test_logged_output_route_bias_before_and_after_the_noise_model():
     """Coloured speed noise fed back into the input biases today's simulation-error fit on the
     logged output: J +4.6 % on average over 10 seeds (sd 3.9 %; docs/identification.md). With
