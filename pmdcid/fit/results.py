@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.fit.covariance import CovarianceInfo
-from pmdcid.model.effects import at_bound, range_only
+from pmdcid.model.effects import stderr_words
 from pmdcid.model.tables import in_words
 
 
@@ -232,19 +232,16 @@ def shown(e: Estimate) -> Estimate:
     declared range (:func:`pmdcid.model.effects.range_only`: a bounded parameter whose value
     +-2 standard errors covers every value it may take, the linearisation of a cost flat
     across it) is none (NaN) with the words in its place, as the model file writes it
-    (:meth:`pmdcid.model.params.Model.set`); one at a declared bound
-    (:func:`pmdcid.model.effects.at_bound`) the interval from the bound two standard errors
-    into the range; ``e`` itself otherwise. The estimate keeps its number for the readings
-    that follow the cost."""
+    (:meth:`pmdcid.model.params.Model.set`); one at a declared bound the interval from the
+    bound two standard errors into the range (both: :func:`pmdcid.model.effects.stderr_words`);
+    ``e`` itself otherwise. The estimate keeps its number for the readings that follow the
+    cost."""
     if e.interval is not None or not e.vary:
         return e
-    words = range_only(e.name, e.value, e.stderr)
-    at = None if words else at_bound(e.name, e.value, e.stderr)
-    if at:
-        words = at[1]
+    words, interval = stderr_words(e.name, e.value, e.stderr)
     if not words:
         return e
-    return Estimate(e.name, e.value, math.nan, e.unit, e.vary, interval=at[0] if at else None,
+    return Estimate(e.name, e.value, math.nan, e.unit, e.vary, interval=interval,
                     caveat="; ".join(c for c in (words, e.caveat) if c))
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pmdcid.errors import ModelError
-from pmdcid.model.effects import EFFECTS, at_bound, param_spec, range_only, unit_of
+from pmdcid.model.effects import EFFECTS, param_spec, stderr_words, unit_of
 
 FORMAT_VERSION = 1
 
@@ -85,19 +85,16 @@ class Model:
         standard error that spans the parameter's whole declared range
         (:func:`pmdcid.model.effects.range_only`: a bounded parameter whose value +-2 standard
         errors covers every value it may take) is written as none (NaN, null in the file) with
-        the words saying so, before ``caveat``; one at a declared bound
-        (:func:`pmdcid.model.effects.at_bound`: the fit stopped there) as the interval from
-        the bound two standard errors into the range, with the words."""
+        the words saying so, before ``caveat``; one at a declared bound (the fit stopped there)
+        as the interval from the bound two standard errors into the range, with the words
+        (:func:`pmdcid.model.effects.stderr_words`)."""
         if unit is None:
             unit = unit_of(name)
-        words = range_only(name, float(value), float(stderr))
-        at = None if words else at_bound(name, float(value), float(stderr))
-        if at:
-            words = at[1]
+        words, interval = stderr_words(name, float(value), float(stderr))
         if words:
             stderr, caveat = math.nan, "; ".join(c for c in (words, caveat) if c)
         self.parameters[name] = Parameter(float(value), float(stderr), unit, stage,
-                                          interval=at[0] if at else None, caveat=caveat)
+                                          interval=interval, caveat=caveat)
 
     def set_bounded(self, name: str, low: float, high: float, value: float | None = None, *,
                     unit: str | None = None, stage: str = "", caveat: str = "") -> bool:

@@ -34,12 +34,12 @@ from pmdcid.model.effects import (
 from pmdcid.model.effects.registry import (
     EFFECTS,
     Effect,
-    at_bound,
     bounds_of,
     effect_param_specs,
     param_spec,
     range_only,
     register,
+    stderr_words,
     unit_of,
 )
 
@@ -52,5 +52,5 @@ CATALOGUE = (back_emf, stribeck, quadratic_drag, torque_offset, cogging, sensor_
 for _module in CATALOGUE:
     register(_module.EFFECT)
 
-__all__ = ["CATALOGUE", "EFFECTS", "Effect", "at_bound", "bounds_of", "effect_param_specs",
-           "param_spec", "range_only", "unit_of"]
+__all__ = ["CATALOGUE", "EFFECTS", "Effect", "bounds_of", "effect_param_specs", "param_spec",
+           "range_only", "stderr_words", "unit_of"]

@@ -107,18 +107,23 @@ def bounds_of(name: str) -> tuple[float, float]:
     return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
 
 
-def at_bound(name: str, value: float, stderr: float) -> tuple[tuple[float, float], str] | None:
-    """(interval, words) for ``name`` whose ``value`` sits at a declared bound with a finite
-    standard error (:func:`pmdcid.model.spec.bound_reach`), to write in place of the standard
-    error; None for any other (an unknown name, a value inside its range, a standard error that
-    spans the range: :func:`range_only` first). Applied where :func:`range_only` is."""
+def stderr_words(name: str, value: float,
+                 stderr: float) -> tuple[str, tuple[float, float] | None]:
+    """(words, interval) to write in place of a standard error of ``name`` that is none: one
+    spanning its whole declared range (:func:`range_only`: the words, no interval), or one read
+    at a declared bound where the fit stopped (:func:`pmdcid.model.spec.bound_reach`: the words
+    and the interval from the bound two standard errors into the range); ("", None) where the
+    standard error stands. The one rule the model's writer
+    (:meth:`pmdcid.model.params.Model.set`) and the results as shown
+    (:func:`pmdcid.fit.results.shown`) apply."""
+    words = range_only(name, value, stderr)
     spec = param_spec(name)
-    if spec is None or spec.spanned(value, stderr):
-        return None
+    if words or spec is None:
+        return words, None
     reach = bound_reach(value, stderr, spec.lower, spec.upper)
     if reach is None:
-        return None
-    return reach, bound_words(spec.lower if reach[0] == spec.lower else spec.upper)
+        return "", None
+    return bound_words(spec.lower if reach[0] == spec.lower else spec.upper), reach
 
 
 def range_only(name: str, value: float, stderr: float) -> str:
