@@ -15,7 +15,8 @@ Cases (columns t, v, omega only: the lumped path of ``pmdcid identify``):
   triangle; ``lr-tri-only``: its triangle alone (no step: identify starts from a first-order
   fit and tests the lag in the joint fit, :func:`pmdcid.identify.runners.lag_untested`);
   ``lr-aprbs``, ``lr-chirp``: the same motors on one log of random levels, or one swept sine,
-  alone (:func:`_lr_rich`).
+  alone (:func:`_lr_rich`); ``lr-encoder``: ``lr-tri``'s logs as an encoder's angle alone
+  (:func:`_lr_encoder`: 360 counts a turn, the speed derived as the readers derive it).
 
 ``--drag BQ``: a true quadratic drag bq [N m s^2/rad^2] (SI) in every motor; ``--diagnose``:
 identify runs diagnose, and the row is the final model's. Per-volt truth: J' = J R/km,
@@ -44,7 +45,7 @@ import numpy as np
 NSUB = 64
 PARAMS = ("J", "bv", "bc", "dz", "tau_e", "ke_share", "bq")
 CASES = ("paper-steps-1k", "paper-steps-500", "paper-tri-1k", "paper-tri-500", "lr-steps",
-         "lr-tri", "lr-tri-only", "paper-tri-only-1k", "lr-aprbs", "lr-chirp")
+         "lr-tri", "lr-tri-only", "paper-tri-only-1k", "lr-aprbs", "lr-chirp", "lr-encoder")
 
 
 def _paper_truth(rate: float) -> dict:
@@ -78,6 +79,8 @@ def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2):
             logs = [lg for lg in logs if lg.path == "triangle"]
         elif case in ("lr-aprbs", "lr-chirp"):
             logs = [_lr_rich(case, seed, si, tr["rate"])]
+        elif case == "lr-encoder":
+            logs = [_lr_encoder(lg, seed, si) for lg in logs]
         return _per_volt(si), logs
     rate = 1000.0 if case.endswith("1k") else 500.0
     si = {**_paper_truth(rate)["si"], "bq": bq}
@@ -117,6 +120,28 @@ def _lr_rich(case: str, seed: int, si: dict, rate: float):
     sigma = 0.003 * float(np.ptp(w))
     return Log(path=case, t=t, data={"v": u, "omega": w + rng.normal(0.0, sigma, t.size)},
                meta={})
+
+
+#: counts a turn of ``lr-encoder``'s encoder (a LEGO motor's; hobby encoders have 12-1024)
+ENCODER_COUNTS = 360
+
+
+def _lr_encoder(log, seed: int, si: dict):
+    """``log`` (its t and v) as an encoder's angle alone: the motor's angle simulated from rest,
+    shifted by a random place within the first count (a rotor rests anywhere), rounded to
+    :data:`ENCODER_COUNTS` a turn; the speed derived from it as a reader does
+    (:func:`pmdcid.io.derive.derive_missing`)."""
+    from pmdcid.io import Log
+    from pmdcid.io.derive import derive_missing
+    from pmdcid.simulate import neutral_values, simulate_values
+
+    rng = np.random.default_rng([30_000 + seed, len(log.path), log.n])
+    q = 2 * np.pi / ENCODER_COUNTS
+    theta = simulate_values(log.t, log["v"], {**neutral_values(), **si}, nsub=NSUB).theta
+    theta = np.round((theta + rng.uniform(0.0, q)) / q) * q
+    out = Log(path=log.path, t=log.t, data={"v": log["v"], "theta": theta}, meta={})
+    derive_missing(out)
+    return out
 
 
 def _entry(par, true: float) -> dict:

@@ -532,9 +532,31 @@ def noise_levels(logs: Sequence, signals: Sequence[str]) -> list[dict[str, float
 
 
 def _channel(k: int, log, s: str, rows, fit, given: dict[str, float]) -> Channel:
-    """Signal ``s`` of log ``k`` weighted by ``given[s]``, else by its noise level."""
+    """Signal ``s`` of log ``k`` weighted by ``given[s]``, else by its noise level; a speed
+    derived from the angle compares with the simulated angle's speed derived the same way
+    (:func:`_derived_speed`)."""
     x = np.asarray(log.u if s == "u" else log[s], float)
-    return Channel(k, s, rows, compact(x, rows), float(given.get(s, noise_level(x))), fit)
+    fc = _derived_cutoff(log, s)
+    sigma = given.get(s)
+    if sigma is None:
+        sigma = noise_level(x) if fc is None else _derived_sigma(log, x, fc)
+    return Channel(k, s, rows, compact(x, rows), float(sigma), fit, fc)
+
+
+def _derived_cutoff(log, s: str) -> float | None:
+    """The cut-off [Hz] of the filter that derived ``s`` from the log's angle, None when ``s``
+    is measured by its own sensor."""
+    if s == "omega" and s in log.derived and log.has("theta"):
+        return log_cutoff(log)
+    return None
+
+
+def _derived_sigma(log, x: np.ndarray, fc: float) -> float:
+    """Noise std of a speed ``x`` derived from the log's angle with cut-off ``fc``: filtered
+    noise is smooth, so its second differences say nothing; the angle's own noise (an
+    encoder's quantisation) through the filter and derivative does."""
+    return max(noise_level(x), derivative_noise_gain(log.dt, fc, 1)
+               * noise_std(np.asarray(log["theta"], float)))
 
 
 def _judged_channels(k: int, log, rows, fit) -> list[Channel]:
@@ -551,13 +573,8 @@ def _judged_channels(k: int, log, rows, fit) -> list[Channel]:
     out = []
     for s in measured:
         x = np.asarray(log[s], float)
-        fc = log_cutoff(log) if s == "omega" and s in log.derived else None
-        sigma = noise_level(x)
-        if fc is not None and log.has("theta"):
-            # filtered noise is smooth: its second differences say nothing. The angle's noise
-            # (encoder quantisation) through the filter and derivative does.
-            sigma = max(sigma, derivative_noise_gain(log.dt, fc, 1)
-                        * noise_std(np.asarray(log["theta"], float)))
+        fc = _derived_cutoff(log, s)
+        sigma = noise_level(x) if fc is None else _derived_sigma(log, x, fc)
         out.append(Channel(k, s, rows, compact(x, rows), sigma, fit, fc))
     return out
 

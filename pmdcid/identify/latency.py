@@ -49,6 +49,23 @@ def parabola_min(curve: np.ndarray, j: int) -> float:
     return float(j) + (0.5 * (a - c) / den if den > 0 else 0.0)
 
 
+def speed_logged(log) -> bool:
+    """Whether the log measures the speed, by a sensor of its own or as the derivative of its
+    angle (an encoder)."""
+    return log.has("omega") and ("omega" not in log.derived or log.has("theta"))
+
+
+def measured_speed(log, sim) -> np.ndarray:
+    """The simulation ``sim``'s speed [rad/s] as the log measures it: its own, or where the
+    log's speed is derived from its angle, the simulated angle's speed derived by the same
+    filter (a zero-phase filter spreads every step's start over its length both ways)."""
+    from pmdcid.io.derive import log_cutoff, speed_from_position
+
+    if "omega" in log.derived and log.has("theta"):
+        return speed_from_position(sim.theta, log.dt, log_cutoff(log))
+    return sim.omega
+
+
 def _shift_totals(use, model, kmax) -> tuple[np.ndarray, int]:
     """Summed squared speed error of ``model`` on the logs ``use`` for each shift -kmax..kmax."""
     from pmdcid.simulate import input_is_torque, param_values, simulate_values
@@ -58,7 +75,8 @@ def _shift_totals(use, model, kmax) -> tuple[np.ndarray, int]:
     for lg in use:
         torque = input_is_torque(lg, model)
         vals = param_values(model, torque)
-        sim = simulate_values(lg.t, lg.u, vals, torque, x0=initial_state(lg)).omega
+        sim = measured_speed(lg, simulate_values(lg.t, lg.u, vals, torque,
+                                                 x0=initial_state(lg)))
         meas = np.asarray(lg["omega"], float)
         if not (np.isfinite(sim).all() and np.isfinite(meas).all()):
             continue
@@ -71,7 +89,7 @@ def step_latency(logs, model) -> tuple[float, float] | None:
     """(latency [s], its white-noise standard error [s]) of the measured speed behind
     ``model`` simulated on ``logs`` (module docstring), including a ``sensor_delay`` the model
     already has; None when it is under :data:`MIN_SAMPLES` samples or no log measures a speed."""
-    use = [lg for lg in logs if lg.has("omega") and "omega" not in lg.derived and lg.n > 20]
+    use = [lg for lg in logs if speed_logged(lg) and lg.n > 20]
     if not use:
         return None
     dt = use[0].dt
@@ -118,7 +136,7 @@ def step_lag(logs, model) -> dict | None:
     """
     from pmdcid.simulate import logs_for
 
-    use = [lg for lg in logs if lg.has("omega") and "omega" not in lg.derived and lg.n > 20]
+    use = [lg for lg in logs if speed_logged(lg) and lg.n > 20]
     if not use or not (model.has("J") and model.has("bv")):
         return None
     dt = use[0].dt
@@ -137,18 +155,37 @@ def step_lag(logs, model) -> dict | None:
         starts.append({k: e.value for k, e in both.estimates.items()})
     pinned = [f for f in (_dead_zone_fit(use, model, s) for s in starts) if f is not None]
     both = min([both, *pinned], key=lambda f: f.stats.bic)
-    return (shift and _lag_alone(use, model, both, dt)) or _found(use, model, both, dt, shift)
+    least = max(0.05 * dt, shortest_lag(use))
+    return (shift and _lag_alone(use, model, both, least)) or _found(use, model, both, dt,
+                                                                      shift, least)
 
 
-def _lag_alone(use, model, both, dt) -> dict | None:
+def shortest_lag(logs) -> float:
+    """The shortest electrical lag [s] the logs' speeds can show as a lag: 0 where every log
+    measures its speed; where one derives it from its angle, 1/(2 pi fc) of the lowest
+    cut-off fc of the zero-phase filters that derived it. The filter keeps nothing above fc,
+    and below its corner 1/(2 pi tau) a lag differs from the inertia it folds into (J' +
+    tau_e (bv' - ke), per volt) only by terms of (2 pi f tau)^2: a shorter lag fitted through
+    the filter stands in for whatever else delays the derived speed's start (an encoder's
+    first count, gear play), and its standard error, taken from a residual whose
+    quantisation is not white, says nothing of it."""
+    from pmdcid.io.derive import log_cutoff
+
+    cut = [log_cutoff(lg) for lg in logs if "omega" in lg.derived and lg.has("theta")]
+    return 1.0 / (2.0 * math.pi * min(cut)) if cut else 0.0
+
+
+def _lag_alone(use, model, both, least) -> dict | None:
     """The lag alone (:func:`step_lag`'s return) where the joint fit ``both`` split the
     steps' dead time into a lag and a latency that it resolves neither of: the fit with the
     latency held at 0 from their sum, kept when it resolves its lag and has the lower BIC.
-    None otherwise (then :func:`_found` judges ``both``). Asked only where the kernel's shift
-    found a latency, which :func:`_found` would otherwise write: where it found none, an
-    unresolved lag stays a bound (guanlunlu-l298n: the lag alone resolved at 3.2 +- 0.2 ms,
-    BIC 7 below the pair, but the joint fit with it then read the back-EMF share as 0.5 +- 0.3
-    and the dead zone as 4.7 V, and the held-out 6 V steps went 0.024 -> 0.42).
+    None otherwise (then :func:`_found` judges ``both``); ``least``: the shortest lag [s]
+    kept (:func:`shortest_lag`, at least a twentieth of a sample). Asked only where the
+    kernel's shift found a latency, which :func:`_found` would otherwise write: where it
+    found none, an unresolved lag stays a bound (guanlunlu-l298n: the lag alone resolved at
+    3.2 +- 0.2 ms, BIC 7 below the pair, but the joint fit with it then read the back-EMF
+    share as 0.5 +- 0.3 and the dead zone as 4.7 V, and the held-out 6 V steps went 0.024 ->
+    0.42).
 
     A lag and a latency both round or move a step's start: where the two are not resolved
     apart the joint fit stops anywhere along their ridge (with the sliding dead-zone edge tried
@@ -158,6 +195,7 @@ def _lag_alone(use, model, both, dt) -> dict | None:
     latency (4.1 ms). Every armature has its L/R; a latency needs its own evidence."""
     est = both.estimates
     te, d = est["tau_e"], est["delay"]
+    dt = use[0].dt
     if _z(te) > LAG_SIGMAS or _z(d) > LAG_SIGMAS or d.value >= MIN_SAMPLES * dt:
         return None
     v = {k: e.value for k, e in est.items()}
@@ -166,7 +204,7 @@ def _lag_alone(use, model, both, dt) -> dict | None:
     if lone is None or lone.stats.bic >= both.stats.bic:
         return None
     j, tau = lone.estimates["J"], lone.estimates["tau_e"]
-    if _z(tau) <= LAG_SIGMAS:
+    if _z(tau) <= LAG_SIGMAS or tau.value < least:
         return None
     return {"J": (j.value, j.stderr), "tau_e": (tau.value, tau.stderr)}
 
@@ -202,12 +240,16 @@ def _z(est) -> float:
     return est.value / est.stderr if est.stderr > 0 and math.isfinite(est.stderr) else 0.0
 
 
-def _found(use, model, both, dt, shift) -> dict:
-    """What the steps' joint fit ``both`` determines (:func:`step_lag`'s return)."""
+def _found(use, model, both, dt, shift, least) -> dict:
+    """What the steps' joint fit ``both`` determines (:func:`step_lag`'s return; ``least``:
+    the shortest lag kept, :func:`_lag_alone`'s). A lag shorter than the derived speed's filter
+    shows is ``tau_e_filter``, that limit [s], and not kept."""
     best = both.estimates
     te, d = best["tau_e"], best["delay"]
     out = {"J": (best["J"].value, best["J"].stderr)}
-    if _z(te) > LAG_SIGMAS and te.value > 0.05 * dt:
+    if _z(te) > LAG_SIGMAS and te.value > 0.05 * dt and te.value < least:
+        out["tau_e_filter"] = least
+    elif _z(te) > LAG_SIGMAS and te.value > 0.05 * dt:
         out["tau_e"] = (te.value, te.stderr)
     elif math.isfinite(te.stderr):  # not resolved: a bound, said in words
         out["tau_e_bound"] = te.value + 2.0 * te.stderr

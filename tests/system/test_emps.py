@@ -264,10 +264,12 @@ def test_issue24_validation_error_after_the_loop(logs, diagnosed):
 def test_the_two_files_ask_for_different_friction(logs, nonlinear_fit):
     """Why the validation target is out of reach from the estimation file (issue 24): the
     symmetric model fitted on each file by fit-nonlinear. Fitted on the validation file it has
-    more friction (bv +3.6 %, bc +2.3 %; measured) and predicts the validation file at 4.47 %
-    but the estimation file at 6.13 %; fitted on the estimation file, 4.52 % and 6.54 %. Each
+    more friction (bv +4.7 %, bc +0.9 %; measured) and predicts the validation file at 4.48 %
+    but the estimation file at 6.06 %; fitted on the estimation file, 4.52 % and 6.57 %. Each
     file's own fit is at least 1 point worse on the other file, and the validation file's
-    friction is the higher, by at least 1.5 % in bv and bc."""
+    friction is the higher: bv by at least 3 %, bc not lower. (Before session 32, when the fit
+    compared the speed derived from the encoder with the raw simulated speed: bv +3.6 %, bc
+    +2.3 %, 4.47 / 6.13 and 4.52 / 6.54 %.)"""
     from pmdcid.identify.runners import stage_nonlinear
 
     est, val = logs
@@ -276,8 +278,8 @@ def test_the_two_files_ask_for_different_friction(logs, nonlinear_fit):
     base = nonlinear_fit[1]
     assert velocity_error(est, own) > velocity_error(est, base) + 1.0
     assert velocity_error(val, base) > velocity_error(val, own) + 1.0
-    for name in ("bv", "bc"):
-        assert own.value(name) > 1.015 * base.value(name), name
+    assert own.value("bv") > 1.03 * base.value("bv")
+    assert own.value("bc") > base.value("bc")
 
 
 # -- the benchmark's own score (bench/closedloop.py): checked on cases computed by hand --------
