@@ -37,7 +37,7 @@ from pmdcid.fit.covariance import (
 from pmdcid.fit.parameters import Parameters
 from pmdcid.fit.results import Estimate, FitStats, fitted
 from pmdcid.fit.solver import solve
-from pmdcid.io.derive import derivative_noise_gain, log_cutoff, noise_std, speed_from_position
+from pmdcid.io.derive import derivative_noise_gain, noise_std, speed_cutoff, speed_from_position
 from pmdcid.model.effects import bounds_of, unit_of
 from pmdcid.model.spec import BASE_PARAMS
 from pmdcid.simulate import SimResult, blocked_rotor, param_vector, simulate_values
@@ -534,7 +534,7 @@ def noise_levels(logs: Sequence, signals: Sequence[str]) -> list[dict[str, float
 def _channel(k: int, log, s: str, rows, fit, given: dict[str, float]) -> Channel:
     """Signal ``s`` of log ``k`` weighted by ``given[s]``, else by its noise level; a speed
     derived from the angle compares with the simulated angle's speed derived the same way
-    (:func:`_derived_speed`)."""
+    (:func:`_derived_cutoff`)."""
     x = np.asarray(log.u if s == "u" else log[s], float)
     fc = _derived_cutoff(log, s)
     sigma = given.get(s)
@@ -546,9 +546,7 @@ def _channel(k: int, log, s: str, rows, fit, given: dict[str, float]) -> Channel
 def _derived_cutoff(log, s: str) -> float | None:
     """The cut-off [Hz] of the filter that derived ``s`` from the log's angle, None when ``s``
     is measured by its own sensor."""
-    if s == "omega" and s in log.derived and log.has("theta"):
-        return log_cutoff(log)
-    return None
+    return speed_cutoff(log) if s == "omega" else None
 
 
 def _derived_sigma(log, x: np.ndarray, fc: float) -> float:

@@ -59,11 +59,10 @@ def measured_speed(log, sim) -> np.ndarray:
     """The simulation ``sim``'s speed [rad/s] as the log measures it: its own, or where the
     log's speed is derived from its angle, the simulated angle's speed derived by the same
     filter (a zero-phase filter spreads every step's start over its length both ways)."""
-    from pmdcid.io.derive import log_cutoff, speed_from_position
+    from pmdcid.io.derive import speed_cutoff, speed_from_position
 
-    if "omega" in log.derived and log.has("theta"):
-        return speed_from_position(sim.theta, log.dt, log_cutoff(log))
-    return sim.omega
+    fc = speed_cutoff(log)
+    return sim.omega if fc is None else speed_from_position(sim.theta, log.dt, fc)
 
 
 def _shift_totals(use, model, kmax) -> tuple[np.ndarray, int]:
@@ -169,9 +168,9 @@ def shortest_lag(logs) -> float:
     the filter stands in for whatever else delays the derived speed's start (an encoder's
     first count, gear play), and its standard error, taken from a residual whose
     quantisation is not white, says nothing of it."""
-    from pmdcid.io.derive import log_cutoff
+    from pmdcid.io.derive import speed_cutoff
 
-    cut = [log_cutoff(lg) for lg in logs if "omega" in lg.derived and lg.has("theta")]
+    cut = [fc for fc in map(speed_cutoff, logs) if fc is not None]
     return 1.0 / (2.0 * math.pi * min(cut)) if cut else 0.0
 
 
@@ -247,10 +246,11 @@ def _found(use, model, both, dt, shift, least) -> dict:
     best = both.estimates
     te, d = best["tau_e"], best["delay"]
     out = {"J": (best["J"].value, best["J"].stderr)}
-    if _z(te) > LAG_SIGMAS and te.value > 0.05 * dt and te.value < least:
-        out["tau_e_filter"] = least
-    elif _z(te) > LAG_SIGMAS and te.value > 0.05 * dt:
-        out["tau_e"] = (te.value, te.stderr)
+    if _z(te) > LAG_SIGMAS and te.value > 0.05 * dt:
+        if te.value < least:
+            out["tau_e_filter"] = least
+        else:
+            out["tau_e"] = (te.value, te.stderr)
     elif math.isfinite(te.stderr):  # not resolved: a bound, said in words
         out["tau_e_bound"] = te.value + 2.0 * te.stderr
     if d.value >= MIN_SAMPLES * dt or _z(d) > LAG_SIGMAS:

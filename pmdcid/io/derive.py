@@ -344,6 +344,14 @@ def log_cutoff(log) -> float:
     return default_cutoff(log.dt) if fc is None else fc
 
 
+def speed_cutoff(log) -> float | None:
+    """The cut-off [Hz] of the filter that derived the log's speed from its angle (an encoder),
+    None where the log measures its speed by a sensor of its own."""
+    if log.has("omega") and "omega" in getattr(log, "derived", set()) and log.has("theta"):
+        return log_cutoff(log)
+    return None
+
+
 def derive_missing(log, cutoff_hz: float | None = None) -> set[str]:
     """Add ``omega`` from ``theta`` or ``theta`` from ``omega`` when one is missing (in place).
 
