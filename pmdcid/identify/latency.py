@@ -164,10 +164,12 @@ def shortest_lag(logs) -> float:
     measures its speed; where one derives it from its angle, 1/(2 pi fc) of the lowest
     cut-off fc of the zero-phase filters that derived it. The filter keeps nothing above fc,
     and below its corner 1/(2 pi tau) a lag differs from the inertia it folds into (J' +
-    tau_e (bv' - ke), per volt) only by terms of (2 pi f tau)^2: a shorter lag fitted through
-    the filter stands in for whatever else delays the derived speed's start (an encoder's
-    first count, gear play), and its standard error, taken from a residual whose
-    quantisation is not white, says nothing of it."""
+    tau_e (bv' - ke), per volt) only by terms of (2 pi f tau)^2. On clean samples a shorter
+    lag is often resolved, but where something else delays the derived speed's start (an
+    encoder's first count after gear play, loop-timed rows interpolated onto a grid) a lag
+    fitted through the filter stands in for it with as sure a standard error and as low a
+    chi-square: nothing the steps hold tells them apart (docs/identification.md, "Session
+    32"), so a shorter lag is not kept."""
     from pmdcid.io.derive import speed_cutoff
 
     cut = [fc for fc in map(speed_cutoff, logs) if fc is not None]
