@@ -202,7 +202,7 @@ def decide(run, best, passing: list, cur: FitOutcome, free: list[str], effect_fr
     gain = delta_bic(run, pair.chi2["fit"], chosen.outcome.chi2["fit"], k_lag)
     if not gain < run.settings.rules.bic:
         return best, None  # the lag is not decisive beside the law: the round's choice stands
-    alone = _lag_alone(run, chosen, pair, cur, free, effect_free)
+    alone = _lag_without_law(run, [best, chosen], pair, cur, free, effect_free)
     if alone is not None:
         return None, alone
     if chosen is not best:
@@ -222,23 +222,26 @@ def decide(run, best, passing: list, cur: FitOutcome, free: list[str], effect_fr
     return chosen, pair
 
 
-def _lag_alone(run, law, pair: FitOutcome, cur: FitOutcome, free: list[str], effect_free):
-    """The lag without the speed ``law`` (its fit), where the law beside the lag (``pair``)
-    is not decisive in BIC and the lag alone is determined (:func:`lag_resolved`); None
-    otherwise. The law passed its tests against a model whose lag was folded, where the lag's
-    own residual at every edge stood behind it: beside the lag it must pay for itself again
-    (lr-encoder, 4096 counts, seed 9: a quadratic drag worth 1.7 % of the held-out error
-    taken with the lag, then a friction curve and Stribeck friction of 0.5 % of bc on a motor
-    with none)."""
+def _lag_without_law(run, rows: list, pair: FitOutcome, cur: FitOutcome, free: list[str],
+                     effect_free):
+    """The lag's fit without the speed law (``rows[-1]``, the law chosen on the pairs; every
+    row of ``rows`` marked not added), where the law beside the lag (``pair``) is not decisive
+    in BIC and the lag alone is determined (:func:`lag_resolved`); None otherwise. The law
+    passed its tests against a model whose lag was folded, where the lag's own residual at
+    every edge stood behind it: beside the lag it must pay for itself again (lr-encoder, 4096
+    counts, seed 9: a quadratic drag worth 1.7 % of the held-out error taken with the lag,
+    then a friction curve and Stribeck friction of 0.5 % of bc on a motor with none)."""
+    law = rows[-1]
     alone = with_lag(run, cur.values, free)
     extra = delta_bic(run, pair.chi2["fit"], alone.chi2["fit"], len(effect_free(law.effect)))
     if extra < run.settings.rules.bic or not lag_resolved(alone, run.settings.rules.min_z):
         return None
-    law.chosen = False
-    law.reason = law.reason.replace("chosen: ", "", 1) + (
-        f"; not added: the armature's lag tau_e = {1e3 * alone.values['tau_e']:.3g} ms (L/R, "
-        f"the lumped model's own) explains it, the law beside it not decisive (ΔBIC "
-        f"{extra:+.0f} > {run.settings.rules.bic:g})")
+    for row in {id(r): r for r in rows}.values():
+        row.chosen = False
+        row.reason = row.reason.replace("chosen: ", "", 1) + (
+            f"; not added: the armature's lag tau_e = {1e3 * alone.values['tau_e']:.3g} ms "
+            f"(L/R, the lumped model's own) explains it, {law.effect} beside it not decisive "
+            f"(ΔBIC {extra:+.0f} > {run.settings.rules.bic:g})")
     _take_lag(run)
     return alone
 

@@ -369,8 +369,9 @@ def _step_latency(result, logs, model) -> None:
     elif "tau_e_filter" in found:
         result.warnings.append(
             f"the electrical lag L/R is not resolved through the filter that derived the speed "
-            f"from the angle (a lag under {1e3 * found['tau_e_filter']:.3g} ms, 1/(2 pi) of its "
-            "cut-off, shows only as the inertia it folds in): the lumped model has none "
+            f"from the angle (a lag under {1e3 * found['tau_e_filter']:.3g} ms = 1/(2 pi fc), fc "
+            "its cut-off, is not told there from the inertia it folds in or from a late first "
+            "count of the encoder): the lumped model has none "
             "(tau_e = 0), the lag is folded into J and the dead zone acts on the applied "
             "voltage; a faster sampling, a higher --cutoff or a measured speed would show it")
     elif "tau_e_bound" in found:
