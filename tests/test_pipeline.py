@@ -469,7 +469,7 @@ def test_identify_on_a_noisy_measured_voltage_takes_the_clean_route(tmp_path, se
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("seed", "sigma_v"), [(4, 1.0), (5, 1.5)])
+@pytest.mark.parametrize(("seed", "sigma_v"), [(5, 1.5)])  # 1.0 V (13 s): bench.noisy_steps
 def test_identify_on_a_noisy_measured_voltage_without_current_takes_the_clean_route(
         tmp_path, seed, sigma_v):
     """The same logs without the current column: the same route (steps, fit-mechanical, per

@@ -64,7 +64,7 @@ def test_a_narrow_valley_leaves_the_local_errors():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [13, 6])
+@pytest.mark.parametrize("seed", [13])  # seed 6 (the same dip, 11 s) left to bench/lawlag.py
 def test_the_final_fit_leaves_a_dip_of_the_share_valley(seed):
     fit, _, vals = scenario(seed, 2.0, 500.0, "none")
     model = identify(fit, diagnose=True, progress=False).model

@@ -314,7 +314,7 @@ def _edge_motor_logs(seed: int, rate: float = 500.0, lag: float = 2e-3):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [2, 6])
+@pytest.mark.parametrize("seed", [2])  # seed 6 (6 s) dropped for the suite's 8 minutes
 def test_edge_motor_J_bv_bc_within_their_errors(seed):
     """identify on voltage + speed logs (500 Hz, L/R 4 ms) of a motor whose back-EMF is 99.6 %
     of its per-volt damping: J', bv', bc' within 3 of their printed standard errors of the
