@@ -166,9 +166,10 @@ def paper_sequence(rig: Rig, km=None):
         steps, rich = [], steps + rich
     if wants_lumped(steps + rich, model):
         mark_lumped(model)
-    if steps:  # the logs fit-mechanical does not use, it says fit-nonlinear fits
-        rich = rich + [lg for lg in steps if lg.path not in _stage_into(model, steps,
-                                                                        _mechanical)]
+    if steps:  # the logs fit-mechanical does not use, it says fit-nonlinear fits (one run:
+        # inside the comprehension's condition it ran once per step log)
+        used = _stage_into(model, steps, _mechanical)
+        rich = rich + [lg for lg in steps if lg.path not in used]
     if rich:
         _stage_into(model, rich, _nonlinear(True))
     return model
