@@ -236,13 +236,8 @@ def _lag_without_law(run, rows: list, pair: FitOutcome, cur: FitOutcome, free: l
     extra = delta_bic(run, pair.chi2["fit"], alone.chi2["fit"], len(effect_free(law.effect)))
     if extra < run.settings.rules.bic or not lag_resolved(alone, run.settings.rules.min_z):
         return None
-    for row in {id(r): r for r in rows}.values():
-        row.chosen = False
-        row.reason = row.reason.replace("chosen: ", "", 1) + (
-            f"; not added: the armature's lag tau_e = {1e3 * alone.values['tau_e']:.3g} ms "
-            f"(L/R, the lumped model's own) explains it, {law.effect} beside it not decisive "
-            f"(ΔBIC {extra:+.0f} > {run.settings.rules.bic:g})")
-    _take_lag(run)
+    _lag_instead(run, rows, alone, f"explains it, {law.effect} beside it not decisive (ΔBIC "
+                 f"{extra:+.0f} > {run.settings.rules.bic:g})")
     return alone
 
 
@@ -266,13 +261,20 @@ def _delay_or_lag(run, best, free: list[str]):
                         f"(tau_e {1e3 * lag.values['tau_e']:.3g} ms, {lag_z(lag):.2g} standard "
                         f"errors < {run.settings.rules.min_z:g}): the delay stands")
         return best, None
-    best.chosen = False
-    best.reason = best.reason.replace("chosen: ", "", 1) + (
-        f"; not added: the armature's lag tau_e = {1e3 * lag.values['tau_e']:.3g} ms (L/R, "
-        f"the lumped model's own) in its place fits about as well or better (chi-square "
-        f"{c_lag:.6g} against {c_delay:.6g}, all data)")
-    _take_lag(run)
+    _lag_instead(run, [best], lag, f"in its place fits about as well or better (chi-square "
+                 f"{c_lag:.6g} against {c_delay:.6g}, all data)")
     return None, lag
+
+
+def _lag_instead(run, rows: list, lag: FitOutcome, why: str) -> None:
+    """The lag's fit ``lag`` taken in the place of the candidates ``rows`` (each marked not
+    added, ``why`` said after the lag's size), its parameters freed from now on."""
+    for row in {id(r): r for r in rows}.values():
+        row.chosen = False
+        row.reason = row.reason.replace("chosen: ", "", 1) + (
+            f"; not added: the armature's lag tau_e = {1e3 * lag.values['tau_e']:.3g} ms (L/R, "
+            f"the lumped model's own) {why}")
+    _take_lag(run)
 
 
 def _take_lag(run) -> None:
