@@ -274,7 +274,44 @@ def share_interval(cost, fit, est: dict[str, Estimate]) -> tuple[dict[str, Estim
         return {}, ""
     corr = getattr(fit, "correlation", None)  # a fit's local correlations, where it has them
     rho = {k: corr(k, "ke_share") if corr else math.nan for k in NAMES}
-    return _moved({k: e.value for k, e in est.items()}, est, found, rho)
+    point = {k: e.value for k, e in est.items()}
+    moved, why = _moved(point, est, found, rho)
+    if moved and not _fits(cost, fit, point, moved):
+        return _kept(point, est, found, rho)
+    return moved, why
+
+
+def _fits(cost, fit, point: dict[str, float], moved: dict[str, Estimate]) -> bool:
+    """Whether ``point`` with ``moved``'s values (the share interval's middle, the other
+    parameters, the dead zone among them, as fitted) fits within two standard errors' rise
+    (:func:`valley_threshold`) of ``point`` itself. The interval is read with the dead zone
+    profiled at each share (:func:`valley_floor`): where the dead zone acts on v - ke w, a
+    share moved with the fitted dead zone held can leave a model that fits nothing
+    (guanlunlu-l298n, bench/realbench.py: the fit at share 0 with a 5 V dead zone, moved to
+    share 0.5, simulated its 6 V fit step at 0.74 against 0.017)."""
+    c = cost([point, {**point, **{k: e.value for k, e in moved.items()}}])
+    return float(c[1]) - float(c[0]) <= valley_threshold(fit)
+
+
+def _kept(point, est, found, rho) -> tuple[dict[str, Estimate], str]:
+    """J, tau_e, ke_share at the fit's own point (where the interval's middle does not fit,
+    :func:`_fits`), each standard error at least half its farther reach over the share
+    interval ``found``, so that two reach both its ends."""
+    ends = valley_points(point, found)
+    if len(ends) < 2:
+        return {}, ""
+    out = {}
+    for k in NAMES:
+        e = est[k]
+        reach = max(abs(x[k] - e.value) for x in ends)
+        se = max(at_share(e.stderr, rho.get(k, math.nan)), 0.5 * reach)
+        out[k] = Estimate(k, e.value, se, e.unit, caveat=e.caveat)
+    why = (f"ke_share between {found[0]:.2g} and {found[1]:.2g} fits as well (the back-EMF's "
+           "share of bv trades with J and tau_e at equal linear response, only the friction "
+           "and the dead zone tell them apart), but the interval's middle with the dead zone "
+           "as fitted does not: J, tau_e and ke_share kept where the fit put them, their "
+           "standard errors reaching the interval's ends")
+    return out, why
 
 
 def at_share(se: float, rho: float) -> float:

@@ -73,6 +73,29 @@ def test_rough_flat_valley_moves_to_the_middle_and_widens():
     assert "ke_share between 0 and 1" in why
 
 
+def test_a_middle_that_does_not_fit_with_the_dead_zone_as_fitted_keeps_the_fit():
+    """The interval is read with the dead zone profiled at each share; where the dead zone
+    acts on v - ke w the interval's middle with the fitted dead zone held can fit nothing
+    (guanlunlu-l298n: share 0 and a 5 V dead zone, moved to share 0.5, simulated its 6 V
+    fit step at 0.74 against 0.017). Then J, tau_e and the share stay at the fit's point,
+    each error reaching the interval's ends."""
+    point = {**POINT, "dz": 0.3}
+
+    def cost(sets):  # the fit's point fits; elsewhere only with no dead zone (a floor of 1)
+        return [0.0 if abs(p["ke_share"] - 0.9) < 1e-9 and p["dz"] == 0.3
+                else 1.0 if p["dz"] == 0.0 else 100.0 for p in sets]
+
+    fit, est = _fit()
+    est["dz"] = Estimate("dz", 0.3, 0.05, "")
+    out, why = share_interval(cost, fit, est)
+    ends = valley_points(point, [0.0, 1.0])
+    for k in ("J", "tau_e", "ke_share"):
+        assert out[k].value == point[k]
+        reach = max(abs(e[k] - point[k]) for e in ends)
+        assert out[k].stderr == pytest.approx(max(est[k].stderr, 0.5 * reach))
+    assert "does not" in why and "ke_share between 0 and 1" in why
+
+
 def test_an_interval_narrower_than_the_grid_at_its_end_is_said_as_one_share():
     """The fit at share 0.0005, the valley's cost lowest at 0 and rising 500 units by the next
     grid share: the interval read is share 0 alone (the paper's fixtures, whose motor has no
