@@ -34,8 +34,9 @@ PARAMS = ("J", "bv", "bc", "dz")
 NSUB = 64
 
 
-def truth_for(seed: int) -> dict:
-    """SI parameters of seed's motor, its sample rate and the per-volt truth."""
+def truth_for(seed: int, rate: float | None = None) -> dict:
+    """SI parameters of seed's motor, its sample rate (``rate`` [Hz] in place of the seed's
+    0.5 or 1 kHz where given) and the per-volt truth."""
     rng = np.random.default_rng(seed)
     R = 2.0
     km = 0.02 * rng.uniform(0.8, 1.2)
@@ -50,18 +51,19 @@ def truth_for(seed: int) -> dict:
     g = R / km
     per_volt = {"J": J * g, "bv": bv * g + km, "bc": bc * g, "dz": dz * g, "tau_e": tau_e,
                 "ke_share": km / (bv * g + km)}
-    rate = 1000.0 if seed % 2 == 0 else 500.0
+    rate = rate or (1000.0 if seed % 2 == 0 else 500.0)
     return {"si": si, "per_volt": per_volt, "rate": rate}
 
 
-def logs_for_seed(seed: int, si: dict | None = None):
+def logs_for_seed(seed: int, si: dict | None = None, rate: float | None = None):
     """(truth, logs): the seed's step and triangle logs, t/v/omega only, simulated from the
-    truth's SI values or from ``si`` in their place (bench/pervolt_coverage.py adds a drag)."""
+    truth's SI values or from ``si`` in their place (bench/pervolt_coverage.py adds a drag),
+    sampled at ``rate`` [Hz] where given (:func:`truth_for`)."""
     from pmdcid.io import Log
     from pmdcid.simulate import neutral_values, simulate_values
     from pmdcid.synth import step, triangle
 
-    tr = truth_for(seed)
+    tr = truth_for(seed, rate)
     vals = {**neutral_values(), **(tr["si"] if si is None else si)}
     rng = np.random.default_rng(10_000 + seed)
     dt = 1.0 / tr["rate"]

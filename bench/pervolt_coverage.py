@@ -62,17 +62,19 @@ def _per_volt(si: dict) -> dict:
             "tau_e": si["L"] / si["R"], "ke_share": si["ke"] / bv, "bq": si.get("bq", 0.0) * g}
 
 
-def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2):
-    """(per-volt truth, logs) of one case and seed (module docstring)."""
+def case_logs(case: str, seed: int, bq: float = 0.0, noise: float = 0.2,
+              rate: float | None = None):
+    """(per-volt truth, logs) of one case and seed (module docstring); ``rate`` [Hz]: the
+    ``lr-*`` cases sampled at that rate instead of their seed's 0.5 or 1 kHz."""
     from bench.lumped_coverage import logs_for_seed, truth_for
     from pmdcid.io import Log
     from pmdcid.simulate import neutral_values, simulate_values
     from pmdcid.synth import triangle
 
     if case.startswith("lr-"):
-        tr = truth_for(seed)
+        tr = truth_for(seed, rate)
         si = {**tr["si"], "bq": bq}
-        _, logs = logs_for_seed(seed, si if bq else None)
+        _, logs = logs_for_seed(seed, si if bq else None, rate)
         if case == "lr-steps":
             logs = [lg for lg in logs if lg.path.startswith("step")]
         elif case == "lr-tri-only":
@@ -155,13 +157,14 @@ def _entry(par, true: float) -> dict:
     return out
 
 
-def run_one(case: str, seed: int, diagnose: bool = False, bq: float = 0.0) -> dict:
+def run_one(case: str, seed: int, diagnose: bool = False, bq: float = 0.0,
+            rate: float | None = None) -> dict:
     """One seed of one case: the final model's per-volt estimates against the truth, and the
     joint fit's estimates (value, stderr) as they came out of it."""
     from pmdcid.model import Model
     from pmdcid.pipeline import identify
 
-    truth, logs = case_logs(case, seed, bq)
+    truth, logs = case_logs(case, seed, bq, rate=rate)
     row = {"case": case, "seed": seed}
     try:
         with warnings.catch_warnings():
@@ -240,6 +243,7 @@ def main(argv=None) -> None:
     ap.add_argument("--diagnose", action="store_true")
     ap.add_argument("--drag", type=float, default=0.0)
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--rate", type=float, help="the lr-* cases sampled at this rate [Hz]")
     ap.add_argument("--out", type=Path)
     ap.add_argument("--summary", type=Path, help="print the summary of an earlier run's file")
     a = ap.parse_args(argv)
@@ -247,7 +251,7 @@ def main(argv=None) -> None:
         print(summary(json.loads(a.summary.read_text())))
         return
     os.environ.setdefault("PMDCID_THREADS", "1")
-    jobs = [(c, s, a.diagnose, a.drag) for c in a.cases
+    jobs = [(c, s, a.diagnose, a.drag, a.rate) for c in a.cases
             for s in range(a.first, a.first + a.seeds)]
     if a.jobs > 1:
         from multiprocessing import Pool
