@@ -127,8 +127,28 @@ def command_lost(vals: dict[str, float], umax: float) -> float:
     return float(moving[0]) if moving else umax
 
 
-def drop_warning(problem, vals: dict[str, float], added: list[str]) -> str | None:
-    """One line when the drive visibly loses part of its command (see the module's text)."""
+def dead_zone_low(model) -> float | None:
+    """The low end [model units] of a dead zone ``model`` does not determine: its interval's,
+    or its value less two standard errors (at least 0); None where it is determined (or
+    absent, or no model)."""
+    par = model.parameters.get("dz") if model is not None else None
+    if par is None:
+        return None
+    if par.interval is not None:
+        return float(par.interval[0])
+    se = par.stderr
+    if se is not None and math.isfinite(se) and par.value - 2.0 * se < 0.9 * par.value:
+        return max(par.value - 2.0 * se, 0.0)
+    return None
+
+
+def drop_warning(problem, vals: dict[str, float], added: list[str],
+                 model=None) -> str | None:
+    """One line when the drive visibly loses part of its command (see the module's text).
+    Where ``model``'s dead zone is not determined (:func:`dead_zone_low`) the loss is said
+    from its low end, with the fitted value's as the upper: guanlunlu-l298n's steps (6, 12,
+    24 V) move at every level and leave the breakaway anywhere from the running friction's
+    2.4 V to 5 V (dz 5.1 ± 4.4 V); the warning read 3.65 V as if known."""
     lumped = any(log.meta.get("lumped") == "true" for log in problem.logs)
     if "brush_drop" in added and not lumped:
         return (f"brush_drop vb = {vals['vb']:.3g} V: an H-bridge's bipolar drop (an L298N "
@@ -140,14 +160,18 @@ def drop_warning(problem, vals: dict[str, float], added: list[str]) -> str | Non
         return None
     umax = max(float(np.max(np.abs(log.u))) for log in problem.logs)
     lost = command_lost(vals, umax)
-    if umax <= 0 or lost < DROP_SHARE * umax:
+    low = dead_zone_low(model)
+    least = lost if low is None else min(command_lost({**vals, "dz": low}, umax), lost)
+    if umax <= 0 or least < DROP_SHARE * umax:
         return None
-    return (f"the command loses {lost:.3g} V ({100 * lost / umax:.0f} % of the largest) before "
-            "the motor turns: a drive drop (an L298N loses 1.5-2.5 V, more with current), dead "
-            "time, brush drop and friction all sit in this per-volt dead zone and Coulomb "
-            "friction, and without current they cannot be told apart, so the model holds at the "
-            "loads logged; log the current to separate them (the drive's drop becomes "
-            "brush_drop, its current-dependent part R)")
+    upto = (f" or more (up to {lost:.3g} V: these logs do not determine the dead zone)"
+            if least < 0.99 * lost else "")
+    return (f"the command loses {least:.3g} V{upto} ({100 * least / umax:.0f} % of the "
+            "largest) before the motor turns: a drive drop (an L298N loses 1.5-2.5 V, more "
+            "with current), dead time, brush drop and friction all sit in this per-volt dead "
+            "zone and Coulomb friction, and without current they cannot be told apart, so the "
+            "model holds at the loads logged; log the current to separate them (the drive's "
+            "drop becomes brush_drop, its current-dependent part R)")
 
 
 #: a sensor delay within this share of a sample period of half that period is said to be a
@@ -171,11 +195,13 @@ def latency_warning(problem, vals: dict[str, float], added: list[str]) -> str | 
     return line
 
 
-def drive_warnings(problem, sims, vals: dict[str, float], added: list[str]) -> list[str]:
-    """Every drive warning that applies (summary ``warnings``)."""
+def drive_warnings(problem, sims, vals: dict[str, float], added: list[str],
+                   model=None) -> list[str]:
+    """Every drive warning that applies (summary ``warnings``); ``model``: the final model
+    (its standard errors)."""
     from pmdcid.diagnose.timing import timing_warning
 
-    out = [carrier_warning(problem, sims), drop_warning(problem, vals, added),
+    out = [carrier_warning(problem, sims), drop_warning(problem, vals, added, model),
            latency_warning(problem, vals, added), timing_warning(problem, sims)]
     return [w for w in out if w]
 

@@ -16,7 +16,6 @@ import math
 from pmdcid.errors import ModelError, PmdcidError
 from pmdcid.fit.results import Estimate
 from pmdcid.identify.linstart import STAGE as LINEAR_START_STAGE
-from pmdcid.identify.mechanical import STAGE as MECH_STAGE
 from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.notes import Note
 from pmdcid.runtime.cpus import pmap
@@ -149,24 +148,13 @@ def _fit_nonlinear(logs, model, controller, opts):
 #: 2 standard errors 15, 15, 19 from 2 samples alone, 18, 15, 17 from 4, 20, 15, 15 from 6, and
 #: 19, 18, 20 from both). Their local stages run on two CPUs where there are (runtime/cpus.py)
 LAG_START_SAMPLES = (2.0, 6.0)
-#: where the steps bounded the lag (:func:`steps_lag_bound`) its fit starts at that bound and
-#: at the bound over this (spanning a factor of 3, as :data:`LAG_START_SAMPLES` do): a start
-#: of samples beyond it (60 ms at 100 Hz) lies near the mechanical time constant, whose
-#: place the lag can take in the linear response
-BOUND_START_RATIO = 3.0
 
 
 def lag_untested(model, logs) -> bool:
     """A lumped model with no electrical lag whose mechanics no stage fitted (none yet, or the
     first-order start of :mod:`pmdcid.identify.linstart`): no step log tested L/R
     (:func:`_step_latency` does where there are steps), so fit-nonlinear tests it on open-loop
-    ``logs`` (:func:`_with_lag_if_better`). So too where fit-mechanical's steps left the lag
-    open (:func:`steps_lag_bound`) and found no latency in its place: without the lag the dead
-    zone acts on v, not on v - ke w, and where the back-EMF is most of the damping and the
-    dead zone above the friction, the running torque is pinned at the dead zone's edge, which
-    a fit on v reads as Coulomb friction (bench/lumped_coverage.py's motors, L/R 2-4 ms,
-    logged at 100 Hz: bc +25-34 %, J -6 %, 3-11 standard errors off; the steps at 10 ms left
-    the lag below 5.8 ms). Not on closed-loop logs: their input is the
+    ``logs`` (:func:`_with_lag_if_better`). Not on closed-loop logs: their input is the
     controller's answer to the measured speed, and a fit reads the loop's own phase as a lag
     (micromouse-pid, bench/realbench.py: the lag kept on BIC, the held-out period's speed
     0.207 -> 0.292)."""
@@ -174,20 +162,7 @@ def lag_untested(model, logs) -> bool:
 
     if not is_lumped(model) or model.has("tau_e") or closed_loop_logs(logs_for(logs, model)):
         return False
-    if not model.has("J") or model.parameters["J"].stage == LINEAR_START_STAGE:
-        return True
-    return (model.parameters["J"].stage == MECH_STAGE and not model.has("delay")
-            and math.isfinite(steps_lag_bound(model)))
-
-
-def steps_lag_bound(model) -> float:
-    """The electrical lag [s] fit-mechanical's steps left open, at two standard errors
-    (:func:`pmdcid.identify.latency.step_lag`'s ``tau_e_bound``, kept in the model file's
-    record of the stage); NaN where the steps resolved it, found a latency instead, or never
-    tested it."""
-    rec = model.extra.get("fits", {}).get(MECH_STAGE, {})
-    got = rec.get("tau_e_bound") if isinstance(rec, dict) else None
-    return float(got) if isinstance(got, (int, float)) and got > 0 else math.nan
+    return not model.has("J") or model.parameters["J"].stage == LINEAR_START_STAGE
 
 
 def _with_lag_if_better(logs, model, opts, plain):
@@ -207,12 +182,30 @@ def _with_lag_if_better(logs, model, opts, plain):
     20 seeds); with it 19, 18, 20, 18. The test is the likelihood's (BIC), not tau_e's own
     standard error: a slow input tells that a lag of some milliseconds is there (BIC thousands
     lower) long before it tells how long."""
-    bound = steps_lag_bound(model)
-    res = _lagged_fit(logs, model, opts, plain, bound)
+    dt = min(lg.dt for lg in logs)
+
+    def from_start(samples):  # its local stage alone: (chi-square, the model it ends at)
+        lagged = model.copy()
+        plain.apply(lagged)
+        lagged.set("tau_e", samples * dt, stage=LINEAR_START_STAGE)
+        try:
+            local = _fit_nonlinear(logs, lagged, None, {**opts, "local_only": True})
+        except PmdcidError:
+            return None
+        local.apply(lagged)
+        return local.stats.chisqr, lagged
+
+    starts = [s for s in pmap(from_start, LAG_START_SAMPLES) if s is not None]
+    res = None
+    if starts:  # the whole fit from the start whose local stage ended lowest
+        try:
+            res = _fit_nonlinear(logs, min(starts, key=lambda s: s[0])[1], None,
+                                 dict(opts))
+        except PmdcidError:
+            res = None
     drop = plain.stats.bic - res.stats.bic if res is not None else -math.inf
-    hidden = _hidden_lag(logs, res, bound)
-    if drop > 0 and not hidden:
-        res.warnings.insert(0, Note(_lag_kept_words(res.estimates["tau_e"], drop, bound),
+    if drop > 0:
+        res.warnings.insert(0, Note(_lag_kept_words(res.estimates["tau_e"], drop),
                                     about=["tau_e"], severity="note"))
         return res
     wide = _fold_reach(plain.estimates, res.estimates) if res is not None else []
@@ -221,63 +214,11 @@ def _with_lag_if_better(logs, model, opts, plain):
             "standard errors widened so that two reach the fit with an electrical lag's own "
             "two (the lag these logs leave open moves them): " + ", ".join(wide),
             about=[w.split()[0] for w in wide], severity="note"))
-    why = (hidden or "the fit with one (tau_e and the back-EMF share free) is no better in "
-           "BIC")
     plain.warnings.insert(0, Note(
-        f"no electrical lag: {why}; the lumped model has none (tau_e = 0), the lag is folded "
-        "into J and the dead zone acts on the applied voltage", about=["tau_e"],
-        severity="note"))
+        "no electrical lag: the fit with one (tau_e and the back-EMF share free) is no better "
+        "in BIC; the lumped model has none (tau_e = 0), the lag is folded into J and the dead "
+        "zone acts on the applied voltage", about=["tau_e"], severity="note"))
     return plain
-
-
-def _lagged_fit(logs, model, opts, plain, bound: float):
-    """:func:`_with_lag_if_better`'s fit with the lag: the local stage from ``plain``'s values
-    and each start of tau_e (:data:`LAG_START_SAMPLES`, or from the steps' ``bound`` [s],
-    :data:`BOUND_START_RATIO`), the whole fit from the one that ends lower; None where every
-    fit failed."""
-    dt = min(lg.dt for lg in logs)
-    taus = ([samples * dt for samples in LAG_START_SAMPLES] if not math.isfinite(bound)
-            else [bound / BOUND_START_RATIO, bound])
-
-    def from_start(tau):  # its local stage alone: (chi-square, the model it ends at)
-        lagged = model.copy()
-        plain.apply(lagged)
-        lagged.set("tau_e", tau, stage=LINEAR_START_STAGE)
-        try:
-            local = _fit_nonlinear(logs, lagged, None, {**opts, "local_only": True})
-        except PmdcidError:
-            return None
-        local.apply(lagged)
-        return local.stats.chisqr, lagged
-
-    starts = [s for s in pmap(from_start, taus) if s is not None]
-    if not starts:
-        return None
-    try:
-        return _fit_nonlinear(logs, min(starts, key=lambda s: s[0])[1], None, dict(opts))
-    except PmdcidError:
-        return None
-
-
-def _hidden_lag(logs, res, bound: float) -> str:
-    """Why the lag of ``res`` is not kept whatever its BIC, or '': where the steps left the
-    lag open (``bound``) and the speed is derived from an angle, the steps' own limit
-    (:func:`pmdcid.identify.latency.shortest_lag`: a lag under 1/(2 pi fc) of the derivative
-    filter's cut-off fc is not told from the inertia it folds in or from a late first count).
-    On lego-ev3's loop-timed encoder steps (bench/realbench.py) the joint fit took a 3.0 ms
-    lag the filter cannot show, and diagnose's gain on the held-out sines shrank (0.055 ->
-    0.059). Rich logs without steps keep their test as it was: a chirp or a random-level log
-    of a 360-count encoder resolves L/R 2-4 ms to 0.4-0.7 % through such a filter."""
-    from pmdcid.identify.latency import shortest_lag
-
-    if res is None or not math.isfinite(bound):
-        return ""
-    least, tau = shortest_lag(logs), res.estimates["tau_e"].value
-    if tau >= least:
-        return ""
-    return (f"the fit with one is better in BIC, but its lag, {1e3 * tau:.3g} ms, is under the "
-            f"{1e3 * least:.3g} ms = 1/(2 pi fc) the filter that derived the speed from the "
-            "angle shows (fc its cut-off), where the steps' own test keeps none")
 
 
 #: the words a parameter widened by :func:`_fold_reach` carries
@@ -343,22 +284,20 @@ def _finite(x: float) -> float:
     return x if math.isfinite(x) else 0.0
 
 
-def _lag_kept_words(tau, drop: float, bound: float = math.nan) -> str:
+def _lag_kept_words(tau, drop: float) -> str:
     """The note on a lag :func:`_with_lag_if_better` kept: its value, or where the logs do
     not determine it (under :data:`~pmdcid.identify.latency.LAG_SIGMAS` standard errors), the
     bound, and why the fit with it is better all the same (the dead zone on v - ke w)."""
     from pmdcid.identify.latency import LAG_SIGMAS
 
-    why = ("no step log tested it" if not math.isfinite(bound) else
-           f"the steps left it open, below {1e3 * bound:.3g} ms at two standard errors")
-    said = (f"an electrical lag tau_e = {1e3 * tau.value:.3g} ms (L/R), tested here ({why}): "
-            f"the fit with it, the dead zone on the lagged torque v - ke w as "
+    said = (f"an electrical lag tau_e = {1e3 * tau.value:.3g} ms (L/R), tested here (no step "
+            f"log tested it): the fit with it, the dead zone on the lagged torque v - ke w as "
             f"the physics puts it, has BIC {drop:.3g} below the fit without; kept")
     if math.isfinite(tau.stderr) and tau.value > LAG_SIGMAS * tau.stderr:
         return said
-    upper = tau.value + 2.0 * tau.stderr if math.isfinite(tau.stderr) else math.inf
+    bound = tau.value + 2.0 * tau.stderr if math.isfinite(tau.stderr) else math.inf
     return (said + f", though these logs do not determine the lag itself (below "
-            f"{1e3 * upper:.3g} ms at two standard errors)")
+            f"{1e3 * bound:.3g} ms at two standard errors)")
 
 
 #: the start fit-nonlinear takes when MODEL holds no mechanics (said in a note)
@@ -436,13 +375,11 @@ def _step_latency(result, logs, model) -> None:
             "(tau_e = 0), the lag is folded into J and the dead zone acts on the applied "
             "voltage; a faster sampling, a higher --cutoff or a measured speed would show it")
     elif "tau_e_bound" in found:
-        result.lag_bound = found["tau_e_bound"]
         result.warnings.append(
             f"the electrical lag L/R is not resolved by these logs (tau_e below "
             f"{1e3 * found['tau_e_bound']:.3g} ms at two standard errors, sample period "
             f"{1e3 * logs[0].dt:.3g} ms): the lumped model has none (tau_e = 0), the lag is "
-            "folded into J and the dead zone acts on the applied voltage; fit-nonlinear tests "
-            "it on its logs (a lag below that bound, the dead zone on v - ke w)")
+            "folded into J and the dead zone acts on the applied voltage")
     if "delay" in found:
         result.estimates["delay"] = Estimate("delay", *found["delay"], "s")
 

@@ -100,8 +100,7 @@ def test_fit_nonlinear_tests_the_lag_no_step_log_tested():
 
 def test_the_lag_is_tested_only_where_no_stage_did_and_the_loop_is_open():
     """:func:`lag_untested`: a lumped model without J (or with the first-order start's) and
-    open-loop logs, or one whose steps left the lag open (its bound in fit-mechanical's record)
-    and found no latency; not a model whose steps resolved it (J from fit-mechanical), one that
+    open-loop logs; not a model whose steps tested the lag (J from fit-mechanical), one that
     has a lag, an SI model, or logs with a set-point (a controller's output answers the speed:
     its phase is no lag)."""
     _, log = _lagged_triangle(1)
@@ -113,12 +112,6 @@ def test_the_lag_is_tested_only_where_no_stage_did_and_the_loop_is_open():
     stepped = lumped.copy()
     stepped.set("J", 0.01, stage="fit-mechanical")
     assert not lag_untested(stepped, [log])
-    left_open = stepped.copy()  # the steps' lag test bounded the lag, found no latency
-    left_open.extra["fits"] = {"fit-mechanical": {"tau_e_bound": 5.8e-3}}
-    assert lag_untested(left_open, [log])
-    left_open.add_effect("sensor_delay")  # ... or a latency in its place: the steps chose
-    left_open.set("delay", 4e-3)
-    assert not lag_untested(left_open, [log])
     lagged = lumped.copy()
     lagged.set("tau_e", 3e-3)
     assert not lag_untested(lagged, [log])
@@ -266,22 +259,22 @@ def _logged_at_100_hz(seed: int):
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="a lag the steps leave open is not tested again (docs/"
+                   "identification.md, 'Session 33'): the dead zone stays on v")
 def test_a_lag_the_steps_leave_open_is_tested_on_the_rich_logs():
-    """At 100 Hz the steps leave L/R (3.6 ms) open: fit-mechanical keeps no lag and records its
-    bound. fit-nonlinear then tests the lag on the triangle: without it the dead zone acts on v
-    and the running torque, pinned at the dead zone's edge, reads as friction: here J' came out
-    -7.4 % at 7.7 standard errors and the dead zone at a quarter of its value (over 12 seeds of
-    bench/lumped_coverage.py's motors at 100 Hz, bc' +22 % on average, 10 of 12 beyond 2
-    standard errors); with it J', bv', bc', dz' are within 0.6 here, 3 asserted."""
+    """At 100 Hz the steps leave L/R (3.6 ms) open: fit-mechanical keeps no lag, and the next
+    fit has none either: the dead zone acts on v, and the running torque, pinned at the dead
+    zone's edge, reads as friction: here J' -7.4 % at 7.7 standard errors, the dead zone at a
+    quarter of its value (over 12 seeds of bench/lumped_coverage.py's motors at 100 Hz, bc'
+    +22 % on average). With the lag tested again on the triangle (tried in session 33, not
+    kept for its cost: 64 internal steps a sample on a lag-free motor's 40 s log) J', bv',
+    bc', dz' came within 0.6 standard errors. Known, strict: passes the day it is fixed."""
     truth, logs = _logged_at_100_hz(1)
     model = Model()
     mech = fit_stage(stage_mechanical, logs[:4], model)
     apply_stage(mech, model)
     assert "tau_e" not in mech.estimates
-    assert model.extra["fits"]["fit-mechanical"]["tau_e_bound"] > 0
     res = fit_stage(stage_nonlinear, logs[4:], model)
-    assert "tau_e" in res.estimates
-    assert any("the steps left it open" in w for w in res.warnings), res.warnings
     for k, v in truth.items():
         e = res.estimates[k]
         assert abs(e.value - v) <= 3 * e.stderr, (k, e.value, e.stderr, v)
