@@ -148,7 +148,8 @@ def drop_warning(problem, vals: dict[str, float], added: list[str],
     Where ``model``'s dead zone is not determined (:func:`dead_zone_low`) the loss is said
     from its low end, with the fitted value's as the upper: guanlunlu-l298n's steps (6, 12,
     24 V) move at every level and leave the breakaway anywhere from the running friction's
-    2.4 V to 5 V (dz 5.1 ± 4.4 V); the warning read 3.65 V as if known."""
+    2.4 V to 5 V; a model of them with a lag (session 33's trial, docs/identification.md)
+    held dz = 5.1 ± 4.4 V, and the warning read 3.65 V as if known."""
     lumped = any(log.meta.get("lumped") == "true" for log in problem.logs)
     if "brush_drop" in added and not lumped:
         return (f"brush_drop vb = {vals['vb']:.3g} V: an H-bridge's bipolar drop (an L298N "

@@ -287,8 +287,9 @@ def _fits(cost, fit, point: dict[str, float], moved: dict[str, Estimate]) -> boo
     (:func:`valley_threshold`) of ``point`` itself. The interval is read with the dead zone
     profiled at each share (:func:`valley_floor`): where the dead zone acts on v - ke w, a
     share moved with the fitted dead zone held can leave a model that fits nothing
-    (guanlunlu-l298n, bench/realbench.py: the fit at share 0 with a 5 V dead zone, moved to
-    share 0.5, simulated its 6 V fit step at 0.74 against 0.017)."""
+    (guanlunlu-l298n's steps with a lag, session 33's trial in docs/identification.md: the fit
+    at share 0 with a 5 V dead zone, moved to share 0.5, simulated its 6 V fit step at 0.74
+    against 0.017)."""
     c = cost([point, {**point, **{k: e.value for k, e in moved.items()}}])
     return float(c[1]) - float(c[0]) <= valley_threshold(fit)
 
