@@ -27,6 +27,7 @@ import os
 import numpy as np
 
 from pmdcid.diagnose.shape import MIN_PERIODS, MIN_SHARE, _peak_share
+from pmdcid.identify.identifiability import MAX_REL_STDERR
 
 #: a carrier line is not the command's: the command has under this share of its variance there
 INPUT_SHARE = 0.01
@@ -129,15 +130,19 @@ def command_lost(vals: dict[str, float], umax: float) -> float:
 
 def dead_zone_low(model) -> float | None:
     """The low end [model units] of a dead zone ``model`` does not determine: its interval's,
-    or its value less two standard errors (at least 0); None where it is determined (or
-    absent, or no model)."""
+    or, where it is poorly determined (the fit stages' rule,
+    :data:`pmdcid.identify.identifiability.MAX_REL_STDERR` of the Coulomb friction), its value
+    less two standard errors (at least 0); None where it is determined (or absent, or no
+    model)."""
     par = model.parameters.get("dz") if model is not None else None
     if par is None:
         return None
     if par.interval is not None:
         return float(par.interval[0])
+    bc = model.parameters.get("bc")
+    level = abs(bc.value) if bc is not None else abs(par.value)
     se = par.stderr
-    if se is not None and math.isfinite(se) and par.value - 2.0 * se < 0.9 * par.value:
+    if se is not None and math.isfinite(se) and se > MAX_REL_STDERR * level:
         return max(par.value - 2.0 * se, 0.0)
     return None
 

@@ -242,6 +242,22 @@ def test_a_large_drive_drop_warns_and_a_small_one_does_not():
     assert "vb = 1.8 V" in w and "R = 3.4" in w
 
 
+def test_an_undetermined_dead_zone_is_read_from_its_low_end():
+    """A dead zone the logs do not determine (its standard error over a quarter of the Coulomb
+    friction, the fit stages' "poorly determined") is said from its low end, the fitted value's
+    loss as the upper: the L298N's steps all move, and a model of them held dz = 5.1 +- 4.4 V
+    (session 33), which read as "loses 3.65 V" before; a determined one is said as it is."""
+    vals = {**neutral_values(), "J": 0.05, "bv": 0.7, "bc": 2.4, "dz": 5.1}
+    model = Model()
+    model.set("bc", 2.4, 0.02)
+    model.set("dz", 5.1, 4.4)
+    w = drop_warning(_problem(24.0, True, False), vals, [], model)
+    assert "V or more (up to 5.1 V" in w, w
+    assert float(w.split("loses ")[1].split(" V")[0]) == pytest.approx(2.4, abs=0.02)
+    model.set("dz", 5.1, 0.1)
+    assert "loses 5.1 V (" in drop_warning(_problem(24.0, True, False), vals, [], model)
+
+
 def test_a_sensor_delay_without_current_may_be_latency():
     vals = {**neutral_values(), "delay": 3.5e-3}
     assert "3.5 ms" in latency_warning(_problem(12.0, True, False), vals, ["sensor_delay"])
