@@ -9,7 +9,7 @@ from pmdcid.identify.mechanical import fit_mechanical
 from pmdcid.identify.nonlinear import fit_nonlinear
 from pmdcid.io import Log
 from pmdcid.model import Model
-from pmdcid.simulate import neutral_values
+from pmdcid.simulate import neutral_values, simulate_values
 from pmdcid.synth import PAPER, PAPER_NOISE, NoiseSpec, step, synth_log, triangle
 
 AMPLITUDES = (0.5, 1.0, 1.5, 2.0, 2.5)
@@ -143,3 +143,27 @@ def small_motor_logs(vals, rng, rate=2000.0, hold=0.3):
         cols, _ = synth_log(t, v, vals, noise, rng, nsub=32, x0=x0)
         out.append(as_log(name, t, cols))
     return out
+
+
+#: a motor of bench/lumped_coverage.py's family (its seed 7): L/R 3.6 ms, back-EMF 90 % of the
+#: damping, the dead zone 21 % above the Coulomb friction
+SLOW = {**neutral_values(), "R": 2.0, "L": 7.589e-3, "km": 0.021, "ke": 0.021, "J": 1.305e-5,
+        "bv": 2.45e-5, "bc": 2.804e-3, "dz": 3.393e-3}
+
+
+def logged_at_100_hz(seed: int):
+    """(per-volt truth, four voltage steps of 1.5 s and an 8 s +-8 V triangle of SLOW, voltage
+    and speed at 100 Hz, noise 0.3 % of the speed's range): bench/lumped_coverage.py's logs at a
+    rate common on real rigs, whose steps leave L/R open."""
+    rng = np.random.default_rng(seed)
+    t, tt = np.arange(150) / 100.0, np.arange(800) / 100.0
+    runs = [(f"step_{a:g}V", t, step(t, a, 0.2)) for a in (2.0, 4.0, 6.0, 8.0)]
+    runs.append(("triangle", tt, triangle(tt, 8.0, 4.0)))
+    sims = [(n, t_, u, simulate_values(t_, u, SLOW, nsub=64).omega) for n, t_, u in runs]
+    sigma = 0.003 * max(float(np.ptp(w)) for *_, w in sims)
+    logs = [as_log(n, t_, {"v": u, "omega": w + rng.normal(0, sigma, w.size)})
+            for n, t_, u, w in sims]
+    g = SLOW["R"] / SLOW["km"]
+    truth = {"J": SLOW["J"] * g, "bv": SLOW["bv"] * g + SLOW["ke"], "bc": SLOW["bc"] * g,
+             "dz": SLOW["dz"] * g}
+    return truth, logs

@@ -116,6 +116,10 @@ class MechanicalResult(ResultProtocol):
     km_from_option: bool = False
     warnings: list[str] = field(default_factory=list)
     joint: bool = False  # bv, bc, J from the joint exact fit of all steps (else from the line)
+    #: a lumped model's electrical lag the steps left open: below this [s] at two standard
+    #: errors (:func:`pmdcid.identify.latency.step_lag`); NaN where they resolved it or never
+    #: tried. fit-nonlinear then fits the current as instant (``steps_lag_bound`` in runners.py)
+    lag_bound: float = math.nan
 
     #: the steps' input column: ``'v'`` (voltage steps) or ``'tau'`` (torque steps)
     drive: str = "v"
@@ -145,6 +149,8 @@ class MechanicalResult(ResultProtocol):
             "skipped": [f"{s.path} at {s.t0:.4g} s" for s in self.steps
                         if not s.moved and not s.head],
         }
+        if math.isfinite(self.lag_bound):
+            fits[STAGE]["tau_e_bound"] = self.lag_bound
         self._keep_lumped(model)
 
     def table(self) -> str:

@@ -830,7 +830,7 @@ def secant_errors(logs, base_vals, fit, signals, sigma, warns,
 def _share_valley(logs, base_vals, fit, signals, sigma, est, warns) -> None:
     """A lumped model's back-EMF share, J and tau_e read along their valley of equal linear
     response (:mod:`.share_valley`): ``est`` updated in place, a note when they moved."""
-    if "ke_share" not in est:
+    if "ke_share" not in est or "tau_e" not in est:  # no lag: the share trades with no J
         return
     moved, why = share_interval(lambda sets: _cost(logs, base_vals, sets, signals, sigma),
                                 fit, est)

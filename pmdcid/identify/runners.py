@@ -15,7 +15,13 @@ import math
 
 from pmdcid.errors import ModelError, PmdcidError
 from pmdcid.fit.results import Estimate
+from pmdcid.identify.instant import (
+    bounded_by_lag,
+    lag_bound_of,
+    with_instant_current_if_better,
+)
 from pmdcid.identify.linstart import STAGE as LINEAR_START_STAGE
+from pmdcid.identify.mechanical import STAGE as MECH_STAGE
 from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.notes import Note
 from pmdcid.runtime.cpus import pmap
@@ -107,9 +113,20 @@ def stage_nonlinear(logs, model, controller=None, **opts):
     (:func:`_with_lag_if_better`)."""
     start = _linear_start_if_needed(logs, model)
     untested = controller is None and not opts.get("free") and lag_untested(model, logs)
+    bound = (steps_lag_bound(model) if controller is None and not opts.get("free")
+             and not untested and lag_open(model, logs) else math.nan)
+    instant = lag_bound_of(model) if controller is None and not opts.get("free") else math.nan
     res = _fit_nonlinear(logs, model, controller, dict(opts))
+
+    def fit(work, free, local_only):  # fit-nonlinear of these logs, for identify/instant.py
+        return _fit_nonlinear(logs, work, None, {**opts, "free": free, "local_only": local_only})
+
     if untested:
         res = _with_lag_if_better(logs, model, opts, res)
+    elif math.isfinite(bound):
+        res = with_instant_current_if_better(fit, model, res, bound)
+    elif math.isfinite(instant):
+        res = bounded_by_lag(fit, model, res, instant)
     if start:
         res.warnings.insert(0, Note(start, about=["J", "bv"], severity="note"))
     return res
@@ -130,6 +147,8 @@ def _fit_nonlinear(logs, model, controller, opts):
         opts["free"] = ["J", "bv", "bc", "dz"]
         if model.has("tau_e") and model.value("tau_e") > 0:  # its electrical lag, and the
             opts["free"] += ["tau_e", "ke_share"]  # back-EMF's share of bv (model/lumped.py)
+        elif model.has("ke_share"):  # an instant current (identify/instant.py): the share
+            opts["free"] += ["ke_share"]
     seen = logs_for(logs, model)
     if controller is not None:
         opts.pop("dead_zone", None)
@@ -163,6 +182,30 @@ def lag_untested(model, logs) -> bool:
     if not is_lumped(model) or model.has("tau_e") or closed_loop_logs(logs_for(logs, model)):
         return False
     return not model.has("J") or model.parameters["J"].stage == LINEAR_START_STAGE
+
+
+def lag_open(model, logs) -> bool:
+    """A lumped model with neither a lag nor a share whose mechanics fit-mechanical's steps
+    gave, the steps having left the lag open (:func:`steps_lag_bound`) and found no latency in
+    its place: fit-nonlinear then fits the current as instant too
+    (:mod:`pmdcid.identify.instant`). Not on closed-loop logs (:func:`lag_untested`)."""
+    from pmdcid.identify.closedfit import closed_loop_logs
+
+    if (not is_lumped(model) or model.has("tau_e") or model.has("ke_share")
+            or model.has("delay") or not model.has("J")):
+        return False
+    return (model.parameters["J"].stage == MECH_STAGE and math.isfinite(steps_lag_bound(model))
+            and not closed_loop_logs(logs_for(logs, model)))
+
+
+def steps_lag_bound(model) -> float:
+    """The electrical lag [s] fit-mechanical's steps left open, at two standard errors
+    (:func:`pmdcid.identify.latency.step_lag`'s ``tau_e_bound``, kept in the model file's
+    record of the stage); NaN where the steps resolved it, found a latency instead, or never
+    tested it."""
+    rec = model.extra.get("fits", {}).get(MECH_STAGE, {})
+    got = rec.get("tau_e_bound") if isinstance(rec, dict) else None
+    return float(got) if isinstance(got, (int, float)) and got > 0 else math.nan
 
 
 def _with_lag_if_better(logs, model, opts, plain):
@@ -375,11 +418,13 @@ def _step_latency(result, logs, model) -> None:
             "(tau_e = 0), the lag is folded into J and the dead zone acts on the applied "
             "voltage; a faster sampling, a higher --cutoff or a measured speed would show it")
     elif "tau_e_bound" in found:
+        result.lag_bound = found["tau_e_bound"]
         result.warnings.append(
             f"the electrical lag L/R is not resolved by these logs (tau_e below "
             f"{1e3 * found['tau_e_bound']:.3g} ms at two standard errors, sample period "
             f"{1e3 * logs[0].dt:.3g} ms): the lumped model has none (tau_e = 0), the lag is "
-            "folded into J and the dead zone acts on the applied voltage")
+            "folded into J and the dead zone acts on the applied voltage; fit-nonlinear also "
+            "fits the current as instant (the dead zone on v - ke w)")
     if "delay" in found:
         result.estimates["delay"] = Estimate("delay", *found["delay"], "s")
 

@@ -62,6 +62,8 @@ def lag_substeps(dt: float, tau_e: float) -> int:
     on bench/lumped_coverage.py's seed 4: bumps of 5 chi-square units at tau_e/8, of about 1 at
     tau_e/32), which stops the local fits and makes their Jacobian claim more than the cost's
     rise. At most :data:`MAX_LAG_SUBSTEPS` a sample."""
+    if not tau_e > 0.0:  # no lag (an instant current): the mechanics' own steps suffice
+        return 1
     return max(1, min(int(math.ceil(dt * LAG_STEPS / tau_e - 1e-9)), MAX_LAG_SUBSTEPS))
 
 
@@ -71,19 +73,24 @@ def kernel_values(vals: dict[str, float], torque_driven: bool) -> tuple[dict[str
     A lumped model with an electrical time constant ``tau_e`` > 0, simulated on a voltage log
     (the log's view is torque-driven, :func:`pmdcid.simulate.logs_for`), runs the kernel's own
     voltage-driven structure scaled per volt: R = 1 and km = 1 (the "current" is R i, in V),
-    L = tau_e, the back-EMF ke = ke_share bv and the mechanical viscous friction
+    L = tau_e (0 where the model has a back-EMF share but no lag: the current follows
+    v - ke w at once, :func:`pmdcid.simulate.terms.instant_current`; a lumped model without
+    a share has ``ke_share`` NaN here, :func:`pmdcid.simulate.param_values`), the back-EMF
+    ke = ke_share bv and the mechanical viscous friction
     (1 - ke_share) bv, so that ``tau_e (R i)' = v - R i - ke w`` and
     ``J' w' = DZ(R i) - (1 - ke_share) bv w - f'(w)``: the dead zone acts on the torque, per
     volt on ``v - ke w`` lagged by tau_e, where the physics puts it. Anything else (SI models,
-    torque logs, an old lumped model without tau_e, i.e. tau_e = 0) is returned as it is.
+    torque logs, a lumped model with neither a lag nor a share: tau_e = 0, the dead zone on
+    v) is returned as it is.
     """
     tau_e = float(vals.get("tau_e", 0.0) or 0.0)
-    if not (torque_driven and tau_e > 0.0):
+    share = float(vals.get("ke_share", math.nan))
+    if not (torque_driven and (tau_e > 0.0 or math.isfinite(share))):
         return vals, torque_driven
-    share = min(max(float(vals.get("ke_share", 1.0)), 0.0), 1.0)
+    share = min(max(share, 0.0), 1.0) if math.isfinite(share) else 1.0
     bv = float(vals["bv"])
     out = dict(vals)
-    out.update(R=1.0, km=1.0, L=tau_e, ke=share * bv, bv=(1.0 - share) * bv)
+    out.update(R=1.0, km=1.0, L=max(tau_e, 0.0), ke=share * bv, bv=(1.0 - share) * bv)
     return out, False
 
 
@@ -97,11 +104,13 @@ def same_response(J: float, tau_e: float, bv: float, share: float,
     coefficients for four parameters, so the share moves along a valley of equal linear
     response, only the friction and the dead zone (on the lagged torque) telling its points
     apart. Keeping ``a1 = tau_e J`` and ``a2 = J + tau_e (1 - share) bv``, J is the mechanical
-    (larger) root of ``J^2 - a2 J + a1 (1 - new_share) bv = 0`` and tau_e = a1 / J."""
+    (larger) root of ``J^2 - a2 J + a1 (1 - new_share) bv = 0`` and tau_e = a1 / J. Without a
+    lag (tau_e = 0, the current instant) the response ``1 / (J s + bv)`` holds no share: J
+    stays, tau_e stays 0."""
     a1 = tau_e * J
     a2 = J + tau_e * (1.0 - share) * bv
     disc = a2 * a2 - 4.0 * a1 * (1.0 - new_share) * bv
-    if not (a1 > 0 and disc >= 0):
+    if not (a1 >= 0 and J > 0 and disc >= 0):
         return None
     j = 0.5 * (a2 + math.sqrt(disc))
     return j, a1 / j

@@ -7,6 +7,7 @@ sensors would read.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -150,6 +151,8 @@ def param_values(model: Model, torque_driven: bool = False,
             vals[name] = par.value
     if "bv" not in model.parameters and "b" in model.parameters:
         vals["bv"] = model.parameters["b"].value
+    if lumped and "ke_share" not in model.parameters:
+        vals["ke_share"] = math.nan  # no share: without a lag the dead zone acts on v
     if overrides:
         vals.update(overrides)
     need = ["J"] if torque_driven else ["R", "L", "km", "J"]

@@ -6,7 +6,7 @@
  */
 #include <math.h>
 
-const char *kernel_digest(void) { return "d2bd8c5f9b1d1a2ad5ba30985f32831efcd7ae16"; }
+const char *kernel_digest(void) { return "e327b2e733fdc96286b2a91e6923fa92eddd7921"; }
 
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
@@ -181,6 +181,7 @@ static inline double sgn(double x)
 static inline void forcing(const double *p, int torque_driven, int eng, double vin, double i, double w, double td, double tl, double fric, int *r_0, double *r_1, double *r_2)
 {
     double fe;
+    double fv;
     int m;
     double fm;
     if (torque_driven) {
@@ -189,10 +190,16 @@ static inline void forcing(const double *p, int torque_driven, int eng, double v
         *r_2 = (td - tl - fric) / p[P_J];
         return;
     }
-    fe = armature_voltage(p, vin, w) / p[P_L];
+    if (p[P_L] > 0.0) {
+        fe = armature_voltage(p, vin, w) / p[P_L];
+        fv = 0.0;
+    } else {
+        fe = 0.0;
+        fv = p[P_DZ_SLOPE] * p[P_KM] * armature_voltage(p, vin, w) / p[P_R];
+    }
     if (eng) {
         m = 0;
-        fm = p[P_DZ_OFFSET] * sgn(i);
+        fm = p[P_DZ_OFFSET] * sgn(i) + fv;
     } else {
         m = 1;
         fm = 0.0;
@@ -265,6 +272,17 @@ static inline double load_torque(const double *p, double theta)
     return t;
 }
 
+/* Armature current [A] of a winding without inductance (L = 0) at drive voltage v [V]
+ * and speed omega [rad/s]: (v - ke omega) / R, after the brush drop
+ * (`armature_voltage`). A lumped model whose electrical lag is below what its logs
+ * resolve (tau_e = 0 with the back-EMF's share known, :mod:`pmdcid.model.lumped`) runs so:
+ * the dead zone then acts on v - ke omega, where the physics puts it.
+ */
+static inline double instant_current(const double *p, double v, double omega)
+{
+    return (armature_voltage(p, v, omega) - p[P_KE] * omega) / p[P_R];
+}
+
 /* One internal step of the LuGre loop: (i [A], omega [rad/s], theta [rad], z [rad]) after
  * it, under the held torque input tin [N m] or drive voltage vin [V].
  *
@@ -291,6 +309,9 @@ static inline void lugre_substep(const double *p, double Phi[4][3][3], double Ga
     if (torque_driven) {
         tm = tin;
     } else {
+        if (p[P_L] == 0.0) {
+            i = instant_current(p, vin, w);
+        }
         tm = p[P_KM] * i;
     }
     a = bristle_rate(p, w);
@@ -301,6 +322,8 @@ static inline void lugre_substep(const double *p, double Phi[4][3][3], double Ga
     z1 = bristle_step(z, a, h, th1 - th);
     if (torque_driven) {
         i1 = 0.0;
+    } else if (p[P_L] == 0.0) {
+        i1 = instant_current(p, vin, w1);
     }
     *r_0 = i1;
     *r_1 = w1;
@@ -437,6 +460,9 @@ static inline void through_zero(const double *p, double Phi[4][3][3], double Gam
     double r;
     s = w / (w - w1);
     ic = i + s * (i1 - i);
+    if (!torque_driven && p[P_L] == 0.0) {
+        ic = instant_current(p, vin, 0.0);
+    }
     thc = th + s * (th1 - th);
     if (torque_driven) {
         tm = tin;
@@ -514,7 +540,7 @@ static inline void stick_core(const double *p, double Phi[4][3][3], double Gam[4
     if (w == 0.0) {
         net = td - tl;
         if (fabs(net) <= fstat) {
-            if (!torque_driven) {
+            if (!torque_driven && p[P_L] > 0.0) {
                 ve = armature_voltage(p, vin, 0.0);
                 i_stuck = Phi[mode0 + 1][0][0] * i + Gam[mode0 + 1][0][0] * ve / p[P_L];
                 net = dead_zone(p, p[P_KM] * i_stuck) - tl;
@@ -545,6 +571,8 @@ static inline void stick_core(const double *p, double Phi[4][3][3], double Gam[4
     }
     if (torque_driven) {
         i1 = 0.0;
+    } else if (p[P_L] == 0.0) {
+        i1 = instant_current(p, vin, w1);
     }
     *r_0 = i1;
     *r_1 = w1;
@@ -554,6 +582,8 @@ static inline void stick_core(const double *p, double Phi[4][3][3], double Gam[4
 
 /* One internal step of the stick-slip loop (`_stick_core`), taken again as
  * `EDGE_REFINE` finer steps where the current crosses the dead zone's break point.
+ * With L = 0 the current is the voltage's at once (`pmdcid.simulate.terms.instant_current`),
+ * at the step's start under this sample's input.
  */
 static inline void stick_substep(const double *p, double Phi[4][3][3], double Gam[4][3][3], int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
 {
@@ -561,6 +591,9 @@ static inline void stick_substep(const double *p, double Phi[4][3][3], double Ga
     double i1;
     double w1;
     double th1;
+    if (!torque_driven && p[P_L] == 0.0) {
+        i = instant_current(p, vin, w);
+    }
     stick_core(p, Phi, Gam, 0, torque_driven, guarded, tin, vin, i, w, th, &i1, &w1, &th1);
     if (torque_driven || dead_zone_engaged(p, p[P_KM] * i) == dead_zone_engaged(p, p[P_KM] * i1)) {
         *r_0 = i1;
@@ -629,6 +662,9 @@ static inline double lugre_damping(const double *p)
  * x = (i, omega, theta) in one dead-zone mode, h [s] the internal step.
  *
  * Voltage-driven: L di/dt = v - R i - ke omega; J domega/dt = k*km*i - bv omega + ...
+ * With L = 0 the current follows the voltage at once, i = (v - ke omega)/R
+ * (`pmdcid.simulate.terms.instant_current`): the current row is zero and, engaged,
+ * the back-EMF's k km ke/R omega joins bv (the voltage's part is forcing, `_forcing`).
  * Torque-driven: the current row is zero (the current is not simulated). LuGre's micro-damping
  * sigma1 [N m s/rad] adds to bv while LuGre is on (`pmdcid.simulate.terms.lugre_damping`).
  */
@@ -636,19 +672,23 @@ static inline void augmented_matrix(const double *p, int engaged, int torque_dri
 {
     int r;
     int c;
+    double damping;
     for (r = 0; r < 6; r++) {
         for (c = 0; c < 6; c++) {
             M[r][c] = 0.0;
         }
     }
-    if (!torque_driven) {
+    damping = p[P_BV] + lugre_damping(p);
+    if (!torque_driven && p[P_L] > 0.0) {
         M[0][0] = -p[P_R] / p[P_L] * h;
         M[0][1] = -p[P_KE] / p[P_L] * h;
         if (engaged) {
             M[1][0] = p[P_DZ_SLOPE] * p[P_KM] / p[P_J] * h;
         }
+    } else if (!torque_driven && engaged) {
+        damping = damping + p[P_DZ_SLOPE] * p[P_KM] * p[P_KE] / p[P_R];
     }
-    M[1][1] = -(p[P_BV] + lugre_damping(p)) / p[P_J] * h;
+    M[1][1] = -damping / p[P_J] * h;
     M[2][1] = h;
     for (r = 0; r < 3; r++) {
         M[r][3 + r] = h;

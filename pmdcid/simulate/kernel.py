@@ -55,6 +55,7 @@ from pmdcid.simulate.terms import (
     dead_zone_engaged,
     drive_voltage,
     friction_guarded,
+    instant_current,
     load_torque,
     lugre_damping,
     lugre_held_friction,
@@ -79,18 +80,24 @@ def augmented_matrix(p, engaged, torque_driven, h, M):  # pragma: no cover - com
     x = (i, omega, theta) in one dead-zone mode, h [s] the internal step.
 
     Voltage-driven: L di/dt = v - R i - ke omega; J domega/dt = k*km*i - bv omega + ...
+    With L = 0 the current follows the voltage at once, i = (v - ke omega)/R
+    (:func:`pmdcid.simulate.terms.instant_current`): the current row is zero and, engaged,
+    the back-EMF's k km ke/R omega joins bv (the voltage's part is forcing, :func:`_forcing`).
     Torque-driven: the current row is zero (the current is not simulated). LuGre's micro-damping
     sigma1 [N m s/rad] adds to bv while LuGre is on (:func:`pmdcid.simulate.terms.lugre_damping`).
     """
     for r in range(6):
         for c in range(6):
             M[r, c] = 0.0
-    if not torque_driven:
+    damping = p[BV] + lugre_damping(p)
+    if not torque_driven and p[L] > 0.0:
         M[0, 0] = -p[R] / p[L] * h
         M[0, 1] = -p[KE] / p[L] * h
         if engaged:
             M[1, 0] = p[DZ_SLOPE] * p[KM] / p[J] * h
-    M[1, 1] = -(p[BV] + lugre_damping(p)) / p[J] * h
+    elif not torque_driven and engaged:  # L = 0: the back-EMF's torque in the linear step
+        damping += p[DZ_SLOPE] * p[KM] * p[KE] / p[R]
+    M[1, 1] = -damping / p[J] * h
     M[2, 1] = h
     for r in range(3):
         M[r, 3 + r] = h
@@ -223,10 +230,15 @@ def _forcing(p, torque_driven, eng, vin, i, w, td, tl, fric):  # pragma: no cove
     [rad/s^2]) from the driving torque td, load tl and held friction fric [N m]."""
     if torque_driven:
         return 0, 0.0, (td - tl - fric) / p[J]
-    fe = armature_voltage(p, vin, w) / p[L]
+    if p[L] > 0.0:
+        fe = armature_voltage(p, vin, w) / p[L]
+        fv = 0.0
+    else:  # L = 0: no current row; the voltage drives the rotor directly while engaged
+        fe = 0.0
+        fv = p[DZ_SLOPE] * p[KM] * armature_voltage(p, vin, w) / p[R]
     if eng:
         m = 0
-        fm = p[DZ_OFFSET] * sgn(i)
+        fm = p[DZ_OFFSET] * sgn(i) + fv
     else:
         m = 1
         fm = 0.0
@@ -272,7 +284,7 @@ def _stick_core(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w,
     if w == 0.0:
         net = td - tl
         if abs(net) <= fstat:
-            if not torque_driven:  # disengaged mode's current row: no coupling to omega
+            if not torque_driven and p[L] > 0.0:  # disengaged: no coupling to omega
                 ve = armature_voltage(p, vin, 0.0)
                 i_stuck = Phi[mode0 + 1, 0, 0] * i + Gam[mode0 + 1, 0, 0] * ve / p[L]
                 net = dead_zone(p, p[KM] * i_stuck) - tl
@@ -292,6 +304,8 @@ def _stick_core(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w,
                                     th, i1, w1, th1)
     if torque_driven:
         i1 = 0.0
+    elif p[L] == 0.0:
+        i1 = instant_current(p, vin, w1)
     return i1, w1, th1
 
 
@@ -309,6 +323,8 @@ def _through_zero(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w, th
     local stage 14 % off in bc on a two-level PRBS)."""
     s = w / (w - w1)
     ic = i + s * (i1 - i)
+    if not torque_driven and p[L] == 0.0:
+        ic = instant_current(p, vin, 0.0)
     thc = th + s * (th1 - th)
     if torque_driven:
         tm = tin
@@ -333,7 +349,11 @@ def _through_zero(p, Phi, Gam, mode0, torque_driven, guarded, tin, vin, i, w, th
 def stick_substep(p, Phi, Gam, torque_driven, guarded, tin, vin, i, w,
                   th):  # pragma: no cover - compiled
     """One internal step of the stick-slip loop (:func:`_stick_core`), taken again as
-    :data:`EDGE_REFINE` finer steps where the current crosses the dead zone's break point."""
+    :data:`EDGE_REFINE` finer steps where the current crosses the dead zone's break point.
+    With L = 0 the current is the voltage's at once (:func:`pmdcid.simulate.terms.instant_current`),
+    at the step's start under this sample's input."""
+    if not torque_driven and p[L] == 0.0:
+        i = instant_current(p, vin, w)
     i1, w1, th1 = _stick_core(p, Phi, Gam, 0, torque_driven, guarded, tin, vin, i, w, th)
     if torque_driven or dead_zone_engaged(p, p[KM] * i) == dead_zone_engaged(p, p[KM] * i1):
         return i1, w1, th1
@@ -358,6 +378,8 @@ def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
     if torque_driven:
         tm = tin
     else:
+        if p[L] == 0.0:
+            i = instant_current(p, vin, w)
         tm = p[KM] * i
     a = bristle_rate(p, w)
     fric = lugre_held_friction(p, w, z, a)
@@ -368,6 +390,8 @@ def lugre_substep(p, Phi, Gam, torque_driven, tin, vin, i, w, th,
     z1 = bristle_step(z, a, h, th1 - th)
     if torque_driven:
         i1 = 0.0
+    elif p[L] == 0.0:
+        i1 = instant_current(p, vin, w1)
     return i1, w1, th1, z1
 
 

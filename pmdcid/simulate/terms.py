@@ -30,6 +30,7 @@ from pmdcid.simulate.layout import (
     VB,
     VMAX,
     WS,
+    R,
 )
 from pmdcid.simulate.lazyjit import njit
 
@@ -68,6 +69,16 @@ def armature_voltage(p, v: float, omega: float) -> float:
     drive = v - p[KE] * omega
     drop = min(max(drive, -vb), vb)
     return v - drop
+
+
+@njit(cache=True, inline="always")
+def instant_current(p, v: float, omega: float) -> float:
+    """Armature current [A] of a winding without inductance (L = 0) at drive voltage v [V]
+    and speed omega [rad/s]: (v - ke omega) / R, after the brush drop
+    (:func:`armature_voltage`). A lumped model whose electrical lag is below what its logs
+    resolve (tau_e = 0 with the back-EMF's share known, :mod:`pmdcid.model.lumped`) runs so:
+    the dead zone then acts on v - ke omega, where the physics puts it."""
+    return (armature_voltage(p, v, omega) - p[KE] * omega) / p[R]
 
 
 @njit(cache=True, inline="always")
@@ -239,7 +250,7 @@ def load_torque(p, theta: float) -> float:
 
 __all__ = [
     "armature_voltage", "bristle_rate", "bristle_step", "dead_zone", "dead_zone_engaged",
-    "drive_voltage", "friction_curve", "friction_guarded", "load_torque", "lugre_damping",
-    "lugre_held_friction", "lugre_on", "sgn", "sliding_friction", "static_friction",
-    "steady_friction_level", "stribeck_excess", "BV",
+    "drive_voltage", "friction_curve", "friction_guarded", "instant_current", "load_torque",
+    "lugre_damping", "lugre_held_friction", "lugre_on", "sgn", "sliding_friction",
+    "static_friction", "steady_friction_level", "stribeck_excess", "BV",
 ]

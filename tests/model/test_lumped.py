@@ -10,12 +10,14 @@ within stated tolerances, no sensor_delay standing in for L/R, dz unbiased beyon
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from ident_util import as_log
 
 from pmdcid.model import Model
-from pmdcid.model.lumped import kernel_values, lag_substeps, mark_lumped, to_si
+from pmdcid.model.lumped import kernel_values, lag_substeps, mark_lumped, same_response, to_si
 from pmdcid.pipeline import identify
 from pmdcid.simulate import logs_for, neutral_values, simulate_log, simulate_values
 from pmdcid.synth import step, triangle
@@ -144,3 +146,23 @@ def test_same_response_refuses_what_no_pair_reaches():
     from pmdcid.model.lumped import same_response
 
     assert same_response(1.0, 0.4, 1.0, 1.0, 0.0) is None
+
+
+def test_a_share_without_a_lag_runs_the_current_as_instant():
+    """A lumped model with a back-EMF share and no lag (identify/instant.py) runs the voltage
+    structure with L = 0, the dead zone on v - ke w; without a share (NaN, as
+    simulate.param_values gives a model that has none) the torque-driven structure, the dead
+    zone on v, as before."""
+    vals = {**neutral_values(), "J": 0.05, "bv": 1.0, "tau_e": 0.0, "ke_share": 0.9}
+    out, torque = kernel_values(vals, True)
+    assert not torque
+    assert (out["R"], out["km"], out["L"]) == (1.0, 1.0, 0.0)
+    assert out["ke"] == pytest.approx(0.9) and out["bv"] == pytest.approx(0.1)
+    out, torque = kernel_values({**vals, "ke_share": math.nan}, True)
+    assert torque and out["bv"] == 1.0
+
+
+def test_without_a_lag_the_share_keeps_the_response():
+    """Without a lag the linear response 1/(J s + bv) holds no share: moving the share keeps J
+    and tau_e = 0 (the share's valley of equal response is flat in J)."""
+    assert same_response(0.05, 0.0, 1.0, 0.9, 0.3) == (0.05, 0.0)
