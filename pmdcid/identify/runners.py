@@ -410,6 +410,7 @@ def _step_latency(result, logs, model) -> None:
             "as a latency (sensor_delay) and the model has no tau_e (a current log would tell "
             "them apart)")
     elif "tau_e_filter" in found:
+        result.lag_bound = found["tau_e_filter"]  # the steps' lag lies under it
         result.warnings.append(
             f"the electrical lag L/R is not resolved through the filter that derived the speed "
             f"from the angle (a lag under {1e3 * found['tau_e_filter']:.3g} ms = 1/(2 pi fc), fc "

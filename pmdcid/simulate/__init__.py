@@ -131,6 +131,9 @@ def neutral_values() -> dict[str, float]:
     for eff in EFFECTS.values():
         for ps in eff.params:
             vals[ps.name] = ps.neutral
+    # a lumped model's back-EMF share only where the model has one: with it and no lag the
+    # current is instant (model.lumped.kernel_values); a lag without one takes the share as 1
+    vals["ke_share"] = math.nan
     return vals
 
 
@@ -151,8 +154,6 @@ def param_values(model: Model, torque_driven: bool = False,
             vals[name] = par.value
     if "bv" not in model.parameters and "b" in model.parameters:
         vals["bv"] = model.parameters["b"].value
-    if lumped and "ke_share" not in model.parameters:
-        vals["ke_share"] = math.nan  # no share: without a lag the dead zone acts on v
     if overrides:
         vals.update(overrides)
     need = ["J"] if torque_driven else ["R", "L", "km", "J"]
