@@ -8,6 +8,12 @@
 
 const char *kernel_digest(void) { return "436e68b78b417c94e0fb15bc91bed2387081ca69"; }
 
+#if defined(__GNUC__)
+#define PMDCID_INLINE static inline __attribute__((always_inline))
+#else
+#define PMDCID_INLINE static inline
+#endif
+
 /* the kernel's parameter slots (pmdcid.simulate.layout.NAMES) */
 enum {
     P_R = 0,
@@ -48,14 +54,14 @@ static inline double py_fmin(double a, double b) { return b < a ? b : a; }
 
 /* True when LuGre dynamic friction replaces the stick-slip logic (sigma0 > 0).
  */
-static inline int lugre_on(const double *p)
+PMDCID_INLINE int lugre_on(const double *p)
 {
     return p[P_SIGMA0] > 0.0;
 }
 
 /* Row k of the output: the state (i, omega, theta, z) at the sample instant.
  */
-static inline void record(double (*out)[4], int k, double i, double w, double th, double z)
+PMDCID_INLINE void record(double (*out)[4], int k, double i, double w, double th, double z)
 {
     out[k][0] = i;
     out[k][1] = w;
@@ -65,7 +71,7 @@ static inline void record(double (*out)[4], int k, double i, double w, double th
 
 /* Voltage the drive actually applies [V]: clipped to +-vmax (voltage_saturation).
  */
-static inline double drive_voltage(const double *p, double v)
+PMDCID_INLINE double drive_voltage(const double *p, double v)
 {
     double vmax;
     vmax = p[P_VMAX];
@@ -80,7 +86,7 @@ static inline double drive_voltage(const double *p, double v)
 
 /* (torque input [N m], voltage the drive applies [V]) held over one sample of input uk.
  */
-static inline void sample_input(const double *p, double uk, int torque_driven, double *r_0, double *r_1)
+PMDCID_INLINE void sample_input(const double *p, double uk, int torque_driven, double *r_0, double *r_1)
 {
     if (torque_driven) {
         *r_0 = uk;
@@ -96,7 +102,7 @@ static inline void sample_input(const double *p, double uk, int torque_driven, d
  * fs is not positive (the effect is off). Beyond sqrt(746) ws (about 27 ws, where the
  * exponential is exactly 0 in double precision) the exponential is not evaluated.
  */
-static inline double stribeck_excess(const double *p, double omega)
+PMDCID_INLINE double stribeck_excess(const double *p, double omega)
 {
     double r;
     double r2;
@@ -114,7 +120,7 @@ static inline double stribeck_excess(const double *p, double omega)
 /* LuGre's g(omega) [N m]: the Coulomb + Stribeck level bc + fs*exp(-(omega/ws)^2) the
  * bristles settle at when sliding steadily at omega [rad/s].
  */
-static inline double steady_friction_level(const double *p, double omega)
+PMDCID_INLINE double steady_friction_level(const double *p, double omega)
 {
     return p[P_BC] + stribeck_excess(p, omega);
 }
@@ -122,7 +128,7 @@ static inline double steady_friction_level(const double *p, double omega)
 /* Relaxation rate a = sigma0*|omega|/g(omega) [1/s] of the bristle deflection z:
  * dz/dt = omega - a z (infinite when g = 0: no Coulomb level, the bristles hold nothing).
  */
-static inline double bristle_rate(const double *p, double omega)
+PMDCID_INLINE double bristle_rate(const double *p, double omega)
 {
     double g;
     g = steady_friction_level(p, omega);
@@ -136,7 +142,7 @@ static inline double bristle_rate(const double *p, double omega)
  * sigma0*z - sigma1*a*z (the bristles' spring and the rest of sigma1*dz/dt), plus the speed
  * terms of the other effects (quadratic drag, direction-dependent viscous).
  */
-static inline double lugre_held_friction(const double *p, double omega, double z, double a)
+PMDCID_INLINE double lugre_held_friction(const double *p, double omega, double z, double a)
 {
     double az;
     az = z != 0.0 ? a * z : 0.0;
@@ -148,7 +154,7 @@ static inline double lugre_held_friction(const double *p, double omega, double z
  * The brushes take up to vb of the driving voltage v - ke*omega, opposing it; the part of
  * the back-EMF itself is handled by the kernel's exact linear step.
  */
-static inline double armature_voltage(const double *p, double v, double omega)
+PMDCID_INLINE double armature_voltage(const double *p, double v, double omega)
 {
     double vb;
     double drive;
@@ -164,7 +170,7 @@ static inline double armature_voltage(const double *p, double v, double omega)
 
 /* sign(x) with sign(0) = 0.
  */
-static inline double sgn(double x)
+PMDCID_INLINE double sgn(double x)
 {
     if (x > 0.0) {
         return 1.0;
@@ -178,7 +184,7 @@ static inline double sgn(double x)
 /* The held forcing of one step: (dead-zone mode, electrical row [A/s], mechanical row
  * [rad/s^2]) from the driving torque td, load tl and held friction fric [N m].
  */
-static inline void forcing(const double *p, int torque_driven, int eng, double vin, double i, double w, double td, double tl, double fric, int *r_0, double *r_1, double *r_2)
+PMDCID_INLINE void forcing(const double *p, int torque_driven, int eng, double vin, double i, double w, double td, double tl, double fric, int *r_0, double *r_1, double *r_2)
 {
     double fe;
     double fv;
@@ -212,7 +218,7 @@ static inline void forcing(const double *p, int torque_driven, int eng, double v
 
 /* One exact step of (i, omega, theta) in dead-zone mode m under held forcing (fe, fm).
  */
-static inline void linear_step(double Phi[4][3][3], double Gam[4][3][3], int m, double i, double w, double th, double fe, double fm, double *r_0, double *r_1, double *r_2)
+PMDCID_INLINE void linear_step(double Phi[4][3][3], double Gam[4][3][3], int m, double i, double w, double th, double fe, double fm, double *r_0, double *r_1, double *r_2)
 {
     double i1;
     double w1;
@@ -230,7 +236,7 @@ static inline void linear_step(double Phi[4][3][3], double Gam[4][3][3], int m, 
  * dz/dt = w - a z solved exactly with rate a [1/s] held and w the step's mean speed
  * dtheta/h. Stable for any stiffness; a = 0 (at rest) gives z + dtheta (pure presliding).
  */
-static inline double bristle_step(double z, double a, double h, double dtheta)
+PMDCID_INLINE double bristle_step(double z, double a, double h, double dtheta)
 {
     double ah;
     ah = a * h;
@@ -245,14 +251,14 @@ static inline double bristle_step(double z, double a, double h, double dtheta)
 
 /* True when the magnetic torque [N m] is at or beyond the hard dead zone's break point.
  */
-static inline int dead_zone_engaged(const double *p, double torque)
+PMDCID_INLINE int dead_zone_engaged(const double *p, double torque)
 {
     return fabs(torque) >= p[P_DZ];
 }
 
 /* Hard dead zone (paper eq. 7) at torque level [N m]: 0 inside, sign*(k|T| + k_hat) outside.
  */
-static inline double dead_zone(const double *p, double torque)
+PMDCID_INLINE double dead_zone(const double *p, double torque)
 {
     if (fabs(torque) < p[P_DZ]) {
         return 0.0;
@@ -262,7 +268,7 @@ static inline double dead_zone(const double *p, double torque)
 
 /* Torque [N m] opposing motion that does not depend on speed: tau0 + cogging(theta).
  */
-static inline double load_torque(const double *p, double theta)
+PMDCID_INLINE double load_torque(const double *p, double theta)
 {
     double t;
     t = p[P_TAU0];
@@ -278,7 +284,7 @@ static inline double load_torque(const double *p, double theta)
  * resolve (tau_e = 0 with the back-EMF's share known, :mod:`pmdcid.model.lumped`) runs so:
  * the dead zone then acts on v - ke omega, where the physics puts it.
  */
-static inline double instant_current(const double *p, double v, double omega)
+PMDCID_INLINE double instant_current(const double *p, double v, double omega)
 {
     return (armature_voltage(p, v, omega) - p[P_KE] * omega) / p[P_R];
 }
@@ -293,7 +299,7 @@ static inline double instant_current(const double *p, double v, double omega)
  * step's mean speed (`pmdcid.simulate.terms.bristle_step`). The dead zone acts on the
  * driving torque as in the stick-slip loop.
  */
-static inline void lugre_substep(const double *p, double Phi[4][3][3], double Gam[4][3][3], int torque_driven, double tin, double vin, double i, double w, double th, double z, double *r_0, double *r_1, double *r_2, double *r_3)
+PMDCID_INLINE void lugre_substep(const double *p, double Phi[4][3][3], double Gam[4][3][3], int torque_driven, double tin, double vin, double i, double w, double th, double z, double *r_0, double *r_1, double *r_2, double *r_3)
 {
     double tm;
     double a;
@@ -357,14 +363,14 @@ static inline void run_lugre(const double *u, int n_u, const double *p, double P
  * simulation: the two terms sit on the step's critical path (speed -> friction -> speed) and
  * cost about 8 ns of a 20 ns step when evaluated every step (issue #16).
  */
-static inline int friction_guarded(const double *p)
+PMDCID_INLINE int friction_guarded(const double *p)
 {
     return !(p[P_FCW1 + 4 /* CURVE_KNOTS */ - 1] <= 0.0 && p[P_BC] >= 0.0 && p[P_FS] >= 0.0 && p[P_BQ] >= 0.0 && p[P_BV] >= 0.0 && p[P_DBV] == 0.0);
 }
 
 /* Breakaway torque [N m]: Coulomb plus Stribeck static excess.
  */
-static inline double static_friction(const double *p)
+PMDCID_INLINE double static_friction(const double *p)
 {
     return p[P_BC] + p[P_FS];
 }
@@ -377,7 +383,7 @@ static inline double static_friction(const double *p)
  * (the jump at 0) nor viscous friction (the line through the last knot). Zero when fcw4 is
  * not positive (the effect is off).
  */
-static inline double friction_curve(const double *p, double speed)
+PMDCID_INLINE double friction_curve(const double *p, double speed)
 {
     int k;
     double w0;
@@ -415,7 +421,7 @@ static inline double friction_curve(const double *p, double speed)
  * is held at zero (frictionless) instead. guarded False (`friction_guarded` of the
  * same p) skips the curve and the hold, which then cannot change the value.
  */
-static inline double sliding_friction(const double *p, double omega, double direction, int guarded)
+PMDCID_INLINE double sliding_friction(const double *p, double omega, double direction, int guarded)
 {
     double f;
     f = direction * p[P_BC] + direction * stribeck_excess(p, omega);
@@ -440,7 +446,7 @@ static inline double sliding_friction(const double *p, double omega, double dire
  * lost up to one internal step at every reversal: a cliff in the fits' cost that stopped a
  * local stage 14 % off in bc on a two-level PRBS).
  */
-static inline void through_zero(const double *p, double Phi[4][3][3], double Gam[4][3][3], int mode0, int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double i1, double w1, double th1, double *r_0, double *r_1, double *r_2)
+PMDCID_INLINE void through_zero(const double *p, double Phi[4][3][3], double Gam[4][3][3], int mode0, int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double i1, double w1, double th1, double *r_0, double *r_1, double *r_2)
 {
     double s;
     double ic;
@@ -507,7 +513,7 @@ static inline void through_zero(const double *p, double Phi[4][3][3], double Gam
  * whole internal step, 2 for one of its `EDGE_REFINE` parts (`discretize_into`'s
  * modes).
  */
-static inline void stick_core(const double *p, double Phi[4][3][3], double Gam[4][3][3], int mode0, int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
+PMDCID_INLINE void stick_core(const double *p, double Phi[4][3][3], double Gam[4][3][3], int mode0, int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
 {
     double tm;
     int eng;
@@ -585,7 +591,7 @@ static inline void stick_core(const double *p, double Phi[4][3][3], double Gam[4
  * With L = 0 the current is the voltage's at once (`pmdcid.simulate.terms.instant_current`),
  * at the step's start under this sample's input.
  */
-static inline void stick_substep(const double *p, double Phi[4][3][3], double Gam[4][3][3], int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
+PMDCID_INLINE void stick_substep(const double *p, double Phi[4][3][3], double Gam[4][3][3], int torque_driven, int guarded, double tin, double vin, double i, double w, double th, double *r_0, double *r_1, double *r_2)
 {
     int each;
     double i1;
@@ -615,7 +621,7 @@ static inline void stick_substep(const double *p, double Phi[4][3][3], double Ga
  * compiled twice, once without the friction curve and its positivity hold (on the critical
  * path of every step: ~8 ns of 20).
  */
-static inline void run_stick(const double *u, int n_u, const double *p, double Phi[4][3][3], double Gam[4][3][3], int nsub, int torque_driven, double i, double w, double th, double z, double (*out)[4], int guarded)
+PMDCID_INLINE void run_stick(const double *u, int n_u, const double *p, double Phi[4][3][3], double Gam[4][3][3], int nsub, int torque_driven, double i, double w, double th, double z, double (*out)[4], int guarded)
 {
     int k;
     int each;
@@ -650,7 +656,7 @@ void run_states(const double *u, int n_u, const double *p, double Phi[4][3][3], 
 /* LuGre's micro-damping sigma1 [N m s/rad] while LuGre is on, 0 off: the part of
  * sigma1 dz/dt proportional to omega, integrated with bv by the exact linear step.
  */
-static inline double lugre_damping(const double *p)
+PMDCID_INLINE double lugre_damping(const double *p)
 {
     if (lugre_on(p)) {
         return p[P_SIGMA1];
@@ -668,7 +674,7 @@ static inline double lugre_damping(const double *p)
  * Torque-driven: the current row is zero (the current is not simulated). LuGre's micro-damping
  * sigma1 [N m s/rad] adds to bv while LuGre is on (`pmdcid.simulate.terms.lugre_damping`).
  */
-static inline void augmented_matrix(const double *p, int engaged, int torque_driven, double h, double M[6][6])
+PMDCID_INLINE void augmented_matrix(const double *p, int engaged, int torque_driven, double h, double M[6][6])
 {
     int r;
     int c;
@@ -697,7 +703,7 @@ static inline void augmented_matrix(const double *p, int engaged, int torque_dri
 
 /* Z = X Y for 6x6 matrices (Z distinct from X and Y).
  */
-static inline void matmul(double X[6][6], double Y[6][6], double Z[6][6])
+PMDCID_INLINE void matmul(double X[6][6], double Y[6][6], double Z[6][6])
 {
     int r;
     int c;
