@@ -23,6 +23,7 @@ from pmdcid.diagnose.starts import profile_stderr
 from pmdcid.fit.problem import FitOutcome, Problem
 from pmdcid.fit.results import Estimate, bounded
 from pmdcid.identify.dead_zone import dead_zone_interval
+from pmdcid.identify.instant import lag_bound_of
 from pmdcid.identify.nonlinear import DZ_CAVEAT, crossing_upper
 from pmdcid.model import EFFECTS
 from pmdcid.model.effects import effect_param_specs
@@ -247,11 +248,34 @@ def honest_errors(run, final: FitOutcome, free: list[str], notes: list[str]) -> 
         notes.append(info.describe())
     names = [n for n in final.estimates if n in final.values]  # curv's order
     valley_errors(run, final, free, info, notes, share_correlations(names, curv))
+    lag_left_open(run, final, free, notes)
     if "dz" in free and curv is not None:
         if lag_refits(run, free):
             refitted_line(run, final, free, line_fit(final, names, curv), notes)
         else:
             dead_zone_line(problem, final, names, curv, notes)
+
+
+def lag_left_open(run, final: FitOutcome, free: list[str], notes: list[str]) -> None:
+    """An instant-current model (the steps left its lag open: identify/instant.py) that the
+    final refit kept without a lag: each free parameter's standard error at least the model's,
+    which reach a fit with the lag at the steps' bound (``final.estimates`` updated in place;
+    a refit with tau_e held at 0 says only how well it fits at 0)."""
+    bound = lag_bound_of(run.model)
+    if not math.isfinite(bound) or final.values.get("tau_e", 0.0) > 0:
+        return
+    kept = []
+    for name in free:
+        est, par = final.estimates.get(name), run.model.parameters.get(name)
+        if est is None or par is None or not math.isfinite(par.stderr):
+            continue
+        if not est.stderr >= par.stderr:
+            final.estimates[name] = Estimate(name, est.value, par.stderr, est.unit,
+                                             caveat=est.caveat)
+            kept.append(name)
+    if kept:
+        notes.append(f"{', '.join(kept)}: standard errors kept at the model's, which reach a "
+                     f"fit with the lag the steps left open at its bound ({1e3 * bound:.3g} ms)")
 
 
 def line_fit(final: FitOutcome, names: list[str], curv: np.ndarray) -> SimpleNamespace:

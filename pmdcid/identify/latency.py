@@ -291,9 +291,9 @@ def profile_bound(use, model, both, local: float, dt: float) -> float:
     standard errors' worth (4 x the reduced chi-square); where it does not, the lag held at
     twice that, up to :data:`BOUND_REFITS` times (the last lag tried is then the bound).
     ``local``: tau_e + 2 standard errors of ``both`` at its solution, a curvature read where
-    tau_e lies at its floor: on bench/lumped_coverage.py's motors at 100 Hz it put L/R 3 ms
-    below 3 us (and 3.6 ms below 2.6 ms). Starts at ``local`` or :data:`BOUND_FIRST` of a
-    sample ``dt`` [s], whichever is longer."""
+    tau_e lies at its floor: at 100 Hz it put L/R 3.0 ms below 3 us (bench/lumped_coverage.py's
+    seed 4) and 3.8 ms below 2.6 and 1.1 ms (tests/identify/test_latency.py). Starts at
+    ``local`` or :data:`BOUND_FIRST` of a sample ``dt`` [s], whichever is longer."""
     v = {k: e.value for k, e in both.estimates.items()}
     extra = tuple(k for k in PINNED if k in v)
     rise = 4.0 * max(both.stats.redchi, 1.0)

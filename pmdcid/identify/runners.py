@@ -417,7 +417,8 @@ def _step_latency(result, logs, model) -> None:
             "its cut-off, is not told there from the inertia it folds in or from a late first "
             "count of the encoder): the lumped model has none "
             "(tau_e = 0), the lag is folded into J and the dead zone acts on the applied "
-            "voltage; a faster sampling, a higher --cutoff or a measured speed would show it")
+            "voltage; a faster sampling, a higher --cutoff or a measured speed would show it; "
+            "fit-nonlinear also fits the current as instant (the dead zone on v - ke w)")
     elif "tau_e_bound" in found:
         result.lag_bound = found["tau_e_bound"]
         result.warnings.append(
