@@ -73,7 +73,7 @@ from pmdcid.identify.share_valley import (
     valley_threshold,
 )
 from pmdcid.model import Model
-from pmdcid.model.lumped import same_response
+from pmdcid.model.lumped import kernel_values, same_response
 from pmdcid.notes import Note
 from pmdcid.simulate import param_values
 
@@ -722,12 +722,16 @@ def input_levels_around(logs, dz: float) -> tuple[float, float] | None:
 
 def dz_between_levels(logs, vals: dict, e: Estimate) -> Estimate:
     """A hard dead zone acting on the logged input itself (a torque-driven kernel: a torque log,
-    or a lumped model without an electrical lag, whose dead zone is on the applied volts; the
-    input held between samples) is only bounded by the input's levels: any dz in (lo, hi], the
-    adjacent |input| levels around it, gives the same simulation, so the cost is flat there
-    and its curvature says nothing. When that width exceeds 2 standard errors (a quantised
-    input: an integer PWM duty), dz is written as that interval; else ``e`` unchanged."""
-    on_input = (all(lg.drive == "tau" for lg in logs) and not float(vals.get("tau_e", 0) or 0)
+    or a lumped model with neither an electrical lag nor a back-EMF share, whose dead zone is
+    on the applied volts; the input held between samples) is only bounded by the input's
+    levels: any dz in (lo, hi], the adjacent |input| levels around it, gives the same
+    simulation, so the cost is flat there and its curvature says nothing. When that width
+    exceeds 2 standard errors (a quantised input: an integer PWM duty), dz is written as that
+    interval; else ``e`` unchanged. Not with an instant current (a share, no lag: the dead
+    zone on v - ke w; bench/pervolt_coverage.py ``lr-encoder`` wrote a dz 3 % off as an
+    interval between two triangle samples' levels)."""
+    torque = all(lg.drive == "tau" for lg in logs)
+    on_input = (torque and kernel_values(vals, torque)[1]
                 and not float(vals.get("latency", 0) or 0) and vals.get("ramp") is None)
     around = input_levels_around(logs, e.value) if on_input else None
     if around is None or not (around[1] - around[0] > 2 * e.stderr or math.isnan(e.stderr)):

@@ -119,6 +119,20 @@ def test_matches_simulate_up_to_the_dead_zone(tmp_path, kind, effects):
     assert err["step"][0] < STEP_TOL[0] and err["step"][1] < STEP_TOL[1], err
 
 
+def test_an_instant_current_lumped_model_is_a_dcmotor_without_inductance(tmp_path):
+    """A lumped model whose steps left the lag open (tau_e = 0 in [0, 5 ms], a back-EMF share:
+    identify/instant.py) runs as the voltage drive with L = 0; MuJoCo's dcmotor carries it with
+    inductance 0 and follows simulate as closely as the lumped model with no share."""
+    model = model_with(tmp_path, "lumped", [])
+    model.set_bounded("tau_e", 0.0, 5e-3, 0.0)
+    model.set("ke_share", 0.5, 0.01)
+    xml = render(spec_of(model))[0]
+    assert re.search(r'<dcmotor [^>]*inductance="0(\.0)? 0"', xml), xml
+    err = errors(model, "lumped", xml=xml)
+    assert err["triangle"][0] < TRIANGLE_TOL[0] and err["triangle"][1] < TRIANGLE_TOL[1], err
+    assert err["step"][0] < STEP_TOL[0] and err["step"][1] < STEP_TOL[1], err
+
+
 @pytest.mark.parametrize("kind,effects", [("v", []), ("v", ["back_emf", "cogging"]),
                                           ("tau", ["torque_offset"])])
 def test_without_the_dead_zone_converges_in_the_timestep(tmp_path, kind, effects):

@@ -23,7 +23,7 @@ from pmdcid.identify import nonlinear
 from pmdcid.identify.electrical import fit_electrical
 from pmdcid.identify.grid import batch_cost
 from pmdcid.identify.mechanical import fit_mechanical
-from pmdcid.identify.nonlinear import fit_nonlinear
+from pmdcid.identify.nonlinear import dz_between_levels, fit_nonlinear
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, param_values, simulate_values
 from pmdcid.synth import PAPER, PAPER_NOISE, staircase, synth_log, triangle
@@ -141,6 +141,21 @@ def test_dead_zone_on_a_quantised_input_is_the_interval_between_its_levels():
             assert hi - lo < q / 10 and lo < vals["dz"] <= hi, dz
         else:
             assert abs(dz.value - vals["dz"]) < 3 * dz.stderr, dz
+
+
+def test_a_dead_zone_on_v_minus_ke_w_is_not_bounded_by_the_input_levels():
+    """dz_between_levels bounds a dead zone by the logged input's levels only where it acts on
+    that input: a lumped model with an instant current (a back-EMF share, no lag) puts it on
+    v - ke w, which moves with the speed between the levels, so its value and standard error
+    stand; without the share (the dead zone on v) the same estimate becomes the interval."""
+    t = np.arange(200) * 0.01
+    log = as_log("tau.csv", t, {"tau": 0.1 * np.floor(triangle(t, 8.0, 2.0) / 0.1),
+                                "omega": np.zeros(t.size)})
+    e = Estimate("dz", 0.35, 0.001, "V")
+    on_v = dz_between_levels([log], {**neutral_values(), "J": 1.0, "bv": 1.0}, e)
+    assert on_v.interval == pytest.approx((0.3, 0.4))
+    instant = {**neutral_values(), "J": 1.0, "bv": 1.0, "tau_e": 0.0, "ke_share": 0.9}
+    assert dz_between_levels([log], instant, e) is e
 
 
 def test_free_subset_and_signals(rng, paper_values):
