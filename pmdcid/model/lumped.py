@@ -154,8 +154,10 @@ def to_si(model: Model, km: float, R: float) -> Model:
     Torque-like parameters scale by km/R; J too; ``bv' = bv R/km + ke`` with ke = km (SI)
     gives ``bv = (bv' - km) km/R``, and the back-EMF becomes an explicit effect. A bv' smaller
     than km is impossible for that km and R (the motor would be faster than unloaded): refused.
-    The lag tau_e becomes L = tau_e R (an L already in the model is kept); ke_share is dropped
-    (its back-EMF, ke_share bv', is the ideal motor's km: compare it with the km given).
+    The lag tau_e becomes L = tau_e R (an L already in the model is kept; an instant current's
+    tau_e = 0 in [0, bound] becomes L = 0 in [0, bound R], which SI simulates as instant too);
+    ke_share is dropped (its back-EMF, ke_share bv', is the ideal motor's km: compare it with
+    the km given).
     """
     if not (math.isfinite(km) and km > 0 and math.isfinite(R) and R > 0):
         raise ModelError("converting a lumped model needs positive km and R", model.path)
@@ -188,6 +190,10 @@ def to_si(model: Model, km: float, R: float) -> Model:
                 caveat=tau_e.caveat)
         if tau_e.interval is not None:
             out.parameters["L"].interval = (tau_e.interval[0] * R, tau_e.interval[1] * R)
+    elif tau_e is not None and tau_e.interval is not None and not out.has("L"):
+        # an instant current (identify/instant.py): L = 0, inside the bound the steps left
+        out.set_bounded("L", 0.0, tau_e.interval[1] * R, 0.0, unit="H",
+                        stage="lumped->SI (L = tau_e R)", caveat=tau_e.caveat)
     out.set("ke", km, stage="lumped->SI (ke = km)")
     out.add_effect("back_emf")
     out.set("km", km, stage="datasheet")

@@ -101,6 +101,19 @@ def test_to_si_turns_tau_e_into_L():
     assert not si.has("tau_e") and not si.has("ke_share")
 
 
+def test_to_si_keeps_an_instant_current_instant():
+    """An instant-current model (tau_e = 0 in [0, 5 ms], a share) becomes an SI model with
+    L = 0 in [0, 5 ms x R]; on the same voltage log it runs the same speed (both instant)."""
+    m = _lumped({k: v for k, v in PER_VOLT.items() if k != "tau_e"})
+    m.set_bounded("tau_e", 0.0, 5e-3, 0.0)
+    si = to_si(m, KM, R)
+    assert si.value("L") == 0.0 and si.parameters["L"].interval == pytest.approx((0.0, 5e-3 * R))
+    log = _logs(seed=2, noise=0.0, nsub=None)[-1]
+    lumped_w = simulate_log(logs_for([log], m)[0], m).omega
+    si_w = simulate_log(log, si).omega
+    assert np.max(np.abs(lumped_w - si_w)) < 1e-6 * np.ptp(si_w)
+
+
 @pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 def test_lumped_round_trip_keeps_the_electrical_lag():
     """identify on voltage + speed logs (1 kHz, L/R = 3 ms, speed noise 1 rad/s of ~650):
