@@ -99,6 +99,16 @@ def bounded_by_lag(fit, model, res, bound: float, said: str = ""):
     return res
 
 
+def reach_of(value: float, other: Estimate) -> float:
+    """How far from ``value`` the far end of ``other``'s two standard errors (or its interval)
+    lies: an error of half this lets two reach it (every "widened to reach another fit" rule:
+    here and :func:`pmdcid.identify.runners._fold_reach`)."""
+    if other.interval is not None:
+        return max(abs(x - value) for x in other.interval)
+    se = other.stderr if math.isfinite(other.stderr) else 0.0
+    return abs(other.value - value) + 2.0 * se
+
+
 def reach_the_bound(fit, work, res, bound: float) -> list[str]:
     """``res``'s standard errors widened in place so that two reach the local fit with the lag
     at ``bound`` [s] (held, the rest free from ``res``'s values in ``work``): half the
@@ -116,13 +126,13 @@ def reach_the_bound(fit, work, res, bound: float) -> list[str]:
         o = far.get(k)
         if o is None or not e.vary or e.interval is not None or not math.isfinite(e.stderr):
             continue
-        reach = abs(o.value - e.value) + 2.0 * (o.stderr if math.isfinite(o.stderr) else 0.0)
-        se = max(e.stderr, 0.5 * reach)
+        se = max(e.stderr, 0.5 * reach_of(e.value, o))
         if se > 1.01 * e.stderr:
             res.estimates[k] = Estimate(k, e.value, se, e.unit, caveat=e.caveat)
             wide.append(f"{k} x{se / e.stderr:.2g}")
     return wide
 
 
-__all__ = ["FREE", "LAG_CAVEAT", "STAGE", "bounded_by_lag", "lag_bound_of", "reach_the_bound",
+__all__ = ["FREE", "LAG_CAVEAT", "STAGE", "bounded_by_lag", "lag_bound_of", "reach_of",
+           "reach_the_bound",
            "with_instant_current_if_better"]

@@ -18,6 +18,7 @@ from pmdcid.fit.results import Estimate
 from pmdcid.identify.instant import (
     bounded_by_lag,
     lag_bound_of,
+    reach_of,
     with_instant_current_if_better,
 )
 from pmdcid.identify.linstart import STAGE as LINEAR_START_STAGE
@@ -294,8 +295,7 @@ def _fold_reach(est: dict, lagged: dict) -> list[str]:
             continue
         if not math.isfinite(e.stderr):
             continue
-        far = (max(abs(x - e.value) for x in o.interval) if o.interval is not None
-               else abs(o.value - e.value) + 2 * _finite(o.stderr))
+        far = reach_of(e.value, o)
         if k == "J":
             far = max(far, _folded_inertia(est, lagged))
         se = max(e.stderr, 0.5 * far)
