@@ -48,7 +48,7 @@ def with_instant_current_if_better(fit, model, plain, bound: float):
 
     ``fit(model, free, local_only)``: fit-nonlinear of the stage's logs from ``model`` with
     ``free`` parameters (raising :class:`~pmdcid.errors.PmdcidError` where it fails);
-    ``bound`` [s]: the lag the steps left open, at two standard errors."""
+    ``bound`` [s]: the lag the steps left open (:func:`pmdcid.identify.latency.profile_bound`)."""
     work = model.copy()
     plain.apply(work)
     work.set("tau_e", 0.0, stage=STAGE)
@@ -90,8 +90,9 @@ def bounded_by_lag(fit, model, res, bound: float, said: str = ""):
     res.apply(work)
     wide = reach_the_bound(fit, work, res, bound)
     res.estimates["tau_e"] = bounded("tau_e", 0.0, bound, "s", LAG_CAVEAT, value=0.0)
-    words = (f"the steps left the electrical lag open (below {1e3 * bound:.3g} ms at two "
-             "standard errors)" + (f": {said}" if said else ": the current taken as instant"))
+    words = (f"the steps left the electrical lag open (below {1e3 * bound:.3g} ms, "
+             "fit-mechanical's bound)" + (f": {said}" if said else ": the current taken as "
+                                          "instant"))
     if wide:
         words += ("; standard errors widened to reach a fit with the lag at that bound: "
                   + ", ".join(wide))

@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 
+from pmdcid.model.effects import param_spec
+
 #: a latency shorter than this many sample periods is not kept (see the module docstring)
 MIN_SAMPLES = 2
 
@@ -255,6 +257,8 @@ def _found(use, model, both, dt, shift, least) -> dict:
             out["tau_e"] = (te.value, te.stderr)
     elif math.isfinite(te.stderr):  # not resolved: a bound, said in words
         out["tau_e_bound"] = profile_bound(use, model, both, te.value + 2.0 * te.stderr, dt)
+        if out["tau_e_bound"] >= lag_ceiling({k: e.value for k, e in best.items()}):
+            out["tau_e_ceiling"] = True  # the steps do not bound it below their mechanics
     if d.value >= MIN_SAMPLES * dt or _z(d) > LAG_SIGMAS:
         out["delay"] = (d.value, d.stderr)
     if "tau_e" in out and "delay" in out:
@@ -293,17 +297,32 @@ def profile_bound(use, model, both, local: float, dt: float) -> float:
     ``local``: tau_e + 2 standard errors of ``both`` at its solution, a curvature read where
     tau_e lies at its floor: at 100 Hz it put L/R 3.0 ms below 3 us (bench/lumped_coverage.py's
     seed 4) and 3.8 ms below 2.6 and 1.1 ms (tests/identify/test_latency.py). Starts at
-    ``local`` or :data:`BOUND_FIRST` of a sample ``dt`` [s], whichever is longer."""
+    ``local`` or :data:`BOUND_FIRST` of a sample ``dt`` [s], whichever is longer.
+
+    Never beyond :func:`lag_ceiling`: the lag a lumped model folds is the fast one of its two
+    modes, so steps that cannot bound it below their own mechanical time constant bound it
+    there (a coreless motor's steps under PWM discontinuous conduction, bench/newrigs.py
+    dcm-pwm seed 13: a flat cost read as "tau_e below 9 s", which the model file cannot hold)."""
     v = {k: e.value for k, e in both.estimates.items()}
     extra = tuple(k for k in PINNED if k in v)
     rise = 4.0 * max(both.stats.redchi, 1.0)
-    tau = max(local, BOUND_FIRST * dt)
-    for _ in range(BOUND_REFITS):
+    ceiling = lag_ceiling(v)
+    tau = min(max(local, BOUND_FIRST * dt), ceiling)
+    for _ in range(BOUND_REFITS - 1):
         held = _lag_fit(use, model, {**v, "tau_e": tau}, hold="tau_e", extra=extra)
-        if held is None or held.stats.chisqr - both.stats.chisqr >= rise:
+        if held is None or held.stats.chisqr - both.stats.chisqr >= rise or tau >= ceiling:
             return tau
-        tau *= 2.0
-    return tau / 2.0
+        tau = min(2.0 * tau, ceiling)
+    return tau
+
+
+def lag_ceiling(values: dict) -> float:
+    """The longest electrical lag [s] a lumped model folds: its mechanical time constant J/bv
+    (per volt, ``values`` holding J and bv) and at most the model file's bound on tau_e
+    (:mod:`pmdcid.model.spec`). A longer lag is no longer the fast mode the model folds into J."""
+    spec = param_spec("tau_e")
+    tau_m = values["J"] / values["bv"] if values.get("bv", 0.0) > 0 else math.inf
+    return min(tau_m, spec.upper) if math.isfinite(tau_m) and tau_m > 0 else spec.upper
 
 
 #: a lag and a latency are both kept only where dropping either raises the steps' BIC by more

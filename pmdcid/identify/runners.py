@@ -23,6 +23,7 @@ from pmdcid.identify.instant import (
 )
 from pmdcid.identify.linstart import STAGE as LINEAR_START_STAGE
 from pmdcid.identify.mechanical import STAGE as MECH_STAGE
+from pmdcid.model.effects import param_spec
 from pmdcid.model.lumped import ELECTRICAL, is_lumped, lumped_unit, mark_lumped, wants_lumped
 from pmdcid.notes import Note
 from pmdcid.runtime.cpus import pmap
@@ -200,13 +201,16 @@ def lag_open(model, logs) -> bool:
 
 
 def steps_lag_bound(model) -> float:
-    """The electrical lag [s] fit-mechanical's steps left open, at two standard errors
+    """The electrical lag [s] fit-mechanical's steps left open
     (:func:`pmdcid.identify.latency.step_lag`'s ``tau_e_bound``, kept in the model file's
-    record of the stage); NaN where the steps resolved it, found a latency instead, or never
-    tested it."""
+    record of the stage), at most the bound on tau_e a model file holds (a file written before
+    :func:`pmdcid.identify.latency.lag_ceiling`); NaN where the steps resolved it, found a
+    latency instead, or never tested it."""
     rec = model.extra.get("fits", {}).get(MECH_STAGE, {})
     got = rec.get("tau_e_bound") if isinstance(rec, dict) else None
-    return float(got) if isinstance(got, (int, float)) and got > 0 else math.nan
+    if not isinstance(got, (int, float)) or not got > 0:
+        return math.nan
+    return min(float(got), param_spec("tau_e").upper)
 
 
 def _with_lag_if_better(logs, model, opts, plain):
@@ -423,12 +427,20 @@ def _step_latency(result, logs, model) -> None:
         result.lag_bound = found["tau_e_bound"]
         result.warnings.append(
             f"the electrical lag L/R is not resolved by these logs (tau_e below "
-            f"{1e3 * found['tau_e_bound']:.3g} ms at two standard errors, sample period "
+            f"{1e3 * found['tau_e_bound']:.3g} ms {_bound_words(found)}, sample period "
             f"{1e3 * logs[0].dt:.3g} ms): the lumped model has none (tau_e = 0), the lag is "
             "folded into J and the dead zone acts on the applied voltage; fit-nonlinear also "
             "fits the current as instant (the dead zone on v - ke w)")
     if "delay" in found:
         result.estimates["delay"] = Estimate("delay", *found["delay"], "s")
+
+
+def _bound_words(found: dict) -> str:
+    """How the steps bound a lag they leave open (:func:`pmdcid.identify.latency._found`)."""
+    if found.get("tau_e_ceiling"):
+        return ("only by the steps' own mechanical time constant: their cost does not rise "
+                "below it, steps that settle from rest would bound it")
+    return "at two standard errors"
 
 
 def _lag_words(tau: float, found: dict) -> str:

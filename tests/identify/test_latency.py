@@ -13,12 +13,18 @@ import numpy as np
 import pytest
 from ident_util import LUMPED, SLOW, as_log, logged_at_100_hz
 
-from pmdcid.identify.latency import MIN_SAMPLES, step_latency
+from pmdcid.identify.latency import (
+    MIN_SAMPLES,
+    _lag_fit,
+    lag_ceiling,
+    profile_bound,
+    step_latency,
+)
 from pmdcid.identify.runners import apply_stage, fit_stage, stage_mechanical
 from pmdcid.model import Model
 from pmdcid.model.lumped import mark_lumped
 from pmdcid.pipeline import _mechanical, _nonlinear
-from pmdcid.simulate import neutral_values, simulate_values
+from pmdcid.simulate import logs_for, neutral_values, simulate_values
 from pmdcid.synth import step, triangle
 
 VALS = {**neutral_values(), **LUMPED, "R": 1.0, "L": 1.0, "km": 1.0}
@@ -258,3 +264,21 @@ def test_a_lag_the_steps_leave_open_is_bounded_on_their_cost(seed):
     assert mech.lag_bound >= SLOW["L"] / SLOW["R"]
     apply_stage(mech, model)  # kept in the model file for fit-nonlinear (identify/instant.py)
     assert model.extra["fits"]["fit-mechanical"]["tau_e_bound"] == mech.lag_bound
+
+
+def test_a_lag_the_steps_cannot_bound_is_bounded_by_their_mechanics():
+    """Steps whose cost is flat along tau_e (a coreless motor under PWM discontinuous
+    conduction, bench/newrigs.py dcm-pwm seed 13) read tau_e + 2 standard errors as 9 s, and
+    identify wrote that bound into a model file that cannot hold it (exit 1 on its own model).
+    The lag a lumped model folds is its fast mode: the bound stops at the steps' mechanical
+    time constant J/bv, inside the model file's range."""
+    _, logs = logged_at_100_hz(3)
+    model = Model()
+    apply_stage(fit_stage(stage_mechanical, logs[:4], model), model)
+    use = logs_for(logs[:4], model)
+    start = {k: model.value(k) for k in ("J", "bv")}
+    both = _lag_fit(use, model, {**start, "bc": 0.1, "tau_e": 0.01, "delay": 1e-3})
+    tau_m = both.estimates["J"].value / both.estimates["bv"].value
+    assert lag_ceiling({k: e.value for k, e in both.estimates.items()}) == pytest.approx(tau_m)
+    bound = profile_bound(use, model, both, 9.0, use[0].dt)
+    assert 0.0 < bound <= min(tau_m, 1.0)
