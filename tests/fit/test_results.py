@@ -12,10 +12,12 @@ from pmdcid.fit.results import (
     Estimate,
     FitStats,
     SimFitResult,
+    bounded,
     correlations,
     nrmse,
     nrmse_text,
 )
+from pmdcid.model import Model, load_model
 
 
 def test_nrmse_of_a_measurement_that_never_changes_is_undefined(rng):
@@ -188,3 +190,17 @@ def test_a_result_without_its_logs_says_what_to_give():
     res = LinearStart.__new__(LinearStart)
     with pytest.raises(PmdcidError, match=r"give them, result.plot\(logs\)"):
         res.plot()
+
+
+def test_a_bound_wider_than_the_parameters_range_is_cut_to_it(tmp_path):
+    """A bound the logs leave wider than physics (tau_e below 9 s, a share above 1) is written
+    as the parameter's own range, which a model file can hold and load again."""
+    lag = bounded("tau_e", 0.0, 9.06, "s", "open", value=0.0)
+    share = bounded("ke_share", -0.2, 1.7, "1", "open")
+    assert lag.interval == (0.0, 1.0) and lag.value == 0.0
+    assert share.interval == (0.0, 1.0) and share.value == pytest.approx(0.5)
+    model = Model()
+    for e in (lag, share):
+        model.set_bounded(e.name, *e.interval, e.value, unit=e.unit, stage="test", caveat="x")
+    model.save(tmp_path / "m.json")
+    assert load_model(tmp_path / "m.json").parameters["tau_e"].interval == (0.0, 1.0)
