@@ -129,7 +129,10 @@ def fit_step(log, step, tau_e, km, R, sig, warns):
     # errors of the level before: a measured input's noise)
     ms.from_rest = abs(w0) <= MOVE_SIGMAS * sig and abs(step.before) <= max(
         0.02 * abs(step.after), 4 * step.before_se)
-    if abs(w_end) <= MOVE_SIGMAS * sig:
+    if abs(w_end) <= MOVE_SIGMAS * sig or step.after == 0.0:
+        # a step to no input at all coasts towards rest: no steady speed per volt to read,
+        # whether or not the log ends before the rotor stops (newrigs current-sag seed 16: a
+        # 12 -> 0 V step still at 88 rpm when the log ended divided by the level 0)
         ms.note = "did not move" if ms.from_rest else "coasts to rest"
         return ms, None
     cf1 = fit_first_order(t, w, st_w, st)
