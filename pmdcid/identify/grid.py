@@ -31,7 +31,7 @@ import numpy as np
 from pmdcid.model.lumped import kernel_values, lag_substeps
 from pmdcid.simulate import compiled, param_vector
 from pmdcid.simulate.initial import settled_start
-from pmdcid.simulate.input_grid import fine_input, parts_for
+from pmdcid.simulate.input_grid import fine_input, inner_steps, parts_for
 from pmdcid.simulate.kernel import _run_into, discretize
 from pmdcid.simulate.layout import (
     KM,
@@ -157,7 +157,7 @@ def _read_input(u: np.ndarray, dt: float, nsub: int, reading):
     latency, ramp = reading
     q = parts_for(nsub)
     fine = fine_input(u, dt, latency, ramp, q)
-    return fine, dt / q, 1, q
+    return fine, dt / q, inner_steps(nsub, q), q
 
 
 def _on_grid(meas, q: int) -> np.ndarray:

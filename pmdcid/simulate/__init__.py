@@ -54,7 +54,7 @@ def check_layout() -> None:
 check_layout()
 
 from pmdcid.simulate.initial import settled_start  # noqa: E402
-from pmdcid.simulate.input_grid import fine_input, parts_for  # noqa: E402
+from pmdcid.simulate.input_grid import fine_input, inner_steps, parts_for  # noqa: E402
 from pmdcid.simulate.kernel import run_kernel  # noqa: E402
 from pmdcid.simulate.layout import (  # noqa: E402
     I_STATE,
@@ -204,9 +204,10 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     # (0 included) runs on the fine grid, so the cost is continuous in it
     ramp = vals.get("ramp")
     if latency > 0.0 or ramp is not None:  # input_delay or a ramp reading: on a finer grid
-        q = parts_for(choose_substeps(dt, p) if nsub is None else nsub)
+        steps = choose_substeps(dt, p) if nsub is None else nsub
+        q = parts_for(steps)
         fine = fine_input(u, dt, latency, None if ramp is None else float(ramp), q)
-        x = run_kernel(fine, dt / q, p, torque_driven, 1, x0)[::q]
+        x = run_kernel(fine, dt / q, p, torque_driven, inner_steps(steps, q), x0)[::q]
     else:
         x = run_kernel(u, dt, p, torque_driven, nsub, x0, out)
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}

@@ -32,11 +32,22 @@ import numpy as np
 
 #: fewest fine intervals per sample period for a late input (resolution dt / MIN_PARTS)
 MIN_PARTS = 8
+#: most fine intervals per sample period: a stiffer model takes :func:`inner_steps` internal
+#: steps inside each (a fit that tried J near 0 on a 2 kHz ramp asked for 39019 a sample, and
+#: the fine input and its states for 8001 samples took 18 GB before the kernel ran)
+MAX_PARTS = 64
 
 
 def parts_for(nsub: int) -> int:
-    """Fine intervals per sample for a late input: at least :data:`MIN_PARTS` and ``nsub``."""
-    return max(MIN_PARTS, int(nsub))
+    """Fine intervals per sample for a late input: at least :data:`MIN_PARTS` and ``nsub``, at
+    most :data:`MAX_PARTS` (the rest as :func:`inner_steps`)."""
+    return min(max(MIN_PARTS, int(nsub)), MAX_PARTS)
+
+
+def inner_steps(nsub: int, q: int) -> int:
+    """The kernel's internal steps in each of the ``q`` fine intervals of a sample, so that its
+    steps are no longer than with ``nsub`` a sample on the held input."""
+    return max(1, -(-int(nsub) // int(q)))
 
 
 def late_input(u: np.ndarray, dt: float, latency: float, q: int) -> np.ndarray:
@@ -116,4 +127,5 @@ def _kept_bytes() -> int:
     return sum(a.nbytes + f.nbytes for a, f in list(_BUILT.values()))
 
 
-__all__ = ["MIN_PARTS", "fine_input", "late_input", "parts_for", "ramp_input"]
+__all__ = ["MAX_PARTS", "MIN_PARTS", "fine_input", "inner_steps", "late_input", "parts_for",
+           "ramp_input"]

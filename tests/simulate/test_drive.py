@@ -8,7 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pmdcid.simulate.input_grid import late_input, ramp_input
+from pmdcid.simulate import neutral_values, param_vector, simulate_values
+from pmdcid.simulate.input_grid import MAX_PARTS, inner_steps, late_input, parts_for, ramp_input
+from pmdcid.simulate.substeps import choose_substeps
 
 
 def _u(seed: int, n: int = 40) -> np.ndarray:
@@ -85,3 +87,22 @@ def test_the_fine_input_is_kept_only_while_the_log_holds_its_values():
     np.testing.assert_array_equal(again, ramp_input(u, 0.01, 0.0, 0.5, 8))
     late = fine_input(u, 0.01, 0.004, None, 8)
     np.testing.assert_array_equal(late, late_input(u, 0.01, 0.004, 8))
+
+
+def test_a_stiff_model_reads_a_late_input_on_a_bounded_grid():
+    """A fit that tries a J near 0 asks for hundreds of internal steps a sample (on a 2 kHz
+    real ramp, fra233-g04's ramp_1.csv: 39019, and the late input's fine grid and its states
+    for 8001 samples took 18 GB before the kernel ran: identify was killed). The fine grid
+    stops at MAX_PARTS a sample and the kernel takes its internal steps inside each fine
+    interval: a latency of one whole sample still shifts the simulation by exactly one sample."""
+    vals = {**neutral_values(), "R": 1.0, "L": 1e-3, "km": 0.05, "ke": 0.05, "J": 2e-7,
+            "bv": 1e-5, "bc": 0.0, "dz": 0.0}
+    dt = 1e-3
+    nsub = choose_substeps(dt, param_vector(vals))
+    assert nsub > 4 * MAX_PARTS
+    assert parts_for(nsub) == MAX_PARTS and parts_for(nsub) * inner_steps(nsub, MAX_PARTS) >= nsub
+    t = np.arange(400) * dt
+    u = 6.0 * np.sin(2 * np.pi * 5.0 * t)  # from 0: at rest before the log as in it
+    plain = simulate_values(t, u, vals).omega
+    late = simulate_values(t, u, {**vals, "latency": dt}).omega
+    np.testing.assert_allclose(late[1:], plain[:-1], atol=1e-9 * float(np.ptp(plain)))
