@@ -364,6 +364,7 @@ def simulate_file(input_path, model_path, output, mapping=None, noise=None, seed
     log.drive  # noqa: B018 - raises a clear error when neither v nor tau is present
     _say_time_unit(log, input_path)
     model = load_model(model_path)
+    _say_stiff(model, model_path)
     noise = noise or NoiseSpec()
     with bounded_for(model_path):
         t_out, cols, meta = simulated_columns(log, model, noise, seed, blocked, x0, controller)
@@ -383,6 +384,20 @@ def _say_time_unit(log, input_path) -> None:
     issue = time_unit_issue(log)
     if issue:
         warn(f"{issue}; simulated with t as it stands, in seconds", str(input_path))
+
+
+def _say_stiff(model, model_path) -> None:
+    """A warning where the model's mechanical time constant is shorter than any motor's
+    (:data:`~pmdcid.identify.plausibility.MIN_TAU_MECHANICAL`: J in a wrong unit, or a fit the
+    logs left J open in): the kernel simulates it (its internal steps are capped,
+    :data:`pmdcid.simulate.substeps.MAX_MECH_SUBSTEPS`), the rotor following its torque at once."""
+    from pmdcid.identify.plausibility import MIN_TAU_MECHANICAL, mechanical_tau
+
+    tau = mechanical_tau(model)
+    if tau < MIN_TAU_MECHANICAL:
+        warn(f"the model's mechanical time constant J/(b+km^2/R) = {tau:.3g} s is shorter than "
+             f"any motor's ({1e3 * MIN_TAU_MECHANICAL:g} ms): check J (value, unit); simulated "
+             "as it stands", str(model_path))
 
 
 def _refuse_blown_up(cols, noise, output) -> None:

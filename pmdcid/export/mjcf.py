@@ -32,7 +32,7 @@ import xml.etree.ElementTree as ET
 
 from pmdcid.export import MARKER, ExportSpec
 from pmdcid.simulate import neutral_values, param_vector
-from pmdcid.simulate.substeps import choose_substeps
+from pmdcid.simulate.substeps import max_step, substeps_for
 
 #: MuJoCo options of the exported model: implicit damping, friction made hard by the no-slip
 #: pass (measured: a stick at a reversal is held instead of creeping, docs/export.md)
@@ -71,7 +71,7 @@ def timestep(spec: ExportSpec) -> float:
     """The kernel's internal step at a 1 ms sample [s]: min(1 ms, tau_mech/50), LuGre's bound."""
     vals = dict(neutral_values(), **spec.values)
     vals.update({n: 1.0 for n in ("R", "L", "km") if not math.isfinite(vals[n])})
-    return 1e-3 / choose_substeps(1e-3, param_vector(vals))
+    return 1e-3 / substeps_for(1e-3, max_step(param_vector(vals)))
 
 
 def _on(spec: ExportSpec, *names: str) -> bool:

@@ -38,9 +38,25 @@ def bounded_for(model_path):
         raise WorkBoundError(str(exc), str(model_path)) from None
 
 
+#: most internal steps a sample the mechanical time constant asks for (:data:`STEPS_PER_TAU`):
+#: a rotor whose J/bv is under a fifth of a sample follows its torque within the sample, the
+#: kernel's linear step is exact at any length and finds each stop inside its step, so a finer
+#: step moves the sampled speed by less than a 256th of a sample's transient. Without the cap a
+#: fit that tried J near 0 on a slow ramp took minutes, or stopped on :data:`MAX_STEPS`
+#: (fra233-g04's ramp_3.csv alone, 2 kHz: 2400 steps in each of 64 parts a sample, and
+#: identify refused, blaming the time unit). The 1 ms bound and LuGre's are not capped
+MAX_MECH_SUBSTEPS = 256
+
+
 def choose_substeps(dt: float, p: np.ndarray, h_max: float | None = None) -> int:
-    """Internal steps per sample: h <= :func:`max_step` unless ``h_max`` [s] is given."""
-    return substeps_for(dt, max_step(p) if h_max is None else h_max)
+    """Internal steps per sample: h <= :func:`max_step` (its J/bv part at most
+    :data:`MAX_MECH_SUBSTEPS` a sample) unless ``h_max`` [s] is given."""
+    if h_max is not None:
+        return substeps_for(dt, h_max)
+    n = min(substeps_for(dt, max_step(p)), max(MAX_MECH_SUBSTEPS, substeps_for(dt, 1e-3)))
+    if p[SIGMA0] > 0:
+        n = max(n, substeps_for(dt, lugre_step(p)))
+    return n
 
 
 def substeps_for(dt: float, h_max: float) -> int:
@@ -104,6 +120,6 @@ def check_work(n: int, dt: float, nsub: int, p: np.ndarray) -> None:
         "or the time unit (t in ms or us? -c t=COLUMN*ms)")
 
 
-__all__ = ["LUGRE_STEPS", "MAX_STEPS", "STEPS_PER_TAU", "WorkBoundError", "bounded_for",
-           "check_work", "choose_substeps", "lugre_step", "max_step", "mechanical_damping",
-           "substeps_for"]
+__all__ = ["LUGRE_STEPS", "MAX_MECH_SUBSTEPS", "MAX_STEPS", "STEPS_PER_TAU", "WorkBoundError",
+           "bounded_for", "check_work", "choose_substeps", "lugre_step", "max_step",
+           "mechanical_damping", "substeps_for"]
