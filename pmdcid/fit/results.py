@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.fit.covariance import CovarianceInfo
-from pmdcid.model.effects import param_spec, stderr_words
+from pmdcid.model.effects import stderr_words, within_range
 from pmdcid.model.tables import in_words
 
 
@@ -257,12 +257,9 @@ def plus_minus(value: float, stderr: float, fmt: str = ".3g") -> str:
 def bounded(name: str, low: float, high: float, unit: str, caveat: str,
             value: float | None = None) -> Estimate:
     """An :class:`Estimate` the logs only bound to [low, high] (value: the point inside that
-    simulations use, default the midpoint), cut to the parameter's own range where one is
-    known (:func:`pmdcid.model.effects.param_spec`: a model file holds nothing beyond it, so a
-    bound the logs leave wider than physics is physics')."""
-    spec = param_spec(name)
-    if spec is not None:
-        low, high = max(low, min(spec.lower, 0.0)), min(high, spec.upper)
+    simulations use, default the midpoint), cut to the parameter's own range
+    (:func:`pmdcid.model.effects.within_range`)."""
+    low, high = within_range(name, low, high)
     v = 0.5 * (low + high) if value is None else value
     return Estimate(name, v, math.nan, unit, interval=(low, high), caveat=caveat)
 

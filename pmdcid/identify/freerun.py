@@ -42,6 +42,7 @@ from pmdcid.identify.plausibility import MAX_TAU_ELECTRICAL
 from pmdcid.identify.steps import held_levels
 from pmdcid.io.derive import mad_std
 from pmdcid.model import Model
+from pmdcid.model.effects import within_range
 
 STAGE = "fit-electrical"
 #: the stage name of a km written as ke (no datasheet km)
@@ -91,7 +92,8 @@ def follow_ke(model: Model, km_before: float) -> None:
             par.value *= scale
             par.stderr *= scale
             if par.interval is not None:
-                par.interval = (par.interval[0] * scale, par.interval[1] * scale)
+                par.interval = within_range(name, par.interval[0] * scale,
+                                            par.interval[1] * scale)
     model.set("km", ke.value, ke.stderr, km.unit, stage=KM_FROM_KE)
 
 

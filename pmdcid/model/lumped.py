@@ -29,7 +29,7 @@ import math
 from typing import TYPE_CHECKING
 
 from pmdcid.errors import ModelError
-from pmdcid.model.effects import unit_of
+from pmdcid.model.effects import unit_of, within_range
 
 if TYPE_CHECKING:  # annotations only: Model.to_si calls to_si here
     from pmdcid.model.params import Model
@@ -173,7 +173,7 @@ def to_si(model: Model, km: float, R: float) -> Model:
             par.value *= g
             par.stderr *= g
             if par.interval is not None:
-                par.interval = (par.interval[0] * g, par.interval[1] * g)
+                par.interval = within_range(name, par.interval[0] * g, par.interval[1] * g)
         par.unit = unit
     bv_name = "bv" if out.has("bv") else "b"
     if out.has(bv_name):
@@ -189,7 +189,8 @@ def to_si(model: Model, km: float, R: float) -> Model:
         out.set("L", tau_e.value * R, tau_e.stderr * R, "H", stage="lumped->SI (L = tau_e R)",
                 caveat=tau_e.caveat)
         if tau_e.interval is not None:
-            out.parameters["L"].interval = (tau_e.interval[0] * R, tau_e.interval[1] * R)
+            out.parameters["L"].interval = within_range("L", tau_e.interval[0] * R,
+                                                        tau_e.interval[1] * R)
     elif tau_e is not None and tau_e.interval is not None and not out.has("L"):
         # an instant current (identify/instant.py): L = 0, inside the bound the steps left
         out.set_bounded("L", 0.0, tau_e.interval[1] * R, 0.0, unit="H",

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pmdcid.errors import ModelError
-from pmdcid.model.effects import EFFECTS, param_spec, stderr_words, unit_of
+from pmdcid.model.effects import EFFECTS, param_spec, stderr_words, unit_of, within_range
 
 FORMAT_VERSION = 1
 
@@ -101,7 +101,9 @@ class Model:
         """Write ``name`` as known only to lie in [``low``, ``high``] (``value``: the point
         inside that simulations use, default the midpoint; no standard error). A value other
         data determined (:attr:`Parameter.determined`) that lies inside is kept: these logs
-        agree with it and cannot refine it. Returns whether the model changed."""
+        agree with it and cannot refine it. The interval is cut to the parameter's range
+        (:func:`pmdcid.model.effects.within_range`). Returns whether the model changed."""
+        low, high = within_range(name, low, high)
         if kept_within(self.parameters.get(name), low, high):
             return False
         v = 0.5 * (low + high) if value is None else float(value)

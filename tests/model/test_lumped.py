@@ -114,6 +114,18 @@ def test_to_si_keeps_an_instant_current_instant():
     assert np.max(np.abs(lumped_w - si_w)) < 1e-6 * np.ptp(si_w)
 
 
+def test_to_si_of_a_wide_lag_bound_on_a_high_resistance_motor_stays_in_l_range():
+    """tau_e in [0, 0.5 s] on a 40 ohm motor is L in [0, 20 H]: beyond L's range (10 H), which
+    a model file cannot hold. The interval is cut to the range (model.effects.within_range,
+    the one cut every interval written into a model takes)."""
+    m = _lumped({k: v for k, v in PER_VOLT.items() if k != "tau_e"})
+    m.set_bounded("tau_e", 0.0, 0.5, 0.0)
+    assert to_si(m, KM, 40.0).parameters["L"].interval == (0.0, 10.0)
+    lagged = _lumped(PER_VOLT)
+    lagged.parameters["tau_e"].interval = (0.0, 0.5)
+    assert to_si(lagged, KM, 40.0).parameters["L"].interval == (0.0, 10.0)
+
+
 @pytest.mark.slow  # a round trip of seconds: make test, not test-fast
 def test_lumped_round_trip_keeps_the_electrical_lag():
     """identify on voltage + speed logs (1 kHz, L/R = 3 ms, speed noise 1 rad/s of ~650):

@@ -41,6 +41,7 @@ from pmdcid.model.effects.registry import (
     register,
     stderr_words,
     unit_of,
+    within_range,
 )
 
 #: the catalogue in its registration order, which is diagnose's search order (its screen, its
@@ -53,4 +54,4 @@ for _module in CATALOGUE:
     register(_module.EFFECT)
 
 __all__ = ["CATALOGUE", "EFFECTS", "Effect", "bounds_of", "effect_param_specs", "param_spec",
-           "range_only", "stderr_words", "unit_of"]
+           "range_only", "stderr_words", "unit_of", "within_range"]

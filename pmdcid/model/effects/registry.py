@@ -107,6 +107,17 @@ def bounds_of(name: str) -> tuple[float, float]:
     return (spec.lower, spec.upper) if spec else (-math.inf, math.inf)
 
 
+def within_range(name: str, low: float, high: float) -> tuple[float, float]:
+    """[low, high] cut to ``name``'s own range (its lower bound, or 0 where that is higher,
+    to its upper; unchanged for an unknown name): what a model file can hold
+    (:func:`pmdcid.model.params.check_interval`). A bound the logs leave wider than physics is
+    physics' (a lag the steps leave open up to 9 s, an inductance bound of 1 s x R)."""
+    spec = param_spec(name)
+    if spec is None:
+        return float(low), float(high)
+    return max(float(low), min(spec.lower, 0.0)), min(float(high), spec.upper)
+
+
 def stderr_words(name: str, value: float,
                  stderr: float) -> tuple[str, tuple[float, float] | None]:
     """(words, interval) to write in place of a standard error of ``name`` that is none: one
