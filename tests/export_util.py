@@ -30,15 +30,21 @@ LATER_EXTRA = {"friction_curve": {"fcw1": 0.1, "fcw2": 0.3, "fcw3": 0.6, "fcw4":
                "lugre": {"sigma0": 5.0, "sigma1": 0.075}}  # 1 mrad presliding at bc
 
 
+#: the kinds driven by a voltage: 'instant' is 'v' with L = 0 (the current follows the voltage)
+VOLTAGE_KINDS = ("v", "instant")
+
+
 def write_model(path, kind="v", every_effect=False, later=()):
-    """A model file: 'v' (voltage), 'tau' (no R, L, km) or 'lumped' (per-volt, lumped: true);
-    ``later``: effects of :data:`LATER_EXTRA` to switch on as well."""
+    """A model file: 'v' (voltage), 'instant' (voltage, L = 0), 'tau' (no R, L, km) or 'lumped'
+    (per-volt, lumped: true); ``later``: effects of :data:`LATER_EXTRA` to switch on as well."""
     vals = dict(PAPER, **(ALL_EXTRA if every_effect else EXTRA))
     effects = ALL_EFFECTS if every_effect else EFFECTS
     for eff in later:
         vals.update(LATER_EXTRA[eff])
     effects = effects + list(later)
-    if kind != "v":
+    if kind == "instant":
+        vals["L"] = 0.0
+    if kind not in VOLTAGE_KINDS:
         for n in ("R", "L", "km", "ke", "vmax", "vb"):
             vals.pop(n, None)
         effects = [e for e in effects if e not in ("back_emf", "voltage_saturation",
@@ -66,7 +72,7 @@ def inputs(kind="v", window=(0.0, 30.0)):
 
 def reference(t, u, model, kind):
     """What pmdcid simulate predicts: (i, omega, theta) as the sensors read them."""
-    sim = simulate(t, u, model, torque_driven=kind != "v")
+    sim = simulate(t, u, model, torque_driven=kind not in VOLTAGE_KINDS)
     return np.column_stack([sim.i, sim.omega, sim.theta])
 
 

@@ -83,7 +83,8 @@ BASE_PARAMS: dict[str, ParamSpec] = {
     p.name: p
     for p in [
         ParamSpec("R", "ohm", "armature resistance", math.nan, 1e-6, 1e6),
-        ParamSpec("L", "H", "armature inductance", math.nan, 1e-9, 10.0),
+        ParamSpec("L", "H", "armature inductance (0: the current follows the voltage at once)",
+                  math.nan, 0.0, 10.0),
         ParamSpec("km", "N m/A", "torque constant", math.nan, 1e-9, 1e3),
         ParamSpec("J", "kg m^2", "rotor inertia (kg for a linear axis)", math.nan, 1e-12, 1e6),
         ParamSpec("b", "N m s/rad", "linear viscous friction, Coulomb lumped in (paper)", 0.0,

@@ -39,7 +39,7 @@ def export(tmp_path, kind, fmt="python-control", name="motor_model.py", every_ef
 @pytest.mark.parametrize("kind,every,later", [
     ("v", False, ()), ("v", True, ()), ("tau", False, ()), ("lumped", False, ()),
     ("v", True, ("friction_curve",)), ("v", True, LATER), ("tau", False, LATER),
-    ("v", True, ("lugre",)), ("lumped", False, ("lugre", "input_delay"))])
+    ("v", True, ("lugre",)), ("lumped", False, ("lugre", "input_delay")), ("instant", True, ())])
 def test_python_control_matches_simulate(tmp_path, kind, every, later):
     model, out = export(tmp_path, kind, every_effect=every, later=later)
     mod = load_module(out)

@@ -114,6 +114,21 @@ def test_to_si_keeps_an_instant_current_instant():
     assert np.max(np.abs(lumped_w - si_w)) < 1e-6 * np.ptp(si_w)
 
 
+def test_an_instant_current_si_model_is_saved_and_read_back(tmp_path):
+    """L = 0 is the instant current the kernel runs (session 34): the model file holds it, and
+    the model read back simulates the same speed (before: saving refused "L = 0 H is
+    impossible", the range started at 1e-9 H)."""
+    m = _lumped({k: v for k, v in PER_VOLT.items() if k != "tau_e"})
+    m.set_bounded("tau_e", 0.0, 5e-3, 0.0)
+    si = to_si(m, KM, R)
+    path = tmp_path / "si.json"
+    si.save(path)
+    back = Model.load(path)
+    assert back.value("L") == 0.0 and back.parameters["L"].interval == pytest.approx((0.0, 1e-2))
+    log = _logs(seed=2, noise=0.0, nsub=None)[-1]
+    assert np.array_equal(simulate_log(log, back).omega, simulate_log(log, si).omega)
+
+
 def test_to_si_of_a_wide_lag_bound_on_a_high_resistance_motor_stays_in_l_range():
     """tau_e in [0, 0.5 s] on a 40 ohm motor is L in [0, 20 H]: beyond L's range (10 H), which
     a model file cannot hold. The interval is cut to the range (model.effects.within_range,

@@ -30,7 +30,7 @@ pytestmark = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc
 
 KINDS = [("v", False, ()), ("tau", False, ()), ("lumped", False, ()),
          ("v", True, ("friction_curve", "input_delay")), ("v", True, ("lugre",)),
-         ("tau", False, ("lugre", "input_delay"))]
+         ("tau", False, ("lugre", "input_delay")), ("instant", True, ())]
 TOL = 1e-6
 
 
