@@ -402,14 +402,14 @@ def _joint_fit(res: IdentifyResult, moving, controller=None) -> None:
     (the stages' model kept, the reason noted) when it diverges again."""
     name = "joint fit (all moving logs)"
     before = res.model
-    _stage(res, name, moving, _nonlinear(False, controller))
+    _stage(res, name, moving, _nonlinear(False, controller, replaces=True))
     why = _diverged(res.model, before, moving)
     if why is None:
         return
     _undo(res, before)
     res.notes.append(f"{name}: diverged ({why}); fitted again from the stages' estimate with "
                      "their priors")
-    _stage(res, name, moving, _nonlinear(True, controller))
+    _stage(res, name, moving, _nonlinear(True, controller, replaces=True))
     again = _diverged(res.model, before, moving)
     if again is not None:
         _undo(res, before)
@@ -537,9 +537,10 @@ def _mechanical(logs, model):
     return fit_mechanical(logs, model)
 
 
-def _nonlinear(priors: bool, controller=None):
+def _nonlinear(priors: bool, controller=None, replaces: bool = False):
     def run(logs, model):
-        return stage_nonlinear(logs, model, priors=priors, controller=controller)
+        return stage_nonlinear(logs, model, priors=priors, controller=controller,
+                               replaces=replaces)
 
     return run
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 from pmdcid.errors import ModelError, PmdcidError
-from pmdcid.fit.results import Estimate
+from pmdcid.fit.results import Estimate, held_elsewhere, kept_from_elsewhere
 from pmdcid.identify.instant import (
     bounded_by_lag,
     lag_bound_of,
@@ -105,23 +105,28 @@ def stage_mechanical(logs, model, km=None):
     return fit_mechanical(logs, model, km=km)
 
 
-def stage_nonlinear(logs, model, controller=None, **opts):
+def stage_nonlinear(logs, model, controller=None, *, replaces: bool = False, **opts):
     """fit-nonlinear as the command runs it: a lumped model's logs seen as torque-driven
     (:func:`~pmdcid.simulate.logs_for`), J, bv, bc, dz free unless ``free`` says otherwise.
     Closed-loop logs (:mod:`pmdcid.identify.closedfit`): with ``controller`` (a
     :class:`~pmdcid.simulate.controller.ControllerSpec`) the loop is simulated from the logged
     reference; without, the logged output is fitted with a noise model. A lumped model whose
     lag no step tested (:func:`lag_untested`) is fitted with the lag too, the lower BIC kept
-    (:func:`_with_lag_if_better`)."""
+    (:func:`_with_lag_if_better`). ``replaces``: the logs hold every log the model's fitted
+    parameters came from (identify's joint fit), so the result replaces them as one set, a
+    parameter these logs leave undetermined included (with its words); else such a parameter
+    keeps the value other data determined and the others are fitted with it
+    (:func:`_held_where_kept`)."""
     start = _linear_start_if_needed(logs, model)
     untested = controller is None and not opts.get("free") and lag_untested(model, logs)
     bound = (steps_lag_bound(model) if controller is None and not opts.get("free")
              and not untested and lag_open(model, logs) else math.nan)
     instant = lag_bound_of(model) if controller is None and not opts.get("free") else math.nan
-    res = _fit_nonlinear(logs, model, controller, dict(opts))
+    res = _fit_nonlinear(logs, model, controller, dict(opts), replaces)
 
     def fit(work, free, local_only):  # fit-nonlinear of these logs, for identify/instant.py
-        return _fit_nonlinear(logs, work, None, {**opts, "free": free, "local_only": local_only})
+        return _fit_nonlinear(logs, work, None, {**opts, "free": free, "local_only": local_only},
+                              replaces)
 
     if untested:
         res = _with_lag_if_better(logs, model, opts, res)
@@ -131,10 +136,11 @@ def stage_nonlinear(logs, model, controller=None, **opts):
         res = bounded_by_lag(fit, model, res, instant)
     if start:
         res.warnings.insert(0, Note(start, about=["J", "bv"], severity="note"))
+    res.replaces = replaces
     return res
 
 
-def _fit_nonlinear(logs, model, controller, opts):
+def _fit_nonlinear(logs, model, controller, opts, replaces: bool = False):
     """:func:`stage_nonlinear`'s one fit of ``model`` with ``opts`` (fit-nonlinear's or the
     controller route's): a lumped model's lag and share freed where it has a lag."""
     from pmdcid.identify.closedfit import (
@@ -157,9 +163,25 @@ def _fit_nonlinear(logs, model, controller, opts):
         return fit_closed_loop(seen, model, controller, **opts)
     opts.setdefault("noise_model", noise_model_for(seen))
     res = fit_nonlinear(seen, model, **opts)
+    if not replaces:
+        res = _held_where_kept(res, model, lambda free: fit_nonlinear(seen, model,
+                                                                      **{**opts, "free": free}))
     if closed_loop_logs(seen):
         res.route = logged_output_route(seen, filters=res.fit.noise_filters)
     return res
+
+
+def _held_where_kept(res, model, refit):
+    """``res``, or where the model file would keep values other data determined beside it
+    (:func:`pmdcid.fit.results.kept_from_elsewhere`), ``refit(free)`` with those held at
+    them: the model written is then one fit's."""
+    held = kept_from_elsewhere(res.estimates, model)
+    free = [n for n, e in res.estimates.items() if e.vary and n not in held]
+    if not held or not free:
+        return res
+    out = refit(free)
+    out.estimates.update({n: held_elsewhere(model, n) for n in held})
+    return out
 
 
 #: the electrical lags a lumped fit whose lag no stage examined starts from [sample periods]
