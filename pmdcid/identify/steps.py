@@ -410,12 +410,26 @@ def held_steps(t: np.ndarray, u: np.ndarray) -> list[StepInfo]:
     u = np.asarray(u, float)
     n = len(u)
     first = steps[0]
-    head = u[:first.onset]
     du = abs(first.amplitude)
-    flat_head = len(head) > 0 and _flat(u, 0, first.onset, du, _detector(u))
+    head = first.onset - _blend_before(u, first)
+    flat_head = head > 0 and _flat(u, 0, head, du, _detector(u))
     covered = (first.onset if flat_head else 0) + sum(
         (s.end if s.end is not None else n) - s.onset for s in steps)
     return steps if covered >= HELD_FRACTION * n else []
+
+
+def _blend_before(u: np.ndarray, step: StepInfo) -> int:
+    """1 when the sample before ``step``'s onset lies strictly between its two levels (a blend
+    of them: a loop-timed log put on a uniform grid holds each row's input from its instant,
+    docs/io.md "Clocks", so the sample the change falls in averages the two), else 0. Such a
+    sample is the step's, not the level's before it: read as the level's, a step whose change
+    fell early in its sample (2.7 V, the blend 0.54 V) had no flat level before it, and the
+    log was called rich (bench/newrigs.py lego seed 23)."""
+    k = step.onset - 1
+    if k < 1:
+        return 0
+    lo, hi = sorted((step.before, step.after))
+    return int(lo < u[k] < hi)
 
 
 @dataclass

@@ -136,3 +136,17 @@ def _found_or_none(t, u):
         return find_steps(t, u, at_start=True)
     except FitError:
         return []
+
+
+@pytest.mark.parametrize("blend", [0.2, 0.5, 0.8])
+def test_a_step_whose_change_falls_inside_a_sample_is_held(blend):
+    """A loop-timed log put on a uniform grid holds each row's input from its instant: the
+    sample the change falls in is a blend of the two levels. Wherever in the sample the change
+    fell, the log is one held step (before: with the blend nearer the first level, the level
+    before the step was not flat and the log was called rich; bench/newrigs.py lego seed 23)."""
+    t = np.arange(150) * 0.01
+    u = np.r_[np.zeros(20), blend * 2.7, np.full(129, 2.7)]
+    steps = held_steps(t, u)
+    assert len(steps) == 1 and steps[0].after == pytest.approx(2.7)
+    # a ramp through the same levels is still no held step
+    assert held_steps(t, np.clip((t - 0.1) * 5.0, 0.0, 2.7)) == []
