@@ -178,7 +178,8 @@ def paper_sequence(rig: Rig, km=None):
 def _stage_into(model, logs, stage) -> set:
     """Run one stage on ``logs``, write its result into ``model``; the paths of the logs it
     used (fit-mechanical's with a step it fitted: none when it refused every step with its
-    message pointing to fit-nonlinear, which a user runs next)."""
+    message pointing to fit-nonlinear, which a user runs next; a log whose every step it left
+    out, unsettled or still, is not among them: its warning points there too)."""
     from pmdcid.errors import NoStepError
     from pmdcid.identify.runners import per_volt
     from pmdcid.model.lumped import is_lumped
@@ -190,7 +191,8 @@ def _stage_into(model, logs, stage) -> set:
     if is_lumped(model):  # per-volt units in the table, as identify's stages
         per_volt(res)
     res.apply(model)
-    return {s.path for s in getattr(res, "steps", [])} or {lg.path for lg in logs}
+    return ({s.path for s in getattr(res, "steps", []) if not s.note}
+            or {lg.path for lg in logs})
 
 
 def identify_rig(rig: Rig, diagnose: bool = True):

@@ -413,7 +413,7 @@ def _short_warnings(steps, warns) -> None:
     for s in steps:
         if s.short is not None:
             short.setdefault(s.path, []).append(s)
-    end = "the speed does not settle; refused (not used)"
+    end = f"the speed does not settle; refused (not used: {BY_SIMULATION})"
     for path, group in short.items():
         held, tau = (np.array(x) for x in zip(*(s.short for s in group), strict=True))
         if len(group) == 1:
