@@ -262,7 +262,7 @@ def identify(logs, model: Model, *, km: float | None = None, run_diagnose: bool 
         say("fit-nonlinear")
         _stage(res, "fit-nonlinear", groups["rich"], _nonlinear(priors, controller))
     say("joint fit")
-    _joint_fit(res, moving, controller)
+    _joint_fit(res, moving, model, controller)
     _require_mechanics(res, moving)
     if run_diagnose and any(name.startswith("joint") for name, _ in res.stages):
         say("diagnose")
@@ -395,26 +395,37 @@ def _staged_mech(res: IdentifyResult) -> bool:
     return _has_mech(res.model) and res.model.parameters["J"].stage != "start"
 
 
-def _joint_fit(res: IdentifyResult, moving, controller=None) -> None:
+def _joint_fit(res: IdentifyResult, moving, given: Model, controller=None) -> None:
     """The joint fit over every moving log, checked: one whose mechanical time constant the logs
     cannot have determined (beyond any motor's, or :data:`DIVERGED_DURATIONS` times the longest
     log) diverged; it runs again from the stages' estimate with their priors, and is dropped
-    (the stages' model kept, the reason noted) when it diverges again."""
+    (the stages' model kept, the reason noted) when it diverges again. It replaces what this
+    run's stages wrote (:func:`_written_here`) as one set; a value ``given`` (the model file
+    identify started from) is left where these logs do not determine it."""
     name = "joint fit (all moving logs)"
     before = res.model
-    _stage(res, name, moving, _nonlinear(False, controller, replaces=True))
+    mine = _written_here(res.model, given)
+    _stage(res, name, moving, _nonlinear(False, controller, replaces=mine))
     why = _diverged(res.model, before, moving)
     if why is None:
         return
     _undo(res, before)
     res.notes.append(f"{name}: diverged ({why}); fitted again from the stages' estimate with "
                      "their priors")
-    _stage(res, name, moving, _nonlinear(True, controller, replaces=True))
+    _stage(res, name, moving, _nonlinear(True, controller, replaces=mine))
     again = _diverged(res.model, before, moving)
     if again is not None:
         _undo(res, before)
         res.notes.append(f"{name}: diverged again ({again}): not used; the model holds the "
                          "stages' estimates")
+
+
+def _written_here(model: Model, given: Model) -> frozenset[str]:
+    """The parameters of ``model`` this identify run's stages wrote: absent from ``given``,
+    the model it started from, or changed since."""
+    return frozenset(n for n, p in model.parameters.items()
+                     if n not in given.parameters or given.parameters[n].value != p.value
+                     or given.parameters[n].stage != p.stage)
 
 
 def _undo(res: IdentifyResult, before: Model) -> None:
@@ -537,7 +548,7 @@ def _mechanical(logs, model):
     return fit_mechanical(logs, model)
 
 
-def _nonlinear(priors: bool, controller=None, replaces: bool = False):
+def _nonlinear(priors: bool, controller=None, replaces: frozenset[str] = frozenset()):
     def run(logs, model):
         return stage_nonlinear(logs, model, priors=priors, controller=controller,
                                replaces=replaces)

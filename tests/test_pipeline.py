@@ -154,7 +154,7 @@ def test_a_diverged_joint_fit_is_retried_then_dropped_never_blamed_on_units(monk
 
     calls = []
 
-    def fake(priors, controller=None, replaces=False):
+    def fake(priors, controller=None, replaces=frozenset()):
         def run(logs, model):
             calls.append(priors)
             return _Diverged()
@@ -423,6 +423,20 @@ def test_the_joint_fit_writes_its_own_set_where_it_leaves_a_parameter_undetermin
     assert ours <= linear / 2, (ours, linear)
 
 
+def test_the_joint_fit_replaces_what_the_run_wrote_not_what_it_was_given():
+    """identify's joint fit writes its own set over what this run's stages wrote; a value the
+    model file held before the run (other data) is not among them (pipeline._written_here)."""
+    import pmdcid.pipeline as pl
+
+    given = Model()
+    given.set("R", 2.0, 0.01, stage="fit-electrical")
+    given.set("J", 1e-3, 1e-5, stage="fit-nonlinear")
+    now = given.copy()
+    now.set("J", 2e-3, 1e-5, stage="fit-nonlinear")  # refitted by this run
+    now.set("bv", 1e-4, 1e-6, stage="fit-mechanical")  # new
+    assert pl._written_here(now, given) == {"J", "bv"}
+
+
 def test_a_quantised_measured_voltage_step_is_held_not_rich():
     """A 0 -> 12 V step read by a 12-bit ADC (a one-count flicker, no noise most samples): one
     held step, not an input that changes all the time."""
@@ -677,7 +691,7 @@ def test_a_stage_result_outside_physical_bounds_is_never_the_next_stages_start(m
     substep cap: minutes on a 3 s log (the red team's timeout). Such a result is skipped."""
     import pmdcid.pipeline as pl
 
-    monkeypatch.setattr(pl, "_nonlinear", lambda priors, controller=None, replaces=False:
+    monkeypatch.setattr(pl, "_nonlinear", lambda priors, controller=None, replaces=frozenset():
                         lambda logs, model: _Negative())
     res = pl.identify(_fixture_steps(), Model(), km=PAPER["km"], run_diagnose=False)
     assert any("skipped: the fit gives parameter 'J' = -0.001" in n for n in res.notes), res.notes

@@ -126,10 +126,10 @@ class NonlinearResult(ResultProtocol):
     open_loop: object = None
     #: how many starts the logs gave (the fit ran from each, this one the lowest chi-square)
     starts: int = 1
-    #: the logs held every log the model's fitted parameters came from (identify's joint fit):
-    #: :meth:`apply` writes every estimate, one these logs do not determine included
+    #: the parameters whose values in the model came from these logs (identify's joint fit):
+    #: :meth:`apply` writes their estimates, one these logs do not determine included
     #: (:func:`pmdcid.identify.runners.stage_nonlinear`)
-    replaces: bool = False
+    replaces: frozenset = frozenset()
 
     @property
     def stats(self):
@@ -153,7 +153,7 @@ class NonlinearResult(ResultProtocol):
                 continue
             if name == "tau0":
                 model.add_effect("torque_offset")
-            write_estimate(model, e, STAGE, keep=not self.replaces)
+            write_estimate(model, e, STAGE, keep=name not in self.replaces)
         fits = model.extra.setdefault("fits", {})
         r = self.bc_dz_correlation
         fits[STAGE] = {

@@ -105,16 +105,17 @@ def stage_mechanical(logs, model, km=None):
     return fit_mechanical(logs, model, km=km)
 
 
-def stage_nonlinear(logs, model, controller=None, *, replaces: bool = False, **opts):
+def stage_nonlinear(logs, model, controller=None, *, replaces: frozenset[str] = frozenset(),
+                    **opts):
     """fit-nonlinear as the command runs it: a lumped model's logs seen as torque-driven
     (:func:`~pmdcid.simulate.logs_for`), J, bv, bc, dz free unless ``free`` says otherwise.
     Closed-loop logs (:mod:`pmdcid.identify.closedfit`): with ``controller`` (a
     :class:`~pmdcid.simulate.controller.ControllerSpec`) the loop is simulated from the logged
     reference; without, the logged output is fitted with a noise model. A lumped model whose
     lag no step tested (:func:`lag_untested`) is fitted with the lag too, the lower BIC kept
-    (:func:`_with_lag_if_better`). ``replaces``: the logs hold every log the model's fitted
-    parameters came from (identify's joint fit), so the result replaces them as one set, a
-    parameter these logs leave undetermined included (with its words); else such a parameter
+    (:func:`_with_lag_if_better`). ``replaces``: the parameters whose values came from these
+    logs (identify's joint fit: its stages' on the same logs), which the result replaces as one
+    set, one these logs leave undetermined included (with its words); any other such parameter
     keeps the value other data determined and the others are fitted with it
     (:func:`_held_where_kept`)."""
     start = _linear_start_if_needed(logs, model)
@@ -140,7 +141,7 @@ def stage_nonlinear(logs, model, controller=None, *, replaces: bool = False, **o
     return res
 
 
-def _fit_nonlinear(logs, model, controller, opts, replaces: bool = False):
+def _fit_nonlinear(logs, model, controller, opts, replaces: frozenset[str] = frozenset()):
     """:func:`stage_nonlinear`'s one fit of ``model`` with ``opts`` (fit-nonlinear's or the
     controller route's): a lumped model's lag and share freed where it has a lag."""
     from pmdcid.identify.closedfit import (
@@ -163,19 +164,19 @@ def _fit_nonlinear(logs, model, controller, opts, replaces: bool = False):
         return fit_closed_loop(seen, model, controller, **opts)
     opts.setdefault("noise_model", noise_model_for(seen))
     res = fit_nonlinear(seen, model, **opts)
-    if not replaces:
-        res = _held_where_kept(res, model, lambda free: fit_nonlinear(seen, model,
-                                                                      **{**opts, "free": free}))
+    res = _held_where_kept(res, model, replaces,
+                           lambda free: fit_nonlinear(seen, model, **{**opts, "free": free}))
     if closed_loop_logs(seen):
         res.route = logged_output_route(seen, filters=res.fit.noise_filters)
     return res
 
 
-def _held_where_kept(res, model, refit):
+def _held_where_kept(res, model, replaces, refit):
     """``res``, or where the model file would keep values other data determined beside it
-    (:func:`pmdcid.fit.results.kept_from_elsewhere`), ``refit(free)`` with those held at
-    them: the model written is then one fit's."""
-    held = kept_from_elsewhere(res.estimates, model)
+    (:func:`pmdcid.fit.results.kept_from_elsewhere`; not those of ``replaces``, which came
+    from these logs), ``refit(free)`` with those held at them: the model written is then one
+    fit's."""
+    held = [n for n in kept_from_elsewhere(res.estimates, model) if n not in replaces]
     free = [n for n, e in res.estimates.items() if e.vary and n not in held]
     if not held or not free:
         return res

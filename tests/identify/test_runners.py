@@ -281,7 +281,7 @@ def test_a_value_other_data_determined_is_held_and_the_others_fitted_with_it():
         calls.append(free)
         return SimpleNamespace(estimates={"J": fitted("J", 2.0, 0.1, "V s^2/rad")})
 
-    out = _held_where_kept(SimpleNamespace(estimates=first), m, refit)
+    out = _held_where_kept(SimpleNamespace(estimates=first), m, frozenset(), refit)
     assert calls == [["J"]]
     held = out.estimates["ke_share"]
     assert (held.value, held.vary, held.caveat) == (0.9, False, HELD_ELSEWHERE)
@@ -290,8 +290,13 @@ def test_a_value_other_data_determined_is_held_and_the_others_fitted_with_it():
     assert (m.value("J"), m.value("ke_share"), m.parameters["ke_share"].stderr) == (2.0, 0.9, 0.05)
     # nothing to hold: a share the fit determined, or one no other data determined
     same = {"J": first["J"], "ke_share": fitted("ke_share", 0.3, 0.05, "1")}
-    assert _held_where_kept(SimpleNamespace(estimates=same), m, refit).estimates is same
+    assert _held_where_kept(SimpleNamespace(estimates=same), m, frozenset(),
+                            refit).estimates is same
     fresh = Model()
     fresh.set("ke_share", 1.0, stage="start")
-    assert _held_where_kept(SimpleNamespace(estimates=first), fresh, refit).estimates is first
+    assert _held_where_kept(SimpleNamespace(estimates=first), fresh, frozenset(),
+                            refit).estimates is first
+    # a share these logs gave (identify's joint fit over its stages' logs) is the fit's own
+    mine = frozenset({"ke_share"})
+    assert _held_where_kept(SimpleNamespace(estimates=first), m, mine, refit).estimates is first
     assert len(calls) == 1
