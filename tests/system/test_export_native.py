@@ -109,7 +109,8 @@ int main(void) {
 @pytest.mark.skipif(OCTAVE is None, reason="GNU Octave (octave-cli) not installed")
 @pytest.mark.parametrize("kind,every,later,only", [  # Octave is slow: the two drive paths, all
     ("v", True, (), None), ("lumped", False, ("friction_curve",), None),  # terms, the curve's
-    ("v", True, LATER, "step"), ("v", True, ("lugre",), None)])  # knots on the triangle
+    ("v", True, LATER, "step"), ("v", True, ("lugre",), None),  # knots on the triangle;
+    ("instant", True, (), "step")])  # L = 0: the current follows the voltage at once
 def test_matlab_matches_kernel_in_octave(tmp_path, kind, every, later, only):
     model = export(tmp_path, kind, every, "matlab", "motor.m", later)
     cases = [c for c in inputs(kind, OCTAVE_WINDOW) if only in (None, c[0])]
