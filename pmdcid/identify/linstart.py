@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pmdcid.errors import FitError
+from pmdcid.fit.covariance import integrated_time
 from pmdcid.fit.results import Estimate, ResultProtocol, format_estimates
 from pmdcid.io.derive import mad_std
 from pmdcid.model import Model
@@ -48,6 +49,10 @@ TURN_SIGMAS = 3.0
 MIN_ROWS = 20
 #: the longest reach of the speed's noise looked for [samples] (a firmware's moving average)
 MAX_NOISE_LAG = 16
+#: a pole this many of its standard errors above 1 is still read as 1 (no damping resolved):
+#: a rotor driven by its current has a time constant J/bv of tens of seconds, and a quantised
+#: speed puts the fitted pole 1e-3 either side of it
+UNDAMPED_SE = 2.0
 
 
 def _noise(w: np.ndarray) -> float:
@@ -175,6 +180,22 @@ def linear_start(logs, model: Model) -> LinearStart:
     raise FitError("; ".join(failed), names)
 
 
+def _instrumental(X: np.ndarray, Z: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """(the instrumental-variable solution of y ~ X with instruments Z, the standard error of
+    its first coefficient): the sandwich (Z'X)^-1 Z'Z (X'Z)^-1 times the residual's variance
+    and its integrated autocorrelation time (a quantised speed's residual is correlated)."""
+    A = Z.T @ X
+    th = np.linalg.lstsq(A, Z.T @ y, rcond=None)[0]
+    r = y - X @ th
+    try:
+        Ai = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return th, 0.0
+    var = float(r @ r) / max(len(y) - X.shape[1], 1) * integrated_time(r)
+    cov = var * (Ai @ (Z.T @ Z) @ Ai.T)
+    return th, math.sqrt(max(float(cov[0, 0]), 0.0))
+
+
 def _linear_start(logs, model: Model, source, names) -> LinearStart | str:
     """The regression with the torque from ``source``: the result, or why the fit is no stable
     first-order system (the rotor hardly turning raises: no other drive changes that)."""
@@ -189,10 +210,10 @@ def _linear_start(logs, model: Model, source, names) -> LinearStart | str:
                 "check the sign of the speed against the input")
     dt = float(np.median([p[4] for p in parts]))
     scale = np.maximum(np.sqrt(np.mean(X**2, axis=0)), 1e-300)
-    th = np.linalg.lstsq((Z / scale).T @ (X / scale), (Z / scale).T @ y, rcond=None)[0] / scale
-    a, g, gbc = th
+    th, a_se = _instrumental(X / scale, Z / scale, y)
+    a, g, gbc = th / scale
     span = max(float(lg.t[-1] - lg.t[0]) for lg in logs)
-    if not (0 < a < 1 + dt / span and g > 0):
+    if not (0 < a < 1 + max(dt / span, UNDAMPED_SE * a_se / scale[0]) and g > 0):
         return (f"the speed does not follow the drive as a first-order system (a = {a:.6g}, "
                 f"g = {g:.3g}): check the sign of the speed against the input")
     emf = float(np.median([p[3] for p in parts]))
