@@ -169,7 +169,7 @@ def block_covariance(jac: np.ndarray, resid: np.ndarray, segments, white_cov: np
         return white_cov, CovarianceInfo(block, nb, tau, short, 1.0)
     G = G - G.mean(axis=0)
     S = G.T @ G * nb / (nb - 1)
-    Hinv = np.linalg.pinv(jac.T @ jac)
+    Hinv = information_inverse(jac.T @ jac)
     cov = Hinv @ S @ Hinv
     cov = 0.5 * (cov + cov.T)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -202,7 +202,24 @@ def white_covariance(jac: np.ndarray, resid: np.ndarray, dof: int | None = None)
     columns, at least 1). Raises numpy's LinAlgError when J'J cannot be pseudo-inverted."""
     r = np.asarray(resid, float)
     dof = max(len(r) - jac.shape[1], 1) if dof is None else max(dof, 1)
-    return np.linalg.pinv(jac.T @ jac) * float(r @ r) / dof
+    return information_inverse(jac.T @ jac) * float(r @ r) / dof
+
+
+def information_inverse(H: np.ndarray) -> np.ndarray:
+    """The pseudo-inverse of ``H = J'J`` taken with its rows and columns scaled to a unit
+    diagonal (the Jacobian's columns to unit norm) and scaled back: the same matrix where
+    ``H`` is well conditioned, and no direction dropped for its parameters' units alone. Taken
+    as it stands, parameters of very different sizes (an input latency ~1e-3 s beside an
+    inductance at its floor, 1e-13 H) gave ``H`` a condition number past the pseudo-inverse's
+    cut-off, which dropped part of the latency's variance: 0.93 ms printed +- 1e-25 s, "4.6e+23
+    standard errors" (bench/newrigs.py freerun-vmeas seed 20). A zero column keeps a zero
+    variance (not determined: NaN in :func:`standard_errors`)."""
+    H = np.asarray(H, float)
+    diag = np.diag(H)
+    norms = np.sqrt(np.where(np.isfinite(diag) & (diag > 0), diag, 0.0))
+    d = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+    dd = np.outer(d, d)
+    return np.linalg.pinv(H * dd) * dd
 
 
 def correlated_covariance(jac: np.ndarray, resid: np.ndarray, segments):
@@ -301,5 +318,5 @@ def envelope_jacobian(fun, z, f0, lo, hi, rel, parallel: bool = True) -> np.ndar
 
 
 __all__ = ["CovarianceInfo", "block_covariance", "column_norms", "correlated_covariance",
-           "correlation_time", "envelope_jacobian", "finite_residual", "integrated_time",
-           "parameter_covariance", "propagated", "white_covariance"]
+           "correlation_time", "envelope_jacobian", "finite_residual", "information_inverse",
+           "integrated_time", "parameter_covariance", "propagated", "white_covariance"]

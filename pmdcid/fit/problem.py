@@ -31,6 +31,7 @@ from pmdcid.fit.covariance import (
     CovarianceInfo,
     correlated_covariance,
     envelope_jacobian,
+    information_inverse,
     standard_errors,
     white_covariance,
 )
@@ -484,7 +485,7 @@ class Problem:
         lo, hi = params.bounds()
         jm = envelope_jacobian(resid, z0, f0, lo / scale, hi / scale, rel) / scale[None, :]
         try:
-            curv = np.linalg.pinv(jm.T @ jm)
+            curv = information_inverse(jm.T @ jm)
             cov, info = correlated_covariance(jm, f0, self.segments("all"))
         except np.linalg.LinAlgError:
             return {}, None, None

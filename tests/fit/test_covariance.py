@@ -12,6 +12,7 @@ from pmdcid.fit.covariance import (
     correlation_time,
     integrated_time,
     standard_errors,
+    white_covariance,
 )
 
 
@@ -163,6 +164,30 @@ def test_covariance_scales_with_the_residual_and_the_parameters(c, s, seed):
     se, se_s = np.sqrt(np.diag(cov)), np.sqrt(np.diag(cov_s))
     np.testing.assert_allclose(se_s[1], se[1] / s, rtol=1e-8)
     np.testing.assert_allclose(se_s[[0, 2]], se[[0, 2]], rtol=1e-8)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_parameters_of_far_apart_sizes_keep_their_standard_errors(seed):
+    """Units far apart (an input latency in s beside an inductance at its 1e-13 H floor: their
+    Jacobian columns 1e12 apart) put J'J's condition number past the pseudo-inverse's cut-off;
+    taken as it stood, the small direction's variance was dropped (newrigs freerun-vmeas seed
+    20: a latency of 0.93 ms printed +- 1e-25 s, "4.6e+23 standard errors"). Each standard
+    error is the one of the same fit in balanced units, scaled by its unit, white and
+    correlated alike."""
+    rng = np.random.default_rng(seed)
+    n = 2000
+    x = rng.normal(size=n)
+    jac = np.column_stack([x + 0.3 * rng.normal(size=n), x + 0.3 * rng.normal(size=n),
+                           rng.normal(size=n)])
+    r = lfilter([1.0], [1.0, -0.5], rng.normal(size=n))
+    units = np.array([1e6, 1e-6, 1.0])
+    far = jac * units
+    se = standard_errors(white_covariance(jac, r))
+    se_far = standard_errors(white_covariance(far, r))
+    np.testing.assert_allclose(se_far * units, se, rtol=1e-6)
+    cov, _ = block_covariance(jac, r, [(0, 0, n)], np.eye(3))
+    cov_far, _ = block_covariance(far, r, [(0, 0, n)], np.eye(3))
+    np.testing.assert_allclose(standard_errors(cov_far) * units, standard_errors(cov), rtol=1e-6)
 
 
 def test_a_variance_not_positive_is_no_standard_error():
