@@ -170,6 +170,28 @@ def test_a_pair_whose_lag_a_correlated_residual_leaves_unresolved_is_not_taken()
     dbic, held = _pair(correlated, ref, delay_free, both, both_free, min_z=3.0)
     assert dbic < -10 and held == 0.0
 
+
+def test_a_pair_whose_lag_has_a_wide_correlated_error_of_its_own_is_not_taken():
+    """fra233-2025-pboon again (session 37): the largest inflation over the parameters was 7.9,
+    the lag's own correlated error 47 times its white one (3.4 ms, 1.7e-5 -> 7.9e-4 s). Widened
+    by the inflation alone it passed at 25 errors, and chirp_100000 rose 0.137 -> 0.145; by its
+    own sandwich error, 4.3: not determined, not taken."""
+    from types import SimpleNamespace
+
+    from pmdcid.diagnose.lag import _pair
+
+    delay_free, both_free = ["J", "bv", "delay"], ["J", "bv", "delay", "tau_e", "ke_share"]
+    ref = _outcome(480957.0, delay=(4e-3, 1e-5))
+    both = _outcome(470000.0, delay=(4e-3, 1e-5), tau_e=(3.4e-3, 1.7e-5))
+    run = _Run({frozenset(delay_free): 100.0, frozenset(both_free): 60.0})
+    run.correlated_stderr = lambda vals, free, rel=1e-2: (
+        {"tau_e": 7.9e-4}, SimpleNamespace(inflation=7.9))
+    dbic, held = _pair(run, ref, delay_free, both, both_free, min_z=5.0)
+    assert dbic < -10 and held == 0.0
+    run.correlated_stderr = lambda vals, free, rel=1e-2: (
+        {"tau_e": 1.0e-4}, SimpleNamespace(inflation=7.9))
+    assert _pair(run, ref, delay_free, both, both_free, min_z=5.0)[1] == pytest.approx(-40.0)
+
 def test_a_latency_of_whole_samples_yields_to_the_lag_only_where_it_fits_decisively_better():
     """The 2025 kit's case (fra233-2025-pboon: an 11 ms USB latency, a lag fitting its fit logs
     0.08 % better on a residual correlated over 236 samples; the held-out chirps rose 0.20 ->
