@@ -25,7 +25,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from pmdcid.diagnose.candidates import Candidate, effect_free, evaluate
-from pmdcid.diagnose.crosslog import Folds, speed_rise
+from pmdcid.diagnose.crosslog import Folds
 from pmdcid.diagnose.final import finalise
 from pmdcid.diagnose.folds import floor_of, holdout_plan, repeatability
 from pmdcid.diagnose.lag import lag_applies, lag_for_delay
@@ -155,17 +155,9 @@ class Run:
         return floor_of(self.floors)
 
 
-def baseline(run: Run, notes: list[str]) -> FitOutcome:
+def baseline(run: Run) -> FitOutcome:
     """The base parameters refitted on the fit part, from the model and (a model without
-    friction) from some friction, the better kept: the fair reference for every candidate;
-    R and L held where refitting them costs the speed (:func:`electrical_held`)."""
-    cur = _base_fit(run)
-    if electrical_held(run, cur, notes):
-        cur = _base_fit(run)
-    return cur
-
-
-def _base_fit(run: Run) -> FitOutcome:
+    friction) from some friction, the better kept: the fair reference for every candidate."""
     cur = run.robust_fit(run.vals0, run.base_free)
     friction = [p for p in ("bc", "dz") if p in run.base_free]
     if friction and all(run.vals0[p] < 0.01 * run.ctx0.torque_scale for p in friction):
@@ -174,31 +166,6 @@ def _base_fit(run: Run) -> FitOutcome:
         if alt.chi2["fit"] < cur.chi2["fit"]:
             cur = alt
     return cur
-
-
-def electrical_held(run: Run, cur: FitOutcome, notes: list[str]) -> bool:
-    """Hold R and L at the model's values (``run.base_free`` without them; True) where the
-    base refit ``cur``, which frees them with the current logged, raises the speed's error
-    on the very samples it was fitted to by more than the rules' ``max_rise`` over the model
-    diagnose started from. The current and the speed then disagree on what they share: the
-    simulated current's misfit comes from its input (a measured voltage's noise, its timing
-    against the current's), not from R and L, and refitting them by simulation error
-    trades the speed away for it (bench/newrigs.py freerun-vmeas seed 20: R, L refitted from
-    fit-electrical's regression, L 6.6e-5 -> 3e-7 H, the fit logs' speed error up 18 %, the
-    held-out sines' and ramps' up 3-13 % after diagnose). fit-electrical's exact regression
-    determined them: they are kept, and the notes say so."""
-    elec = [p for p in ELECTRICAL_BASE if p in run.base_free]
-    if not elec:
-        return False
-    up = speed_rise(run.problem, cur.values, run.vals0, "fit")
-    if up is None or not up > run.settings.rules.max_rise:
-        return False
-    run.base_free = [p for p in run.base_free if p not in elec]
-    notes.append(f"{', '.join(elec)} held at the model's values: refitted with the current "
-                 f"they raised the speed's error on the fitted samples by {100 * up:.0f} % "
-                 "(the current's misfit is its input's: a measured voltage's noise or "
-                 "timing), so the current does not move them")
-    return True
 
 
 def screen(run: Run, cur: FitOutcome, pool: list[str]) -> list[Screen]:
@@ -399,7 +366,7 @@ def _diagnose(logs, model, effects, settings: Settings, say, ramp=None) -> Diagn
     notes: list[str] = []
     read_slow_inputs(run, ramp, notes)
     run.folds = Folds(run)  # after the input readings: the folds share them
-    base = baseline(run, notes)
+    base = baseline(run)
     cur, added, seen, history = search(run, base, pool, notes)
     new = model.copy()
     final, free, how = final_model(run, cur, added, notes, history)

@@ -206,7 +206,7 @@ def test_final_model_keeps_only_what_it_supports(tau0, kept):
         model.set(k, truth[k])
     problem = Problem([log], plan=["split"])
     run = Run(problem, model, Settings())
-    cur = baseline(run, [])
+    cur = baseline(run)
     added, notes = ["torque_offset"], []
     final, free = finalise(run, cur, added, notes, [])
     assert (added == ["torque_offset"]) is kept, notes
