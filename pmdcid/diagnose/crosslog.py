@@ -201,19 +201,18 @@ def fold_evidence(folds: Folds, name: str, fo: FitOutcome, cur: FitOutcome, cur_
     return FoldEvidence(FoldsTest(tuple(tests)), ho, c_ref, c_cand, n_held, rise, rise_log)
 
 
-def speed_rise(prob: Problem, cand: dict[str, float], ref: dict[str, float],
-               part: str = "held") -> float | None:
-    """Relative rise of the speed error from ``ref`` to ``cand`` on ``prob``'s ``part`` (the
-    held part by default): the root of the ratio of the speed channels' chi-squares (None
-    without a speed channel there). The whole chi-square would let a better current hide a
-    worse speed (a brush drop that fitted the current of three step logs better raised every
-    log's speed error 8-11 %, bench/newrigs.py freerun-vmeas seed 2)."""
-    blocks = [(a, b) for ch, a, b in prob.blocks(part) if ch.signal == "omega"]
+def speed_rise(prob: Problem, cand: dict[str, float], ref: dict[str, float]) -> float | None:
+    """Relative rise of the held-out speed error from ``ref`` to ``cand`` on ``prob``'s held
+    part: the root of the ratio of the speed channels' chi-squares (None without a speed
+    channel there). The whole chi-square would let a better current hide a worse speed (a
+    brush drop that fitted the current of three step logs better raised every log's speed
+    error 8-11 %, bench/newrigs.py freerun-vmeas seed 2)."""
+    blocks = [(a, b) for ch, a, b in prob.blocks("held") if ch.signal == "omega"]
     if not blocks:
         return None
 
     def chi2(vals):
-        r = prob.weighted(prob.simulate_all(vals, part), part)
+        r = prob.weighted(prob.simulate_all(vals, "held"), "held")
         return sum(float(np.sum(r[a:b] ** 2)) for a, b in blocks)
 
     return math.sqrt(max(chi2(cand), 1e-300) / max(chi2(ref), 1e-300)) - 1.0
