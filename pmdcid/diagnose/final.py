@@ -49,7 +49,7 @@ def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
     """
     v = fo.values
     c = fo.chi2["all"]
-    thr = max(_two_se(problem, fo), rel * c)
+    thr = max(two_se(problem, fo), rel * c)
     top = 1.5 * max(v.get("bc", 0.0) + max(v.get("fs", 0.0), 0.0), v.get("dz", 0.0), 1e-300)
     dzs = np.linspace(0.0, top, n)
     cost = np.array([problem.chi2({**v, "dz": d})["all"] for d in dzs])
@@ -58,11 +58,11 @@ def dead_zone_range(problem: Problem, fo: FitOutcome, n: int = 13,
     return crossing_upper(dzs, cost, thr)
 
 
-def _two_se(problem: Problem, fo: FitOutcome) -> float:
-    """A chi-square rise (all data) of two standard errors at the fit ``fo``: 4 x its reduced
-    chi-square (at least 4)."""
-    c = fo.chi2["all"]
-    return 4.0 * max(c / max(problem.count("all") - len(fo.estimates), 1), 1.0)
+def two_se(problem: Problem, fo: FitOutcome, part: str = "all") -> float:
+    """A chi-square rise (on ``part``: all data, or the fitted part) of two standard errors at
+    the fit ``fo``: 4 x its reduced chi-square (at least 4)."""
+    c = fo.chi2[part]
+    return 4.0 * max(c / max(problem.count(part) - len(fo.estimates), 1), 1.0)
 
 
 def _inflation(problem: Problem, fo: FitOutcome, free: list[str]) -> float:
@@ -218,7 +218,7 @@ def _model_dead_zone(run, final: FitOutcome, free: list[str],
     others = [p for p in free if p != "dz"]
     held = run.fit({**final.values, "dz": run.vals0["dz"]}, others, "all")
     c = final.chi2["all"]
-    if held.chi2["all"] - c > _two_se(run.problem, final) * _inflation(run.problem, final,
+    if held.chi2["all"] - c > two_se(run.problem, final) * _inflation(run.problem, final,
                                                                         free) ** 2:
         return final, free
     notes.append("dz kept from the model: it fits these logs as well as a refitted one")
