@@ -96,15 +96,20 @@ def test_a_middle_that_does_not_fit_with_the_dead_zone_as_fitted_keeps_the_fit()
     assert "does not" in why and "ke_share between 0 and 1" in why
 
 
-def test_an_interval_narrower_than_the_grid_at_its_end_is_said_as_one_share():
-    """The fit at share 0.0005, the valley's cost lowest at 0 and rising 500 units by the next
-    grid share: the interval read is share 0 alone (the paper's fixtures, whose motor has no
-    back-EMF), said as such, not as "between 0 and 0"."""
+@pytest.mark.parametrize("share, shape", [(5e-4, lambda s: 1e4 * s),
+                                          (0.9999964, lambda s: 1e4 * (1.0 - s))])
+def test_a_fit_at_a_grid_share_whose_neighbours_rise_keeps_the_local_covariance(share, shape):
+    """The fit at a grid share's place (within the 0.001 the interval is read at), the
+    valley's cost rising beyond the threshold by the next grid share: the valley is narrower
+    than the grid and the local covariance stands. The grid share beside the fit used to count
+    as a side within the threshold: the interval [1, 1] and, with the share's own error read
+    on the valley, 0.99999 +- 3.6e-6 for a true 0.986 (bench/thinlogs.py
+    b2:viscous_asymmetry seed 39; the local fit's +- 0.023 covers it); at 0, the paper's
+    fixtures (no back-EMF) said "only ke_share = 0"."""
     fit, est = _fit()
-    est["ke_share"] = Estimate("ke_share", 5e-4, 0.06, "")
-    out, why = share_interval(_cost(lambda s: 1e4 * s), fit, est)
-    assert out["ke_share"].value == pytest.approx(0.0, abs=1e-3)
-    assert "only ke_share = 0 " in why and "between" not in why
+    est["ke_share"] = Estimate("ke_share", share, 0.06, "")
+    out, why = share_interval(_cost(shape), fit, est)
+    assert out == {} and why == ""
 
 
 def test_sharp_valley_keeps_the_local_covariance():
