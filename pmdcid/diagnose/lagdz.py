@@ -119,13 +119,19 @@ def refitted_line(run, final, free: list[str], shim, notes: list[str]) -> None:
     moved, why = refit_interval(refit, shim)
     if not moved:
         return
-    spread = _spread(refit, final.values, moved, final.estimates["dz"], moved["dz"])
+    was = final.estimates["dz"]
+    spread = _spread(refit, final.values, moved, was, moved["dz"])
     for k, e in moved.items():
         old = final.estimates[k]
         se = e.stderr if k == "dz" else math.hypot(old.stderr, spread.get(k, 0.0))
         final.estimates[k] = dataclasses.replace(old, stderr=max(se, old.stderr))
-    if why:
-        notes.append(why + "; the armature's lag taken by diagnose, dz read with it")
+    if why:  # the values written are the fit's: the note says so, not the interval's middle's
+        notes.append(
+            f"dz = {was.value:.5g} ± {final.estimates['dz'].stderr:.2g}: the fit's value, its "
+            "standard error a quarter of its profile-likelihood interval's width (the other "
+            "parameters refitted at each dead zone; the cost is a staircase in dz, flat between "
+            f"the dead zone's events; the interval's middle {moved['dz'].value:.5g}, the local "
+            f"fit's error {was.stderr:.2g}); the armature's lag taken by diagnose, dz read with it")
 
 
 def _spread(refit, vals, moved, old, new) -> dict[str, float]:

@@ -16,6 +16,7 @@ import pytest
 
 from bench.lawlag import per_volt, scenario
 from pmdcid.api import identify
+from pmdcid.diagnose import lagdz
 from pmdcid.diagnose.lagdz import spread_within, widen
 from pmdcid.fit.results import Estimate
 
@@ -29,6 +30,24 @@ def test_the_spread_across_a_masked_dead_zone_widens_the_others():
     assert est["J"].stderr == pytest.approx(math.sqrt(2.0))
     assert est["bc"].stderr == 0.1  # no spread: unchanged
     assert spread_within(pts[:1], ["J"]) == {}  # one point: no spread to read
+
+
+def test_the_note_on_the_refitted_profile_says_the_value_written(monkeypatch):
+    """The values written stay the fit's (refitted_line's docstring); the note said "dz = 2.0804
+    +- 0.058: the middle of its profile-likelihood interval" beside a model file holding 2.6982
+    (bench/thinlogs.py b2:viscous_asymmetry seed 39, before session 38's fix of the nudge)."""
+    from types import SimpleNamespace
+
+    moved = {"dz": Estimate("dz", 2.0804, 0.058, "V"), "J": Estimate("J", 0.0109, 4e-5, "")}
+    monkeypatch.setattr(lagdz, "refit_interval", lambda refit, shim: (moved, "dz = 2.0804 ..."))
+    monkeypatch.setattr(lagdz, "refitter", lambda run, free, vals: lambda dz, start: None)
+    est = {"dz": Estimate("dz", 2.6982, 0.05, "V"), "J": Estimate("J", 0.0108, 4e-5, "")}
+    final = SimpleNamespace(values={"dz": 2.6982, "J": 0.0108}, estimates=dict(est))
+    notes: list[str] = []
+    lagdz.refitted_line(None, final, ["J", "dz"], None, notes)
+    assert final.estimates["dz"].value == 2.6982 and final.estimates["dz"].stderr == 0.058
+    assert notes[0].startswith("dz = 2.6982 ± 0.058: the fit's value")
+    assert "the interval's middle 2.0804" in notes[0]
 
 
 @pytest.mark.slow
