@@ -177,8 +177,8 @@ def fold_refit(folds: Folds, k: tuple[int, ...], name: str, refit: dict[str, flo
     the effect, the fold's refit stopped beside them: bench/thinlogs.py d:input_delay seed 40
     (current logged, a true 20 ms input delay at 100 Hz), the fold holding out the 5 -> 15 V
     step's transient ended at 8.5 ms with L 48 mH standing in for the rest (chi-square 44816 on
-    its fitted part); from the refit's base values, 20 ms with L 2.9 mH (the truth's), and the
-    held-out step's speed error that had risen 40 % fell."""
+    its fitted part, the truth's L 1.1 mH); from the refit's base values (20 ms, L 2.9 mH) the
+    held-out step's speed error, which had risen 40 %, falls 24 %."""
     starts = [fold_start(name, refit, ref), fold_start(name, refit, refit)]
     fits = [folds.fit(k, s, free) for s in starts]
     return min(fits, key=lambda f: f.chi2["fit"])
