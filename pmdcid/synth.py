@@ -79,15 +79,16 @@ def add_noise(sim: SimResult, noise: NoiseSpec, rng: np.random.Generator) -> dic
 
 def synth_log(t, u, vals: dict[str, float], noise: NoiseSpec, rng: np.random.Generator | None,
               torque_driven: bool = False, blocked: bool = False, nsub: int | None = None,
-              x0=None, input_name: str | None = None):
+              x0=None, input_name: str | None = None, within: np.ndarray | None = None):
     """Simulate and add noise; returns (columns dict, SimResult). ``blocked`` holds the rotor;
     ``x0`` = (i, omega, theta) at ``t[0]`` (default rest); ``input_name`` names the input
-    column (default ``tau`` or ``v``; a lumped model takes ``v`` through the torque path)."""
+    column (default ``tau`` or ``v``; a lumped model takes ``v`` through the torque path);
+    ``within``: the input inside each sample (a loop-timed log's, as the fit stepped it)."""
     vals = blocked_rotor(vals) if blocked else dict(vals)
     if blocked:
         if x0 is not None:
             x0 = np.array([x0[0], 0.0, x0[2]], float)
-    sim = simulate_values(t, u, vals, torque_driven, nsub, x0)
+    sim = simulate_values(t, u, vals, torque_driven, nsub, x0, within=within)
     meas = add_noise(sim, noise, rng) if rng is not None else {
         "i": sim.i, "omega": sim.omega, "theta": sim.theta}
     cols = {(input_name or ("tau" if torque_driven else "v")): np.asarray(u, float)}
@@ -146,7 +147,8 @@ def simulated_columns(log, model: Model, noise: NoiseSpec = NoiseSpec(), seed: i
                                       torque, start_state(log, x0, vals))
         else:
             cols, _ = synth_log(log.t, log.u, vals, noise, rng if has_noise else None, torque,
-                                blocked, x0=start_state(log, x0, vals), input_name=log.drive)
+                                blocked, x0=start_state(log, x0, vals), input_name=log.drive,
+                                within=log.input_within())
     meta = {"generator": GENERATOR}
     if log.kind or blocked:  # the input's kind is the output's (io/kinds.py)
         meta["kind"] = "blocked-rotor" if blocked else canonical(log.kind)

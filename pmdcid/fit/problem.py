@@ -173,16 +173,19 @@ class FitOutcome:
 
 
 def simulate_capped(t: np.ndarray, u: np.ndarray, vals: dict[str, float], torque: bool,
-                    x0=None, upto: int | None = None) -> SimResult:
+                    x0=None, upto: int | None = None, *,
+                    within: np.ndarray | None = None) -> SimResult:
     """:func:`pmdcid.simulate.simulate_values` from ``x0`` with at most :data:`MAX_SUBSTEPS`
     internal steps per sample. ``upto``: only the first samples (the same values as the whole
-    simulation's: the kernel is causal)."""
+    simulation's: the kernel is causal); ``within``: the input inside each sample."""
     dt = float((t[-1] - t[0]) / (len(t) - 1))
     p = param_vector(vals)
     nsub = min(choose_substeps(dt, p), LUGRE_MAX_SUBSTEPS if p[SIGMA0] > 0 else MAX_SUBSTEPS)
     if upto is not None and upto < len(t):
+        if within is not None:
+            within = within[:upto * (len(within) // len(u))]
         t, u = t[:upto], u[:upto]
-    return simulate_values(t, u, vals, torque, nsub, x0, dt=dt)
+    return simulate_values(t, u, vals, torque, nsub, x0, dt=dt, within=within)
 
 
 class Problem:
@@ -301,9 +304,12 @@ class Problem:
         x0 = true_start(self.x0[k], vals) if x0 is None else x0
         if sim.simulator is not None:
             return sim.simulator(log, vals, x0)
+        within = log.input_within()
         if sim.capped:
-            return simulate_capped(log.t, log.u, vals, log.drive == "tau", x0, upto)
-        return simulate_values(log.t, log.u, vals, log.drive == "tau", sim.nsub, x0, out)
+            return simulate_capped(log.t, log.u, vals, log.drive == "tau", x0, upto,
+                                   within=within)
+        return simulate_values(log.t, log.u, vals, log.drive == "tau", sim.nsub, x0, out,
+                               within=within)
 
     def simulate_all(self, vals: dict[str, float], part: str = "all") -> list:
         """Every log simulated with ``vals``; for ``part`` 'fit' or 'held' only as far as that

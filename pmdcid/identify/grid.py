@@ -31,7 +31,7 @@ import numpy as np
 from pmdcid.model.lumped import kernel_values, lag_substeps
 from pmdcid.simulate import compiled, param_vector
 from pmdcid.simulate.initial import settled_start
-from pmdcid.simulate.input_grid import fine_input, inner_steps, parts_for
+from pmdcid.simulate.input_grid import read_input
 from pmdcid.simulate.kernel import _run_into, discretize
 from pmdcid.simulate.layout import (
     KM,
@@ -115,7 +115,9 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
         nsub = max(choose_substeps(dt, p) for p in P)
     if lag:
         nsub = max(nsub, max(lag_substeps(dt, v["L"]) for v, _ in mapped))
-    u, dt, nsub, q = _read_input(np.asarray(log.u, float), dt, nsub, _reading(vals_list[0]))
+    latency, ramp = _reading(vals_list[0]) or (0.0, None)
+    u, dt, nsub, q = read_input(np.asarray(log.u, float), dt, nsub, latency, ramp,
+                                log.input_within())
     h = dt / nsub
     Phi = np.empty((len(P), 4, 3, 3))
     Gam = np.empty((len(P), 4, 3, 3))
@@ -146,18 +148,6 @@ def _reading(vals: dict[str, float]) -> tuple[float, float | None] | None:
     if latency > 0.0 or ramp is not None:
         return latency, (None if ramp is None else float(ramp))
     return None
-
-
-def _read_input(u: np.ndarray, dt: float, nsub: int, reading):
-    """(input, its step [s], internal steps per input step, fine steps per sample q): ``u``
-    itself when held on time (q = 1), else on the fine grid as
-    :func:`pmdcid.simulate.simulate_values` builds it."""
-    if reading is None:
-        return u, dt, nsub, 1
-    latency, ramp = reading
-    q = parts_for(nsub)
-    fine = fine_input(u, dt, latency, ramp, q)
-    return fine, dt / q, inner_steps(nsub, q), q
 
 
 def _on_grid(meas, q: int) -> np.ndarray:

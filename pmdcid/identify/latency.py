@@ -77,7 +77,8 @@ def _shift_totals(use, model, kmax) -> tuple[np.ndarray, int]:
         torque = input_is_torque(lg, model)
         vals = param_values(model, torque)
         sim = measured_speed(lg, simulate_values(lg.t, lg.u, vals, torque,
-                                                 x0=initial_state(lg)))
+                                                 x0=initial_state(lg),
+                                                 within=lg.input_within()))
         meas = np.asarray(lg["omega"], float)
         if not (np.isfinite(sim).all() and np.isfinite(meas).all()):
             continue

@@ -251,6 +251,45 @@ def held_mean(t_src: np.ndarray, u: np.ndarray, grid: np.ndarray) -> np.ndarray:
     return out
 
 
+#: equal parts of each grid sample over which a loop-timed log's input is held from its own
+#: instants (:func:`within_samples`): an input edge is placed to within dt / WITHIN_PARTS. The
+#: mean over the whole sample is exact for the input's integral but not through a dead zone,
+#: which zeroes every blend of two levels below it (duty steps of 2.7 V through a 2.65 V dead
+#: zone: each start delayed by the blended edge sample, and a fit moved the dead zone there)
+WITHIN_PARTS = 16
+#: largest difference between a sample's held mean and the mean of its parts still taken as the
+#: same input [relative to the input's range]: more, the log's input was changed after reading
+WITHIN_RTOL = 1e-9
+
+
+def within_samples(res: Resampling, t: np.ndarray, u: np.ndarray,
+                   parts: int = WITHIN_PARTS) -> np.ndarray | None:
+    """A loop-timed log's input inside each sample: the input held from its logged instants
+    (``res``, file time) as the means over ``parts`` equal parts of each sample of the log's
+    grid ``t`` [s, log time: ``res.grid[0]`` at 0], length ``len(t) * parts``.
+
+    None where the samples' held means are the input already (no logged instant inside a
+    sample), or where they are not ``u`` (a log cut or changed after reading: its grid is no
+    longer the resampling's)."""
+    if len(res.inputs) != 1 or len(t) < 2:
+        return None
+    (src,) = res.inputs.values()
+    u = np.asarray(u, float)
+    n = len(t)
+    dt = float((t[-1] - t[0]) / (n - 1))
+    edges = res.grid[0] + t[0] + dt / parts * np.arange(n * parts + 1)
+    fine = held_mean(res.t_file, src, edges)[:-1]
+    fine[(n - 1) * parts:] = u[-1]  # the last sample: the value held at its instant
+    per = fine.reshape(n, parts)
+    scale = max(float(np.ptp(u)), float(np.abs(u).max()), 1e-300)
+    if not np.all(np.abs(per.mean(axis=1) - u) <= WITHIN_RTOL * scale):
+        return None
+    if np.all(np.abs(per - per[:, :1]) <= WITHIN_RTOL * scale):  # (an edge 1e-16 s off one)
+        return None
+    fine.flags.writeable = False
+    return fine
+
+
 def zoh(t_src: np.ndarray, u: np.ndarray, at: np.ndarray) -> np.ndarray:
     """The value held from the last instant of ``t_src`` at or before each of ``at`` (the first
     value before the first instant)."""

@@ -22,7 +22,10 @@ from pmdcid.io.build import (
     log_from_frame,
     validated_log,
 )
-from pmdcid.io.clock import JITTER_TOL  # noqa: F401 - the one definition, re-exported here
+from pmdcid.io.clock import (
+    JITTER_TOL,  # noqa: F401 - the one definition, re-exported here
+    within_samples,
+)
 from pmdcid.io.kinds import is_blocked
 from pmdcid.io.mapping import ColumnMap
 from pmdcid.runtime.outputs import atomic_write
@@ -61,6 +64,23 @@ class Log:
     #: canonical column -> (source column, scale, offset) when the file logged it in its own
     #: unit (``-c omega=speed_rpm*rpm``: ``("speed_rpm", 0.1047, 0.0)``): SI = raw*scale+offset
     sources: dict[str, tuple[str, float, float]] = field(default_factory=dict)
+
+    #: :meth:`input_within`'s last answer, keyed by the input array's identity and length
+    _within: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def input_within(self) -> np.ndarray | None:
+        """The input inside each sample of a loop-timed log (held from its own instants,
+        :data:`pmdcid.io.clock.WITHIN_PARTS` means per sample), which the simulation steps
+        instead of :attr:`u`; None when the samples are the input (a uniform log, or no logged
+        instant inside a sample), see :func:`pmdcid.io.clock.within_samples`."""
+        if self.resampled is None or not ({"v", "tau"} & self.data.keys()):
+            return None
+        u = self.u
+        key = (id(u), len(u), self.t[0], len(self.t))
+        if key not in self._within:
+            self._within.clear()
+            self._within[key] = within_samples(self.resampled, self.t, u)
+        return self._within[key]
 
     @property
     def dt(self) -> float:

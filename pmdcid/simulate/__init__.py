@@ -54,7 +54,7 @@ def check_layout() -> None:
 check_layout()
 
 from pmdcid.simulate.initial import settled_start  # noqa: E402
-from pmdcid.simulate.input_grid import fine_input, inner_steps, parts_for  # noqa: E402
+from pmdcid.simulate.input_grid import read_input  # noqa: E402
 from pmdcid.simulate.kernel import run_kernel  # noqa: E402
 from pmdcid.simulate.layout import (  # noqa: E402
     I_STATE,
@@ -179,7 +179,7 @@ def param_vector(vals: dict[str, float]) -> np.ndarray:
 def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
                     torque_driven: bool = False, nsub: int | None = None,
                     x0=None, out: np.ndarray | None = None, *,
-                    dt: float | None = None) -> SimResult:
+                    dt: float | None = None, within: np.ndarray | None = None) -> SimResult:
     """Simulate with parameter values ``vals`` (see :func:`param_values`) from ``x0`` =
     (i [A], omega [rad/s], theta [rad]) at ``t[0]`` (default: rest; effect states such as
     LuGre's bristle deflection start at 0 unless a full state vector is given).
@@ -188,7 +188,9 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     a caller that simulates the same log many times; the result's arrays may be views of it,
     valid until the next call with the same buffer. ``dt``: the sample period [s] (default:
     from ``t``); a caller simulating the first samples of a log passes the whole log's, so
-    that the states are bit for bit the first ones of the whole log's simulation."""
+    that the states are bit for bit the first ones of the whole log's simulation.
+    ``within``: the input inside each sample, ``len(within) // len(u)`` means per sample (a
+    loop-timed log's, :meth:`pmdcid.io.Log.input_within`), stepped instead of ``u``."""
     t = np.asarray(t, dtype=float)
     if dt is None:
         dt = float((t[-1] - t[0]) / (len(t) - 1))
@@ -203,11 +205,11 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     # the input read between samples (drive.ramp_input): when a fit reads it, every value
     # (0 included) runs on the fine grid, so the cost is continuous in it
     ramp = vals.get("ramp")
-    if latency > 0.0 or ramp is not None:  # input_delay or a ramp reading: on a finer grid
+    if latency > 0.0 or ramp is not None or within is not None:  # on a finer grid
         steps = choose_substeps(dt, p) if nsub is None else nsub
-        q = parts_for(steps)
-        fine = fine_input(u, dt, latency, None if ramp is None else float(ramp), q)
-        x = run_kernel(fine, dt / q, p, torque_driven, inner_steps(steps, q), x0)[::q]
+        fine, h, inner, q = read_input(u, dt, steps, latency,
+                                       None if ramp is None else float(ramp), within)
+        x = run_kernel(fine, h, p, torque_driven, inner, x0)[::q]
     else:
         x = run_kernel(u, dt, p, torque_driven, nsub, x0, out)
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}
@@ -219,21 +221,23 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
 
 def simulate(t: np.ndarray, u: np.ndarray, model: Model, torque_driven: bool = False,
              nsub: int | None = None, overrides: dict[str, float] | None = None,
-             x0=None) -> SimResult:
+             x0=None, *, within: np.ndarray | None = None) -> SimResult:
     """Simulate ``model`` under input ``u`` (V, or N m if ``torque_driven``; V for a lumped
-    model) at ``t``, from ``x0`` = (i, omega, theta) (default rest)."""
+    model) at ``t``, from ``x0`` = (i, omega, theta) (default rest); ``within``: see
+    :func:`simulate_values`."""
     from pmdcid.simulate.substeps import bounded_for
 
     vals = param_values(model, torque_driven, overrides)
     with bounded_for(model.path):
-        return simulate_values(t, u, vals, torque_driven, nsub, x0)
+        return simulate_values(t, u, vals, torque_driven, nsub, x0, within=within)
 
 
 def simulate_log(log, model: Model, nsub: int | None = None,
                  overrides: dict[str, float] | None = None, x0=None) -> SimResult:
     """Simulate ``model`` on a :class:`~pmdcid.io.Log`'s input column (a lumped model takes
     the voltage through the kernel's torque path, see :mod:`pmdcid.model.lumped`)."""
-    return simulate(log.t, log.u, model, input_is_torque(log, model), nsub, overrides, x0)
+    return simulate(log.t, log.u, model, input_is_torque(log, model), nsub, overrides, x0,
+                    within=log.input_within())
 
 
 def logs_for(logs, model: Model) -> list:

@@ -127,5 +127,26 @@ def _kept_bytes() -> int:
     return sum(a.nbytes + f.nbytes for a, f in list(_BUILT.values()))
 
 
+def read_input(u: np.ndarray, dt: float, nsub: int, latency: float, ramp: float | None,
+               within: np.ndarray | None = None):
+    """The input the kernel steps: (input, its step [s], internal steps per input step, fine
+    intervals per sample q; the states at every q-th step are the samples').
+
+    ``u`` itself when it is held on time (q = 1); late or read between samples, on the fine grid
+    (:func:`fine_input`); ``within``: the input inside each sample as ``len(within) // len(u)``
+    means per sample (a loop-timed log's input held from its own instants,
+    :meth:`pmdcid.io.Log.input_within`), stepped as it is, applied ``latency`` late on its own
+    grid. A ramp reading is a reading of ``u`` and takes ``u``."""
+    if within is not None and ramp is None:
+        q = len(within) // len(u)
+        if latency > 0.0:
+            within = fine_input(within, dt / q, latency, None, 1)
+        return within, dt / q, inner_steps(nsub, q), q
+    if latency <= 0.0 and ramp is None:
+        return u, dt, nsub, 1
+    q = parts_for(nsub)
+    return fine_input(u, dt, latency, ramp, q), dt / q, inner_steps(nsub, q), q
+
+
 __all__ = ["MAX_PARTS", "MIN_PARTS", "fine_input", "inner_steps", "late_input", "parts_for",
-           "ramp_input"]
+           "ramp_input", "read_input"]

@@ -40,7 +40,7 @@ def simulate_for(log, model: Model) -> SimResult:
     x0 = true_start(initial_state(log), vals)
     if blocked:
         x0[1] = 0.0
-    return simulate_values(log.t, log.u, vals, torque, x0=x0)
+    return simulate_values(log.t, log.u, vals, torque, x0=x0, within=log.input_within())
 
 
 def predicts_current(model: Model | None) -> bool:
