@@ -67,8 +67,8 @@ def micromouse(args) -> dict:
     """micromouse-pid (loop-timed, closed loop): fitted on the 1 and 10 ms controller periods,
     the 2 and 5 ms runs held out, each simulated from its logged command (bench/closedloop.py;
     the controller route's figures are printed there). 'paper' is fit-nonlinear on the logged
-    output (no steps in these logs), 'identify' the whole pipeline; logs put on a uniform grid
-    by closedloop.uniform until pmdcid.io reads loop-timed logs."""
+    output (no steps in these logs), 'identify' the whole pipeline; the logs read by pmdcid.io
+    (loop-timed: on a uniform grid, the input stepped inside its samples; docs/io.md, 'Clocks')."""
     from pmdcid.identify.runners import per_volt, stage_nonlinear
     from pmdcid.model import Model
     from pmdcid.model.lumped import mark_lumped
