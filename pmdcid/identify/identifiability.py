@@ -70,8 +70,11 @@ def hold_matters(log, J: float, bv: float) -> bool:
     period exceeds :data:`HOLD_TAU_FRACTION` of the mechanical time constant J/bv [s]: read as
     held (docs/io.md: zero-order) or as varying between samples, the input then moves the
     fitted inertia (docs/identification.md: J -63 % at 10 Hz when a continuous ramp is read as
-    held)."""
+    held). Never for a loop-timed log stepped inside its samples (:meth:`~pmdcid.io.Log.
+    input_within`): its input is known between the samples, held from each logged instant."""
     if not (J > 0 and bv > 0) or log.dt <= HOLD_TAU_FRACTION * J / bv:
+        return False
+    if log.input_within() is not None:
         return False
     du = np.diff(np.asarray(log.u, float))
     du = du[np.isfinite(du)]

@@ -8,9 +8,10 @@ from ident_util import as_log, slow_triangle
 
 from pmdcid.errors import FitError
 from pmdcid.fit.results import Estimate
-from pmdcid.identify.identifiability import poorly_determined
+from pmdcid.identify.identifiability import hold_matters, poorly_determined
 from pmdcid.identify.inverse_dynamics import fit_quasi_static
 from pmdcid.identify.nonlinear import fit_nonlinear
+from pmdcid.io import Log
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_values
 from pmdcid.synth import PAPER
@@ -84,6 +85,20 @@ def test_fit_nonlinear_starts_quasi_static_when_inverse_dynamics_fails(monkeypat
 
 
 @pytest.mark.slow  # a round trip of seconds: make test, not test-fast
+def test_a_loop_timed_input_is_known_between_its_samples(rng):
+    """A sine logged where a loop ran (4-18 ms apart), slow against J/bv: its input is held from
+    each logged instant and stepped inside the samples, so how it varied between samples is
+    not asked (hold_matters False); the same samples logged on a uniform clock are."""
+    t = np.cumsum(rng.uniform(0.004, 0.018, 300))
+    t -= t[0]
+    log = Log.from_arrays(t, v=np.sin(2 * np.pi * t), omega=0 * t)
+    assert log.resampled is not None and log.input_within() is not None
+    J, bv = 1e-4, 1e-2  # J/bv = 10 ms: a sample of ~11 ms is over a tenth of it
+    assert not hold_matters(log, J, bv)
+    uniform = Log.from_arrays(log.t, v=log.u, omega=0 * log.t)
+    assert hold_matters(uniform, J, bv)
+
+
 def test_slowly_logged_ramp_input_is_read_between_samples():
     """The triangle generated continuously and logged at 10 Hz (J/bv = 0.1 s): read as held,
     the input acts half a sample late and J absorbed the lag (-63 %, a 4 % standard error).
