@@ -115,7 +115,7 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
         nsub = max(choose_substeps(dt, p) for p in P)
     if lag:
         nsub = max(nsub, max(lag_substeps(dt, v["L"]) for v, _ in mapped))
-    latency, ramp = _reading(vals_list[0]) or (0.0, None)
+    latency, ramp = _reading(vals_list[0])
     u, dt, nsub, q = read_input(np.asarray(log.u, float), dt, nsub, latency, ramp,
                                 log.input_within())
     h = dt / nsub
@@ -140,14 +140,13 @@ def batch_cost(log, vals_list: list[dict[str, float]], sigma: dict[str, float],
               starts, bufs)
 
 
-def _reading(vals: dict[str, float]) -> tuple[float, float | None] | None:
-    """How a set reads the input between samples: (latency [s], ramp) or None (held, on
-    time)."""
+def _reading(vals: dict[str, float]) -> tuple[float, float | None]:
+    """How a set reads the input between samples: (latency [s], ramp or None for held)."""
     latency = float(vals.get("latency", 0.0)) + float(vals.get("delay", 0.0))
     ramp = vals.get("ramp")
     if latency > 0.0 or ramp is not None:
         return latency, (None if ramp is None else float(ramp))
-    return None
+    return 0.0, None
 
 
 def _on_grid(meas, q: int) -> np.ndarray:

@@ -205,13 +205,13 @@ def simulate_values(t: np.ndarray, u: np.ndarray, vals: dict[str, float],
     # the input read between samples (drive.ramp_input): when a fit reads it, every value
     # (0 included) runs on the fine grid, so the cost is continuous in it
     ramp = vals.get("ramp")
-    if latency > 0.0 or ramp is not None or within is not None:  # on a finer grid
-        steps = choose_substeps(dt, p) if nsub is None else nsub
-        fine, h, inner, q = read_input(u, dt, steps, latency,
-                                       None if ramp is None else float(ramp), within)
+    steps = choose_substeps(dt, p) if nsub is None else nsub
+    fine, h, inner, q = read_input(u, dt, steps, latency,
+                                   None if ramp is None else float(ramp), within)
+    if q == 1:  # held on time: the caller's buffer serves
+        x = run_kernel(u, dt, p, torque_driven, steps, x0, out)
+    else:  # late, read between samples, or stepped inside them: on the finer grid
         x = run_kernel(fine, h, p, torque_driven, inner, x0)[::q]
-    else:
-        x = run_kernel(u, dt, p, torque_driven, nsub, x0, out)
     sensor = {n: vals.get(n, 0.0) for n in SENSOR_NAMES}
     w, theta = x[:, OMEGA_STATE], x[:, THETA_STATE]
     om, th = apply_sensors(t, w, theta, sensor)
