@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pmdcid.diagnose.testable import ONE_WAY
+from pmdcid.diagnose.testable import why_one_way
 from pmdcid.identify.offset import OFFSET_BIC
 from pmdcid.model import EFFECTS
 
@@ -104,8 +104,9 @@ def _untested(c) -> str | None:
     if t is None:
         return None
     if getattr(t, "one_way", False):
-        return (f"{UNTESTABLE}: {ONE_WAY} (ΔBIC {c.delta_bic:+.0f} on the fit part); to test "
-                f"it, record {EFFECTS[c.effect].record or 'motion in both directions'}")
+        record = EFFECTS[c.effect].record or "motion in both directions"
+        return (f"{UNTESTABLE}: {why_one_way(c.effect)} (ΔBIC {c.delta_bic:+.0f} on the fit "
+                f"part); to test it, record {record}")
     if not t.testable:
         return (f"{UNTESTABLE}: on the data held out it changes nothing the other parameters "
                 f"could not (distinguishable χ² {t.distinct:.3g} < {t.floor:.3g}; ΔBIC "

@@ -12,7 +12,7 @@ from pmdcid.diagnose.folds import floor_of
 from pmdcid.diagnose.residuals import drift_notes, drift_problem, error_table, pooled, whiteness
 from pmdcid.diagnose.rules import UNTESTABLE
 from pmdcid.diagnose.shape import residual_shapes
-from pmdcid.diagnose.testable import ONE_WAY, one_way
+from pmdcid.diagnose.testable import one_way, why_one_way
 from pmdcid.fit.problem import FitOutcome
 from pmdcid.fit.results import ResultProtocol, write_estimate
 from pmdcid.model import EFFECTS, Model
@@ -86,7 +86,8 @@ def untestable(cands: list[Candidate], pool=(), logs=()) -> list[dict]:
     out = [{"effect": c.effect, "record": EFFECTS[c.effect].record, "reason": c.reason}
            for c in cands if c.reason.startswith(UNTESTABLE)]
     listed = {u["effect"] for u in out}
-    return out + [{"effect": e, "record": EFFECTS[e].record, "reason": f"{UNTESTABLE}: {ONE_WAY}"}
+    return out + [{"effect": e, "record": EFFECTS[e].record,
+                   "reason": f"{UNTESTABLE}: {why_one_way(e)}"}
                   for e in pool if e not in listed and one_way(e, logs)]
 
 

@@ -289,9 +289,27 @@ def both_directions(logs) -> bool:
     over ``logs``: each direction holds at least 1 % of the samples faster than 4 noise levels
     and 2 % of the 99th-percentile speed. Only then is a constant torque (tau0, the same sign
     either way) told from Coulomb friction (bc sign(omega))."""
+    pos, neg, _ = _motion_counts(logs)
+    return min(pos, neg) >= DIRECTION_SHARE * max(pos + neg, 1) and min(pos, neg) > 0
+
+
+def rests(logs) -> bool:
+    """True when at least :data:`DIRECTION_SHARE` of the samples over ``logs`` do not move
+    clearly (the speed within the threshold of :func:`both_directions`): the rotor at rest,
+    or barely turning, where a speed sensor's offset is read as it is and not as a shift of
+    the friction line. An offset beyond that threshold hides such samples among the moving
+    ones: the logs are then said not to rest (the conservative side)."""
+    pos, neg, still = _motion_counts(logs)
+    total = pos + neg + still
+    return total > 0 and still >= DIRECTION_SHARE * total
+
+
+def _motion_counts(logs) -> tuple[int, int, int]:
+    """Samples moving clearly forwards, backwards, and not clearly moving, over ``logs``
+    (the measured speed, else the angle's first difference; logs with neither skipped)."""
     from pmdcid.fit.problem import noise_level
 
-    pos = neg = 0
+    pos = neg = still = 0
     for lg in logs:
         if lg.has("omega"):
             w = np.asarray(lg["omega"], float)
@@ -305,7 +323,8 @@ def both_directions(logs) -> bool:
         thr = max(MOVING_NOISE * noise_level(w), 0.02 * float(np.percentile(np.abs(w), 99)))
         pos += int(np.sum(w > thr))
         neg += int(np.sum(w < -thr))
-    return min(pos, neg) >= DIRECTION_SHARE * max(pos + neg, 1) and min(pos, neg) > 0
+        still += int(np.sum(np.abs(w) <= thr))
+    return pos, neg, still
 
 
 def chosen_signals(logs, signals) -> tuple[tuple[str, ...], list[str]]:

@@ -18,7 +18,7 @@ from pmdcid.diagnose.folds import holdout_plan
 from pmdcid.diagnose.loop import free_base, search_pool
 from pmdcid.diagnose.residuals import context
 from pmdcid.diagnose.rules import UNTESTABLE, Rules
-from pmdcid.diagnose.testable import ONE_WAY, logs_can_test
+from pmdcid.diagnose.testable import logs_can_test, why_one_way
 from pmdcid.fit.problem import Problem
 from pmdcid.model import EFFECTS, Model
 from pmdcid.plan.effect_errors import probe_of
@@ -46,7 +46,7 @@ def effects_testable(logs, model: Model) -> list[dict]:
                           ctx.torque_scale, Rules())
     for e, t in tests.items():
         why = (f"the data held out could tell it from {_others(e)}" if t.testable else
-               f"{UNTESTABLE}: {ONE_WAY}" if t.one_way else
+               f"{UNTESTABLE}: {why_one_way(e)}" if t.one_way else
                f"{UNTESTABLE}: even an effect explaining all of the fit part's χ² would change "
                f"the data held out by {t.largest:.3g} χ² (< {t.floor:.3g}) beyond what "
                f"{_others(e)} could absorb")

@@ -152,6 +152,28 @@ def test_the_friction_line_stands_in_for_a_direction_asymmetry():
     assert line_stand_ins("quadratic_drag") == []  # its own stand-ins: Effect.interacts
 
 
+def test_a_speed_offset_needs_rest_or_both_directions():
+    """bench/lawlag.py's hobby motor, a 2-sample sensor delay, seed 2, 500 Hz, L/R 2 ms: a step
+    starting while turning and a staircase from rest that moves at once, both one way. Main at
+    ed1d562 added a speed offset of 0.28 rad/s there (the lag standing in for the delay left
+    a transient it fitted), and the held-out step to negative speeds went 0.0072 -> 0.0111.
+    On such logs the offset is the friction line's shift: not testable, and what to record is
+    said. A log that rests, or one that turns the other way, can test it."""
+    from bench.lawlag import scenario
+    from pmdcid.diagnose.testable import ONE_WAY_UNRESTING, one_way, why_one_way
+
+    fit, held, _ = scenario(2, 2.0, 500.0, "sensor_delay", "hobby")
+    up10, _, neg = held  # from rest after 0.5 s; turning backwards
+    assert one_way("speed_offset", fit)
+    assert why_one_way("speed_offset") == ONE_WAY_UNRESTING
+    assert not one_way("speed_offset", [*fit, up10])
+    assert not one_way("speed_offset", [*fit, neg])
+    # the direction effects still need both directions: rest does not tell them
+    assert one_way("torque_offset", [*fit, up10])
+    assert not one_way("torque_offset", [*fit, neg])
+    assert not one_way("quadratic_drag", fit)
+
+
 def _thin_case(case: str, seed: int):
     """bench/thinlogs.py's fit logs of ``case`` and ``seed`` as logs in SI (speed in rad/s)."""
     from bench.thinlogs import RPM, scenario

@@ -10,7 +10,7 @@ import pytest
 from ident_util import as_log
 
 from pmdcid.identify.nonlinear import fit_nonlinear
-from pmdcid.identify.nonlinear_setup import both_directions
+from pmdcid.identify.nonlinear_setup import both_directions, rests
 from pmdcid.identify.offset import offset_bic, offset_evident
 from pmdcid.model import Model
 from pmdcid.simulate import neutral_values, simulate_values
@@ -55,6 +55,17 @@ def test_both_directions(rng):
     rest = as_log("rest", np.arange(400) / 100.0, {"tau": np.zeros(400),
                                                    "omega": rng.normal(0, 1.0, 400)})
     assert not both_directions(one_way(vals, rng) + [rest])
+
+
+def test_rests(rng):
+    vals = rig(rng)
+    # a step that starts turning never rests; one from rest after half a second does (1/8 of
+    # its samples), and so does a log held at rest beside a turning one
+    assert not rests(one_way(vals, rng))
+    assert rests([step_log("from_rest", vals, [(0.5, 0.1)], rng)])
+    rest = as_log("rest", np.arange(400) / 100.0, {"tau": np.zeros(400),
+                                                   "omega": rng.normal(0, 1.0, 400)})
+    assert rests(one_way(vals, rng) + [rest])
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
