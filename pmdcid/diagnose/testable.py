@@ -162,8 +162,9 @@ ONE_WAY = ("the logs turn one way only: there a direction-dependent friction is 
 
 #: why a speed sensor's offset is not testable on logs that turn one way and never rest
 ONE_WAY_UNRESTING = ("the logs turn one way only and never rest: there a speed sensor's offset "
-                     "is a shift of the friction line (bc / bv' at a steady speed, the rest "
-                     "within a transient), and only rest or motion both ways tells it from it")
+                     "is a shift of the friction line (bc by bv' omega0 at a steady speed; "
+                     "what is left of it lies in the transients), and only the rotor at rest "
+                     "or turning the other way tells the two apart")
 #: effects the friction line stands in for on logs that turn one way, unless they rest (a speed
 #: sensor's offset is read as it is where the rotor stands still)
 TOLD_AT_REST = ("speed_offset",)
