@@ -289,8 +289,7 @@ def both_directions(logs) -> bool:
     over ``logs``: each direction holds at least 1 % of the samples faster than 4 noise levels
     and 2 % of the 99th-percentile speed. Only then is a constant torque (tau0, the same sign
     either way) told from Coulomb friction (bc sign(omega))."""
-    pos, neg, _ = _motion_counts(logs)
-    return min(pos, neg) >= DIRECTION_SHARE * max(pos + neg, 1) and min(pos, neg) > 0
+    return _both_ways(*_motion_counts(logs))
 
 
 def rests(logs) -> bool:
@@ -299,7 +298,20 @@ def rests(logs) -> bool:
     or barely turning, where a speed sensor's offset is read as it is and not as a shift of
     the friction line. An offset beyond that threshold hides such samples among the moving
     ones: the logs are then said not to rest (the conservative side)."""
-    pos, neg, still = _motion_counts(logs)
+    return _rests(*_motion_counts(logs))
+
+
+def rests_or_both_ways(logs) -> bool:
+    """:func:`rests` or :func:`both_directions`, the samples counted once."""
+    counts = _motion_counts(logs)
+    return _rests(*counts) or _both_ways(*counts)
+
+
+def _both_ways(pos: int, neg: int, still: int) -> bool:
+    return min(pos, neg) >= DIRECTION_SHARE * max(pos + neg, 1) and min(pos, neg) > 0
+
+
+def _rests(pos: int, neg: int, still: int) -> bool:
     total = pos + neg + still
     return total > 0 and still >= DIRECTION_SHARE * total
 
