@@ -180,10 +180,11 @@ def one_way(effect: str, logs) -> bool:
     (plan --check called viscous_asymmetry testable on a one-way staircase at 1684 chi-square
     against a floor of 81). A speed sensor's offset (:data:`TOLD_AT_REST`) likewise where the
     logs also never rest (:func:`~pmdcid.identify.nonlinear_setup.rests_or_both_ways`): at a
-    steady speed it is bc's shift by bv' omega0, and what is left in the transients is what a lag or a delay
-    the model folds leaves there too (bench/lawlag.py's hobby motor with a 2-sample sensor delay,
-    seed 2, 500 Hz, L/R 2 ms: an offset of 0.28 rad/s added on a step and a staircase that turn
-    one way, the held-out step to negative speeds 0.0072 -> 0.0111)."""
+    steady speed it is bc's shift by bv' omega0, and what is left in the transients is what a
+    lag or a delay the model folds leaves there too (bench/lawlag.py's hobby motor with a
+    2-sample sensor delay, seed 2, 500 Hz, L/R 2 ms: an offset of 0.28 rad/s added on a step
+    and a staircase that turn one way, the held-out step to negative speeds 0.0072 ->
+    0.0111)."""
     if effect in TOLD_AT_REST:
         return not rests_or_both_ways(logs)
     return bool(line_stand_ins(effect)) and not both_directions(logs)
